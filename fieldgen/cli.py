@@ -1,0 +1,190 @@
+"""The `fieldgen` command line: validate, build, render, list, schema, bench."""
+
+from __future__ import annotations
+
+import json
+from collections import Counter
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+from rich.console import Console
+from rich.table import Table
+
+from fieldgen.schema import SpecError, bundled_fields, load_spec, resolve_spec_path
+
+app = typer.Typer(
+    help="Robot-soccer fields from YAML specs, compiled to GPU-batched MJX environments.",
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+    add_completion=False,
+)
+out = Console()
+err = Console(stderr=True)
+
+SpecArg = Annotated[str, typer.Argument(help="a YAML file, a bundled field name, or (render, bench) a build directory")]
+
+
+def _fail(message: str) -> None:
+    err.print(f"[bold red]error:[/] {message}", highlight=False)
+    raise typer.Exit(1)
+
+
+def _spec_path(ref: str) -> Path:
+    path = resolve_spec_path(ref)
+    if not path.exists():
+        names = ", ".join(bundled_fields())
+        _fail(f"'{ref}' is neither a file nor a bundled field ({names})")
+    return path
+
+
+@app.command()
+def validate(specs: Annotated[list[str], typer.Argument(help="YAML files or bundled field names")]) -> None:
+    """Check field specs and report every problem with file:line:column and key path.
+
+    Example: fieldgen validate fields/soccer_v2.yaml my_field.yaml
+    """
+    failed = 0
+    for ref in specs:
+        try:
+            spec = load_spec(_spec_path(ref))
+        except SpecError as exc:
+            failed += 1
+            err.print(str(exc), highlight=False)
+            continue
+        out.print(f"[green]ok[/] {ref}: {spec.name}")
+    if failed:
+        raise typer.Exit(1)
+
+
+@app.command()
+def build(
+    specs: Annotated[list[str], typer.Argument(help="YAML files or bundled field names")],
+    out_dir: Annotated[Path, typer.Option("--out", help="where build/<name>/ folders go")] = Path("build"),
+    force: Annotated[bool, typer.Option(help="rebuild even when the build is current")] = False,
+    preview: Annotated[bool, typer.Option(help="render preview.png")] = True,
+) -> None:
+    """Compile specs to build/<name>/: scene.xml, field.json and preview.png.
+
+    A build whose inputs are unchanged is reused (cache hit).
+    Example: fieldgen build fields/soccer_v2.yaml --out build
+    """
+    from fieldgen.compile.build import build as run_build
+
+    failed = 0
+    for ref in specs:
+        try:
+            result = run_build(_spec_path(ref), out_dir, preview=preview, force=force)
+        except SpecError as exc:
+            failed += 1
+            err.print(str(exc), highlight=False)
+            continue
+        _report(result)
+    if failed:
+        raise typer.Exit(1)
+
+
+def _report(result) -> None:
+    meta = result.artifact.metadata()
+    model = result.artifact.model()
+    state = "[yellow]cache hit[/]" if result.cache_hit else "[green]built[/]"
+    out.print(f"{state} [bold]{meta['name']}[/] -> {result.out_dir}/  ({result.seconds:.2f} s, hash {meta['hash']})")
+    table = Table(show_header=False, box=None, padding=(0, 2))
+    table.add_row("model", f"{model.nbody} bodies, {model.ngeom} geoms, nq {model.nq}, nv {model.nv}, nu {model.nu}")
+    slices = ", ".join(f"{k} {a}:{b}" for k, a, b in ((k, *v) for k, v in meta["observation"]["slices"].items()))
+    table.add_row("observation", f"{meta['observation']['size']} = {slices}")
+    table.add_row("goal", f"state_dim {meta['state_dim']}, goal_indices {meta['goal_indices']}")
+    table.add_row("task", f"success {meta['success']['kind']}; reward "
+                  + " + ".join(f"{t['weight']:g}*{t['term']}" for t in meta["reward"]))
+    pairs = meta["contact_pairs"]
+    kinds = Counter(" - ".join(sorted(_role(g) for g in p)) for p in pairs)
+    table.add_row("contact pairs", f"{len(pairs)}: " + ", ".join(f"{k} x{n}" for k, n in sorted(kinds.items())))
+    out.print(table)
+
+
+def _role(geom: str) -> str:
+    for prefix in ("wall", "obstacle", "post", "crossbar"):
+        if geom.startswith(prefix):
+            return "goal frame" if prefix == "crossbar" else prefix
+    return "foot" if geom.endswith("_foot") else geom
+
+
+@app.command()
+def render(
+    spec: SpecArg,
+    output: Annotated[Path, typer.Option("-o", "--output", help="PNG file to write")] = Path("field.png"),
+    camera: Annotated[str, typer.Option(help="top, follow, or both (side by side)")] = "top",
+) -> None:
+    """Render a field to a PNG, headless.
+
+    Example: fieldgen render fields/soccer_v2.yaml -o v2.png --camera follow
+    """
+    from fieldgen.compile.artifact import ArtifactError, compile_spec, load_artifact, write_atomic
+    from fieldgen.render import CAMERAS, png_bytes, preview, render_pose
+
+    if camera not in CAMERAS + ("both",):
+        _fail(f"unknown camera '{camera}'; choose one of: {', '.join(CAMERAS)}, both")
+    try:
+        path = Path(spec)
+        artifact = load_artifact(path) if path.is_dir() else compile_spec(load_spec(_spec_path(spec)))
+    except (SpecError, ArtifactError) as exc:
+        _fail(str(exc))
+    model = artifact.model()
+    image = preview(model) if camera == "both" else render_pose(model, camera=camera)
+    write_atomic(output, png_bytes(image))
+    out.print(f"wrote {output} ({image.shape[1]}x{image.shape[0]}, camera {camera})")
+
+
+@app.command("list")
+def list_fields() -> None:
+    """List the bundled fields, one line each.
+
+    Example: fieldgen list
+    """
+    table = Table("name", "description", box=None)
+    for name, path in bundled_fields().items():
+        try:
+            table.add_row(name, load_spec(path).description)
+        except SpecError as exc:
+            table.add_row(name, f"[red]invalid: {exc.problems[0].message}[/]")
+    out.print(table)
+
+
+@app.command()
+def schema() -> None:
+    """Print the JSON Schema of a field spec, for editors that check YAML as it is typed.
+
+    Example: fieldgen schema > fieldgen.schema.json
+    """
+    from fieldgen.schema import FieldSpec
+
+    print(json.dumps(FieldSpec.model_json_schema(), indent=1))
+
+
+@app.command()
+def bench(
+    spec: SpecArg,
+    envs: Annotated[Optional[list[int]], typer.Option("--envs", help="batch sizes; repeat the option")] = None,
+    steps: Annotated[int, typer.Option(help="steps per timed rollout")] = 200,
+) -> None:
+    """Measure env-steps per second of a field at several batch sizes (random actions, lax.scan).
+
+    Example: fieldgen bench fields/soccer_v2.yaml --envs 1024 --envs 8192
+    """
+    import fieldgen
+    from fieldgen.compile.artifact import ArtifactError
+    from fieldgen.throughput import measure
+
+    try:
+        env = fieldgen.make(spec if Path(spec).is_dir() else _spec_path(spec))
+    except (SpecError, ArtifactError) as exc:
+        _fail(str(exc))
+    table = Table("envs", "steps/s", "seconds per rollout", title=f"{env.spec.name}, {steps}-step rollouts")
+    for n in envs or [64]:
+        result = measure(env, n, steps)
+        table.add_row(str(n), f"{result.steps_per_second:,.0f}", f"{result.seconds:.3f}")
+    out.print(table)
+
+
+if __name__ == "__main__":
+    app()

@@ -1,0 +1,1 @@
+"""FieldSpec -> MJCF scene -> built artifact; FieldSpec -> reward and success functions."""

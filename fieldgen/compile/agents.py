@@ -1,0 +1,95 @@
+"""Agents built in code with dm_control.mjcf: the ant quadruped and a planar point.
+
+Each builder adds the agent to a scene and returns its home pose, so the
+environment resets from the same pose the scene's `home` keyframe records.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from dm_control import mjcf
+
+from fieldgen.compile.contacts import bits
+from fieldgen.schema.geometry import POINT_RADIUS
+from fieldgen.schema.models import FieldSpec
+
+AGENT_RGBA = (0.85, 0.55, 0.25, 1.0)
+
+
+@dataclass(frozen=True)
+class AgentBuild:
+    root: str  # name of the body whose position is the agent's position
+    home_qpos: tuple[float, ...]
+    nq: int
+    nv: int
+
+
+# The ant's legs: (name, hip direction in the xy plane, ankle axis, ankle range, home ankle angle).
+_LEGS = (
+    ("front_left", (1, 1), (-1, 1, 0), (30, 70), 1.0),
+    ("front_right", (-1, 1), (1, 1, 0), (-70, -30), -1.0),
+    ("back_left", (-1, -1), (-1, 1, 0), (-70, -30), -1.0),
+    ("back_right", (1, -1), (1, 1, 0), (30, 70), 1.0),
+)
+# Actuator order of the study's ant (and brax's): back_right, front_left, front_right, back_left.
+_MOTOR_ORDER = (3, 0, 1, 2)
+
+
+def build_ant(root: mjcf.RootElement, spec: FieldSpec) -> AgentBuild:
+    """The standard ant: sphere torso r 0.25, capsule legs r 0.08, 8 motors."""
+    gear = spec.agent.gear or 150.0
+    sx, sy = spec.agent.start
+    torso = root.worldbody.add("body", name="torso", pos=(sx, sy, 0.75))
+    torso.add("freejoint", name="root")
+    ct, ca = bits("torso", spec)
+    torso.add("geom", name="torso", type="sphere", size=(0.25,), contype=ct, conaffinity=ca, rgba=AGENT_RGBA)
+    torso.add("camera", name="follow", mode="trackcom", pos=(0, -6, 4), xyaxes=(1, 0, 0, 0, 0.55, 0.83))
+    foot_ct, foot_ca = bits("foot", spec)
+    home = [sx, sy, 0.55, 1.0, 0.0, 0.0, 0.0]
+    for name, (dx, dy), ankle_axis, ankle_range, ankle_home in _LEGS:
+        d1, d2 = (0.2 * dx, 0.2 * dy, 0.0), (0.4 * dx, 0.4 * dy, 0.0)
+        leg = torso.add("body", name=f"{name}_leg")
+        leg.add("geom", name=f"{name}_aux", type="capsule", fromto=(0, 0, 0) + d1, size=(0.08,), **_inert())
+        thigh = leg.add("body", name=f"{name}_thigh", pos=d1)
+        thigh.add("joint", name=f"{name}_hip", type="hinge", axis=(0, 0, 1), range=(-30, 30), **_joint())
+        thigh.add("geom", name=f"{name}_thigh", type="capsule", fromto=(0, 0, 0) + d1, size=(0.08,), **_inert())
+        shin = thigh.add("body", name=f"{name}_shin", pos=d1)
+        shin.add("joint", name=f"{name}_ankle", type="hinge", axis=ankle_axis, range=ankle_range, **_joint())
+        shin.add("geom", name=f"{name}_shin", type="capsule", fromto=(0, 0, 0) + d2, size=(0.08,), **_inert())
+        shin.add("geom", name=f"{name}_foot", type="sphere", size=(0.08,), pos=d2, mass=0,
+                 contype=foot_ct, conaffinity=foot_ca, rgba=AGENT_RGBA)
+        home += [0.0, ankle_home]
+    for i in _MOTOR_ORDER:
+        leg = _LEGS[i][0]
+        for joint in ("hip", "ankle"):
+            root.actuator.add("motor", name=f"{leg}_{joint}", joint=f"{leg}_{joint}", gear=(gear,),
+                              ctrllimited=True, ctrlrange=(-1, 1))
+    return AgentBuild(root="torso", home_qpos=tuple(home), nq=15, nv=14)
+
+
+def build_point(root: mjcf.RootElement, spec: FieldSpec) -> AgentBuild:
+    """A 1 kg sphere on x/y slides with two motors: fast to simulate, easy to learn."""
+    gear = spec.agent.gear or 10.0
+    body = root.worldbody.add("body", name="agent", pos=(0, 0, POINT_RADIUS))
+    for axis, vec in (("x", (1, 0, 0)), ("y", (0, 1, 0))):
+        body.add("joint", name=f"agent_{axis}", type="slide", axis=vec, limited=False, damping=5.0, armature=0.0)
+    ct, ca = bits("torso", spec)
+    body.add("geom", name="agent", type="sphere", size=(POINT_RADIUS,), mass=1.0, contype=ct, conaffinity=ca,
+             rgba=AGENT_RGBA)
+    body.add("camera", name="follow", mode="trackcom", pos=(0, -6, 4), xyaxes=(1, 0, 0, 0, 0.55, 0.83))
+    for axis in ("x", "y"):
+        root.actuator.add("motor", name=f"agent_{axis}", joint=f"agent_{axis}", gear=(gear,),
+                          ctrllimited=True, ctrlrange=(-1, 1))
+    return AgentBuild(root="agent", home_qpos=tuple(spec.agent.start), nq=2, nv=2)
+
+
+BUILDERS = {"ant": build_ant, "point": build_point}
+
+
+def _inert() -> dict:
+    return {"contype": 0, "conaffinity": 0, "rgba": AGENT_RGBA}
+
+
+def _joint() -> dict:
+    return {"armature": 1.0, "damping": 1.0, "limited": True}

@@ -1,0 +1,124 @@
+"""The built artifact: scene.xml + field.json (+ preview.png) in build/<name>/.
+
+Loading an artifact needs mujoco and pydantic only, never dm_control, so a
+machine without dm_control can run fields built elsewhere. Files are written
+to a temporary name and renamed into place; field.json goes last and carries
+the input hash, so a half-written build is never mistaken for a cache hit.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import mujoco
+
+from fieldgen import __version__
+from fieldgen.compile.contacts import candidate_pairs
+from fieldgen.compile.layout import Layout, observation_layout
+from fieldgen.schema.models import FieldSpec
+
+# Bump when the compiler's output changes for the same spec.
+COMPILER_REVISION = 1
+SCENE, META, PREVIEW = "scene.xml", "field.json", "preview.png"
+
+
+class ArtifactError(Exception):
+    """A build directory that is missing, incomplete or from an incompatible version."""
+
+
+@dataclass(frozen=True)
+class Artifact:
+    spec: FieldSpec
+    xml: str
+    hash: str
+
+    def model(self) -> mujoco.MjModel:
+        return mujoco.MjModel.from_xml_string(self.xml)
+
+    def metadata(self) -> dict:
+        model = self.model()
+        layout: Layout = observation_layout(self.spec, model)
+        pairs = candidate_pairs(model)
+        return {
+            "fieldgen_version": __version__,
+            "compiler_revision": COMPILER_REVISION,
+            "hash": self.hash,
+            "name": self.spec.name,
+            "observation": layout.to_json(),
+            "state_dim": layout.state_dim,
+            "goal_indices": list(layout.goal_indices),
+            "action_size": int(model.nu),
+            "episode_length": self.spec.episode.length,
+            "reward": [t.model_dump(exclude_none=True) for t in self.spec.task.reward],
+            "success": self.spec.task.success.model_dump(),
+            "contact_pairs": [list(p) for p in pairs],
+            "spec": self.spec.model_dump(mode="json"),
+        }
+
+
+def spec_hash(spec: FieldSpec) -> str:
+    """Content hash of the resolved spec and the compiler that reads it."""
+    canonical = json.dumps(spec.model_dump(mode="json"), sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(f"fieldgen-compiler-{COMPILER_REVISION}\n{canonical}".encode()).hexdigest()[:16]
+
+
+def compile_spec(spec: FieldSpec) -> Artifact:
+    """Spec -> MJCF via dm_control.mjcf (imported here: only building needs it)."""
+    from fieldgen.compile.scene import build_scene
+
+    root, _ = build_scene(spec)
+    return Artifact(spec, root.to_xml_string(), spec_hash(spec))
+
+
+def is_current(out_dir: Path, digest: str) -> bool:
+    try:
+        meta = json.loads((out_dir / META).read_text())
+    except (OSError, ValueError):
+        return False
+    return meta.get("hash") == digest and (out_dir / SCENE).is_file()
+
+
+def write_artifact(artifact: Artifact, out_dir: Path, preview: bytes | None = None) -> None:
+    out_dir.mkdir(parents=True, exist_ok=True)
+    write_atomic(out_dir / SCENE, artifact.xml.encode())
+    if preview is not None:
+        write_atomic(out_dir / PREVIEW, preview)
+    write_atomic(out_dir / META, (json.dumps(artifact.metadata(), indent=1) + "\n").encode())
+
+
+def load_artifact(out_dir: str | Path) -> Artifact:
+    out_dir = Path(out_dir)
+    try:
+        meta = json.loads((out_dir / META).read_text())
+        xml = (out_dir / SCENE).read_text()
+    except FileNotFoundError as exc:
+        raise ArtifactError(f"{out_dir} is not a built field: {Path(exc.filename).name} is missing; "
+                            "run `fieldgen build` on its spec") from None
+    except ValueError as exc:
+        raise ArtifactError(f"{out_dir / META} is not valid JSON ({exc}); rebuild the field") from None
+    if meta.get("compiler_revision") != COMPILER_REVISION:
+        raise ArtifactError(f"{out_dir} was built by compiler revision {meta.get('compiler_revision')}, "
+                            f"this fieldgen reads revision {COMPILER_REVISION}; rebuild the field")
+    return Artifact(FieldSpec.model_validate(meta["spec"]), xml, meta["hash"])
+
+
+def write_atomic(path: Path, data: bytes) -> None:
+    """Write to a temporary file beside `path`, then rename it over `path`."""
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    umask = os.umask(0)
+    os.umask(umask)
+    try:
+        os.fchmod(fd, 0o666 & ~umask)  # mkstemp's 0600 would hide builds from other users
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise

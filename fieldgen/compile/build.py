@@ -1,0 +1,36 @@
+"""`fieldgen build`: spec file -> build/<name>/, reusing a current build (cache hit by hash)."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from fieldgen.compile.artifact import Artifact, compile_spec, is_current, load_artifact, spec_hash, write_artifact
+from fieldgen.schema import load_spec
+
+DEFAULT_OUT = Path("build")
+
+
+@dataclass(frozen=True)
+class BuildResult:
+    out_dir: Path
+    artifact: Artifact
+    cache_hit: bool
+    seconds: float
+
+
+def build(spec_path: str | Path, out_root: Path = DEFAULT_OUT, preview: bool = True, force: bool = False) -> BuildResult:
+    start = time.perf_counter()
+    spec = load_spec(spec_path)
+    out_dir = out_root / spec.name
+    if not force and is_current(out_dir, spec_hash(spec)):
+        return BuildResult(out_dir, load_artifact(out_dir), True, time.perf_counter() - start)
+    artifact = compile_spec(spec)
+    image = None
+    if preview:
+        from fieldgen.render import png_bytes, preview as render_preview
+
+        image = png_bytes(render_preview(artifact.model()))
+    write_artifact(artifact, out_dir, image)
+    return BuildResult(out_dir, artifact, False, time.perf_counter() - start)

@@ -1,0 +1,83 @@
+"""The observation layout: named slices of the observation vector, found by joint name.
+
+obs = [agent qpos, agent qvel, ball position, (ball velocity), goal]. The first
+part is the state (state_dim); `goal_indices` says which state entries the goal
+is compared with: the ball's x, y for ball tasks, the agent's x, y otherwise.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from fieldgen.schema.models import FieldSpec
+
+AGENT_JOINTS = {
+    "ant": ("root",) + tuple(f"{leg}_{j}" for leg in ("front_left", "front_right", "back_left", "back_right")
+                             for j in ("hip", "ankle")),
+    "point": ("agent_x", "agent_y"),
+}
+
+
+@dataclass(frozen=True)
+class Layout:
+    slices: dict[str, tuple[int, int]]  # name -> [start, stop) in the observation
+    agent_qpos: np.ndarray  # qpos addresses read into the observation
+    agent_qvel: np.ndarray
+    ball_qpos: np.ndarray  # x, y (planar) or x, y, z (free); empty without a ball
+    ball_qvel: np.ndarray  # empty unless observation.ball_velocity
+    state_dim: int
+    goal_indices: tuple[int, ...]
+
+    @property
+    def size(self) -> int:
+        return self.state_dim + 2
+
+    def to_json(self) -> dict:
+        return {
+            "slices": {k: list(v) for k, v in self.slices.items()},
+            "state_dim": self.state_dim,
+            "goal_indices": list(self.goal_indices),
+            "size": self.size,
+        }
+
+
+def _addresses(model: mujoco.MjModel, joints: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
+    qpos, qvel = [], []
+    widths = {mujoco.mjtJoint.mjJNT_FREE: (7, 6), mujoco.mjtJoint.mjJNT_BALL: (4, 3)}
+    for name in joints:
+        j = model.joint(name)
+        nq, nv = widths.get(int(j.type[0]), (1, 1))
+        qpos += range(int(j.qposadr[0]), int(j.qposadr[0]) + nq)
+        qvel += range(int(j.dofadr[0]), int(j.dofadr[0]) + nv)
+    return np.array(qpos, dtype=np.int32), np.array(qvel, dtype=np.int32)
+
+
+def observation_layout(spec: FieldSpec, model: mujoco.MjModel) -> Layout:
+    agent_qpos, agent_qvel = _addresses(model, AGENT_JOINTS[spec.agent.kind])
+    empty = np.zeros(0, dtype=np.int32)
+    ball_qpos = ball_qvel = empty
+    if spec.ball.enabled:
+        joints = ("ball",) if spec.ball.joint == "free" else ("ball_x", "ball_y")
+        qpos, qvel = _addresses(model, joints)
+        ball_qpos = qpos[:3] if spec.ball.joint == "free" else qpos
+        if spec.observation.ball_velocity:
+            ball_qvel = qvel[:3] if spec.ball.joint == "free" else qvel
+    parts = [("agent_qpos", len(agent_qpos)), ("agent_qvel", len(agent_qvel))]
+    if spec.ball.enabled:
+        parts.append(("ball_pos", len(ball_qpos)))
+        if len(ball_qvel):
+            parts.append(("ball_vel", len(ball_qvel)))
+    slices, at = {}, 0
+    for name, n in parts:
+        slices[name] = (at, at + n)
+        at += n
+    state_dim = at
+    slices["goal"] = (at, at + 2)
+    if spec.task.success.kind.startswith("ball"):
+        start = slices["ball_pos"][0]
+    else:
+        start = slices["agent_qpos"][0]  # torso or point x, y come first in the agent's qpos
+    return Layout(slices, agent_qpos, agent_qvel, ball_qpos, ball_qvel, state_dim, (start, start + 1))

@@ -1,0 +1,173 @@
+"""FieldSpec -> dm_control.mjcf scene: floor, cameras, agent, ball, goal, walls, obstacles.
+
+The scene is built entirely in code; geometry comes from fieldgen.schema.geometry
+so the physics checks and the built scene agree. Names are stable and simple
+(`ball`, `wall_left`, `obstacle_goalie`, ...) because the environment and the
+build report look geoms and joints up by name.
+"""
+
+from __future__ import annotations
+
+import math
+
+from dm_control import mjcf
+
+from fieldgen.compile.agents import BUILDERS, AgentBuild
+from fieldgen.compile.contacts import bits
+from fieldgen.schema import geometry
+from fieldgen.schema.models import FieldSpec
+
+PREVIEW_ASPECT = 4 / 3
+TOP_FOVY = 45.0
+RGBA = {
+    "wall": (0.3, 0.35, 0.55, 1.0),
+    "obstacle": (0.75, 0.2, 0.2, 1.0),
+    "post": (0.95, 0.95, 0.95, 1.0),
+    "net": (0.95, 0.95, 0.95, 0.25),
+    "goal_region": (0.3, 0.9, 0.3, 0.15),
+    "ball": (0.95, 0.95, 0.2, 1.0),
+    "target": (0.2, 0.9, 0.2, 0.6),
+    "line": (1.0, 1.0, 1.0, 1.0),
+}
+DECORATIVE_ALPHA = 0.45
+
+
+def build_scene(spec: FieldSpec) -> tuple[mjcf.RootElement, AgentBuild]:
+    root = mjcf.RootElement(model=spec.name)
+    _options(root, spec)
+    _floor(root, spec)
+    _top_camera(root, spec)
+    agent = BUILDERS[spec.agent.kind](root, spec)
+    ball_home = _ball(root, spec) if spec.ball.enabled else ()
+    _target_marker(root, spec)
+    _goal(root, spec)
+    for box in geometry.walls(spec):
+        _box(root, box, "wall", spec)
+    for box in geometry.obstacles(spec):
+        _box(root, box, "obstacle", spec)
+    root.keyframe.add("key", name="home", qpos=agent.home_qpos + ball_home)
+    return root, agent
+
+
+def _options(root: mjcf.RootElement, spec: FieldSpec) -> None:
+    s, e = spec.sim, spec.episode
+    root.compiler.angle = "degree"
+    root.compiler.inertiafromgeom = True
+    root.option.timestep = e.physics_dt
+    root.option.solver = s.solver.upper() if s.solver == "cg" else "Newton"
+    root.option.iterations = s.iterations
+    root.option.ls_iterations = s.ls_iterations
+    root.option.cone = s.cone
+    if not s.euler_damping:
+        root.option.flag.eulerdamp = "disable"
+    root.default.geom.condim = 3
+    root.default.geom.friction = (1.0, 0.5, 0.5)
+    root.default.geom.density = 5.0
+    root.visual.headlight.ambient = (0.35, 0.35, 0.35)
+    root.visual.headlight.diffuse = (0.5, 0.5, 0.5)
+    root.visual.quality.shadowsize = 2048
+    root.visual.map.zfar = 500.0
+
+
+def _floor(root: mjcf.RootElement, spec: FieldSpec) -> None:
+    hx, hy = spec.field.width / 2, spec.field.length / 2
+    tex = root.asset.add("texture", name="grid", type="2d", builtin="checker", width=256, height=256,
+                         rgb1=(0.22, 0.45, 0.25), rgb2=(0.25, 0.5, 0.28))
+    extent = 1.5 * max(hx, hy) + 4  # the plane collides everywhere; its size only bounds the drawing
+    mat = root.asset.add("material", name="grass", texture=tex, texrepeat=(extent, extent), reflectance=0.0)
+    ct, ca = bits("floor", spec)
+    root.worldbody.add("geom", name="floor", type="plane", size=(extent, extent, 0.1), material=mat,
+                       friction=(spec.field.friction, 0.5, 0.5), contype=ct, conaffinity=ca)
+    root.worldbody.add("light", name="sun", pos=(0, 0, 40), dir=(0.2, 0.3, -1), directional=True,
+                       diffuse=(0.7, 0.7, 0.7), castshadow=False)
+    # Painted boundary lines, so a field without walls still shows its extent.
+    w = 0.05
+    for name, pos, size in (
+        ("line_left", (-hx, 0, 0.001), (w, hy, 0.001)),
+        ("line_right", (hx, 0, 0.001), (w, hy, 0.001)),
+        ("line_back", (0, -hy, 0.001), (hx, w, 0.001)),
+        ("line_front", (0, hy, 0.001), (hx, w, 0.001)),
+        ("line_kickoff", (0, 0, 0.001), (hx, w, 0.001)),
+    ):
+        root.worldbody.add("geom", name=name, type="box", pos=pos, size=size, rgba=RGBA["line"],
+                           contype=0, conaffinity=0, group=1)
+
+
+def _top_camera(root: mjcf.RootElement, spec: FieldSpec) -> None:
+    """A camera straight down that frames the field and the goal at the preview's aspect."""
+    hx, hy = spec.field.width / 2, spec.field.length / 2
+    y0, y1 = -hy, hy
+    goal = geometry.goal_region(spec)
+    if goal is not None:
+        y1 = max(y1, goal.xy_bounds()[3])
+    span_y = (y1 - y0) * 1.08
+    span_x = 2 * hx * 1.08
+    half = max(span_y, span_x / PREVIEW_ASPECT) / 2
+    height = half / math.tan(math.radians(TOP_FOVY / 2))
+    root.worldbody.add("camera", name="top", pos=(0, (y0 + y1) / 2, height), xyaxes=(1, 0, 0, 0, 1, 0),
+                       fovy=TOP_FOVY)
+
+
+def _ball(root: mjcf.RootElement, spec: FieldSpec) -> tuple[float, ...]:
+    """The ball; returns its home qpos (spawn centre)."""
+    b = spec.ball
+    if b.spawn.mode == "region":
+        cx, cy = sum(b.spawn.x) / 2, sum(b.spawn.y) / 2
+    else:
+        cx, cy = spec.agent.start[0], spec.agent.start[1] + 2 * b.radius + 2.0
+    ct, ca = bits("ball", spec)
+    if b.joint == "free":
+        body = root.worldbody.add("body", name="ball", pos=(cx, cy, b.radius))
+        body.add("freejoint", name="ball")
+        home = (cx, cy, b.radius, 1.0, 0.0, 0.0, 0.0)
+    else:
+        # Slide joints measure from the body's position: keep it at the origin so qpos is world x, y.
+        body = root.worldbody.add("body", name="ball", pos=(0, 0, b.radius))
+        body.add("joint", name="ball_x", type="slide", axis=(1, 0, 0), limited=False, armature=0, damping=0)
+        body.add("joint", name="ball_y", type="slide", axis=(0, 1, 0), limited=False, armature=0, damping=0)
+        home = (cx, cy)
+    body.add("geom", name="ball", type="sphere", size=(b.radius,), mass=b.mass, rgba=RGBA["ball"],
+             friction=(b.friction, 0.5, 0.5), contype=ct, conaffinity=ca)
+    return home
+
+
+def _target_marker(root: mjcf.RootElement, spec: FieldSpec) -> None:
+    """A mocap disc at the target, moved per episode; it never collides."""
+    fixed = spec.target_fixed() or (0.0, 0.0)
+    radius = spec.task.success.radius
+    body = root.worldbody.add("body", name="target", mocap=True, pos=(fixed[0], fixed[1], 0.0))
+    body.add("geom", name="target", type="cylinder", size=(radius, 0.005), rgba=RGBA["target"],
+             contype=0, conaffinity=0, group=1)
+
+
+def _goal(root: mjcf.RootElement, spec: FieldSpec) -> None:
+    region = geometry.goal_region(spec)
+    if region is None:
+        return
+    g = spec.goal
+    root.worldbody.add("geom", name="goal_region", type="box", pos=region.center, size=region.half,
+                       rgba=RGBA["goal_region"], contype=0, conaffinity=0, group=1)
+    alpha = 1.0 if g.solid else DECORATIVE_ALPHA
+    for cap in geometry.goal_frame(spec):
+        reachable = min(cap.start[2], cap.end[2]) - cap.radius < geometry.reach_height(spec)
+        ct, ca = bits("post", spec) if (g.solid and reachable) else (0, 0)
+        root.worldbody.add("geom", name=cap.name, type="capsule", fromto=cap.start + cap.end, size=(cap.radius,),
+                           rgba=RGBA["post"][:3] + (alpha,), contype=ct, conaffinity=ca)
+    if g.net:
+        (cx, cy, cz), (hx, hy, hz) = region.center, region.half
+        t = 0.01
+        for name, pos, size in (
+            ("net_back", (cx, cy + hy, cz), (hx, t, hz)),
+            ("net_left", (cx - hx, cy, cz), (t, hy, hz)),
+            ("net_right", (cx + hx, cy, cz), (t, hy, hz)),
+            ("net_top", (cx, cy, cz + hz), (hx, hy, t)),
+        ):
+            root.worldbody.add("geom", name=name, type="box", pos=pos, size=size, rgba=RGBA["net"],
+                               contype=0, conaffinity=0, group=1)
+
+
+def _box(root: mjcf.RootElement, box: geometry.Box, role: str, spec: FieldSpec) -> None:
+    ct, ca = bits(role, spec) if box.solid else (0, 0)
+    rgba = RGBA[role][:3] + ((1.0,) if box.solid else (DECORATIVE_ALPHA,))
+    root.worldbody.add("geom", name=box.name, type="box", pos=box.center, size=box.half, rgba=rgba,
+                       contype=ct, conaffinity=ca)

@@ -1,0 +1,40 @@
+"""Images of a field with mujoco's offscreen renderer (headless through EGL)."""
+
+from __future__ import annotations
+
+import io
+
+import imageio.v3 as iio
+import mujoco
+import numpy as np
+
+CAMERAS = ("top", "follow")
+SIZE = (480, 640)  # height, width; the top camera frames the field for this aspect
+
+
+def render_pose(model: mujoco.MjModel, qpos: np.ndarray | None = None, camera: str = "top",
+                size: tuple[int, int] = SIZE) -> np.ndarray:
+    """One RGB frame of the model at `qpos` (default: the `home` keyframe)."""
+    data = mujoco.MjData(model)
+    data.qpos[:] = model.key("home").qpos if qpos is None else qpos
+    mujoco.mj_forward(model, data)
+    with mujoco.Renderer(model, height=size[0], width=size[1]) as renderer:
+        renderer.update_scene(data, camera=camera, scene_option=_scene_option())
+        return renderer.render()
+
+
+def preview(model: mujoco.MjModel) -> np.ndarray:
+    """The top-down view and the view from the agent's start, side by side."""
+    return np.concatenate([render_pose(model, camera=c) for c in CAMERAS], axis=1)
+
+
+def png_bytes(image: np.ndarray) -> bytes:
+    buf = io.BytesIO()
+    iio.imwrite(buf, image, extension=".png")
+    return buf.getvalue()
+
+
+def _scene_option() -> mujoco.MjvOption:
+    option = mujoco.MjvOption()
+    option.geomgroup[:] = 1  # show the painted lines, goal region, net and target marker
+    return option

@@ -1,0 +1,185 @@
+"""Physical sense beyond types: things fit on the field, the ball can reach the goal.
+
+Each check returns (key path, message) pairs so the loader can point at the
+line that set the offending value. The goal-mouth check floods a grid of ball
+centre positions, with every solid thing inflated by the ball radius.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy import ndimage
+
+from fieldgen.schema import geometry
+from fieldgen.schema.models import FieldSpec
+
+GRID = 0.05  # metres per cell of the reachability grid
+
+Found = list[tuple[tuple, str]]
+
+
+def physics_problems(spec: FieldSpec) -> Found:
+    out: Found = []
+    out += _timing(spec)
+    out += _task_needs(spec)
+    out += _fits_on_field(spec)
+    if spec.ball.enabled and not out:
+        out += _ball_spawn(spec)
+    if not out:
+        out += _goal_reachable(spec)
+    return out
+
+
+def _timing(spec: FieldSpec) -> Found:
+    e = spec.episode
+    ratio = e.control_dt / e.physics_dt
+    if abs(ratio - round(ratio)) > 1e-6 or round(ratio) < 1:
+        return [
+            (
+                ("episode", "control_dt"),
+                f"control_dt ({e.control_dt}) must be a whole multiple of physics_dt ({e.physics_dt}); "
+                f"for example {max(1, round(ratio)) * e.physics_dt:g}",
+            )
+        ]
+    return []
+
+
+def _task_needs(spec: FieldSpec) -> Found:
+    out: Found = []
+    kind = spec.task.success.kind
+    if kind.startswith("ball") and not spec.ball.enabled:
+        out.append((("task", "success", "kind"), f"'{kind}' needs a ball, but ball.enabled is false"))
+    if kind == "ball_in_goal" and not spec.goal.enabled:
+        out.append((("task", "success", "kind"), "'ball_in_goal' needs a goal, but goal.enabled is false"))
+    if spec.task.target.kind == "goal" and not spec.goal.enabled:
+        out.append((("task", "target", "kind"), "target 'goal' needs a goal, but goal.enabled is false"))
+    ball_terms = {"ball_progress", "scaled_ball_progress", "agent_approaches_ball", "ball_in_goal"}
+    for i, term in enumerate(spec.task.reward):
+        if term.term in ball_terms and not spec.ball.enabled:
+            out.append((("task", "reward", i, "term"), f"the '{term.term}' term needs a ball, but ball.enabled is false"))
+        if term.term == "ball_in_goal" and not spec.goal.enabled:
+            out.append((("task", "reward", i, "term"), "the 'ball_in_goal' term needs a goal, but goal.enabled is false"))
+        if term.term == "upright" and spec.agent.kind != "ant":
+            out.append((("task", "reward", i, "term"), "the 'upright' term needs an agent with a torso (kind: ant)"))
+    if spec.ball.spawn.mode == "toward_target" and spec.task.target.kind == "goal":
+        out.append((("ball", "spawn", "mode"), "'toward_target' needs a ring or point target; use 'region' with a goal"))
+    return out
+
+
+def _fits_on_field(spec: FieldSpec) -> Found:
+    out: Found = []
+    x0, x1, y0, y1 = geometry.inner_bounds(spec)
+    hx, hy = spec.field.width / 2, spec.field.length / 2
+    g = spec.goal
+    if g.enabled:
+        if g.distance > hy:
+            out.append((("goal", "distance"), f"the goal point (y = {g.distance:g}) lies beyond the field's end (y = {hy:g}); "
+                        f"make field.length at least {2 * g.distance:g}"))
+        if g.width / 2 > hx:
+            out.append((("goal", "width"), f"the goal ({g.width:g} wide) is wider than the field ({spec.field.width:g})"))
+    reach = geometry.AGENT_REACH[spec.agent.kind]
+    sx, sy = spec.agent.start
+    if not (x0 + reach <= sx <= x1 - reach and y0 + reach <= sy <= y1 - reach):
+        out.append((("agent", "start"), f"the agent at ({sx:g}, {sy:g}) with reach {reach:.2f} does not fit inside the field"))
+    for box in geometry.obstacles(spec):
+        name = box.name.removeprefix("obstacle_")
+        bx0, bx1, by0, by1 = box.xy_bounds()
+        if bx1 < -hx or bx0 > hx or by1 < -hy or by0 > hy:
+            out.append((("obstacles", name), f"obstacle '{name}' lies entirely off the field"))
+        if _disc_hits_rect(sx, sy, reach, box.xy_bounds()):
+            out.append((("obstacles", name), f"obstacle '{name}' overlaps the agent's start at ({sx:g}, {sy:g})"))
+    t = spec.task.target
+    if t.kind == "ring":
+        far = t.radius[1]
+        if not (x0 <= sx - far and sx + far <= x1 and y0 <= sy - far and sy + far <= y1):
+            out.append((("task", "target", "radius"), f"targets up to {far:g} from the agent's start can fall off the field"))
+    if t.kind == "point" and not (x0 <= t.x <= x1 and y0 <= t.y <= y1):
+        out.append((("task", "target"), f"the target ({t.x:g}, {t.y:g}) lies off the field"))
+    return out
+
+
+def _ball_spawn(spec: FieldSpec) -> Found:
+    """The spawn region lies inside the field, clear of walls, obstacles, goal and agent."""
+    b = spec.ball
+    r, reach = b.radius, geometry.AGENT_REACH[spec.agent.kind]
+    sx, sy = spec.agent.start
+    where = ("ball", "spawn")
+    if b.spawn.mode == "toward_target":
+        s = b.spawn
+        t = spec.task.target
+        if t.kind == "ring":
+            near = s.fraction * t.radius[0] - s.jitter * math.sqrt(2)
+            if near < r + reach:
+                return [(where, f"the ball can spawn {max(near, 0):.2f} from the agent's start; it needs "
+                         f"{r + reach:.2f} (ball radius + agent reach): raise fraction or lower jitter")]
+            return []
+        cx, cy = sx + s.fraction * (t.x - sx), sy + s.fraction * (t.y - sy)
+        rect = (cx - s.jitter, cx + s.jitter, cy - s.jitter, cy + s.jitter)
+    else:
+        rect = (b.spawn.x[0], b.spawn.x[1], b.spawn.y[0], b.spawn.y[1])
+    out: Found = []
+    x0, x1, y0, y1 = geometry.inner_bounds(spec)
+    if rect[0] - r < x0 or rect[1] + r > x1 or rect[2] - r < y0 or rect[3] + r > y1:
+        out.append((where, f"the ball (radius {r:g}) can spawn outside the field or inside a wall; "
+                    f"centres must stay within x [{x0 + r:g}, {x1 - r:g}], y [{y0 + r:g}, {y1 - r:g}]"))
+    for box in geometry.obstacles(spec):
+        if _rects_overlap(rect, box.xy_bounds(inflate=r)):
+            out.append((where, f"the ball can spawn touching obstacle '{box.name.removeprefix('obstacle_')}'"))
+    goal = geometry.goal_region(spec)
+    if goal is not None and _rects_overlap(rect, goal.xy_bounds(inflate=r)):
+        out.append((where, "the ball can spawn inside or touching the goal"))
+    gap = _rect_distance(rect, sx, sy)
+    if gap < r + reach:
+        out.append((where, f"the ball can spawn {gap:.2f} from the agent's start; it needs {r + reach:.2f} "
+                    "(ball radius + agent reach)"))
+    return out
+
+
+def _goal_reachable(spec: FieldSpec) -> Found:
+    """Flood-fill on-field ball centres from the spawn; some centre inside the goal box must be reached."""
+    if not (spec.goal.enabled and spec.ball.enabled and spec.ball.spawn.mode == "region"):
+        return []
+    r = spec.ball.radius
+    hx, hy = spec.field.width / 2, spec.field.length / 2
+    g = spec.goal
+    goal = geometry.goal_region(spec)
+    gx0, gx1, gy0, gy1 = goal.xy_bounds()
+    xs = np.arange(-hx, hx + GRID, GRID)
+    ys = np.arange(-hy, max(hy, gy1) + GRID, GRID)
+    X, Y = np.meshgrid(xs, ys, indexing="xy")
+    in_goal = (X >= gx0) & (X <= gx1) & (Y >= gy0) & (Y <= gy1)
+    blocked = (Y > hy) & ~in_goal  # the ball stays on the field, or in the goal box behind its end
+    for box in geometry.walls(spec) + geometry.obstacles(spec):
+        if box.solid:
+            bx0, bx1, by0, by1 = box.xy_bounds()
+            dx = np.maximum(np.maximum(bx0 - X, X - bx1), 0)
+            dy = np.maximum(np.maximum(by0 - Y, Y - by1), 0)
+            blocked |= dx * dx + dy * dy < r * r
+    for cap in geometry.goal_frame(spec):
+        if cap.solid and cap.start[2] == 0.0:  # posts stand on the floor; the crossbar is above the ball
+            blocked |= (X - cap.start[0]) ** 2 + (Y - cap.start[1]) ** 2 < (r + cap.radius) ** 2
+    labels, _ = ndimage.label(~blocked)
+    sx = (spec.ball.spawn.x[0] + spec.ball.spawn.x[1]) / 2
+    sy = (spec.ball.spawn.y[0] + spec.ball.spawn.y[1]) / 2
+    start = labels[np.argmin(np.abs(ys - sy)), np.argmin(np.abs(xs - sx))]
+    if start == 0 or not np.any(labels[in_goal] == start):
+        return [(("obstacles",) if spec.obstacles else ("goal",),
+                 "the ball cannot reach the goal from its spawn: walls, obstacles or posts seal the goal mouth "
+                 f"for a ball of radius {r:g}")]
+    return []
+
+
+def _rects_overlap(a, b) -> bool:
+    return a[0] < b[1] and b[0] < a[1] and a[2] < b[3] and b[2] < a[3]
+
+
+def _rect_distance(rect, x, y) -> float:
+    dx = max(rect[0] - x, 0.0, x - rect[1])
+    dy = max(rect[2] - y, 0.0, y - rect[3])
+    return math.hypot(dx, dy)
+
+
+def _disc_hits_rect(x, y, radius, rect) -> bool:
+    return _rect_distance(rect, x, y) < radius

@@ -1,0 +1,42 @@
+"""Spec problems that point at the file, line, column and key path."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+
+@dataclass(frozen=True)
+class Problem:
+    file: Path | None
+    line: int | None  # 1-based
+    col: int | None  # 1-based
+    path: str  # dotted key path, e.g. "goal.width" or "task.reward[1].weight"
+    message: str
+
+    def __str__(self) -> str:
+        where = str(self.file) if self.file else "<spec>"
+        if self.line is not None:
+            where += f":{self.line}:{self.col or 1}"
+        key = f" {self.path}:" if self.path else ""
+        return f"{where}:{key} {self.message}"
+
+
+class SpecError(Exception):
+    """A spec that cannot become a field; carries every problem found, not just the first."""
+
+    def __init__(self, problems: list[Problem]):
+        self.problems = sorted(problems, key=lambda p: (str(p.file), p.line or 0, p.col or 0))
+        super().__init__(str(self))
+
+    def __str__(self) -> str:
+        n = len(self.problems)
+        head = f"{n} problem{'s' if n != 1 else ''} in the field spec:"
+        return "\n".join([head] + [f"  {p}" for p in self.problems])
+
+
+def format_path(parts: tuple) -> str:
+    out = ""
+    for part in parts:
+        out += f"[{part}]" if isinstance(part, int) else (f".{part}" if out else str(part))
+    return out

@@ -1,0 +1,112 @@
+"""Where things stand on a field, derived from a spec in one place.
+
+The physics checks and the scene compiler both read these shapes, so a wall the
+checks reason about is exactly the wall that gets built.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from fieldgen.schema.models import FieldSpec
+
+# Horizontal reach of each agent from its centre: ant foot spheres sit at
+# (0.8, 0.8) from the torso with radius 0.08; the point agent is a disc.
+AGENT_REACH = {"ant": math.hypot(0.8, 0.8) + 0.08, "point": 0.25}
+POINT_RADIUS = 0.25
+
+
+@dataclass(frozen=True)
+class Box:
+    name: str
+    center: tuple[float, float, float]
+    half: tuple[float, float, float]
+    solid: bool
+
+    def xy_bounds(self, inflate: float = 0.0) -> tuple[float, float, float, float]:
+        (cx, cy, _), (hx, hy, _) = self.center, self.half
+        return (cx - hx - inflate, cx + hx + inflate, cy - hy - inflate, cy + hy + inflate)
+
+
+@dataclass(frozen=True)
+class Capsule:
+    name: str
+    start: tuple[float, float, float]
+    end: tuple[float, float, float]
+    radius: float
+    solid: bool
+
+
+def walls(spec: FieldSpec) -> list[Box]:
+    """Wall boxes centred on the field's edges; the front wall opens at the goal mouth."""
+    w = spec.walls
+    if not w.enabled:
+        return []
+    hx, hy, t, hz = spec.field.width / 2, spec.field.length / 2, w.thickness, w.height / 2
+    out = []
+    if w.sides:
+        for side, x in (("left", -hx), ("right", hx)):
+            out.append(Box(f"wall_{side}", (x, 0.0, hz), (t / 2, hy + t / 2, hz), w.solid))
+    if w.back:
+        out.append(Box("wall_back", (0.0, -hy, hz), (hx + t / 2, t / 2, hz), w.solid))
+    if w.front:
+        g = spec.goal
+        mouth = g.enabled and g.distance - g.depth / 2 <= hy <= g.distance + g.depth / 2
+        if mouth and g.width / 2 < hx:
+            seg = (hx + t / 2 - g.width / 2) / 2
+            for side, sign in (("left", -1), ("right", 1)):
+                cx = sign * (g.width / 2 + seg)
+                out.append(Box(f"wall_front_{side}", (cx, hy, hz), (seg, t / 2, hz), w.solid))
+        elif not mouth:
+            out.append(Box("wall_front", (0.0, hy, hz), (hx + t / 2, t / 2, hz), w.solid))
+    return out
+
+
+def obstacles(spec: FieldSpec) -> list[Box]:
+    out = []
+    for name, o in spec.obstacles.items():
+        oy = o.y + (spec.goal.distance if o.relative_to == "goal" else 0.0)
+        out.append(Box(f"obstacle_{name}", (o.x, oy, o.height / 2), (o.width / 2, o.depth / 2, o.height / 2), o.solid))
+    return out
+
+
+def goal_region(spec: FieldSpec) -> Box | None:
+    """The goal box: the region that counts as 'in the goal'; it never collides."""
+    g = spec.goal
+    if not g.enabled:
+        return None
+    return Box("goal_region", (0.0, g.distance, g.height / 2), (g.width / 2, g.depth / 2, g.height / 2), False)
+
+
+def goal_frame(spec: FieldSpec) -> list[Capsule]:
+    """Posts at the mouth's edges and an optional crossbar on top."""
+    g = spec.goal
+    if not g.enabled:
+        return []
+    y, r, h, x = g.posts_y, g.post_radius, g.height, g.width / 2
+    out = [Capsule(f"post_{side}", (s * x, y, 0.0), (s * x, y, h), r, g.solid) for side, s in (("left", -1), ("right", 1))]
+    if g.crossbar:
+        out.append(Capsule("crossbar", (-x, y, h), (x, y, h), r, g.solid))
+    return out
+
+
+def reach_height(spec: FieldSpec) -> float:
+    """The highest point a moving body can reach; static geoms above it are pruned.
+
+    A free ball can be kicked upwards, so it reaches everything.
+    """
+    if spec.ball.enabled and spec.ball.joint == "free":
+        return math.inf
+    ball_top = 2 * spec.ball.radius if spec.ball.enabled else 0.0
+    agent_top = spec.agent.healthy_z[1] + 0.25 if spec.agent.kind == "ant" else 2 * POINT_RADIUS
+    return max(ball_top, agent_top)
+
+
+def inner_bounds(spec: FieldSpec) -> tuple[float, float, float, float]:
+    """x/y extent a body centre may reach, inside any walls present."""
+    hx, hy = spec.field.width / 2, spec.field.length / 2
+    w = spec.walls
+    t = w.thickness / 2 if w.enabled else 0.0
+    side, back = (t if w.sides else 0.0), (t if w.back else 0.0)
+    return (-hx + side, hx - side, -hy + back, hy)

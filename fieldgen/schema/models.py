@@ -1,0 +1,280 @@
+"""The field spec: pydantic models for every section of a field YAML.
+
+Every key has a default and a one-line description, so `fieldgen schema` gives
+editors a complete, documented JSON Schema. Units are MuJoCo's: metres,
+kilograms, seconds. The kick-off point is the origin and the goal lies along +y.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Literal, Union
+
+from pydantic import AfterValidator, BaseModel, BeforeValidator, ConfigDict, Discriminator, Field, Tag, model_validator
+
+MAX_EXTENT = 500.0  # metres; anything larger is a typo, not a field
+MAX_OBJECT = 50.0  # metres; the largest single body (ball, goal, obstacle)
+
+
+class Section(BaseModel):
+    """Base for every spec section: unknown keys and NaN/inf are errors."""
+
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False, validate_default=True)
+
+
+def _as_span(value):
+    """A span is `x` (a single value) or `[lo, hi]` (uniform between them)."""
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        return (value, value)
+    return value
+
+
+def _ordered(span: tuple[float, float]) -> tuple[float, float]:
+    if span[0] > span[1]:
+        raise ValueError(f"the low end {span[0]} is above the high end {span[1]}")
+    return span
+
+
+Span = Annotated[
+    tuple[float, float],
+    BeforeValidator(_as_span),
+    AfterValidator(_ordered),
+    Field(json_schema_extra={"description": "a number, or [low, high] for a uniform draw"}),
+]
+
+
+Length = Annotated[float, Field(gt=0, le=MAX_EXTENT)]
+Size = Annotated[float, Field(gt=0, le=MAX_OBJECT)]
+
+
+class FieldSection(Section):
+    length: Length = Field(40.0, description="extent along y (towards the goal), centred on the kick-off point")
+    width: Length = Field(32.0, description="extent along x, centred on the kick-off point")
+    friction: float = Field(1.0, gt=0, le=10, description="sliding friction of the floor")
+
+
+class WallsSection(Section):
+    enabled: bool = Field(False, description="build walls around the field")
+    height: Size = Field(0.6, description="wall height")
+    thickness: Size = Field(0.2, description="wall thickness; walls are centred on the field's edge")
+    sides: bool = Field(True, description="walls along both sides (x = +-width/2)")
+    back: bool = Field(False, description="wall behind the kick-off point (y = -length/2)")
+    front: bool = Field(
+        True,
+        description="wall on the goal line (y = +length/2), open at the goal mouth; "
+        "false leaves it out so the ball can pass beside the goal",
+    )
+    solid: bool = Field(True, description="walls collide with the ball and the agent; false makes them decorative")
+
+
+class GoalSection(Section):
+    enabled: bool = Field(True, description="build a goal")
+    distance: Length = Field(10.0, description="distance from the kick-off point to the goal point, along +y")
+    width: Size = Field(4.0, description="goal box width (x)")
+    depth: Size = Field(1.0, description="goal box depth (y), centred on the goal point")
+    height: Size = Field(2.0, description="goal box height and post height")
+    post_radius: Size = Field(0.2, description="radius of the capsule posts and crossbar")
+    post_setback: float | None = Field(
+        None, ge=0, le=MAX_OBJECT, description="post axis distance behind the box's front face; default post_radius"
+    )
+    crossbar: bool = Field(True, description="a crossbar joins the post tops")
+    net: bool = Field(True, description="translucent net panels (never collide)")
+    solid: bool = Field(True, description="posts and crossbar collide with the ball and the agent")
+
+    @property
+    def posts_y(self) -> float:
+        setback = self.post_radius if self.post_setback is None else self.post_setback
+        return self.distance - self.depth / 2 + setback
+
+
+class SpawnRegion(Section):
+    mode: Literal["region"] = Field("region", description="uniform in an axis-aligned box around a point")
+    x: Span = Field((0.0, 0.0), description="x of the ball centre: a number or [low, high]")
+    y: Span = Field((3.0, 3.0), description="y of the ball centre: a number or [low, high]")
+
+
+class SpawnTowardTarget(Section):
+    mode: Literal["toward_target"] = Field(description="on the line from the agent to the target, plus jitter")
+    fraction: float = Field(0.5, gt=0, lt=1, description="how far along the agent-to-target line")
+    jitter: float = Field(0.5, ge=0, le=MAX_OBJECT, description="uniform offset in [-jitter, jitter] on x and y")
+
+
+def _spawn_mode(value) -> str:
+    """`mode` may be left out and then means 'region'."""
+    if isinstance(value, dict):
+        return value.get("mode", "region")
+    return getattr(value, "mode", "region")
+
+
+Spawn = Annotated[
+    Union[Annotated[SpawnRegion, Tag("region")], Annotated[SpawnTowardTarget, Tag("toward_target")]],
+    Discriminator(_spawn_mode),
+]
+
+
+class BallSection(Section):
+    enabled: bool = Field(True, description="put a ball on the field")
+    radius: Size = Field(0.5, description="ball radius")
+    mass: float = Field(0.58, gt=0, le=1000, description="ball mass in kilograms")
+    friction: float = Field(1.0, gt=0, le=10, description="sliding friction of the ball")
+    joint: Literal["planar", "free"] = Field(
+        "planar", description="planar: a puck on x/y slides (cannot roll or lift); free: a rolling ball"
+    )
+    spawn: Spawn = Field(default_factory=SpawnRegion, description="where the ball starts each episode")
+
+
+class ResetNoise(Section):
+    qpos: float = Field(0.1, ge=0, le=10, description="uniform noise [-qpos, qpos] added to the agent's joint positions")
+    qvel: float = Field(0.1, ge=0, le=10, description="standard deviation of the agent's initial joint velocities")
+
+
+class AgentSection(Section):
+    kind: Literal["ant", "point"] = Field("ant", description="ant: the 8-motor quadruped; point: a fast planar disc")
+    start: tuple[float, float] = Field((0.0, 0.0), description="start position (x, y) of the agent")
+    reset_noise: ResetNoise = Field(default_factory=ResetNoise, description="randomness added at every reset")
+    healthy_z: Span = Field((0.2, 1.0), description="torso height band; leaving it ends the episode (ant only)")
+    gear: float | None = Field(None, gt=0, le=10000, description="motor gear; default 150 for ant, 10 for point")
+
+
+class Obstacle(Section):
+    x: float = Field(0.0, ge=-MAX_EXTENT, le=MAX_EXTENT, description="x of the box centre")
+    y: float = Field(0.0, ge=-MAX_EXTENT, le=MAX_EXTENT, description="y of the box centre")
+    relative_to: Literal["kickoff", "goal"] = Field("kickoff", description="origin of x and y: the kick-off or goal point")
+    width: Size = Field(1.0, description="extent along x")
+    depth: Size = Field(1.0, description="extent along y")
+    height: Size = Field(1.0, description="extent along z")
+    solid: bool = Field(True, description="collides with the ball and the agent; false makes it decorative")
+
+
+class TargetGoal(Section):
+    kind: Literal["goal"] = Field(description="the goal point, (0, goal.distance)")
+
+
+class TargetRing(Section):
+    kind: Literal["ring"] = Field(description="a random point on a ring around the agent's start")
+    radius: Span = Field((10.0, 10.0), description="ring radius: a number or [low, high]")
+    angle_deg: Span = Field((-180.0, 180.0), description="angle range in degrees, 0 along +x")
+
+    @model_validator(mode="after")
+    def _positive(self):
+        if self.radius[0] <= 0:
+            raise ValueError("radius must be positive")
+        return self
+
+
+class TargetPoint(Section):
+    kind: Literal["point"] = Field(description="a fixed point")
+    x: float = Field(0.0, ge=-MAX_EXTENT, le=MAX_EXTENT, description="x of the target")
+    y: float = Field(0.0, ge=-MAX_EXTENT, le=MAX_EXTENT, description="y of the target")
+
+
+Target = Annotated[Union[TargetGoal, TargetRing, TargetPoint], Field(discriminator="kind")]
+
+SUCCESS_KINDS = ("ball_near_target", "ball_in_goal", "agent_near_target")
+REWARD_TERMS = (
+    "success",
+    "ball_progress",
+    "scaled_ball_progress",
+    "agent_approaches_ball",
+    "agent_progress",
+    "upright",
+    "control_cost",
+    "ball_in_goal",
+)
+
+
+class Success(Section):
+    kind: Literal["ball_near_target", "ball_in_goal", "agent_near_target"] = Field(
+        "ball_near_target", description="what counts as success at a step"
+    )
+    radius: Size = Field(0.5, description="distance to the target that counts (the *_near_target kinds)")
+
+
+class RewardTerm(Section):
+    term: Literal[
+        "success",
+        "ball_progress",
+        "scaled_ball_progress",
+        "agent_approaches_ball",
+        "agent_progress",
+        "upright",
+        "control_cost",
+        "ball_in_goal",
+    ] = Field(description="a term from the registry (README: reward terms)")
+    weight: float = Field(1.0, ge=-1e4, le=1e4, description="the term's factor in the reward sum")
+    band: Span | None = Field(None, description="upright only: torso height band that earns the bonus")
+
+    @model_validator(mode="after")
+    def _band(self):
+        if self.term == "upright":
+            self.band = self.band or (0.2, 1.0)
+        elif self.band is not None:
+            raise ValueError(f"'band' applies to the upright term only, not to {self.term!r}")
+        return self
+
+
+class TaskSection(Section):
+    target: Target = Field(default_factory=lambda: TargetGoal(kind="goal"), description="where the goal point lies")
+    success: Success = Field(default_factory=Success, description="the success predicate")
+    reward: list[RewardTerm] = Field(
+        default_factory=lambda: [RewardTerm(term="success")],
+        min_length=1,
+        description="weighted reward terms, summed; the default is the sparse success reward",
+    )
+
+
+class EpisodeSection(Section):
+    length: int = Field(1001, ge=1, le=1_000_000, description="control steps per episode")
+    control_dt: float = Field(0.05, gt=0, le=10, description="seconds per control step")
+    physics_dt: float = Field(0.01, gt=0, le=1, description="seconds per physics step")
+    terminate_unhealthy: bool = Field(True, description="end the episode when the agent leaves agent.healthy_z")
+
+    @property
+    def substeps(self) -> int:
+        return round(self.control_dt / self.physics_dt)
+
+
+class SimSection(Section):
+    solver: Literal["newton", "cg"] = Field("newton", description="constraint solver")
+    iterations: int = Field(1, ge=1, le=100, description="solver iterations")
+    ls_iterations: int = Field(4, ge=1, le=100, description="line-search iterations")
+    euler_damping: bool = Field(False, description="implicit joint damping in the Euler integrator (slow in MJX)")
+    cone: Literal["pyramidal", "elliptic"] = Field("pyramidal", description="friction cone")
+    agent_contacts: Literal["none", "torso", "torso_and_feet"] = Field(
+        "torso", description="which agent geoms collide with walls, obstacles and posts"
+    )
+    contacts: Literal["pruned", "study"] = Field(
+        "pruned",
+        description="pruned: only pairs that can matter are checked; study: the soccer study's contact bits "
+        "(feet touch each other and the torso; walls, goalie and posts touch nothing)",
+    )
+
+
+class ObservationSection(Section):
+    ball_velocity: bool = Field(False, description="append the ball's velocity to the observation")
+
+
+class FieldSpec(Section):
+    """A complete robot-soccer field: geometry, agent, task and simulation."""
+
+    extends: str | None = Field(None, description="a bundled field name or a path relative to this file")
+    name: str = Field(pattern=r"^[a-z0-9][a-z0-9_\-]*$", max_length=64, description="lower-case identifier")
+    description: str = Field("", description="what the field models and where its numbers come from")
+    field: FieldSection = Field(default_factory=FieldSection, description="floor size and friction")
+    walls: WallsSection = Field(default_factory=WallsSection, description="walls around the field")
+    goal: GoalSection = Field(default_factory=GoalSection, description="the goal box, posts and crossbar")
+    ball: BallSection = Field(default_factory=BallSection, description="the ball")
+    agent: AgentSection = Field(default_factory=AgentSection, description="the controlled agent")
+    obstacles: dict[Annotated[str, Field(pattern=r"^[a-z0-9][a-z0-9_]*$", max_length=32)], Obstacle] = Field(default_factory=dict, description="named boxes, e.g. a goalie")
+    task: TaskSection = Field(default_factory=TaskSection, description="target, success predicate, reward")
+    episode: EpisodeSection = Field(default_factory=EpisodeSection, description="timing and termination")
+    sim: SimSection = Field(default_factory=SimSection, description="MJX simulation options")
+    observation: ObservationSection = Field(default_factory=ObservationSection, description="observation extras")
+
+    def target_fixed(self) -> tuple[float, float] | None:
+        """The target point when it does not vary between episodes."""
+        t = self.task.target
+        if t.kind == "goal":
+            return (0.0, self.goal.distance)
+        if t.kind == "point":
+            return (t.x, t.y)
+        return None

@@ -1,0 +1,57 @@
+"""Env-steps per second of a batched environment: a `lax.scan` of steps under jit.
+
+Timed after two warm-up calls, because the first call compiles and the first
+call fed its own output can compile again.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import jax
+import jax.numpy as jnp
+
+
+@dataclass(frozen=True)
+class Throughput:
+    n_envs: int
+    steps: int
+    seconds: float
+
+    @property
+    def steps_per_second(self) -> float:
+        return self.n_envs * self.steps / self.seconds
+
+
+def rollout_fn(env, n_envs: int, steps: int):
+    """jit(state, key) -> state after `steps` steps of random actions in every env."""
+
+    def run(state, key):
+        def body(carry, k):
+            action = jax.random.uniform(k, (n_envs, env.action_size), minval=-1.0, maxval=1.0)
+            return jax.vmap(env.step)(carry, action), None
+
+        state, _ = jax.lax.scan(body, state, jax.random.split(key, steps))
+        return state
+
+    return jax.jit(run)
+
+
+def measure(env, n_envs: int, steps: int = 200, repeats: int = 3, seed: int = 0) -> Throughput:
+    keys = jax.random.split(jax.random.PRNGKey(seed), n_envs)
+    state = jax.jit(jax.vmap(env.reset))(keys)
+    run = rollout_fn(env, n_envs, steps)
+    key = jax.random.PRNGKey(seed + 1)
+    for _ in range(2):
+        key, k = jax.random.split(key)
+        state = jax.block_until_ready(run(state, k))
+    best = float("inf")
+    for _ in range(repeats):
+        key, k = jax.random.split(key)
+        t0 = time.perf_counter()
+        state = jax.block_until_ready(run(state, k))
+        best = min(best, time.perf_counter() - t0)
+    if not bool(jnp.all(jnp.isfinite(state.obs))):
+        raise FloatingPointError("the rollout produced non-finite observations")
+    return Throughput(n_envs, steps, best)
