@@ -24,7 +24,8 @@ def relation(spec: FieldSpec) -> set[frozenset[str]]:
     """Role pairs that can matter for this field."""
     pairs = {frozenset(p) for p in (("ball", "foot"), ("ball", "torso"), ("foot", "floor"))}
     if spec.ball.enabled:
-        pairs.add(frozenset(("ball", "floor")))
+        if spec.ball.joint == "free":  # a puck's floor friction is joint frictionloss instead (scene.py)
+            pairs.add(frozenset(("ball", "floor")))
         pairs |= {frozenset(("ball", s)) for s in STATIC}
     agent_parts = {"none": (), "torso": ("torso",), "torso_and_feet": ("torso", "foot")}[spec.sim.agent_contacts]
     pairs |= {frozenset((a, s)) for a in agent_parts for s in STATIC}
@@ -46,6 +47,23 @@ def bits(role: str, spec: FieldSpec) -> tuple[int, int]:
             other = set(pair - {role}) or {role}
             affinity |= BIT[other.pop()]
     return BIT[role], affinity
+
+
+def contact_limit(spec: FieldSpec) -> int | None:
+    """How many contacts the solver sees per step (nearest first), or None for all.
+
+    Far-apart pairs still run their collision test but add no solver rows: the
+    solver's cost grows with rows, and a field rarely has more than a few
+    contacts active beyond the agent's feet on the floor.
+    """
+    limit = spec.sim.max_contacts
+    if limit == "all":
+        return None
+    if limit != "auto":
+        return limit
+    resting = 4 if spec.agent.kind == "ant" else 0
+    resting += 1 if spec.ball.enabled and spec.ball.joint == "free" else 0
+    return resting + 8
 
 
 def candidate_pairs(model: mujoco.MjModel) -> list[tuple[str, str]]:

@@ -13,7 +13,7 @@ import math
 from dm_control import mjcf
 
 from fieldgen.compile.agents import BUILDERS, AgentBuild
-from fieldgen.compile.contacts import bits
+from fieldgen.compile.contacts import bits, contact_limit
 from fieldgen.schema import geometry
 from fieldgen.schema.models import FieldSpec
 
@@ -30,6 +30,7 @@ RGBA = {
     "line": (1.0, 1.0, 1.0, 1.0),
 }
 DECORATIVE_ALPHA = 0.45
+GRAVITY = 9.81
 
 
 def build_scene(spec: FieldSpec) -> tuple[mjcf.RootElement, AgentBuild]:
@@ -60,6 +61,9 @@ def _options(root: mjcf.RootElement, spec: FieldSpec) -> None:
     root.option.cone = s.cone
     if not s.euler_damping:
         root.option.flag.eulerdamp = "disable"
+    limit = contact_limit(spec)
+    if limit is not None:
+        root.custom.add("numeric", name="max_contact_points", data=(limit,))
     root.default.geom.condim = 3
     root.default.geom.friction = (1.0, 0.5, 0.5)
     root.default.geom.density = 5.0
@@ -122,9 +126,13 @@ def _ball(root: mjcf.RootElement, spec: FieldSpec) -> tuple[float, ...]:
         home = (cx, cy, b.radius, 1.0, 0.0, 0.0, 0.0)
     else:
         # Slide joints measure from the body's position: keep it at the origin so qpos is world x, y.
+        # A puck presses on the floor with its weight alone, so Coulomb floor friction is exactly a
+        # frictionloss of mu*m*g on each slide: no floor contact needed (the study's bits keep one).
+        frictionloss = 0.0 if spec.sim.contacts == "study" else max(b.friction, spec.field.friction) * b.mass * GRAVITY
         body = root.worldbody.add("body", name="ball", pos=(0, 0, b.radius))
-        body.add("joint", name="ball_x", type="slide", axis=(1, 0, 0), limited=False, armature=0, damping=0)
-        body.add("joint", name="ball_y", type="slide", axis=(0, 1, 0), limited=False, armature=0, damping=0)
+        for axis, vec in (("x", (1, 0, 0)), ("y", (0, 1, 0))):
+            body.add("joint", name=f"ball_{axis}", type="slide", axis=vec, limited=False, armature=0, damping=0,
+                     frictionloss=frictionloss)
         home = (cx, cy)
     body.add("geom", name="ball", type="sphere", size=(b.radius,), mass=b.mass, rgba=RGBA["ball"],
              friction=(b.friction, 0.5, 0.5), contype=ct, conaffinity=ca)

@@ -126,7 +126,8 @@ def _ball_spawn(spec: FieldSpec) -> Found:
                     f"centres must stay within x [{x0 + r:g}, {x1 - r:g}], y [{y0 + r:g}, {y1 - r:g}]"))
     for box in geometry.obstacles(spec):
         if _rects_overlap(rect, box.xy_bounds(inflate=r)):
-            out.append((where, f"the ball can spawn touching obstacle '{box.name.removeprefix('obstacle_')}'"))
+            name = box.name.removeprefix("obstacle_")
+            out.append((("obstacles", name), f"the ball can spawn touching obstacle '{name}'"))
     goal = geometry.goal_region(spec)
     if goal is not None and _rects_overlap(rect, goal.xy_bounds(inflate=r)):
         out.append((where, "the ball can spawn inside or touching the goal"))

@@ -242,6 +242,11 @@ class SimSection(Section):
     agent_contacts: Literal["none", "torso", "torso_and_feet"] = Field(
         "torso", description="which agent geoms collide with walls, obstacles and posts"
     )
+    max_contacts: int | Literal["auto", "all"] = Field(
+        "auto",
+        description="contacts passed to the solver each step, nearest first (MJX max_contact_points); "
+        "auto: the agent's resting contacts + 8; all: no limit",
+    )
     contacts: Literal["pruned", "study"] = Field(
         "pruned",
         description="pruned: only pairs that can matter are checked; study: the soccer study's contact bits "

@@ -1,0 +1,90 @@
+"""Env-steps per second of built fields beside brax's own `ant` (mjx), measured in the same run.
+
+Each field steps for --steps steps in a lax.scan at every batch size, timed
+after two warm-up calls (best of three). The ratio column divides by brax ant
+at the same batch size. Also reports contacts per step and the JIT compile time
+of reset + step.
+
+    fieldgen build soccer_v2 soccer_v2_seed            # here, with dm_control
+    python bench/env_throughput.py --fields soccer_v2,soccer_v2_seed --envs 1024,8192
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import io
+import json
+import time
+from pathlib import Path
+
+import jax
+
+import fieldgen
+from fieldgen.throughput import measure
+
+
+def brax_ant():
+    with contextlib.redirect_stdout(io.StringIO()):
+        from brax import envs
+    return envs.get_environment("ant", backend="mjx")
+
+
+def contacts_per_step(env) -> int:
+    with contextlib.redirect_stdout(io.StringIO()):
+        from mujoco import mjx
+    return int(mjx.make_data(env.mj_model)._impl.contact.dist.shape[0])
+
+
+def compile_seconds(env, n_envs: int) -> float:
+    """Wall time of the first reset + step call at this batch size (compilation dominates)."""
+    keys = jax.random.split(jax.random.PRNGKey(0), n_envs)
+    t0 = time.perf_counter()
+    state = jax.jit(jax.vmap(env.reset))(keys)
+    action = jax.numpy.zeros((n_envs, env.action_size))
+    jax.block_until_ready(jax.jit(jax.vmap(env.step))(state, action))
+    return time.perf_counter() - t0
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--build", type=Path, default=Path("build"), help="folder of built fields")
+    parser.add_argument("--fields", default="", help="comma-separated names; default: every built field")
+    parser.add_argument("--envs", default="1024,8192,32768", help="comma-separated batch sizes")
+    parser.add_argument("--steps", type=int, default=200)
+    parser.add_argument("--no-reference", action="store_true", help="skip brax ant")
+    parser.add_argument("--json", type=Path, help="append results here, one JSON object per line")
+    args = parser.parse_args()
+    sizes = [int(n) for n in args.envs.split(",")]
+    names = args.fields.split(",") if args.fields else sorted(p.parent.name for p in args.build.glob("*/field.json"))
+    print(f"device: {jax.devices()[0].device_kind}, jax {jax.__version__}, {args.steps}-step rollouts")
+
+    reference = {}
+    if not args.no_reference:
+        ant = brax_ant()
+        for n in sizes:
+            reference[n] = measure(ant, n, args.steps).steps_per_second
+            print(f"{'brax ant':16s} {n:>7d} envs {reference[n]:>12,.0f} steps/s   1.00x")
+            _record(args.json, {"field": "brax_ant", "envs": n, "steps_per_second": reference[n]})
+
+    for name in names:
+        env = fieldgen.make(args.build / name)
+        contacts = contacts_per_step(env)
+        compile_s = compile_seconds(env, sizes[0])
+        print(f"{name}: {contacts} contacts per physics step, reset+step compile {compile_s:.1f} s at {sizes[0]} envs")
+        for n in sizes:
+            sps = measure(env, n, args.steps).steps_per_second
+            ratio = sps / reference[n] if n in reference else float("nan")
+            print(f"{name:16s} {n:>7d} envs {sps:>12,.0f} steps/s   {ratio:.2f}x brax ant")
+            _record(args.json, {"field": name, "envs": n, "steps_per_second": sps, "ratio_to_brax_ant": ratio,
+                                "contacts": contacts, "compile_seconds": compile_s})
+
+
+def _record(path: Path | None, row: dict) -> None:
+    if path is not None:
+        with path.open("a") as f:
+            f.write(json.dumps(row) + "\n")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,84 @@
+"""Bad specs give one clear problem per mistake, naming file, line, column and key path."""
+
+from __future__ import annotations
+
+import pytest
+
+from fieldgen.schema import SpecError, load_spec
+
+
+def problems_of(path):
+    with pytest.raises(SpecError) as info:
+        load_spec(path)
+    return info.value.problems
+
+
+# (yaml text, line, key path, a phrase the message must contain)
+BAD = [
+    ("name: x\ngoal:\n  widht: 3\n", 3, "goal.widht", "did you mean 'width'"),
+    ("name: x\ngoal:\n  width: -2\n", 3, "goal.width", "greater than 0"),
+    ("name: x\nball:\n  joint: rolling\n", 3, "ball.joint", "'planar' or 'free'"),
+    ("name: x\nball:\n  spawn: {x: [1, -1], y: 3}\n", 3, "ball.spawn.x", "low end 1.0 is above the high end"),
+    ("name: x\nball:\n  radius: .nan\n", 3, "ball.radius", "finite number"),
+    ("name: x\nfield:\n  length: .inf\n", 3, "field.length", "finite number"),
+    ("name: x\nfield: {length: 1.0e+9}\n", 2, "field.length", "less than or equal to 500"),
+    ("name: x\ntask:\n  reward:\n    - {term: success}\n    - {term: ball_progres}\n", 5,
+     "task.reward[1].term", "did you mean 'ball_progress'"),
+    ("name: x\ntask:\n  reward:\n    - {term: success, band: [0, 1]}\n", 4, "task.reward[0]", "upright term only"),
+    ("name: x\nepisode: {length: 0}\n", 2, "episode.length", "greater than or equal to 1"),
+    ("name: x\nobstacles:\n  goalie: {widht: 2}\n", 3, "obstacles.goalie.widht", "did you mean 'width'"),
+    ("name: x\nballl: {}\n", 2, "balll", "did you mean 'ball'"),
+    ("description: no name\n", 1, "name", "'name' is required"),
+    ("name: Bad Name\n", 1, "name", "should match pattern"),
+    ("name: x\nname: y\n", 2, "name", "duplicate key 'name' (first given on line 1)"),
+    ("name: x\ngoal: {width: 3\n", 3, "", "YAML syntax error"),
+    ("- 1\n- 2\n", 1, "", "the document is a list"),
+    ("just a string\n", 1, "", "a single value"),
+    ("", 1, "", "the file is empty"),
+    # physics sense
+    ("name: x\ngoal: {distance: 30}\n", 2, "goal.distance", "beyond the field's end"),
+    ("name: x\nepisode: {control_dt: 0.033, physics_dt: 0.01}\n", 2, "episode.control_dt", "whole multiple"),
+    ("name: x\nball:\n  spawn: {x: 0, y: 0.5}\n", 3, "ball.spawn", "from the agent's start"),
+    ("name: x\nball:\n  spawn: {x: 0, y: 30}\n", 3, "ball.spawn", "outside the field"),
+    ("name: x\nball:\n  spawn: {x: 0, y: 9.8}\n", 3, "ball.spawn", "inside or touching the goal"),
+    ("name: x\nobstacles:\n  rock: {x: 0, y: 3.2}\n", 3, "obstacles.rock", "touching obstacle 'rock'"),
+    ("name: x\nobstacles:\n  rock: {x: 0, y: 0}\n", 3, "obstacles.rock", "overlaps the agent's start"),
+    ("name: x\nball: {enabled: false}\n", 1, "task.success.kind", "needs a ball"),
+    ("name: x\nagent: {kind: point}\ntask:\n  reward:\n    - {term: upright}\n", 5, "task.reward[0].term",
+     "needs an agent with a torso"),
+    ("name: x\nwalls: {enabled: true}\nfield: {length: 24, width: 8}\n"
+     "obstacles:\n  wall: {relative_to: goal, y: -2, width: 8, depth: 0.5}\n", 4, "obstacles",
+     "cannot reach the goal"),
+]
+
+
+@pytest.mark.parametrize("text,line,path,phrase", BAD)
+def test_bad_spec_names_line_key_and_reason(write_spec, text, line, path, phrase):
+    spec_file = write_spec(text)
+    found = problems_of(spec_file)
+    matching = [p for p in found if phrase in p.message]
+    assert matching, f"no problem mentions {phrase!r}: {[str(p) for p in found]}"
+    p = matching[0]
+    assert p.file == spec_file
+    assert p.line == line
+    assert p.path == path
+    assert str(p).startswith(f"{spec_file}:{line}:")
+
+
+def test_every_problem_is_reported_not_just_the_first(write_spec):
+    found = problems_of(write_spec("name: x\ngoal: {widht: 1, height: -1}\nball: {joint: rolling}\n"))
+    assert {p.path for p in found} == {"goal.widht", "goal.height", "ball.joint"}
+
+
+def test_unknown_key_lists_allowed_keys(write_spec):
+    (p,) = problems_of(write_spec("name: x\nwalls: {hieght: 1}\n"))
+    assert "did you mean 'height'" in p.message
+    assert "Allowed keys here: enabled, height, thickness" in p.message
+
+
+def test_missing_file_and_unknown_bundled_base(write_spec, tmp_path):
+    (p,) = problems_of(tmp_path / "nope.yaml")
+    assert "no such file" in p.message
+    (p,) = problems_of(write_spec("extends: socer_v2\nname: x\n"))
+    assert p.line == 1 and p.path == "extends"
+    assert "did you mean 'soccer_v2'" in p.message
