@@ -26,6 +26,11 @@ with contextlib.redirect_stdout(io.StringIO()):  # mjx (also via brax) prints ab
     from mujoco import mjx
 
 
+# mjx.Data fields that carry state from step to step; everything else is recomputed by the next
+# mjx.step, so an auto-reset only needs to swap these.
+_STATE_FIELDS = ("time", "qpos", "qvel", "act", "ctrl", "mocap_pos", "mocap_quat", "qacc_warmstart")
+
+
 class FieldEnv:
     """A goal-conditioned environment: obs = concat(state, goal)."""
 
@@ -131,7 +136,7 @@ class FieldEnv:
         if self.auto_reset:
             rng, key = jax.random.split(state.info["rng"])
             fresh, fresh_goal = self._fresh_episode(key)
-            data = jax.tree.map(lambda a, b: jnp.where(done, a, b), fresh, data)
+            data = data.replace(**{f: jnp.where(done, getattr(fresh, f), getattr(data, f)) for f in _STATE_FIELDS})
             goal = jnp.where(done, fresh_goal, goal)
             obs = jnp.where(done, self._obs(fresh, fresh_goal), obs)
             info.update(rng=rng, goal=goal, steps=jnp.where(done, 0, steps),

@@ -53,3 +53,9 @@ def test_self_extension_is_a_cycle(write_spec):
     path = write_spec("extends: self.yaml\nname: s\n", "self.yaml")
     with pytest.raises(SpecError, match="cycle"):
         load_spec(path)
+
+
+def test_null_removes_an_inherited_key(write_spec):
+    spec = load_spec(write_spec("extends: soccer_v2\nname: open\nobstacles: {goalie: null}\ngoal: {post_setback: null}\n"))
+    assert spec.obstacles == {}
+    assert spec.goal.post_setback is None and spec.goal.posts_y == 20 - 0.8 + 0.25

@@ -1,6 +1,7 @@
 """YAML file -> validated FieldSpec: `extends:` merging, then every problem at once.
 
-Maps merge by key and lists are replaced whole. Each merged key remembers the
+Maps merge by key, lists are replaced whole, and a key set to null is removed
+(back to its default; an inherited obstacle deleted). Each merged key remembers the
 file and line it came from, so an error in an inherited value points at the
 base file that set it.
 """
@@ -96,7 +97,10 @@ def _deep_merge(base, child):
     if isinstance(base, dict) and isinstance(child, dict):
         out = dict(base)
         for key, value in child.items():
-            out[key] = _deep_merge(base[key], value) if key in base else value
+            if value is None:
+                out.pop(key, None)  # null deletes: back to the default, or an inherited obstacle removed
+            else:
+                out[key] = _deep_merge(base[key], value) if key in base else value
         return out
     return child
 

@@ -1,0 +1,8 @@
+"""Trainers that consume any fieldgen environment through its contract alone.
+
+The contract (README, "Make your own field"): brax-style `reset(rng)` and
+`step(state, action)`; `obs = concat(state, goal)`; `observation_size`,
+`action_size`, `state_dim`, `goal_indices`, `episode_length`; `State.metrics`
+holds `success` and every reward term. Nothing here imports fieldgen's
+internals, and fieldgen/compile never imports this package.
+"""

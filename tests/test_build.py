@@ -1,0 +1,111 @@
+"""Every bundled field compiles to MJCF that MuJoCo and MJX load; builds are reproducible and atomic."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import mujoco
+import pytest
+
+from fieldgen.compile.artifact import ArtifactError, compile_spec, load_artifact
+from fieldgen.compile.build import build
+from fieldgen.compile.contacts import candidate_pairs
+from fieldgen.env import mjx
+from fieldgen.schema import bundled_fields, load_spec
+
+FIELDS = sorted(bundled_fields())
+
+
+@pytest.mark.parametrize("name", FIELDS)
+def test_bundled_field_compiles_and_loads(name):
+    spec = load_spec(bundled_fields()[name])
+    artifact = compile_spec(spec)
+    model = mujoco.MjModel.from_xml_string(artifact.xml)
+    mjx.put_model(model)
+    assert model.nu == (8 if spec.agent.kind == "ant" else 2)
+    assert model.key("home").qpos.shape == (model.nq,)
+    meta = artifact.metadata()
+    assert meta["observation"]["size"] == meta["state_dim"] + 2
+    assert spec.description and bundled_fields()[name].read_text().startswith("#")
+
+
+def test_same_yaml_gives_byte_identical_scene_and_hash():
+    a = compile_spec(load_spec("fields/soccer_v2.yaml"))
+    b = compile_spec(load_spec("fields/soccer_v2.yaml"))
+    assert a.xml == b.xml and a.hash == b.hash
+    c = compile_spec(load_spec("fields/v2_wide_goalie.yaml"))
+    assert c.hash != a.hash
+
+
+def test_build_writes_artifact_then_hits_cache(tmp_path):
+    first = build("fields/point_soccer.yaml", tmp_path, preview=False)
+    assert not first.cache_hit
+    files = sorted(p.name for p in first.out_dir.iterdir())
+    assert files == ["field.json", "scene.xml"]  # no temporary files left behind
+    xml = (first.out_dir / "scene.xml").read_bytes()
+    second = build("fields/point_soccer.yaml", tmp_path, preview=False)
+    assert second.cache_hit and (second.out_dir / "scene.xml").read_bytes() == xml
+    forced = build("fields/point_soccer.yaml", tmp_path, preview=False, force=True)
+    assert not forced.cache_hit and (forced.out_dir / "scene.xml").read_bytes() == xml
+
+
+def test_build_with_preview_writes_png(tmp_path):
+    result = build("fields/point_nav.yaml", tmp_path, preview=True)
+    png = (result.out_dir / "preview.png").read_bytes()
+    assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 10_000
+
+
+def test_field_json_describes_observation_and_task(tmp_path):
+    result = build("fields/soccer_v2.yaml", tmp_path, preview=False)
+    meta = json.loads((result.out_dir / "field.json").read_text())
+    assert meta["state_dim"] == 31 and meta["goal_indices"] == [29, 30]  # the study's layout
+    assert meta["observation"]["slices"] == {
+        "agent_qpos": [0, 15], "agent_qvel": [15, 29], "ball_pos": [29, 31], "goal": [31, 33]}
+    assert meta["spec"]["obstacles"]["goalie"]["width"] == 1.5
+    assert meta["success"] == {"kind": "ball_near_target", "radius": 0.5}
+
+
+def test_incomplete_or_corrupt_artifact_is_a_clear_error(tmp_path):
+    result = build("fields/point_nav.yaml", tmp_path, preview=False)
+    (result.out_dir / "field.json").write_text("{not json")
+    with pytest.raises(ArtifactError, match="not valid JSON"):
+        load_artifact(result.out_dir)
+    (result.out_dir / "field.json").unlink()
+    with pytest.raises(ArtifactError, match="field.json is missing"):
+        load_artifact(result.out_dir)
+
+
+def test_artifact_loads_without_dm_control(tmp_path):
+    result = build("fields/point_soccer.yaml", tmp_path, preview=False)
+    code = (
+        "import sys; sys.modules['dm_control'] = None\n"
+        "import fieldgen\n"
+        f"env = fieldgen.make({str(result.out_dir)!r})\n"
+        "print(env.observation_size, env.action_size)\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert done.stdout.split()[-2:] == ["8", "2"]
+
+
+def pairs_by_role(name):
+    model = compile_spec(load_spec(bundled_fields()[name])).model()
+    return {tuple(sorted(p)) for p in candidate_pairs(model)}
+
+
+def test_soccer_v2_prunes_contacts_to_pairs_that_matter():
+    pairs = pairs_by_role("soccer_v2")
+    names = {g for p in pairs for g in p}
+    assert not any(n.endswith(("_aux", "_thigh", "_shin")) for n in names)  # leg capsules never collide
+    assert ("ball", "wall_left") in pairs and ("obstacle_goalie", "torso") in pairs
+    assert ("ball", "post_left") in pairs and ("back_left_foot", "floor") in pairs
+    assert not any("crossbar" in p for p in names)  # 3.5 m up: nothing on the field reaches it
+    assert ("ball", "floor") not in pairs  # the puck's floor friction is a joint frictionloss
+
+
+def test_seed_field_reproduces_the_studys_contact_set():
+    pairs = pairs_by_role("soccer_v2_seed")
+    assert len(pairs) == 20
+    assert not any(g.startswith(("wall", "obstacle", "post")) for p in pairs for g in p)
+    assert ("back_left_foot", "front_left_foot") in pairs and ("ball", "floor") in pairs

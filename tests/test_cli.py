@@ -1,0 +1,72 @@
+"""The command line as a user meets it: exit codes, messages, files written."""
+
+from __future__ import annotations
+
+import json
+
+import imageio.v3 as iio
+from typer.testing import CliRunner
+
+from fieldgen.cli import app
+from fieldgen.schema import bundled_fields
+
+runner = CliRunner()
+
+
+def test_validate_ok_and_bad(write_spec):
+    ok = runner.invoke(app, ["validate", "fields/soccer_v2.yaml", "v2_wide_goalie"])
+    assert ok.exit_code == 0, ok.output
+    bad = write_spec("extends: soccer_v2\nname: b\nobstacles:\n  goalie: {widht: 4}\n")
+    result = runner.invoke(app, ["validate", str(bad)])
+    assert result.exit_code == 1
+    assert f"{bad}:4:" in result.output and "did you mean 'width'" in result.output
+    assert "Traceback" not in result.output
+
+
+def test_unknown_field_name_is_a_clear_error():
+    result = runner.invoke(app, ["build", "socer_v2"])
+    assert result.exit_code == 1
+    assert "neither a file nor a bundled field" in result.output and "Traceback" not in result.output
+
+
+def test_build_reports_then_hits_cache(tmp_path):
+    args = ["build", "point_soccer", "--out", str(tmp_path), "--no-preview"]
+    first = runner.invoke(app, args)
+    assert first.exit_code == 0, first.output
+    assert "built point_soccer" in first.output and "contact pairs" in first.output
+    assert (tmp_path / "point_soccer" / "scene.xml").is_file()
+    second = runner.invoke(app, args)
+    assert "cache hit point_soccer" in second.output
+
+
+def test_list_names_every_bundled_field():
+    result = runner.invoke(app, ["list"])
+    assert result.exit_code == 0
+    for name in bundled_fields():
+        assert name in result.output
+
+
+def test_schema_is_json_schema_with_descriptions():
+    result = runner.invoke(app, ["schema"])
+    schema = json.loads(result.output)
+    goal = schema["$defs"]["GoalSection"]["properties"]
+    assert goal["width"]["description"] and goal["width"]["default"] == 4.0
+    assert schema["additionalProperties"] is False
+
+
+def test_render_top_and_follow(tmp_path):
+    for camera, width in (("top", 640), ("both", 1280)):
+        out = tmp_path / f"{camera}.png"
+        result = runner.invoke(app, ["render", "point_soccer", "-o", str(out), "--camera", camera])
+        assert result.exit_code == 0, result.output
+        image = iio.imread(out)
+        assert image.shape == (480, width, 3)
+        assert image.std() > 10  # a picture, not a blank frame
+    result = runner.invoke(app, ["render", "point_soccer", "--camera", "side"])
+    assert result.exit_code == 1 and "unknown camera 'side'" in result.output
+
+
+def test_every_command_has_help_with_an_example():
+    for command in ("validate", "build", "render", "list", "schema", "bench"):
+        result = runner.invoke(app, [command, "--help"])
+        assert result.exit_code == 0 and "Example: fieldgen" in result.output

@@ -1,0 +1,111 @@
+"""Reward terms and success predicates against their formulas on hand-set states."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from fieldgen.compile.task import MIN_SCALE_DISTANCE, Transition, task_fns
+from fieldgen.schema import load_spec
+
+DT = 0.05
+
+
+def transition(ball_before=(0, 5, 0.5), ball=(0, 5.1, 0.5), agent_before=(0, 0, 0.55), agent=(0, 0, 0.55),
+               target=(0, 10), action=(0.0,) * 8):
+    arr = lambda v: jnp.asarray(v, jnp.float32)  # noqa: E731
+    return Transition(arr(ball_before), arr(ball), arr(agent_before), arr(agent), arr(target), arr(action), DT)
+
+
+def spec_with(write_spec, reward_yaml: str, extra: str = ""):
+    return load_spec(write_spec(f"extends: soccer_v1\nname: t\n{extra}task:\n  reward:\n{reward_yaml}"))
+
+
+def values(write_spec, reward_yaml, t, extra=""):
+    fns = task_fns(spec_with(write_spec, reward_yaml, extra))
+    return {name: float(fn(t)) for name, fn in fns.terms.items()}, fns
+
+
+def test_ball_moved_0_1_towards_goal(write_spec):
+    terms = ("    - {term: ball_progress, weight: 10}\n    - {term: scaled_ball_progress, weight: 5}\n")
+    v, fns = values(write_spec, terms, transition())
+    assert v["ball_progress"] == pytest.approx(0.1 / DT, rel=1e-4)
+    assert v["scaled_ball_progress"] == pytest.approx(0.1 / DT / 4.9, rel=1e-4)
+    assert float(fns.reward(v)) == pytest.approx(10 * 2.0 + 5 * 2.0 / 4.9, rel=1e-4)
+
+
+def test_scaled_progress_is_bounded_at_the_target(write_spec):
+    t = transition(ball_before=(0, 9.9, 0.5), ball=(0, 10, 0.5))
+    v, _ = values(write_spec, "    - {term: scaled_ball_progress}\n", t)
+    assert v["scaled_ball_progress"] == pytest.approx((0.1 / DT) / MIN_SCALE_DISTANCE, rel=1e-4)
+
+
+def test_agent_terms(write_spec):
+    t = transition(agent_before=(0, 0, 0.55), agent=(0.3, 0.4, 0.55), ball_before=(3, 4, 0.5), ball=(3, 4, 0.5),
+                   target=(6, 8))
+    terms = "    - {term: agent_approaches_ball}\n    - {term: agent_progress}\n"
+    v, _ = values(write_spec, terms, t)
+    assert v["agent_approaches_ball"] == pytest.approx((5.0 - 4.5) / DT, rel=1e-4)
+    assert v["agent_progress"] == pytest.approx((10.0 - 9.5) / DT, rel=1e-4)
+
+
+@pytest.mark.parametrize("z,expected", [(0.55, 1.0), (0.25, 0.0), (1.05, 0.0), (0.3, 1.0)])
+def test_upright_band(write_spec, z, expected):
+    v, _ = values(write_spec, "    - {term: upright, band: [0.3, 1.0]}\n", transition(agent=(0, 0, z)))
+    assert v["upright"] == expected
+
+
+def test_control_cost_is_negative_squared_action(write_spec):
+    action = (0.5, -0.5, 1.0, 0, 0, 0, 0, 0)
+    v, fns = values(write_spec, "    - {term: control_cost, weight: 0.5}\n", transition(action=action))
+    assert v["control_cost"] == pytest.approx(-1.5)
+    assert float(fns.reward(v)) == pytest.approx(-0.75)
+
+
+@pytest.mark.parametrize("ball,inside", [((0, 10, 0.5), 1.0), ((1.9, 9.6, 0.5), 1.0), ((2.1, 10, 0.5), 0.0),
+                                         ((0, 10.6, 0.5), 0.0), ((0, 9.4, 0.5), 0.0)])
+def test_ball_in_goal_box(write_spec, ball, inside):
+    extra = "task:\n  success: {kind: ball_in_goal}\n"
+    spec = load_spec(write_spec(f"extends: soccer_v1\nname: t\n{extra}"))
+    fns = task_fns(spec)
+    assert float(fns.success(transition(ball=ball))) == inside  # goal box: 4 wide, 1 deep at y = 10
+
+
+@pytest.mark.parametrize("ball,hit", [((0, 9.55, 0.5), 1.0), ((0.3, 10.3, 0.5), 1.0), ((0, 9.45, 0.5), 0.0),
+                                      ((0.4, 10.4, 0.5), 0.0)])
+def test_ball_near_target(ball, hit):
+    fns = task_fns(load_spec("fields/soccer_v1.yaml"))
+    assert float(fns.success(transition(ball=ball))) == hit
+
+
+@pytest.mark.parametrize("agent,hit", [((6.2, 8.2, 0.5), 1.0), ((6.4, 8.4, 0.5), 0.0)])
+def test_agent_near_target(agent, hit):
+    fns = task_fns(load_spec("fields/ant_nav.yaml"))
+    assert float(fns.success(transition(agent=agent, target=(6, 8)))) == hit
+
+
+def test_repeated_terms_keep_separate_names(write_spec):
+    terms = "    - {term: upright, band: [0.2, 1.0]}\n    - {term: upright, band: [0.5, 0.6], weight: 2}\n"
+    v, fns = values(write_spec, terms, transition(agent=(0, 0, 0.8)))
+    assert v == {"upright": 1.0, "upright_2": 0.0}
+    assert fns.weights == {"upright": 1.0, "upright_2": 2.0}
+
+
+def test_env_metrics_follow_the_formulas(env_cache):
+    """In the environment: a hand-placed puck's progress term equals (d_before - d_after) / dt."""
+    env = env_cache("point_soccer", auto_reset=False)
+    state = env.reset(jax.random.PRNGKey(0))
+    qpos = state.pipeline_state.qpos.at[env.layout.ball_qpos].set(jnp.array([0.3, 2.0]))
+    qvel = state.pipeline_state.qvel.at[env.layout.ball_qpos].set(jnp.array([0.0, 2.0]))  # rolling to the goal
+    state = state.replace(pipeline_state=state.pipeline_state.replace(qpos=qpos, qvel=qvel))
+    after = jax.jit(env.step)(state, jnp.zeros(2))
+    goal = np.asarray(state.info["goal"])
+    ball_after = np.asarray(after.obs[4:6])
+    expected = (np.linalg.norm(np.array([0.3, 2.0]) - goal) - np.linalg.norm(ball_after - goal)) / env.dt
+    assert expected > 0.5
+    assert float(after.metrics["ball_progress"]) == pytest.approx(expected, rel=1e-3)
+    m = after.metrics
+    total = 1.0 * m["success"] + 0.1 * m["agent_approaches_ball"] + 0.5 * m["ball_progress"]
+    assert float(after.reward) == pytest.approx(float(total), rel=1e-5)
