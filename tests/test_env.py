@@ -54,27 +54,29 @@ def test_ant_fields_step_under_jit_and_vmap(env_cache, name):
     assert env.action_size == 8
 
 
+def one_step_episodes(env, n: int, seed: int):
+    """Step one env n times with zero actions; returns the stacked states after each step."""
+
+    def body(state, _):
+        state = env.step(state, jnp.zeros(env.action_size))
+        return state, state
+
+    last, states = jax.jit(lambda s: jax.lax.scan(body, s, None, length=n))(env.reset(jax.random.PRNGKey(seed)))
+    return last, states
+
+
 def test_auto_reset_draws_fresh_episodes(env_cache):
-    """100 consecutive one-step episodes of one env never repeat a ball start or target."""
+    """100 consecutive one-step episodes of one env never repeat a ball start or a target."""
     env = env_cache("point_soccer", episode_length=1)
-    state = env.reset(jax.random.PRNGKey(3))
-    step = jax.jit(env.step)
-    starts = []
-    for _ in range(100):
-        state = step(state, jnp.zeros(env.action_size))
-        assert float(state.done) == 1.0
-        starts.append(tuple(np.asarray(state.obs[4:6]).round(6)))
-    assert len(set(starts)) == 100
-    assert int(state.info["episode"]) == 100 and int(state.info["steps"]) == 0
+    last, states = one_step_episodes(env, 100, seed=3)
+    assert np.all(np.asarray(states.done) == 1.0)
+    ball_starts = np.asarray(states.obs[:, slice(*env.layout.slices["ball_pos"])]).round(6)
+    assert len({tuple(b) for b in ball_starts}) == 100
+    assert int(last.info["episode"]) == 100 and int(last.info["steps"]) == 0
 
     nav = env_cache("point_nav", episode_length=1)
-    state = nav.reset(jax.random.PRNGKey(4))
-    nav_step = jax.jit(nav.step)
-    targets = set()
-    for _ in range(100):
-        state = nav_step(state, jnp.zeros(nav.action_size))
-        targets.add(tuple(np.asarray(state.info["goal"]).round(6)))
-    assert len(targets) == 100
+    _, states = one_step_episodes(nav, 100, seed=4)
+    assert len({tuple(g) for g in np.asarray(states.info["goal"]).round(6)}) == 100
 
 
 def test_truncation_and_done_flags(env_cache):
@@ -108,3 +110,38 @@ def test_mjx_matches_mujoco_c_on_soccer_v2_in_float64():
     done = subprocess.run([sys.executable, str(script), "soccer_v2", "50"], capture_output=True, text=True,
                           env={**os.environ, "JAX_ENABLE_X64": "1"}, check=True)
     assert float(done.stdout.split()[-1]) < 1e-6, done.stdout
+
+
+def push_ball(env, velocity, steps=30):
+    """Start the puck at its spawn centre with a given velocity; return its positions."""
+    state = env.reset(jax.random.PRNGKey(0))
+    ball = env.layout.ball_qpos
+    data = state.pipeline_state
+    data = data.replace(qpos=data.qpos.at[ball].set(jnp.array([0.0, 1.5])),
+                        qvel=data.qvel.at[ball].set(jnp.asarray(velocity, jnp.float32)))
+
+    def body(s, _):
+        s = env.step(s, jnp.zeros(env.action_size))
+        return s, s.pipeline_state.qpos[ball]
+
+    _, path = jax.jit(lambda s: jax.lax.scan(body, s, None, length=steps))(state.replace(pipeline_state=data))
+    return np.asarray(path)
+
+
+def test_solid_walls_and_goalie_stop_the_ball(env_cache):
+    env = env_cache("point_soccer", auto_reset=False)
+    r = env.spec.ball.radius
+    side = push_ball(env, [12.0, 0.0])
+    assert side[:, 0].max() <= 3.0 - 0.05 - r + 0.02  # inner face of the right wall at x = 2.95
+    assert side[-1, 0] < side[:, 0].max()  # it bounced back or stopped at the wall
+    ahead = push_ball(env, [0.0, 8.0])
+    goalie_front = 4.0 - 1.2 - 0.1
+    assert ahead[:, 1].max() <= goalie_front - r + 0.02
+
+
+def test_decorative_walls_let_the_ball_through(write_spec):
+    import fieldgen
+
+    spec = write_spec("extends: point_soccer\nname: ghost\nwalls: {solid: false}\nepisode: {length: 200}\n")
+    env = fieldgen.make(spec, auto_reset=False)
+    assert push_ball(env, [12.0, 0.0])[:, 0].max() > 3.5

@@ -109,3 +109,14 @@ def test_env_metrics_follow_the_formulas(env_cache):
     m = after.metrics
     total = 1.0 * m["success"] + 0.1 * m["agent_approaches_ball"] + 0.5 * m["ball_progress"]
     assert float(after.reward) == pytest.approx(float(total), rel=1e-5)
+
+
+def test_every_term_the_schema_accepts_has_a_function(write_spec):
+    import typing
+
+    from fieldgen.schema.models import RewardTerm
+
+    names = typing.get_args(RewardTerm.model_fields["term"].annotation)
+    reward = "".join(f"    - {{term: {n}}}\n" for n in names)
+    v, _ = values(write_spec, reward, transition())
+    assert set(v) == set(names) and all(np.isfinite(x) for x in v.values())

@@ -22,9 +22,23 @@ from fieldgen.compile.contacts import candidate_pairs
 from fieldgen.compile.layout import Layout, observation_layout
 from fieldgen.schema.models import FieldSpec
 
-# Bump when the compiler's output changes for the same spec.
-COMPILER_REVISION = 1
+# Bump when field.json or scene.xml change shape in a way loaders must know about.
+ARTIFACT_FORMAT = 1
 SCENE, META, PREVIEW = "scene.xml", "field.json", "preview.png"
+# The modules whose code decides the scene: a change to any of them invalidates cached builds.
+_COMPILER_MODULES = ("compile/agents.py", "compile/contacts.py", "compile/scene.py", "compile/layout.py",
+                     "schema/geometry.py", "schema/models.py")
+
+
+def _compiler_digest() -> str:
+    root = Path(__file__).resolve().parents[1]
+    digest = hashlib.sha256()
+    for name in _COMPILER_MODULES:
+        digest.update((root / name).read_bytes())
+    return digest.hexdigest()[:16]
+
+
+COMPILER_DIGEST = _compiler_digest()
 
 
 class ArtifactError(Exception):
@@ -46,7 +60,8 @@ class Artifact:
         pairs = candidate_pairs(model)
         return {
             "fieldgen_version": __version__,
-            "compiler_revision": COMPILER_REVISION,
+            "artifact_format": ARTIFACT_FORMAT,
+            "compiler_digest": COMPILER_DIGEST,
             "hash": self.hash,
             "name": self.spec.name,
             "observation": layout.to_json(),
@@ -62,9 +77,9 @@ class Artifact:
 
 
 def spec_hash(spec: FieldSpec) -> str:
-    """Content hash of the resolved spec and the compiler that reads it."""
+    """Content hash of the resolved spec and the compiler code that reads it."""
     canonical = json.dumps(spec.model_dump(mode="json"), sort_keys=True, separators=(",", ":"))
-    return hashlib.sha256(f"fieldgen-compiler-{COMPILER_REVISION}\n{canonical}".encode()).hexdigest()[:16]
+    return hashlib.sha256(f"{COMPILER_DIGEST}\n{canonical}".encode()).hexdigest()[:16]
 
 
 def compile_spec(spec: FieldSpec) -> Artifact:
@@ -101,9 +116,9 @@ def load_artifact(out_dir: str | Path) -> Artifact:
                             "run `fieldgen build` on its spec") from None
     except ValueError as exc:
         raise ArtifactError(f"{out_dir / META} is not valid JSON ({exc}); rebuild the field") from None
-    if meta.get("compiler_revision") != COMPILER_REVISION:
-        raise ArtifactError(f"{out_dir} was built by compiler revision {meta.get('compiler_revision')}, "
-                            f"this fieldgen reads revision {COMPILER_REVISION}; rebuild the field")
+    if meta.get("artifact_format") != ARTIFACT_FORMAT:
+        raise ArtifactError(f"{out_dir} has artifact format {meta.get('artifact_format')}, "
+                            f"this fieldgen reads format {ARTIFACT_FORMAT}; rebuild the field")
     return Artifact(FieldSpec.model_validate(meta["spec"]), xml, meta["hash"])
 
 

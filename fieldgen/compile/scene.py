@@ -75,6 +75,8 @@ def _options(root: mjcf.RootElement, spec: FieldSpec) -> None:
 
 def _floor(root: mjcf.RootElement, spec: FieldSpec) -> None:
     hx, hy = spec.field.width / 2, spec.field.length / 2
+    root.asset.add("texture", name="sky", type="skybox", builtin="gradient", width=256, height=256,
+                   rgb1=(0.55, 0.7, 0.9), rgb2=(0.15, 0.2, 0.3))
     tex = root.asset.add("texture", name="grid", type="2d", builtin="checker", width=256, height=256,
                          rgb1=(0.22, 0.45, 0.25), rgb2=(0.25, 0.5, 0.28))
     extent = 1.5 * max(hx, hy) + 4  # the plane collides everywhere; its size only bounds the drawing
@@ -118,7 +120,8 @@ def _ball(root: mjcf.RootElement, spec: FieldSpec) -> tuple[float, ...]:
     if b.spawn.mode == "region":
         cx, cy = sum(b.spawn.x) / 2, sum(b.spawn.y) / 2
     else:
-        cx, cy = spec.agent.start[0], spec.agent.start[1] + 2 * b.radius + 2.0
+        (sx, sy), (tx, ty) = spec.agent.start, geometry.sample_target(spec)
+        cx, cy = sx + b.spawn.fraction * (tx - sx), sy + b.spawn.fraction * (ty - sy)
     ct, ca = bits("ball", spec)
     if b.joint == "free":
         body = root.worldbody.add("body", name="ball", pos=(cx, cy, b.radius))
@@ -141,9 +144,10 @@ def _ball(root: mjcf.RootElement, spec: FieldSpec) -> tuple[float, ...]:
 
 def _target_marker(root: mjcf.RootElement, spec: FieldSpec) -> None:
     """A mocap disc at the target, moved per episode; it never collides."""
-    fixed = spec.target_fixed() or (0.0, 0.0)
-    radius = spec.task.success.radius
-    body = root.worldbody.add("body", name="target", mocap=True, pos=(fixed[0], fixed[1], 0.0))
+    x, y = geometry.sample_target(spec)
+    success = spec.task.success
+    radius = 0.1 if success.kind == "ball_in_goal" else success.radius
+    body = root.worldbody.add("body", name="target", mocap=True, pos=(x, y, 0.0))
     body.add("geom", name="target", type="cylinder", size=(radius, 0.005), rgba=RGBA["target"],
              contype=0, conaffinity=0, group=1)
 

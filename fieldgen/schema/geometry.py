@@ -91,6 +91,19 @@ def goal_frame(spec: FieldSpec) -> list[Capsule]:
     return out
 
 
+def sample_target(spec: FieldSpec) -> tuple[float, float]:
+    """The target of a typical episode, for the scene's home pose and previews."""
+    fixed = spec.target_fixed()
+    if fixed is not None:
+        return fixed
+    t = spec.task.target
+    lo, hi = t.angle_deg
+    angle = 90.0 if lo <= 90.0 <= hi else (lo + hi) / 2
+    radius = sum(t.radius) / 2
+    sx, sy = spec.agent.start
+    return (sx + radius * math.cos(math.radians(angle)), sy + radius * math.sin(math.radians(angle)))
+
+
 def reach_height(spec: FieldSpec) -> float:
     """The highest point a moving body can reach; static geoms above it are pruned.
 

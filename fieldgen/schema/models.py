@@ -169,18 +169,6 @@ class TargetPoint(Section):
 
 Target = Annotated[Union[TargetGoal, TargetRing, TargetPoint], Field(discriminator="kind")]
 
-SUCCESS_KINDS = ("ball_near_target", "ball_in_goal", "agent_near_target")
-REWARD_TERMS = (
-    "success",
-    "ball_progress",
-    "scaled_ball_progress",
-    "agent_approaches_ball",
-    "agent_progress",
-    "upright",
-    "control_cost",
-    "ball_in_goal",
-)
-
 
 class Success(Section):
     kind: Literal["ball_near_target", "ball_in_goal", "agent_near_target"] = Field(
