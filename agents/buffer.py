@@ -1,0 +1,91 @@
+"""A trajectory replay buffer kept on the device, and hindsight goal sampling.
+
+Rows are time steps, columns are environments: `data[name][t, env]`. A window
+of consecutive rows of one environment is a piece of trajectory; the episode
+counter stored with each step (`episode`) says where one episode ends, so a
+hindsight goal never comes from another episode.
+"""
+
+from __future__ import annotations
+
+import flax.struct
+import jax
+import jax.numpy as jnp
+
+
+@flax.struct.dataclass
+class Buffer:
+    data: dict  # name -> [capacity, num_envs, ...]
+    pos: jax.Array  # next row to write
+    size: jax.Array  # rows holding data
+
+    @property
+    def capacity(self) -> int:
+        return next(iter(self.data.values())).shape[0]
+
+
+def init(capacity: int, num_envs: int, example: dict) -> Buffer:
+    data = {k: jnp.zeros((capacity, num_envs) + jnp.shape(v), jnp.asarray(v).dtype) for k, v in example.items()}
+    return Buffer(data, jnp.zeros((), jnp.int32), jnp.zeros((), jnp.int32))
+
+
+def insert(buf: Buffer, rows: dict) -> Buffer:
+    """Append rows ([T, num_envs, ...] each), overwriting the oldest once full."""
+    steps = next(iter(rows.values())).shape[0]
+    idx = (buf.pos + jnp.arange(steps)) % buf.capacity
+    data = {k: buf.data[k].at[idx].set(rows[k]) for k in buf.data}
+    return Buffer(data, (buf.pos + steps) % buf.capacity, jnp.minimum(buf.size + steps, buf.capacity))
+
+
+def window(buf: Buffer, key: jax.Array, length: int) -> tuple[dict, jax.Array]:
+    """One random environment's rows from a random stored start; `stored[i]` marks real rows."""
+    k_env, k_age = jax.random.split(key)
+    num_envs = next(iter(buf.data.values())).shape[1]
+    env = jax.random.randint(k_env, (), 0, num_envs)
+    age = jax.random.randint(k_age, (), 0, jnp.maximum(buf.size, 1))  # 0 = oldest stored row
+    start = (buf.pos - buf.size + age) % buf.capacity
+    rows = (start + jnp.arange(length)) % buf.capacity
+    stored = jnp.arange(length) < buf.size - age
+    return {k: v[rows, env] for k, v in buf.data.items()}, stored
+
+
+def future_offsets(key: jax.Array, episode: jax.Array, stored: jax.Array, gamma: float) -> tuple[jax.Array, jax.Array]:
+    """For each step i of a window, an offset k >= 1 with P(k) proportional to gamma^k
+    among the later steps of the same episode held in the window.
+
+    Returns (offsets, has_future); steps with no later step in their episode get
+    offset 0 and has_future False.
+    """
+    n = episode.shape[0]
+    idx = jnp.arange(n)
+    nxt_same = jnp.concatenate([episode[1:] == episode[:-1], jnp.zeros(1, bool)])
+    nxt_stored = jnp.concatenate([stored[1:], jnp.zeros(1, bool)])
+    last_of_run = ~(nxt_same & nxt_stored)
+    run_end = jax.lax.cummin(jnp.where(last_of_run, idx, n), reverse=True)
+    horizon = run_end - idx  # later steps available in the same episode
+    # Inverse CDF of the geometric distribution truncated to 1..horizon.
+    u = jax.random.uniform(key, (n,))
+    h = jnp.maximum(horizon, 1).astype(jnp.float32)
+    k = jnp.ceil(jnp.log1p(-u * (1.0 - gamma**h)) / jnp.log(gamma))
+    k = jnp.clip(k, 1, h).astype(jnp.int32)
+    has_future = (horizon >= 1) & stored
+    return jnp.where(has_future, k, 0), has_future
+
+
+def hindsight_batch(buf: Buffer, key: jax.Array, windows: int, length: int, gamma: float,
+                    goal_indices: jax.Array) -> dict:
+    """`windows` trajectory windows, flattened to transitions with goals from their own future.
+
+    Returns state, action, goal and weight (0 where a step has no future in its episode).
+    """
+
+    def one(k):
+        k_win, k_fut = jax.random.split(k)
+        rows, stored = window(buf, k_win, length)
+        offsets, valid = future_offsets(k_fut, rows["episode"], stored, gamma)
+        future = rows["state"][jnp.arange(length) + offsets]
+        return {"state": rows["state"], "action": rows["action"], "goal": future[:, goal_indices],
+                "weight": valid.astype(jnp.float32)}
+
+    batch = jax.vmap(one)(jax.random.split(key, windows))
+    return jax.tree.map(lambda x: x.reshape((-1,) + x.shape[2:]), batch)

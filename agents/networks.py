@@ -1,0 +1,53 @@
+"""MLPs, the tanh-Gaussian actor and its log-probabilities."""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import flax.linen as nn
+import jax
+import jax.numpy as jnp
+
+LOG_STD_MIN, LOG_STD_MAX = -5.0, 2.0
+
+
+class MLP(nn.Module):
+    """Swish hidden layers, optional layer norm, linear output."""
+
+    hidden: Sequence[int]
+    out: int
+    layer_norm: bool = False
+
+    @nn.compact
+    def __call__(self, x: jax.Array) -> jax.Array:
+        init = nn.initializers.lecun_uniform()
+        for width in self.hidden:
+            x = nn.Dense(width, kernel_init=init)(x)
+            if self.layer_norm:
+                x = nn.LayerNorm()(x)
+            x = nn.swish(x)
+        return nn.Dense(self.out, kernel_init=init)(x)
+
+
+class Actor(nn.Module):
+    """obs -> (mean, log_std) of a Gaussian squashed by tanh into [-1, 1]."""
+
+    hidden: Sequence[int]
+    action_size: int
+    layer_norm: bool = False
+
+    @nn.compact
+    def __call__(self, obs: jax.Array) -> tuple[jax.Array, jax.Array]:
+        out = MLP(self.hidden, 2 * self.action_size, self.layer_norm)(obs)
+        mean, log_std = jnp.split(out, 2, axis=-1)
+        return mean, jnp.clip(log_std, LOG_STD_MIN, LOG_STD_MAX)
+
+
+def sample_tanh_gaussian(key: jax.Array, mean: jax.Array, log_std: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """A squashed sample and its log-probability (with the tanh change of variables)."""
+    std = jnp.exp(log_std)
+    u = mean + std * jax.random.normal(key, mean.shape)
+    gaussian = -0.5 * (((u - mean) / std) ** 2 + 2 * log_std + jnp.log(2 * jnp.pi))
+    # log(1 - tanh(u)^2), written stably
+    squash = 2 * (jnp.log(2.0) - u - jax.nn.softplus(-2 * u))
+    return jnp.tanh(u), jnp.sum(gaussian - squash, axis=-1)

@@ -1,0 +1,72 @@
+"""The replay buffer and hindsight sampler on tiny hand-made trajectories."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from agents import buffer
+
+
+def filled(episodes: list[int], num_envs: int = 1, capacity: int = 16):
+    """A buffer whose state at step t is t (one dim) and whose episode ids are given."""
+    steps = len(episodes)
+    example = {"state": jnp.zeros(1), "action": jnp.zeros(1), "episode": jnp.zeros((), jnp.int32)}
+    buf = buffer.init(capacity, num_envs, example)
+    t = jnp.arange(steps, dtype=jnp.float32)
+    rows = {"state": jnp.tile(t[:, None, None], (1, num_envs, 1)),
+            "action": jnp.zeros((steps, num_envs, 1)),
+            "episode": jnp.tile(jnp.asarray(episodes, jnp.int32)[:, None], (1, num_envs))}
+    return buffer.insert(buf, rows)
+
+
+def test_insert_wraps_and_counts():
+    buf = filled([0] * 10, capacity=8)
+    assert int(buf.size) == 8 and int(buf.pos) == 2
+    # rows 8, 9 overwrote rows 0, 1
+    assert buf.data["state"][:, 0, 0].tolist() == [8, 9, 2, 3, 4, 5, 6, 7]
+
+
+def test_future_offsets_stay_in_the_episode():
+    episode = jnp.array([0, 0, 0, 1, 1, 2, 2, 2])
+    stored = jnp.ones(8, bool)
+    for seed in range(50):
+        k, valid = buffer.future_offsets(jax.random.PRNGKey(seed), episode, stored, 0.9)
+        k, valid = np.asarray(k), np.asarray(valid)
+        assert valid.tolist() == [True, True, False, True, False, True, True, False]
+        target = np.arange(8) + k
+        assert np.all(np.asarray(episode)[target] == np.asarray(episode))
+        assert np.all(k[valid] >= 1)
+
+
+def test_future_offsets_respect_unstored_rows():
+    episode = jnp.zeros(6, jnp.int32)
+    stored = jnp.array([True, True, True, False, False, False])
+    k, valid = buffer.future_offsets(jax.random.PRNGKey(0), episode, stored, 0.99)
+    assert np.asarray(valid).tolist() == [True, True, False, False, False, False]
+    assert np.all(np.arange(6)[np.asarray(valid)] + np.asarray(k)[np.asarray(valid)] <= 2)
+
+
+def test_future_offsets_follow_truncated_geometric():
+    gamma, n = 0.7, 5
+    episode = jnp.zeros(n + 1, jnp.int32)
+    keys = jax.random.split(jax.random.PRNGKey(1), 20000)
+    ks = jax.vmap(lambda k: buffer.future_offsets(k, episode, jnp.ones(n + 1, bool), gamma)[0][0])(keys)
+    counts = np.bincount(np.asarray(ks), minlength=n + 1)[1:] / len(keys)
+    expected = gamma ** np.arange(1, n + 1)
+    expected /= expected.sum()
+    np.testing.assert_allclose(counts, expected, atol=0.015)
+
+
+def test_hindsight_batch_goals_come_from_the_same_episode():
+    episodes = [0, 0, 0, 0, 1, 1, 1, 2, 2, 2, 2, 2]
+    buf = filled(episodes, num_envs=3)
+    batch = buffer.hindsight_batch(buf, jax.random.PRNGKey(0), windows=64, length=6, gamma=0.9,
+                                   goal_indices=jnp.array([0]))
+    state, goal, weight = (np.asarray(batch[k]) for k in ("state", "goal", "weight"))
+    ep = np.asarray(episodes)
+    for s, g, w in zip(state[:, 0].astype(int), goal[:, 0].astype(int), weight):
+        if w:
+            assert g > s and ep[g] == ep[s]
+    assert weight.sum() > 0
