@@ -1,0 +1,52 @@
+"""Energy functions and contrastive (InfoNCE) losses of contrastive RL.
+
+`logits[i, j]` is the energy between the i-th state-action representation and
+the j-th goal representation; the diagonal holds the positive pairs.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+
+ENERGIES = ("norm", "l2", "dot", "cosine")
+LOSSES = ("fwd_infonce", "bwd_infonce", "sym_infonce")
+
+
+def energy(kind: str, phi: jax.Array, psi: jax.Array, log_temperature: jax.Array | None = None) -> jax.Array:
+    """Pairwise energies between rows of phi [B, d] and psi [B, d] -> [B, B]."""
+    diff = phi[:, None, :] - psi[None, :, :]
+    if kind == "norm":
+        return -jnp.sqrt(jnp.sum(diff**2, axis=-1) + 1e-12)
+    if kind == "l2":
+        return -jnp.sum(diff**2, axis=-1)
+    if kind == "dot":
+        return phi @ psi.T
+    if kind == "cosine":
+        unit = lambda x: x / (jnp.linalg.norm(x, axis=-1, keepdims=True) + 1e-12)  # noqa: E731
+        return (unit(phi) @ unit(psi).T) / jnp.exp(log_temperature)
+    raise ValueError(f"unknown energy {kind!r}; choose one of {', '.join(ENERGIES)}")
+
+
+def infonce(kind: str, logits: jax.Array, weight: jax.Array) -> jax.Array:
+    """Cross-entropy of the diagonal: over goals (forward), over state-actions (backward), or both."""
+    def forward():
+        return -jnp.diagonal(jax.nn.log_softmax(logits, axis=1))
+
+    def backward():
+        return -jnp.diagonal(jax.nn.log_softmax(logits, axis=0))
+
+    per_row = {"fwd_infonce": forward, "bwd_infonce": backward,
+               "sym_infonce": lambda: 0.5 * (forward() + backward())}
+    if kind not in per_row:
+        raise ValueError(f"unknown contrastive loss {kind!r}; choose one of {', '.join(LOSSES)}")
+    return weighted_mean(per_row[kind](), weight)
+
+
+def logsumexp_penalty(logits: jax.Array, weight: jax.Array) -> jax.Array:
+    """Mean squared log-partition over goals: keeps the forward logits from drifting."""
+    return weighted_mean(jax.nn.logsumexp(logits, axis=1) ** 2, weight)
+
+
+def weighted_mean(x: jax.Array, weight: jax.Array) -> jax.Array:
+    return jnp.sum(x * weight) / jnp.maximum(jnp.sum(weight), 1.0)

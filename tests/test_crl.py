@@ -1,0 +1,55 @@
+"""CRL's losses against hand-computed values, and CRL learning a point field on CPU."""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from agents.contrastive import energy, infonce, logsumexp_penalty
+
+PHI = jnp.array([[0.0, 0.0], [1.0, 0.0]])
+PSI = jnp.array([[0.0, 1.0], [1.0, 1.0]])
+ONES = jnp.ones(2)
+
+
+def test_energies_by_hand():
+    r2 = np.sqrt(2.0)
+    np.testing.assert_allclose(energy("norm", PHI, PSI), [[-1, -r2], [-r2, -1]], rtol=1e-5)
+    np.testing.assert_allclose(energy("l2", PHI, PSI), [[-1, -2], [-2, -1]], rtol=1e-6)
+    np.testing.assert_allclose(energy("dot", PHI, PSI), [[0, 0], [0, 1]], atol=1e-6)
+    cos = energy("cosine", PHI + jnp.array([0.0, 1.0]), PSI, jnp.log(0.5))  # phi rows (0,1), (1,1)
+    np.testing.assert_allclose(cos, np.array([[1, 1 / r2], [1 / r2, 1]]) / 0.5, rtol=1e-5)
+
+
+def test_infonce_by_hand():
+    logits = jnp.array([[2.0, 0.0], [1.0, 3.0]])
+    fwd = np.mean([-(2 - np.log(np.exp(2) + 1)), -(3 - np.log(np.exp(1) + np.exp(3)))])
+    bwd = np.mean([-(2 - np.log(np.exp(2) + np.exp(1))), -(3 - np.log(1 + np.exp(3)))])
+    assert float(infonce("fwd_infonce", logits, ONES)) == pytest.approx(fwd, rel=1e-5)
+    assert float(infonce("bwd_infonce", logits, ONES)) == pytest.approx(bwd, rel=1e-5)
+    assert float(infonce("sym_infonce", logits, ONES)) == pytest.approx((fwd + bwd) / 2, rel=1e-5)
+    only_first = -(2 - np.log(np.exp(2) + 1))
+    assert float(infonce("fwd_infonce", logits, jnp.array([1.0, 0.0]))) == pytest.approx(only_first, rel=1e-5)
+    lse = np.mean([np.log(np.exp(2) + 1) ** 2, np.log(np.exp(1) + np.exp(3)) ** 2])
+    assert float(logsumexp_penalty(logits, ONES)) == pytest.approx(lse, rel=1e-5)
+
+
+def test_unknown_names_are_refused():
+    with pytest.raises(ValueError, match="unknown energy 'cos'"):
+        energy("cos", PHI, PSI)
+    with pytest.raises(ValueError, match="unknown contrastive loss"):
+        infonce("nce", PHI @ PSI.T, ONES)
+
+
+@pytest.mark.slow
+def test_crl_learns_point_nav(env_cache):
+    """From an untrained policy to reaching a random target 3 away in at least 80% of episodes, in 40k steps."""
+    from agents.crl import CRLConfig, train
+
+    config = CRLConfig(total_steps=40_000, num_envs=16, unroll_length=25, batch_size=64, min_replay_rows=100,
+                       max_replay_rows=2000, hidden=(64, 64), repr_dim=16, num_evals=3, eval_envs=32)
+    _, history = train(config, env_cache("point_nav"))
+    assert history[0]["success_any"] <= 0.3
+    assert history[-1]["success_any"] >= 0.8
+    assert history[-1]["time_at_goal"] > 30
