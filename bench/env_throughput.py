@@ -14,14 +14,13 @@ from __future__ import annotations
 import argparse
 import contextlib
 import io
-import json
 import time
 from pathlib import Path
 
 import jax
 
 import fieldgen
-from fieldgen.throughput import measure
+from fieldgen.throughput import append_jsonl, measure
 
 
 def brax_ant():
@@ -65,7 +64,7 @@ def main() -> None:
         for n in sizes:
             reference[n] = measure(ant, n, args.steps).steps_per_second
             print(f"{'brax ant':16s} {n:>7d} envs {reference[n]:>12,.0f} steps/s   1.00x")
-            _record(args.json, {"field": "brax_ant", "envs": n, "steps_per_second": reference[n]})
+            append_jsonl(args.json, {"field": "brax_ant", "envs": n, "steps_per_second": reference[n]})
 
     for name in names:
         env = fieldgen.make(args.build / name)
@@ -76,14 +75,9 @@ def main() -> None:
             sps = measure(env, n, args.steps).steps_per_second
             ratio = sps / reference[n] if n in reference else float("nan")
             print(f"{name:16s} {n:>7d} envs {sps:>12,.0f} steps/s   {ratio:.2f}x brax ant")
-            _record(args.json, {"field": name, "envs": n, "steps_per_second": sps, "ratio_to_brax_ant": ratio,
+            append_jsonl(args.json, {"field": name, "envs": n, "steps_per_second": sps, "ratio_to_brax_ant": ratio,
                                 "contacts": contacts, "compile_seconds": compile_s})
 
-
-def _record(path: Path | None, row: dict) -> None:
-    if path is not None:
-        with path.open("a") as f:
-            f.write(json.dumps(row) + "\n")
 
 
 if __name__ == "__main__":

@@ -19,7 +19,7 @@ import jax
 
 import fieldgen
 from agents import crl
-from fieldgen.throughput import measure
+from fieldgen.throughput import append_jsonl, measure
 
 
 def time_iterations(env, config: crl.CRLConfig, iterations: int) -> float:
@@ -59,7 +59,7 @@ def main() -> None:
         sps = n * config.unroll_length / seconds
         print(f"{n:>6d} envs: {sps:>10,.0f} env steps/s with training; env alone {sim:>12,.0f}; "
               f"ratio {sps / sim:.3f}; {seconds:.2f} s per iteration")
-        _record(args.json, {"field": env.spec.name, "envs": n, "train_steps_per_second": sps,
+        append_jsonl(args.json, {"field": env.spec.name, "envs": n, "train_steps_per_second": sps,
                             "env_steps_per_second": sim, "seconds_per_iteration": seconds})
     if args.learn:
         n = int(args.envs.split(",")[0])
@@ -69,15 +69,10 @@ def main() -> None:
         def progress(step, metrics):
             row = {"field": env.spec.name, "env_steps": step, "seconds": time.perf_counter() - t0, **metrics}
             print(json.dumps({k: round(v, 4) if isinstance(v, float) else v for k, v in row.items()}), flush=True)
-            _record(args.json, row)
+            append_jsonl(args.json, row)
 
         crl.train(config, env, progress)
 
-
-def _record(path: Path | None, row: dict) -> None:
-    if path is not None:
-        with path.open("a") as f:
-            f.write(json.dumps(row) + "\n")
 
 
 if __name__ == "__main__":

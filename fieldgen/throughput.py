@@ -6,8 +6,10 @@ call fed its own output can compile again.
 
 from __future__ import annotations
 
+import json
 import time
 from dataclasses import dataclass
+from pathlib import Path
 
 import jax
 import jax.numpy as jnp
@@ -55,3 +57,10 @@ def measure(env, n_envs: int, steps: int = 200, repeats: int = 3, seed: int = 0)
     if not bool(jnp.all(jnp.isfinite(state.obs))):
         raise FloatingPointError("the rollout produced non-finite observations")
     return Throughput(n_envs, steps, best)
+
+
+def append_jsonl(path: Path | None, row: dict) -> None:
+    """Append one result row to a JSON-lines file (nothing when path is None)."""
+    if path is not None:
+        with path.open("a") as f:
+            f.write(json.dumps(row) + "\n")
