@@ -149,7 +149,8 @@ def make_train(config: CRLConfig, env) -> CRL:
         return loss, (log_prob, {"actor_loss": loss, "entropy": -jnp.mean(log_prob)})
 
     def alpha_loss(log_alpha, log_prob, weight):
-        return weighted_mean(-log_alpha * (jax.lax.stop_gradient(log_prob) + target_entropy), weight)
+        """alpha * (entropy - target): alpha grows while the policy is below its target entropy."""
+        return weighted_mean(jnp.exp(log_alpha) * jax.lax.stop_gradient(-log_prob - target_entropy), weight)
 
     def update(ts: TrainState, batch: dict, key: jax.Array) -> tuple[TrainState, dict]:
         (_, (log_prob, a_metrics)), a_grads = jax.value_and_grad(actor_loss, has_aux=True)(
