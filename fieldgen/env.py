@@ -57,8 +57,6 @@ class FieldEnv:
         self._agent_qvel = jnp.asarray(self.layout.agent_qvel)
         self._ball_qpos = jnp.asarray(self.layout.ball_qpos)
         self._ball_qvel = jnp.asarray(self.layout.ball_qvel)
-        self._obs_qpos = jnp.concatenate([self._agent_qpos, self._ball_qpos])
-        self._obs_qvel = self._agent_qvel
         self._is_ant = spec.agent.kind == "ant"
         self._ball_z = spec.ball.radius
         self._agent_z = geometry.POINT_RADIUS

@@ -1,12 +1,10 @@
 """Agents built in code with dm_control.mjcf: the ant quadruped and a planar point.
 
-Each builder adds the agent to a scene and returns its home pose, so the
-environment resets from the same pose the scene's `home` keyframe records.
+Each builder adds the agent to a scene and returns its home qpos, which the
+scene records as the `home` keyframe that every reset starts from.
 """
 
 from __future__ import annotations
-
-from dataclasses import dataclass
 
 from dm_control import mjcf
 
@@ -15,14 +13,6 @@ from fieldgen.schema.geometry import POINT_RADIUS
 from fieldgen.schema.models import FieldSpec
 
 AGENT_RGBA = (0.85, 0.55, 0.25, 1.0)
-
-
-@dataclass(frozen=True)
-class AgentBuild:
-    root: str  # name of the body whose position is the agent's position
-    home_qpos: tuple[float, ...]
-    nq: int
-    nv: int
 
 
 # The ant's legs: (name, hip direction in the xy plane, ankle axis, ankle range, home ankle angle).
@@ -36,7 +26,7 @@ _LEGS = (
 _MOTOR_ORDER = (3, 0, 1, 2)
 
 
-def build_ant(root: mjcf.RootElement, spec: FieldSpec) -> AgentBuild:
+def build_ant(root: mjcf.RootElement, spec: FieldSpec) -> tuple[float, ...]:
     """The standard ant: sphere torso r 0.25, capsule legs r 0.08, 8 motors."""
     gear = spec.agent.gear or 150.0
     sx, sy = spec.agent.start
@@ -65,10 +55,10 @@ def build_ant(root: mjcf.RootElement, spec: FieldSpec) -> AgentBuild:
         for joint in ("hip", "ankle"):
             root.actuator.add("motor", name=f"{leg}_{joint}", joint=f"{leg}_{joint}", gear=(gear,),
                               ctrllimited=True, ctrlrange=(-1, 1))
-    return AgentBuild(root="torso", home_qpos=tuple(home), nq=15, nv=14)
+    return tuple(home)
 
 
-def build_point(root: mjcf.RootElement, spec: FieldSpec) -> AgentBuild:
+def build_point(root: mjcf.RootElement, spec: FieldSpec) -> tuple[float, ...]:
     """A 1 kg sphere on x/y slides with two motors: fast to simulate, easy to learn."""
     gear = spec.agent.gear or 10.0
     body = root.worldbody.add("body", name="agent", pos=(0, 0, POINT_RADIUS))
@@ -81,7 +71,7 @@ def build_point(root: mjcf.RootElement, spec: FieldSpec) -> AgentBuild:
     for axis in ("x", "y"):
         root.actuator.add("motor", name=f"agent_{axis}", joint=f"agent_{axis}", gear=(gear,),
                           ctrllimited=True, ctrlrange=(-1, 1))
-    return AgentBuild(root="agent", home_qpos=tuple(spec.agent.start), nq=2, nv=2)
+    return tuple(spec.agent.start)
 
 
 BUILDERS = {"ant": build_ant, "point": build_point}

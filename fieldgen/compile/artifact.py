@@ -86,8 +86,7 @@ def compile_spec(spec: FieldSpec) -> Artifact:
     """Spec -> MJCF via dm_control.mjcf (imported here: only building needs it)."""
     from fieldgen.compile.scene import build_scene
 
-    root, _ = build_scene(spec)
-    return Artifact(spec, root.to_xml_string(), spec_hash(spec))
+    return Artifact(spec, build_scene(spec).to_xml_string(), spec_hash(spec))
 
 
 def is_current(out_dir: Path, digest: str) -> bool:

@@ -12,7 +12,7 @@ import math
 
 from dm_control import mjcf
 
-from fieldgen.compile.agents import BUILDERS, AgentBuild
+from fieldgen.compile.agents import BUILDERS
 from fieldgen.compile.contacts import bits, contact_limit
 from fieldgen.schema import geometry
 from fieldgen.schema.models import FieldSpec
@@ -33,12 +33,12 @@ DECORATIVE_ALPHA = 0.45
 GRAVITY = 9.81
 
 
-def build_scene(spec: FieldSpec) -> tuple[mjcf.RootElement, AgentBuild]:
+def build_scene(spec: FieldSpec) -> mjcf.RootElement:
     root = mjcf.RootElement(model=spec.name)
     _options(root, spec)
     _floor(root, spec)
     _top_camera(root, spec)
-    agent = BUILDERS[spec.agent.kind](root, spec)
+    agent_home = BUILDERS[spec.agent.kind](root, spec)
     ball_home = _ball(root, spec) if spec.ball.enabled else ()
     _target_marker(root, spec)
     _goal(root, spec)
@@ -46,8 +46,8 @@ def build_scene(spec: FieldSpec) -> tuple[mjcf.RootElement, AgentBuild]:
         _box(root, box, "wall", spec)
     for box in geometry.obstacles(spec):
         _box(root, box, "obstacle", spec)
-    root.keyframe.add("key", name="home", qpos=agent.home_qpos + ball_home)
-    return root, agent
+    root.keyframe.add("key", name="home", qpos=agent_home + ball_home)
+    return root
 
 
 def _options(root: mjcf.RootElement, spec: FieldSpec) -> None:
