@@ -113,19 +113,22 @@ def make_train(config: CRLConfig, env) -> CRL:
             return jnp.tanh(mean)
         return sample_tanh_gaussian(key, mean, log_std)[0]
 
-    def collect(ts: TrainState) -> TrainState:
-        """unroll_length steps of every environment, appended to the buffer."""
+    def collect(ts: TrainState) -> tuple[TrainState, dict]:
+        """unroll_length steps of every environment, appended to the buffer; returns step statistics."""
 
         def step(carry, key):
             env_state = carry
             action = policy(ts.actor, env_state.obs, key)
             row = {"state": env_state.obs[:, :state_dim], "action": action, "episode": env_state.info["episode"]}
-            return jax.vmap(env.step)(env_state, action), row
+            nxt = jax.vmap(env.step)(env_state, action)
+            fell = nxt.done * (1.0 - nxt.info["truncation"])
+            return nxt, (row, {"train_success": nxt.metrics["success"], "train_falls": fell})
 
         key, k = jax.random.split(ts.key)
-        env_state, rows = jax.lax.scan(step, ts.env_state, jax.random.split(k, c.unroll_length))
-        return ts.replace(env_state=env_state, buffer=replay.insert(ts.buffer, rows), key=key,
-                          env_steps=ts.env_steps + c.num_envs * c.unroll_length)
+        env_state, (rows, stats) = jax.lax.scan(step, ts.env_state, jax.random.split(k, c.unroll_length))
+        ts = ts.replace(env_state=env_state, buffer=replay.insert(ts.buffer, rows), key=key,
+                        env_steps=ts.env_steps + c.num_envs * c.unroll_length)
+        return ts, jax.tree.map(jnp.mean, stats)
 
     def critic_loss(critic_params, batch):
         phi = sa_encoder.apply(critic_params["sa"], jnp.concatenate([batch["state"], batch["action"]], -1))
@@ -200,8 +203,12 @@ def make_train(config: CRLConfig, env) -> CRL:
     return CRL(config, env, init, collect, update_epoch, evaluate, policy)
 
 
-def train(config: CRLConfig, env, progress: Callable[[int, dict], None] = lambda step, metrics: None):
-    """Prefill, then alternate collection and updates; evaluate once untrained and num_evals times after."""
+def train(config: CRLConfig, env, progress: Callable[[int, dict], None] = lambda step, metrics: None,
+          on_eval: Callable[[TrainState, int], None] = lambda ts, index: None,
+          resume: tuple[TrainState, int] | None = None):
+    """Prefill, then alternate collection and updates; evaluate once untrained (index 0) and after
+    each of num_evals chunks. `on_eval(state, index)` runs after every evaluation (checkpoints);
+    `resume=(state, index)` continues after evaluation `index` exactly as if never stopped."""
     crl = make_train(config, env)
     per_iter = config.num_envs * config.unroll_length
     prefill_iters = -(-config.min_replay_rows // config.unroll_length)
@@ -213,31 +220,34 @@ def train(config: CRLConfig, env, progress: Callable[[int, dict], None] = lambda
 
     @jax.jit
     def prefill(ts):
-        return jax.lax.fori_loop(0, prefill_iters, lambda _, t: crl.collect(t), ts)
+        return jax.lax.fori_loop(0, prefill_iters, lambda _, t: crl.collect(t)[0], ts)
 
     @jax.jit
     def chunk(ts):
         def body(ts, _):
-            ts, metrics = crl.update_epoch(crl.collect(ts))
-            return ts, metrics
+            ts, stats = crl.collect(ts)
+            ts, metrics = crl.update_epoch(ts)
+            return ts, {**stats, **metrics}
 
         ts, metrics = jax.lax.scan(body, ts, None, length=iters_per_eval)
         return ts, jax.tree.map(jnp.mean, metrics)
 
     evaluate = jax.jit(crl.evaluate)
-    ts = prefill(crl.init(jax.random.PRNGKey(config.seed)))
-    eval_key = jax.random.PRNGKey(config.seed + 1)
     history = []
 
-    def record(ts, metrics):
-        nonlocal eval_key
-        eval_key, k = jax.random.split(eval_key)
-        metrics = {name: float(v) for name, v in {**metrics, **jax.device_get(evaluate(ts.actor, k))}.items()}
-        history.append({"env_steps": int(ts.env_steps), **metrics})
+    def record(ts, metrics, index):
+        key = jax.random.fold_in(jax.random.PRNGKey(config.seed + 1), index)
+        metrics = {name: float(v) for name, v in {**metrics, **jax.device_get(evaluate(ts.actor, key))}.items()}
+        history.append({"eval": index, "env_steps": int(ts.env_steps), **metrics})
         progress(int(ts.env_steps), metrics)
+        on_eval(ts, index)
 
-    record(ts, {})  # the untrained policy, after prefill
-    for _ in range(config.num_evals):
+    if resume is None:
+        ts, start = prefill(crl.init(jax.random.PRNGKey(config.seed))), 1
+        record(ts, {}, 0)  # the untrained policy, after prefill
+    else:
+        ts, start = resume[0], resume[1] + 1
+    for index in range(start, config.num_evals + 1):
         ts, metrics = chunk(ts)
-        record(ts, jax.device_get(metrics))
+        record(ts, jax.device_get(metrics), index)
     return ts, history

@@ -29,12 +29,12 @@ def time_iterations(env, config: crl.CRLConfig, iterations: int) -> float:
     @jax.jit
     def run(ts):
         def body(ts, _):
-            ts, metrics = algo.update_epoch(algo.collect(ts))
+            ts, metrics = algo.update_epoch(algo.collect(ts)[0])
             return ts, metrics["critic_loss"]
 
         return jax.lax.scan(body, ts, None, length=iterations)
 
-    ts = jax.jit(lambda ts: jax.lax.fori_loop(0, 20, lambda _, t: algo.collect(t), ts))(algo.init(jax.random.PRNGKey(0)))
+    ts = jax.jit(lambda ts: jax.lax.fori_loop(0, 20, lambda _, t: algo.collect(t)[0], ts))(algo.init(jax.random.PRNGKey(0)))
     ts, _ = jax.block_until_ready(run(ts))
     t0 = time.perf_counter()
     jax.block_until_ready(run(ts))

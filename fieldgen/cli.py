@@ -20,7 +20,7 @@ app = typer.Typer(
     add_completion=False,
 )
 out = Console()
-err = Console(stderr=True)
+err = Console(stderr=True, soft_wrap=True)  # messages wrap in the terminal, not mid-phrase here
 
 SpecArg = Annotated[str, typer.Argument(help="a YAML file, a bundled field name, or (render, bench) a build directory")]
 
@@ -184,6 +184,125 @@ def bench(
         result = measure(env, n, steps)
         table.add_row(str(n), f"{result.steps_per_second:,.0f}", f"{result.seconds:.3f}")
     out.print(table)
+
+
+@app.command()
+def train(
+    spec: Annotated[Optional[str], typer.Argument(help="a YAML file or bundled field name (omit with --resume)")] = None,
+    algo: Annotated[str, typer.Option(help="training algorithm: crl")] = "crl",
+    steps: Annotated[Optional[int], typer.Option(help="total env steps")] = None,
+    envs: Annotated[Optional[int], typer.Option(help="parallel environments")] = None,
+    seed: Annotated[int, typer.Option(help="random seed; names the run folder")] = 0,
+    sets: Annotated[Optional[list[str]], typer.Option("--set", help="override a config key: crl.repr_dim=128")] = None,
+    config: Annotated[Optional[Path], typer.Option(help="YAML file: {crl: {key: value}}")] = None,
+    out: Annotated[Path, typer.Option(help="folder for run folders")] = Path("runs"),
+    resume: Annotated[Optional[Path], typer.Option(help="continue the run in this folder")] = None,
+) -> None:
+    """Train an agent on a field; writes runs/<field>-<algo>-<seed>/ and resumes exactly after an interrupt.
+
+    Example: fieldgen train point_nav --algo crl --steps 40000 --envs 16 --set crl.hidden=[64,64]
+    """
+    from fieldgen import training
+
+    try:
+        if resume is not None:
+            run_dir, env, algo_config, rows, state = _resume_run(resume)
+        else:
+            if spec is None:
+                _fail("name a field to train on, or --resume a run folder")
+            run_dir, env, algo_config = _new_run(spec, algo, steps, envs, seed, sets or [], config, out)
+            rows, state = [], None
+    except (SpecError, training.RunError) as exc:
+        _fail(str(exc))
+    _train_loop(run_dir, env, algo_config, rows, state)
+
+
+def _new_run(spec, algo, steps, envs, seed, sets, config_file, out):
+    import fieldgen
+    from fieldgen import training
+
+    algo_config = training.make_config(algo, config_file, sets, total_steps=steps, num_envs=envs, seed=seed)
+    field = load_spec(_spec_path(spec))
+    run_dir = out / f"{field.name}-{algo}-{seed}"
+    if (run_dir / training.RUN).exists():
+        raise training.RunError(f"{run_dir} already holds a run; continue it with --resume {run_dir}, "
+                                "or pick another --seed or --out")
+    env = fieldgen.make(field)
+    training.check_config(algo_config, env)
+    training.write_run(run_dir, field.model_dump(mode="json"), algo, algo_config, env.layout.to_json())
+    return run_dir, env, algo_config
+
+
+def _resume_run(run_dir: Path):
+    import jax
+
+    import fieldgen
+    from agents import checkpoint, crl
+    from fieldgen import training
+    from fieldgen.schema import FieldSpec
+
+    record = training.read_run(run_dir)
+    env = fieldgen.make(FieldSpec.model_validate(record["field"]))
+    if record["observation"] != env.layout.to_json():
+        raise training.RunError(f"{run_dir} was trained on a different observation layout than its field gives now")
+    config = training.make_config(record["algo"], **{k: tuple(v) if isinstance(v, list) else v
+                                                     for k, v in record["config"].items()})
+    rows = training.read_metrics(run_dir)
+    template = crl.make_train(config, env).init(jax.random.PRNGKey(config.seed))
+    try:
+        state = checkpoint.load(run_dir / training.CHECKPOINT, template)
+    except checkpoint.CheckpointError as exc:
+        raise training.RunError(str(exc)) from None
+    rows = [r for r in rows if r["env_steps"] <= int(state.env_steps)]
+    return run_dir, env, config, rows, state
+
+
+def _train_loop(run_dir: Path, env, config, rows: list, state) -> None:
+    import time
+
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+    from agents import checkpoint, crl
+    from fieldgen import training
+    from fieldgen.compile.artifact import write_atomic
+
+    if state is not None and rows and rows[-1]["eval"] >= config.num_evals:
+        out.print(f"{run_dir} is already complete ({rows[-1]['env_steps']:,} env steps)")
+        return
+    started = time.perf_counter()
+    first_steps = rows[-1]["env_steps"] if rows else 0
+    columns = (TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.completed:,.0f} steps"),
+               TextColumn("{task.fields[rate]}"), TextColumn("{task.fields[stats]}"), TimeElapsedColumn())
+    with Progress(*columns, console=out, transient=False) as bar:
+        task = bar.add_task(env.spec.name, total=config.total_steps, completed=first_steps, rate="compiling...",
+                            stats="")
+
+        def on_eval(ts, index):
+            write_atomic(run_dir / training.CHECKPOINT, checkpoint.to_bytes(ts))
+
+        def progress(step, metrics):
+            rate = (step - first_steps) / max(time.perf_counter() - started, 1e-9)
+            rows.append({"eval": len(rows), "env_steps": step, "wall_seconds": time.perf_counter() - started,
+                         **metrics})
+            training.write_metrics(run_dir, rows)
+            training.plot_success(run_dir, rows, f"{env.spec.name}: crl")
+            stats = f"success {metrics['success_any']:.2f}  at goal {metrics['time_at_goal']:.1f}"
+            if "critic_loss" in metrics:
+                stats += f"  critic {metrics['critic_loss']:.3f}  actor {metrics['actor_loss']:.3f}"
+            bar.update(task, completed=step, rate=f"{rate:,.0f} steps/s", stats=stats)
+
+        try:
+            resume_at = (state, rows[-1]["eval"]) if state is not None else None
+            crl.train(config, env, progress, on_eval, resume_at)
+        except KeyboardInterrupt:
+            err.print(f"interrupted; the last checkpoint is intact. Continue with: fieldgen train --resume {run_dir}")
+            raise typer.Exit(130) from None
+    table = Table("env steps", "success_any", "time_at_goal", "return", title=f"{run_dir}")
+    for r in rows:
+        table.add_row(f"{r['env_steps']:,}", f"{r['success_any']:.2f}", f"{r['time_at_goal']:.1f}",
+                      f"{r['episode_return']:.1f}")
+    out.print(table)
+    out.print(f"metrics: {run_dir / training.CSV}; plot: {run_dir / training.PLOT}")
 
 
 if __name__ == "__main__":

@@ -1,0 +1,117 @@
+"""Training runs: exact resume after an interrupt, run folders, and bad input caught before compiling."""
+
+from __future__ import annotations
+
+import json
+
+import jax
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from agents import checkpoint, crl
+from fieldgen.cli import app
+from fieldgen.training import RunError, make_config
+
+runner = CliRunner()
+TINY = ["--set", "crl.hidden=[32,32]", "--set", "crl.repr_dim=8", "--set", "crl.batch_size=32",
+        "--set", "crl.unroll_length=10", "--set", "crl.min_replay_rows=100", "--set", "crl.max_replay_rows=400",
+        "--set", "crl.num_evals=2", "--set", "crl.eval_envs=8"]
+
+
+def tiny_config(**kw):
+    base = dict(total_steps=1900, num_envs=8, unroll_length=10, batch_size=32, min_replay_rows=100,
+                max_replay_rows=400, hidden=(32, 32), repr_dim=8, num_evals=2, eval_envs=8)
+    return crl.CRLConfig(**{**base, **kw})
+
+
+class Stop(Exception):
+    pass
+
+
+def test_resume_after_interrupt_reproduces_the_uninterrupted_run(env_cache):
+    env = env_cache("point_nav")
+    config = tiny_config()
+    full, _ = crl.train(config, env)
+
+    saved = {}
+
+    def save_then_stop(ts, index):
+        saved[index] = checkpoint.to_bytes(ts)
+        if index == 1:
+            raise Stop
+
+    with pytest.raises(Stop):
+        crl.train(config, env, on_eval=save_then_stop)
+    template = crl.make_train(config, env).init(jax.random.PRNGKey(config.seed))
+    restored = _roundtrip(saved[1], template)
+    resumed, history = crl.train(config, env, resume=(restored, 1))
+    assert [row["eval"] for row in history] == [2]
+    for a, b in zip(jax.tree.leaves(full.actor), jax.tree.leaves(resumed.actor)):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    assert int(full.env_steps) == int(resumed.env_steps)
+
+
+def _roundtrip(blob: bytes, template):
+    import tempfile
+    from pathlib import Path
+
+    with tempfile.TemporaryDirectory() as d:
+        path = Path(d) / "c.npz"
+        path.write_bytes(blob)
+        return checkpoint.load(path, template)
+
+
+def test_checkpoint_errors_are_clear(tmp_path, env_cache):
+    env = env_cache("point_nav")
+    template = crl.make_train(tiny_config(), env).init(jax.random.PRNGKey(0))
+    with pytest.raises(checkpoint.CheckpointError, match="no checkpoint"):
+        checkpoint.load(tmp_path / "none.npz", template)
+    bad = tmp_path / "bad.npz"
+    bad.write_bytes(b"not a checkpoint")
+    with pytest.raises(checkpoint.CheckpointError, match="truncated or corrupt"):
+        checkpoint.load(bad, template)
+    other = tmp_path / "other.npz"
+    other.write_bytes(checkpoint.to_bytes(crl.make_train(tiny_config(repr_dim=4), env).init(jax.random.PRNGKey(0))))
+    with pytest.raises(checkpoint.CheckpointError, match="config or the field's observation layout differs"):
+        checkpoint.load(other, template)
+
+
+def test_cli_run_folder_and_resume_of_a_finished_run(tmp_path):
+    args = ["train", "point_nav", "--steps", "1900", "--envs", "8", "--out", str(tmp_path), *TINY]
+    result = runner.invoke(app, args)
+    assert result.exit_code == 0, result.output
+    run = tmp_path / "point_nav-crl-0"
+    assert {p.name for p in run.iterdir()} == {"run.json", "metrics.jsonl", "metrics.csv", "checkpoint.npz",
+                                               "success.png"}
+    rows = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
+    assert [r["eval"] for r in rows] == [0, 1, 2] and rows[-1]["env_steps"] == 800 + 12 * 80  # prefill + 2 x 6 iterations
+    assert (run / "metrics.csv").read_text().splitlines()[0].startswith("eval,env_steps")
+    again = runner.invoke(app, args)
+    assert again.exit_code == 1 and "--resume" in again.output
+    done = runner.invoke(app, ["train", "--resume", str(run)])
+    assert done.exit_code == 0 and "already complete" in done.output
+
+
+@pytest.mark.parametrize("args,phrase", [
+    (["--algo", "crll"], "unknown algorithm 'crll'; did you mean 'crl'?"),
+    (["--set", "crl.repr_dimm=3"], "unknown config key 'repr_dimm'; did you mean 'repr_dim'?"),
+    (["--set", "repr_dim=3"], "write crl.KEY=VALUE"),
+    (["--set", "crl.layer_norm=maybe"], "is not a valid bool"),
+    (["--steps", "100"], "--steps 100 is too few"),
+    (["--set", "crl.energy=cos"], "unknown energy 'cos'"),
+])
+def test_bad_training_input_is_reported_before_compiling(tmp_path, args, phrase):
+    result = runner.invoke(app, ["train", "point_nav", "--envs", "8", "--out", str(tmp_path), *args])
+    assert result.exit_code == 1
+    assert phrase in result.output and "Traceback" not in result.output
+
+
+def test_config_file_and_precedence(tmp_path):
+    file = tmp_path / "c.yaml"
+    file.write_text("crl: {repr_dim: 32, batch_size: 128}\n")
+    config = make_config("crl", file, ["crl.repr_dim=16"], num_envs=4)
+    assert (config.repr_dim, config.batch_size, config.num_envs) == (16, 128, 4)
+    file.write_text("ppo: {}\n")
+    with pytest.raises(RunError, match="one section, 'crl:'"):
+        make_config("crl", file)
