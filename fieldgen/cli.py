@@ -1,4 +1,4 @@
-"""The `fieldgen` command line: validate, build, render, list, schema, bench."""
+"""The `fieldgen` command line: validate, build, render, list, schema, bench, train, eval."""
 
 from __future__ import annotations
 
@@ -303,6 +303,55 @@ def _train_loop(run_dir: Path, env, config, rows: list, state) -> None:
                       f"{r['episode_return']:.1f}")
     out.print(table)
     out.print(f"metrics: {run_dir / training.CSV}; plot: {run_dir / training.PLOT}")
+
+
+@app.command("eval")
+def evaluate(
+    run_dir: Annotated[Path, typer.Argument(help="a run folder written by fieldgen train")],
+    episodes: Annotated[int, typer.Option(help="evaluation episodes, one per parallel env")] = 128,
+    video: Annotated[bool, typer.Option(help="write eval.gif of one episode")] = True,
+    camera: Annotated[str, typer.Option(help="video camera: follow or top")] = "follow",
+    seed: Annotated[int, typer.Option(help="evaluation seed")] = 0,
+) -> None:
+    """Evaluate a run's last checkpoint: success rate, time at goal, return, and a video.
+
+    Example: fieldgen eval runs/point_nav-crl-0 --episodes 256
+    """
+    import dataclasses
+
+    import jax
+    import numpy as np
+
+    from agents import crl
+    from fieldgen import training
+    from fieldgen.compile.artifact import write_atomic
+    from fieldgen.render import CAMERAS, gif_bytes, render_rollout
+
+    if camera not in CAMERAS:
+        _fail(f"unknown camera '{camera}'; choose one of: {', '.join(CAMERAS)}")
+    try:
+        run_dir, env, config, _, state = _resume_run(run_dir)
+    except (SpecError, training.RunError) as exc:
+        _fail(str(exc))
+    algo = crl.make_train(dataclasses.replace(config, eval_envs=episodes), env)
+    result = jax.device_get(jax.jit(algo.evaluate)(state.actor, jax.random.PRNGKey(seed)))
+    table = Table("metric", "value", title=f"{run_dir} at {int(state.env_steps):,} env steps, {episodes} episodes")
+    table.add_row("success_any", f"{result['success_any']:.3f}")
+    table.add_row("time_at_goal", f"{result['time_at_goal']:.1f} of {env.episode_length} steps")
+    table.add_row("episode_return", f"{result['episode_return']:.2f}")
+    out.print(table)
+    if video:
+        def step(s, _):
+            nxt = env.step(s, algo.policy(state.actor, s.obs))
+            return nxt, (s.pipeline_state.qpos, s.pipeline_state.mocap_pos, nxt.done)
+
+        first = env.reset(jax.random.PRNGKey(seed))
+        _, (qpos, mocap, done) = jax.jit(lambda s: jax.lax.scan(step, s, None, length=env.episode_length))(first)
+        end = int(np.argmax(np.asarray(done))) + 1 if np.any(np.asarray(done)) else env.episode_length
+        stride = max(1, end // 300)  # at most ~300 frames
+        frames = render_rollout(env.mj_model, np.asarray(qpos)[:end:stride], np.asarray(mocap)[:end:stride], camera)
+        write_atomic(run_dir / "eval.gif", gif_bytes(frames, fps=1 / (env.dt * stride)))
+        out.print(f"video: {run_dir / 'eval.gif'} ({len(frames)} frames, {camera} camera)")
 
 
 if __name__ == "__main__":

@@ -28,6 +28,26 @@ def preview(model: mujoco.MjModel) -> np.ndarray:
     return np.concatenate([render_pose(model, camera=c) for c in CAMERAS], axis=1)
 
 
+def render_rollout(model: mujoco.MjModel, qpos: np.ndarray, mocap_pos: np.ndarray, camera: str = "follow",
+                   size: tuple[int, int] = (240, 320)) -> list[np.ndarray]:
+    """Frames of a recorded rollout: qpos [T, nq] and mocap_pos [T, nmocap, 3]."""
+    data = mujoco.MjData(model)
+    frames = []
+    with mujoco.Renderer(model, height=size[0], width=size[1]) as renderer:
+        for q, m in zip(qpos, mocap_pos):
+            data.qpos[:], data.mocap_pos[:] = q, m
+            mujoco.mj_forward(model, data)
+            renderer.update_scene(data, camera=camera, scene_option=_scene_option())
+            frames.append(renderer.render())
+    return frames
+
+
+def gif_bytes(frames: list[np.ndarray], fps: float) -> bytes:
+    buf = io.BytesIO()
+    iio.imwrite(buf, np.stack(frames), extension=".gif", duration=1000 / fps, loop=0)
+    return buf.getvalue()
+
+
 def png_bytes(image: np.ndarray) -> bytes:
     buf = io.BytesIO()
     iio.imwrite(buf, image, extension=".png")

@@ -91,6 +91,13 @@ def test_cli_run_folder_and_resume_of_a_finished_run(tmp_path):
     assert again.exit_code == 1 and "--resume" in again.output
     done = runner.invoke(app, ["train", "--resume", str(run)])
     assert done.exit_code == 0 and "already complete" in done.output
+    evaluated = runner.invoke(app, ["eval", str(run), "--episodes", "8"])
+    assert evaluated.exit_code == 0, evaluated.output
+    assert "success_any" in evaluated.output and "time_at_goal" in evaluated.output
+    import imageio.v3 as iio
+
+    frames = iio.imread(run / "eval.gif", index=None)
+    assert frames.shape[0] == 100 and frames.shape[1:3] == (240, 320)
 
 
 @pytest.mark.parametrize("args,phrase", [
