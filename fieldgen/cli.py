@@ -200,7 +200,7 @@ def train(
 ) -> None:
     """Train an agent on a field; writes runs/<field>-<algo>-<seed>/ and resumes exactly after an interrupt.
 
-    Example: fieldgen train point_nav --algo crl --steps 40000 --envs 16 --set crl.hidden=[64,64]
+    Example: fieldgen train point_nav --algo crl --steps 40000 --envs 16 --set 'crl.hidden=[64,64]'
     """
     from fieldgen import training
 
