@@ -22,6 +22,7 @@ import optax
 
 from agents import buffer as replay
 from agents.contrastive import energy, infonce, logsumexp_penalty, weighted_mean
+from agents.loop import evaluate_policy, run_evaluations
 from agents.networks import MLP, Actor, sample_tanh_gaussian
 
 
@@ -73,8 +74,8 @@ class CRL:
     init: Callable
     collect: Callable
     update_epoch: Callable
-    evaluate: Callable
-    policy: Callable
+    evaluate: Callable  # (state, key) -> metrics
+    act: Callable  # (state, obs) -> mean action
 
 
 def make_train(config: CRLConfig, env) -> CRL:
@@ -184,23 +185,13 @@ def make_train(config: CRLConfig, env) -> CRL:
         ts, metrics = jax.lax.scan(body, ts.replace(key=key), (batch, jax.random.split(k_upd, window)))
         return ts, jax.tree.map(jnp.mean, metrics)
 
-    def evaluate(actor_params, key: jax.Array) -> dict:
-        """One episode per environment with the mean action, up to its first `done`."""
-        env_state = jax.vmap(env.reset)(jax.random.split(key, c.eval_envs))
+    def act(ts: TrainState, obs: jax.Array) -> jax.Array:
+        return policy(ts.actor, obs)
 
-        def step(carry, _):
-            env_state, alive = carry
-            action = policy(actor_params, env_state.obs)
-            nxt = jax.vmap(env.step)(env_state, action)
-            out = {"success": nxt.metrics["success"] * alive, "reward": nxt.reward * alive}
-            return (nxt, alive * (1.0 - nxt.done)), out
+    def evaluate(ts: TrainState, key: jax.Array) -> dict:
+        return evaluate_policy(env, lambda obs: act(ts, obs), key, c.eval_envs)
 
-        _, out = jax.lax.scan(step, (env_state, jnp.ones(c.eval_envs)), None, length=window)
-        return {"success_any": jnp.mean(jnp.any(out["success"] > 0, axis=0)),
-                "time_at_goal": jnp.mean(jnp.sum(out["success"], axis=0)),
-                "episode_return": jnp.mean(jnp.sum(out["reward"], axis=0))}
-
-    return CRL(config, env, init, collect, update_epoch, evaluate, policy)
+    return CRL(config, env, init, collect, update_epoch, evaluate, act)
 
 
 def train(config: CRLConfig, env, progress: Callable[[int, dict], None] = lambda step, metrics: None,
@@ -232,22 +223,6 @@ def train(config: CRLConfig, env, progress: Callable[[int, dict], None] = lambda
         ts, metrics = jax.lax.scan(body, ts, None, length=iters_per_eval)
         return ts, jax.tree.map(jnp.mean, metrics)
 
-    evaluate = jax.jit(crl.evaluate)
-    history = []
-
-    def record(ts, metrics, index):
-        key = jax.random.fold_in(jax.random.PRNGKey(config.seed + 1), index)
-        metrics = {name: float(v) for name, v in {**metrics, **jax.device_get(evaluate(ts.actor, key))}.items()}
-        history.append({"eval": index, "env_steps": int(ts.env_steps), **metrics})
-        progress(int(ts.env_steps), metrics)
-        on_eval(ts, index)
-
-    if resume is None:
-        ts, start = prefill(crl.init(jax.random.PRNGKey(config.seed))), 1
-        record(ts, {}, 0)  # the untrained policy, after prefill
-    else:
-        ts, start = resume[0], resume[1] + 1
-    for index in range(start, config.num_evals + 1):
-        ts, metrics = chunk(ts)
-        record(ts, jax.device_get(metrics), index)
-    return ts, history
+    first = lambda: prefill(crl.init(jax.random.PRNGKey(config.seed)))  # noqa: E731
+    return run_evaluations(first, chunk, jax.jit(crl.evaluate), config.num_evals, config.seed, progress, on_eval,
+                           resume)

@@ -189,7 +189,7 @@ def bench(
 @app.command()
 def train(
     spec: Annotated[Optional[str], typer.Argument(help="a YAML file or bundled field name (omit with --resume)")] = None,
-    algo: Annotated[str, typer.Option(help="training algorithm: crl")] = "crl",
+    algo: Annotated[str, typer.Option(help="training algorithm: crl or ppo")] = "crl",
     steps: Annotated[Optional[int], typer.Option(help="total env steps")] = None,
     envs: Annotated[Optional[int], typer.Option(help="parallel environments")] = None,
     seed: Annotated[int, typer.Option(help="random seed; names the run folder")] = 0,
@@ -237,7 +237,7 @@ def _resume_run(run_dir: Path):
     import jax
 
     import fieldgen
-    from agents import checkpoint, crl
+    from agents import checkpoint
     from fieldgen import training
     from fieldgen.schema import FieldSpec
 
@@ -248,7 +248,7 @@ def _resume_run(run_dir: Path):
     config = training.make_config(record["algo"], **{k: tuple(v) if isinstance(v, list) else v
                                                      for k, v in record["config"].items()})
     rows = training.read_metrics(run_dir)
-    template = crl.make_train(config, env).init(jax.random.PRNGKey(config.seed))
+    template = training.algorithm(record["algo"]).make_train(config, env).init(jax.random.PRNGKey(config.seed))
     try:
         state = checkpoint.load(run_dir / training.CHECKPOINT, template)
     except checkpoint.CheckpointError as exc:
@@ -262,10 +262,11 @@ def _train_loop(run_dir: Path, env, config, rows: list, state) -> None:
 
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from agents import checkpoint, crl
+    from agents import checkpoint
     from fieldgen import training
     from fieldgen.compile.artifact import write_atomic
 
+    algo = training.read_run(run_dir)["algo"]
     if state is not None and rows and rows[-1]["eval"] >= config.num_evals:
         out.print(f"{run_dir} is already complete ({rows[-1]['env_steps']:,} env steps)")
         return
@@ -285,15 +286,16 @@ def _train_loop(run_dir: Path, env, config, rows: list, state) -> None:
             rows.append({"eval": len(rows), "env_steps": step, "wall_seconds": time.perf_counter() - started,
                          **metrics})
             training.write_metrics(run_dir, rows)
-            training.plot_success(run_dir, rows, f"{env.spec.name}: crl")
+            training.plot_success(run_dir, rows, f"{env.spec.name}: {algo}")
             stats = f"success {metrics['success_any']:.2f}  at goal {metrics['time_at_goal']:.1f}"
-            if "critic_loss" in metrics:
-                stats += f"  critic {metrics['critic_loss']:.3f}  actor {metrics['actor_loss']:.3f}"
+            for name in ("critic_loss", "actor_loss", "policy_loss", "value_loss"):
+                if name in metrics:
+                    stats += f"  {name.removesuffix('_loss')} {metrics[name]:.3f}"
             bar.update(task, completed=step, rate=f"{rate:,.0f} steps/s", stats=stats)
 
         try:
             resume_at = (state, rows[-1]["eval"]) if state is not None else None
-            crl.train(config, env, progress, on_eval, resume_at)
+            training.algorithm(algo).train(config, env, progress, on_eval, resume_at)
         except KeyboardInterrupt:
             err.print(f"interrupted; the last checkpoint is intact. Continue with: fieldgen train --resume {run_dir}")
             raise typer.Exit(130) from None
@@ -322,7 +324,6 @@ def evaluate(
     import jax
     import numpy as np
 
-    from agents import crl
     from fieldgen import training
     from fieldgen.compile.artifact import write_atomic
     from fieldgen.render import CAMERAS, gif_bytes, render_rollout
@@ -333,8 +334,9 @@ def evaluate(
         run_dir, env, config, _, state = _resume_run(run_dir)
     except (SpecError, training.RunError) as exc:
         _fail(str(exc))
-    algo = crl.make_train(dataclasses.replace(config, eval_envs=episodes), env)
-    result = jax.device_get(jax.jit(algo.evaluate)(state.actor, jax.random.PRNGKey(seed)))
+    module = training.algorithm(training.read_run(run_dir)["algo"])
+    algo = module.make_train(dataclasses.replace(config, eval_envs=episodes), env)
+    result = jax.device_get(jax.jit(algo.evaluate)(state, jax.random.PRNGKey(seed)))
     table = Table("metric", "value", title=f"{run_dir} at {int(state.env_steps):,} env steps, {episodes} episodes")
     table.add_row("success_any", f"{result['success_any']:.3f}")
     table.add_row("time_at_goal", f"{result['time_at_goal']:.1f} of {env.episode_length} steps")
@@ -342,7 +344,7 @@ def evaluate(
     out.print(table)
     if video:
         def step(s, _):
-            nxt = env.step(s, algo.policy(state.actor, s.obs))
+            nxt = env.step(s, algo.act(state, s.obs))
             return nxt, (s.pipeline_state.qpos, s.pipeline_state.mocap_pos, nxt.done)
 
         first = env.reset(jax.random.PRNGKey(seed))

@@ -11,6 +11,7 @@ from __future__ import annotations
 import csv
 import dataclasses
 import difflib
+import importlib
 import io
 import json
 import typing
@@ -20,7 +21,7 @@ import yaml
 
 from fieldgen.compile.artifact import write_atomic
 
-ALGOS = ("crl",)
+ALGOS = {"crl": "CRLConfig", "ppo": "PPOConfig"}  # agents.<name> module -> its config class
 RUN, METRICS, CSV, CHECKPOINT, PLOT = "run.json", "metrics.jsonl", "metrics.csv", "checkpoint.npz", "success.png"
 
 
@@ -28,14 +29,17 @@ class RunError(Exception):
     """Bad training input, found before anything compiles."""
 
 
-def config_class(algo: str):
+def algorithm(algo: str):
+    """The agents module of an algorithm: make_train(config, env) and train(...)."""
     if algo not in ALGOS:
-        near = difflib.get_close_matches(algo, ALGOS, n=1)
+        near = difflib.get_close_matches(algo, list(ALGOS), n=1)
         hint = f"; did you mean '{near[0]}'?" if near else ""
         raise RunError(f"unknown algorithm '{algo}'{hint} Available: {', '.join(ALGOS)}.")
-    from agents.crl import CRLConfig
+    return importlib.import_module(f"agents.{algo}")
 
-    return CRLConfig
+
+def config_class(algo: str):
+    return getattr(algorithm(algo), ALGOS[algo])
 
 
 def make_config(algo: str, file: Path | None = None, sets: list[str] = (), **fixed):
@@ -82,9 +86,28 @@ def _cast(cls, key: str, value, where: str):
 
 def check_config(config, env) -> None:
     """Problems a run would hit after compiling, reported before."""
+    per_iter = config.num_envs * config.unroll_length
+    if hasattr(config, "num_minibatches"):
+        _check_ppo(config, per_iter)
+    else:
+        _check_crl(config, env, per_iter)
+
+
+def _check_ppo(config, per_iter: int) -> None:
+    if per_iter % config.num_minibatches:
+        raise RunError(f"num_envs x unroll_length = {per_iter:,} does not divide into {config.num_minibatches} "
+                       "minibatches; change num_envs, unroll_length or num_minibatches")
+    need = config.num_evals * per_iter
+    if config.total_steps < need:
+        raise RunError(f"--steps {config.total_steps:,} is too few: {config.num_evals} evaluations of "
+                       f"{per_iter:,}-step iterations need at least {need:,}")
+    if config.reward not in ("dense", "sparse"):
+        raise RunError(f"unknown reward '{config.reward}'; choose dense (the field's terms) or sparse (its success)")
+
+
+def _check_crl(config, env, per_iter: int) -> None:
     from agents.contrastive import ENERGIES, LOSSES
 
-    per_iter = config.num_envs * config.unroll_length
     prefill = -(-config.min_replay_rows // config.unroll_length) * per_iter
     need = prefill + config.num_evals * per_iter
     if config.total_steps < need:

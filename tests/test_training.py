@@ -107,6 +107,8 @@ def test_cli_run_folder_and_resume_of_a_finished_run(tmp_path):
     (["--set", "crl.layer_norm=maybe"], "is not a valid bool"),
     (["--steps", "100"], "--steps 100 is too few"),
     (["--set", "crl.energy=cos"], "unknown energy 'cos'"),
+    (["--algo", "ppo", "--set", "ppo.num_minibatches=3", "--set", "ppo.unroll_length=10"], "does not divide"),
+    (["--algo", "ppo", "--set", "ppo.reward=shaped"], "unknown reward 'shaped'"),
 ])
 def test_bad_training_input_is_reported_before_compiling(tmp_path, args, phrase):
     result = runner.invoke(app, ["train", "point_nav", "--envs", "8", "--out", str(tmp_path), *args])

@@ -1,0 +1,202 @@
+"""PPO: on-policy, clipped surrogate, GAE, value loss, entropy bonus, observation normalisation.
+
+The reward is the field's dense reward (`env.step(...).reward`, the spec's
+weighted terms) or, with `reward: sparse`, its success metric. A time-limit
+truncation is treated as an episode end (no bootstrap from the lost final
+observation, which auto-reset replaces).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Callable
+
+import flax.struct
+import jax
+import jax.numpy as jnp
+import optax
+
+from agents.loop import evaluate_policy, run_evaluations
+from agents.networks import MLP
+
+
+@dataclasses.dataclass(frozen=True)
+class PPOConfig:
+    total_steps: int = 50_000_000
+    num_envs: int = 2048
+    unroll_length: int = 20
+    num_minibatches: int = 32
+    update_epochs: int = 4
+    learning_rate: float = 3e-4
+    discount: float = 0.97
+    gae_lambda: float = 0.95
+    clip: float = 0.3
+    entropy_coef: float = 1e-2
+    value_coef: float = 0.5
+    max_grad_norm: float = 1.0
+    hidden: tuple[int, ...] = (256, 256)
+    reward: str = "dense"  # dense: the field's weighted terms; sparse: its success metric
+    normalize_observations: bool = True
+    num_evals: int = 10
+    eval_envs: int = 128
+    seed: int = 0
+
+
+@flax.struct.dataclass
+class Normalizer:
+    count: jax.Array
+    mean: jax.Array
+    m2: jax.Array
+
+    def update(self, batch: jax.Array) -> "Normalizer":
+        """Chan's parallel update of the running mean and variance."""
+        n = batch.shape[0]
+        mean, var = jnp.mean(batch, 0), jnp.var(batch, 0)
+        total = self.count + n
+        delta = mean - self.mean
+        return Normalizer(total, self.mean + delta * n / total, self.m2 + var * n + delta**2 * self.count * n / total)
+
+    def __call__(self, obs: jax.Array, enabled: bool) -> jax.Array:
+        if not enabled:
+            return obs
+        std = jnp.sqrt(self.m2 / jnp.maximum(self.count, 1.0) + 1e-6)
+        return jnp.clip((obs - self.mean) / std, -10.0, 10.0)
+
+
+@flax.struct.dataclass
+class TrainState:
+    params: dict
+    opt: optax.OptState
+    normalizer: Normalizer
+    env_state: object
+    key: jax.Array
+    env_steps: jax.Array
+
+
+@dataclasses.dataclass(frozen=True)
+class PPO:
+    config: PPOConfig
+    env: object
+    init: Callable
+    iteration: Callable
+    evaluate: Callable  # (state, key) -> metrics
+    act: Callable  # (state, obs) -> mean action
+
+
+def make_train(config: PPOConfig, env) -> PPO:
+    c = config
+    policy_net = MLP(c.hidden, env.action_size)
+    value_net = MLP(c.hidden, 1)
+    tx = optax.chain(optax.clip_by_global_norm(c.max_grad_norm), optax.adam(c.learning_rate))
+    batch = c.num_envs * c.unroll_length
+    minibatch = batch // c.num_minibatches
+
+    def init(key: jax.Array) -> TrainState:
+        k_pi, k_v, k_env, key = jax.random.split(key, 4)
+        obs = jnp.zeros((1, env.observation_size))
+        params = {"policy": policy_net.init(k_pi, obs), "value": value_net.init(k_v, obs),
+                  "log_std": jnp.full(env.action_size, -0.5)}
+        n = env.observation_size
+        normalizer = Normalizer(jnp.zeros(()), jnp.zeros(n), jnp.zeros(n))
+        env_state = jax.vmap(env.reset)(jax.random.split(k_env, c.num_envs))
+        return TrainState(params, tx.init(params), normalizer, env_state, key, jnp.zeros((), jnp.int32))
+
+    def distribution(params, obs):
+        return policy_net.apply(params["policy"], obs), params["log_std"]
+
+    def log_prob(mean, log_std, action):
+        return jnp.sum(-0.5 * ((action - mean) / jnp.exp(log_std)) ** 2 - log_std - 0.5 * jnp.log(2 * jnp.pi), -1)
+
+    def act(ts: TrainState, obs: jax.Array) -> jax.Array:
+        """The mean action, clipped to the motors' range."""
+        mean, _ = distribution(ts.params, ts.normalizer(obs, c.normalize_observations))
+        return jnp.clip(mean, -1.0, 1.0)
+
+    def rollout(ts: TrainState):
+        def step(env_state, key):
+            obs = ts.normalizer(env_state.obs, c.normalize_observations)
+            mean, log_std = distribution(ts.params, obs)
+            action = mean + jnp.exp(log_std) * jax.random.normal(key, mean.shape)
+            nxt = jax.vmap(env.step)(env_state, action)
+            reward = nxt.reward if c.reward == "dense" else nxt.metrics["success"]
+            value = value_net.apply(ts.params["value"], obs)[:, 0]
+            return nxt, {"obs": env_state.obs, "action": action, "log_prob": log_prob(mean, log_std, action),
+                         "value": value, "reward": reward, "done": nxt.done, "success": nxt.metrics["success"]}
+
+        key, k = jax.random.split(ts.key)
+        env_state, data = jax.lax.scan(step, ts.env_state, jax.random.split(k, c.unroll_length))
+        last = value_net.apply(ts.params["value"], ts.normalizer(env_state.obs, c.normalize_observations))[:, 0]
+        return ts.replace(env_state=env_state, key=key), data, last
+
+    def advantages(data, last_value):
+        def back(carry, t):
+            gae, next_value = carry
+            live = 1.0 - t["done"]
+            delta = t["reward"] + c.discount * next_value * live - t["value"]
+            gae = delta + c.discount * c.gae_lambda * live * gae
+            return (gae, t["value"]), gae
+
+        _, adv = jax.lax.scan(back, (jnp.zeros_like(last_value), last_value), data, reverse=True)
+        return adv, adv + data["value"]
+
+    def loss(params, normalizer, mb):
+        obs = normalizer(mb["obs"], c.normalize_observations)
+        mean, log_std = distribution(params, obs)
+        ratio = jnp.exp(log_prob(mean, log_std, mb["action"]) - mb["log_prob"])
+        adv = (mb["adv"] - mb["adv"].mean()) / (mb["adv"].std() + 1e-8)
+        surrogate = -jnp.mean(jnp.minimum(ratio * adv, jnp.clip(ratio, 1 - c.clip, 1 + c.clip) * adv))
+        value_loss = jnp.mean((value_net.apply(params["value"], obs)[:, 0] - mb["target"]) ** 2)
+        entropy = jnp.sum(log_std + 0.5 * jnp.log(2 * jnp.pi * jnp.e))
+        total = surrogate + c.value_coef * value_loss - c.entropy_coef * entropy
+        return total, {"policy_loss": surrogate, "value_loss": value_loss, "entropy": entropy}
+
+    def iteration(ts: TrainState):
+        ts, data, last = rollout(ts)
+        adv, target = advantages(data, last)
+        flat = jax.tree.map(lambda x: x.reshape((batch,) + x.shape[2:]),
+                            {"obs": data["obs"], "action": data["action"], "log_prob": data["log_prob"],
+                             "adv": adv, "target": target})
+        normalizer = ts.normalizer.update(flat["obs"])
+
+        def epoch(carry, key):
+            params, opt = carry
+            perm = jax.random.permutation(key, batch)
+            mbs = jax.tree.map(lambda x: x[perm].reshape((c.num_minibatches, minibatch) + x.shape[1:]), flat)
+
+            def sgd(carry, mb):
+                params, opt = carry
+                (_, metrics), grads = jax.value_and_grad(loss, has_aux=True)(params, normalizer, mb)
+                updates, opt = tx.update(grads, opt)
+                return (optax.apply_updates(params, updates), opt), metrics
+
+            return jax.lax.scan(sgd, (params, opt), mbs)
+
+        key, k = jax.random.split(ts.key)
+        (params, opt), metrics = jax.lax.scan(epoch, (ts.params, ts.opt), jax.random.split(k, c.update_epochs))
+        stats = {"train_success": jnp.mean(data["success"]), "train_reward": jnp.mean(data["reward"])}
+        ts = ts.replace(params=params, opt=opt, normalizer=normalizer, key=key, env_steps=ts.env_steps + batch)
+        return ts, {**jax.tree.map(jnp.mean, metrics), **stats}
+
+    def evaluate(ts: TrainState, key: jax.Array) -> dict:
+        return evaluate_policy(env, lambda obs: act(ts, obs), key, c.eval_envs)
+
+    return PPO(config, env, init, iteration, evaluate, act)
+
+
+def train(config: PPOConfig, env, progress: Callable[[int, dict], None] = lambda step, metrics: None,
+          on_eval: Callable = lambda ts, index: None, resume=None):
+    """Iterate rollouts and updates; evaluate once untrained (index 0) and after each of num_evals chunks."""
+    ppo = make_train(config, env)
+    per_iter = config.num_envs * config.unroll_length
+    iters_per_eval = config.total_steps // per_iter // config.num_evals
+    if iters_per_eval < 1:
+        raise ValueError(f"total_steps {config.total_steps:,} is too few for {config.num_evals} evaluations of "
+                         f"{per_iter:,}-step iterations; need at least {config.num_evals * per_iter:,}")
+
+    @jax.jit
+    def chunk(ts):
+        ts, metrics = jax.lax.scan(lambda t, _: ppo.iteration(t), ts, None, length=iters_per_eval)
+        return ts, jax.tree.map(jnp.mean, metrics)
+
+    return run_evaluations(lambda: ppo.init(jax.random.PRNGKey(config.seed)), chunk, jax.jit(ppo.evaluate),
+                           config.num_evals, config.seed, progress, on_eval, resume)
