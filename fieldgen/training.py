@@ -123,7 +123,8 @@ def _check_crl(config, env, per_iter: int) -> None:
         raise RunError(f"unknown contrastive_loss '{config.contrastive_loss}'; choose one of {', '.join(LOSSES)}")
 
 
-def write_run(run_dir: Path, field: str, algo: str, config, layout: dict) -> None:
+def write_run(run_dir: Path, field: dict, algo: str, config, layout: dict) -> None:
+    """run.json: the resolved field spec, the algorithm, its full config and the observation layout."""
     run_dir.mkdir(parents=True, exist_ok=True)
     record = {"field": field, "algo": algo, "config": dataclasses.asdict(config), "observation": layout}
     write_atomic(run_dir / RUN, (json.dumps(record, indent=1) + "\n").encode())
