@@ -104,8 +104,7 @@ def make_train(config: CRLConfig, env) -> CRL:
         return TrainState(actor_params, critic_params, log_alpha, actor_tx.init(actor_params),
                           critic_tx.init(critic_params), alpha_tx.init(log_alpha), env_state,
                           replay.init(c.max_replay_rows, c.num_envs, example), key,
-                          jnp.zeros((), jnp.int64 if jax.config.jax_enable_x64 else jnp.int32),
-                          jnp.zeros((), jnp.int32))
+                          jnp.zeros((), jnp.int32), jnp.zeros((), jnp.int32))
 
     def policy(actor_params, obs, key=None):
         """A sampled action, or the mean action when key is None."""

@@ -85,12 +85,13 @@ def build(
 
 
 def _report(result) -> None:
-    meta = result.artifact.metadata()
-    model = result.artifact.model()
+    meta = json.loads((result.out_dir / "field.json").read_text())  # written by the build: no recompiling here
+    model = meta["model"]
     state = "[yellow]cache hit[/]" if result.cache_hit else "[green]built[/]"
     out.print(f"{state} [bold]{meta['name']}[/] -> {result.out_dir}/  ({result.seconds:.2f} s, hash {meta['hash']})")
     table = Table(show_header=False, box=None, padding=(0, 2))
-    table.add_row("model", f"{model.nbody} bodies, {model.ngeom} geoms, nq {model.nq}, nv {model.nv}, nu {model.nu}")
+    table.add_row("model", f"{model['nbody']} bodies, {model['ngeom']} geoms, nq {model['nq']}, nv {model['nv']}, "
+                  f"nu {model['nu']}")
     slices = ", ".join(f"{k} {a}:{b}" for k, a, b in ((k, *v) for k, v in meta["observation"]["slices"].items()))
     table.add_row("observation", f"{meta['observation']['size']} = {slices}")
     table.add_row("goal", f"state_dim {meta['state_dim']}, goal_indices {meta['goal_indices']}")
@@ -206,7 +207,7 @@ def train(
 
     try:
         if resume is not None:
-            run_dir, env, algo_config, rows, state = _resume_run(resume)
+            run_dir, algo, env, algo_config, rows, state = _resume_run(resume)
         else:
             if spec is None:
                 _fail("name a field to train on, or --resume a run folder")
@@ -214,7 +215,7 @@ def train(
             rows, state = [], None
     except (SpecError, training.RunError) as exc:
         _fail(str(exc))
-    _train_loop(run_dir, env, algo_config, rows, state)
+    _train_loop(run_dir, algo, env, algo_config, rows, state)
 
 
 def _new_run(spec, algo, steps, envs, seed, sets, config_file, out):
@@ -254,10 +255,10 @@ def _resume_run(run_dir: Path):
     except checkpoint.CheckpointError as exc:
         raise training.RunError(str(exc)) from None
     rows = [r for r in rows if r["env_steps"] <= int(state.env_steps)]
-    return run_dir, env, config, rows, state
+    return run_dir, record["algo"], env, config, rows, state
 
 
-def _train_loop(run_dir: Path, env, config, rows: list, state) -> None:
+def _train_loop(run_dir: Path, algo: str, env, config, rows: list, state) -> None:
     import time
 
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
@@ -266,7 +267,6 @@ def _train_loop(run_dir: Path, env, config, rows: list, state) -> None:
     from fieldgen import training
     from fieldgen.compile.artifact import write_atomic
 
-    algo = training.read_run(run_dir)["algo"]
     if state is not None and rows and rows[-1]["eval"] >= config.num_evals:
         out.print(f"{run_dir} is already complete ({rows[-1]['env_steps']:,} env steps)")
         return
@@ -331,11 +331,10 @@ def evaluate(
     if camera not in CAMERAS:
         _fail(f"unknown camera '{camera}'; choose one of: {', '.join(CAMERAS)}")
     try:
-        run_dir, env, config, _, state = _resume_run(run_dir)
+        run_dir, algo_name, env, config, _, state = _resume_run(run_dir)
     except (SpecError, training.RunError) as exc:
         _fail(str(exc))
-    module = training.algorithm(training.read_run(run_dir)["algo"])
-    algo = module.make_train(dataclasses.replace(config, eval_envs=episodes), env)
+    algo = training.algorithm(algo_name).make_train(dataclasses.replace(config, eval_envs=episodes), env)
     result = jax.device_get(jax.jit(algo.evaluate)(state, jax.random.PRNGKey(seed)))
     table = Table("metric", "value", title=f"{run_dir} at {int(state.env_steps):,} env steps, {episodes} episodes")
     table.add_row("success_any", f"{result['success_any']:.3f}")

@@ -29,7 +29,7 @@ class Stop(Exception):
     pass
 
 
-def test_resume_after_interrupt_reproduces_the_uninterrupted_run(env_cache):
+def test_resume_after_interrupt_reproduces_the_uninterrupted_run(env_cache, tmp_path):
     env = env_cache("point_nav")
     config = tiny_config()
     full, _ = crl.train(config, env)
@@ -44,22 +44,13 @@ def test_resume_after_interrupt_reproduces_the_uninterrupted_run(env_cache):
     with pytest.raises(Stop):
         crl.train(config, env, on_eval=save_then_stop)
     template = crl.make_train(config, env).init(jax.random.PRNGKey(config.seed))
-    restored = _roundtrip(saved[1], template)
+    (tmp_path / "c.npz").write_bytes(saved[1])
+    restored = checkpoint.load(tmp_path / "c.npz", template)
     resumed, history = crl.train(config, env, resume=(restored, 1))
     assert [row["eval"] for row in history] == [2]
     for a, b in zip(jax.tree.leaves(full.actor), jax.tree.leaves(resumed.actor)):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
     assert int(full.env_steps) == int(resumed.env_steps)
-
-
-def _roundtrip(blob: bytes, template):
-    import tempfile
-    from pathlib import Path
-
-    with tempfile.TemporaryDirectory() as d:
-        path = Path(d) / "c.npz"
-        path.write_bytes(blob)
-        return checkpoint.load(path, template)
 
 
 def test_checkpoint_errors_are_clear(tmp_path, env_cache):

@@ -26,8 +26,8 @@ from fieldgen.schema.models import FieldSpec
 ARTIFACT_FORMAT = 1
 SCENE, META, PREVIEW = "scene.xml", "field.json", "preview.png"
 # The modules whose code decides the scene: a change to any of them invalidates cached builds.
-_COMPILER_MODULES = ("compile/agents.py", "compile/contacts.py", "compile/scene.py", "compile/layout.py",
-                     "schema/geometry.py", "schema/models.py")
+_COMPILER_MODULES = ("compile/agents.py", "compile/artifact.py", "compile/contacts.py", "compile/scene.py",
+                     "compile/layout.py", "schema/geometry.py", "schema/models.py")
 
 
 def _compiler_digest() -> str:
@@ -68,6 +68,7 @@ class Artifact:
             "state_dim": layout.state_dim,
             "goal_indices": list(layout.goal_indices),
             "action_size": int(model.nu),
+            "model": {k: int(getattr(model, k)) for k in ("nbody", "ngeom", "nq", "nv", "nu")},
             "episode_length": self.spec.episode.length,
             "reward": [t.model_dump(exclude_none=True) for t in self.spec.task.reward],
             "success": self.spec.task.success.model_dump(),
