@@ -6,14 +6,12 @@ is a tanh-Gaussian that maximises the energy towards its goal, with an entropy
 coefficient tuned to a target entropy. Defaults follow the reference
 implementation (JaxGCRL) so results compare.
 
-`make_train(config, env)` returns pure pieces that run under jit; `train`
-strings them together between evaluations.
+`make_train(config, env)` returns the run as pure functions (agents.loop.Algorithm).
 """
 
 from __future__ import annotations
 
 import dataclasses
-from typing import Callable
 
 import flax.struct
 import jax
@@ -22,7 +20,7 @@ import optax
 
 from agents import buffer as replay
 from agents.contrastive import energy, infonce, logsumexp_penalty, weighted_mean
-from agents.loop import evaluate_policy, run_evaluations
+from agents.loop import Algorithm, evaluate_policy
 from agents.networks import MLP, Actor, sample_tanh_gaussian
 
 
@@ -65,21 +63,18 @@ class TrainState:
     grad_steps: jax.Array
 
 
-@dataclasses.dataclass(frozen=True)
-class CRL:
-    """The pure functions of one CRL run on one environment."""
-
-    config: CRLConfig
-    env: object
-    init: Callable
-    collect: Callable
-    update_epoch: Callable
-    evaluate: Callable  # (state, key) -> metrics
-    act: Callable  # (state, obs) -> mean action
+def iterations(config: CRLConfig) -> tuple[int, int]:
+    """(prefill iterations, training iterations per evaluation) of a run."""
+    per_iter = config.num_envs * config.unroll_length
+    prefill = -(-config.min_replay_rows // config.unroll_length)
+    return prefill, (config.total_steps - prefill * per_iter) // per_iter // config.num_evals
 
 
-def make_train(config: CRLConfig, env) -> CRL:
+def make_train(config: CRLConfig, env) -> Algorithm:
     c = config
+    prefill_iters, iters_per_eval = iterations(config)
+    if iters_per_eval < 1:
+        raise ValueError(f"total_steps {c.total_steps:,} leaves no training iteration between evaluations")
     state_dim, action_size = env.state_dim, env.action_size
     goal_indices = jnp.asarray(env.goal_indices)
     window = env.episode_length
@@ -184,44 +179,22 @@ def make_train(config: CRLConfig, env) -> CRL:
         ts, metrics = jax.lax.scan(body, ts.replace(key=key), (batch, jax.random.split(k_upd, window)))
         return ts, jax.tree.map(jnp.mean, metrics)
 
+    def start(key: jax.Array) -> TrainState:
+        return jax.lax.fori_loop(0, prefill_iters, lambda _, ts: collect(ts)[0], init(key))
+
+    def chunk(ts: TrainState) -> tuple[TrainState, dict]:
+        def body(ts, _):
+            ts, stats = collect(ts)
+            ts, metrics = update_epoch(ts)
+            return ts, {**stats, **metrics}
+
+        ts, metrics = jax.lax.scan(body, ts, None, length=iters_per_eval)
+        return ts, jax.tree.map(jnp.mean, metrics)
+
     def act(ts: TrainState, obs: jax.Array) -> jax.Array:
         return policy(ts.actor, obs)
 
     def evaluate(ts: TrainState, key: jax.Array) -> dict:
         return evaluate_policy(env, lambda obs: act(ts, obs), key, c.eval_envs)
 
-    return CRL(config, env, init, collect, update_epoch, evaluate, act)
-
-
-def train(config: CRLConfig, env, progress: Callable[[int, dict], None] = lambda step, metrics: None,
-          on_eval: Callable[[TrainState, int], None] = lambda ts, index: None,
-          resume: tuple[TrainState, int] | None = None):
-    """Prefill, then alternate collection and updates; evaluate once untrained (index 0) and after
-    each of num_evals chunks. `on_eval(state, index)` runs after every evaluation (checkpoints);
-    `resume=(state, index)` continues after evaluation `index` exactly as if never stopped."""
-    crl = make_train(config, env)
-    per_iter = config.num_envs * config.unroll_length
-    prefill_iters = -(-config.min_replay_rows // config.unroll_length)
-    iters = (config.total_steps - prefill_iters * per_iter) // per_iter
-    if iters < config.num_evals:
-        raise ValueError(f"total_steps {config.total_steps:,} leaves {max(iters, 0)} training iterations for "
-                         f"{config.num_evals} evaluations; need at least {(prefill_iters + config.num_evals) * per_iter:,}")
-    iters_per_eval = iters // config.num_evals
-
-    @jax.jit
-    def prefill(ts):
-        return jax.lax.fori_loop(0, prefill_iters, lambda _, t: crl.collect(t)[0], ts)
-
-    @jax.jit
-    def chunk(ts):
-        def body(ts, _):
-            ts, stats = crl.collect(ts)
-            ts, metrics = crl.update_epoch(ts)
-            return ts, {**stats, **metrics}
-
-        ts, metrics = jax.lax.scan(body, ts, None, length=iters_per_eval)
-        return ts, jax.tree.map(jnp.mean, metrics)
-
-    first = lambda: prefill(crl.init(jax.random.PRNGKey(config.seed)))  # noqa: E731
-    return run_evaluations(first, chunk, jax.jit(crl.evaluate), config.num_evals, config.seed, progress, on_eval,
-                           resume)
+    return Algorithm(config, env, start, chunk, evaluate, act, {"env_state": 0, "buffer": 1})

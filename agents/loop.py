@@ -1,51 +1,129 @@
-"""What every trainer shares: evaluating a policy, and the chunked loop between evaluations."""
+"""What every trainer shares: the shape of an algorithm, evaluating a policy, and running
+several seeds at once (vmap) over every local device (jax.sharding) between evaluations.
+
+An algorithm is the pure functions of `Algorithm`. `pure_train(algo)` strings them
+into one `train(key)` that can be jitted and vmapped over seeds; `run` does the same
+work one evaluation at a time, so a caller can checkpoint, log and resume between them.
+"""
 
 from __future__ import annotations
 
-from typing import Callable
+import dataclasses
+import time
+from typing import Callable, Sequence
 
 import jax
 import jax.numpy as jnp
 
+from agents import sharding
+
+EVAL_STREAM = 0x5EED  # evaluation keys: fold_in(fold_in(seed key, EVAL_STREAM), evaluation index)
+
+
+@dataclasses.dataclass(frozen=True)
+class Algorithm:
+    """One run of one algorithm on one environment, as pure functions of a training state."""
+
+    config: object
+    env: object
+    start: Callable  # key -> state, ready for the first chunk (a CRL buffer is prefilled)
+    chunk: Callable  # state -> (state, mean training metrics): the iterations between two evaluations
+    evaluate: Callable  # (state, key) -> metrics
+    act: Callable  # (state, obs) -> deterministic action
+    env_axes: dict  # state field -> the axis of its leaves that runs over environments (sharded)
+
 
 def evaluate_policy(env, act: Callable, key: jax.Array, n_envs: int) -> dict:
-    """One episode per environment with `act(obs)`, counted up to its first `done`."""
+    """One episode per environment with `act(obs)`, counted up to its first `done`.
+
+    success_any: share of episodes with a successful step; time_at_goal: successful steps
+    per episode; episode_return; and `term_<name>`: each reward term's mean per live step.
+    """
     env_state = jax.vmap(env.reset)(jax.random.split(key, n_envs))
+    terms = [name for name in env_state.metrics if name != "success"]
 
     def step(carry, _):
         env_state, alive = carry
         nxt = jax.vmap(env.step)(env_state, act(env_state.obs))
-        out = {"success": nxt.metrics["success"] * alive, "reward": nxt.reward * alive}
+        out = {"success": nxt.metrics["success"] * alive, "reward": nxt.reward * alive, "alive": alive,
+               **{name: nxt.metrics[name] * alive for name in terms}}
         return (nxt, alive * (1.0 - nxt.done)), out
 
     _, out = jax.lax.scan(step, (env_state, jnp.ones(n_envs)), None, length=env.episode_length)
+    live_steps = jnp.sum(out["alive"])
     return {"success_any": jnp.mean(jnp.any(out["success"] > 0, axis=0)),
             "time_at_goal": jnp.mean(jnp.sum(out["success"], axis=0)),
-            "episode_return": jnp.mean(jnp.sum(out["reward"], axis=0))}
+            "episode_return": jnp.mean(jnp.sum(out["reward"], axis=0)),
+            **{f"term_{name}": jnp.sum(out[name]) / live_steps for name in terms}}
 
 
-def run_evaluations(first: Callable, chunk: Callable, evaluate: Callable, num_evals: int, seed: int,
-                    progress: Callable[[int, dict], None], on_eval: Callable, resume=None):
-    """Evaluate once at the start (index 0), then after each of num_evals jitted chunks.
+def eval_key(seed_key: jax.Array, index) -> jax.Array:
+    return jax.random.fold_in(jax.random.fold_in(seed_key, EVAL_STREAM), index)
 
-    `first()` gives the starting state; `chunk(state) -> (state, metrics)`; `evaluate(state, key)`.
-    Evaluation keys come from (seed, index), so a resumed run sees the same keys as an unbroken one.
+
+def pure_train(algo: Algorithm, num_evals: int) -> Callable:
+    """train(key) -> (final state, metrics stacked over the num_evals evaluations); jit- and vmap-able."""
+
+    def train(key):
+        def interval(state, index):
+            state, metrics = algo.chunk(state)
+            return state, {**metrics, **algo.evaluate(state, eval_key(key, index))}
+
+        return jax.lax.scan(interval, algo.start(key), jnp.arange(1, num_evals + 1))
+
+    return train
+
+
+def run(algo: Algorithm, seeds: Sequence[int], num_evals: int,
+        progress: Callable[[int, list[dict]], None] = lambda index, rows: None,
+        on_eval: Callable = lambda state, index: None, resume: tuple | None = None):
+    """Train every seed at once (vmapped), evaluating untrained (index 0) and after each of num_evals chunks.
+
+    With several local devices the environments (and whatever else `algo.env_axes` names)
+    are sharded across them; gradients of the losses, means over the sharded batch, are then
+    averaged across devices by the compiler. `progress(index, rows)` gets one row per seed;
+    `on_eval(state, index)` runs after every evaluation (checkpoints); `resume=(state, index)`
+    continues after evaluation `index` exactly as if never stopped. Returns (state, rows).
     """
-    history = []
+    keys = jnp.stack([jax.random.PRNGKey(s) for s in seeds])
+    mesh = sharding.local_mesh()
+    shapes = jax.eval_shape(jax.vmap(algo.start), keys)
+    placement = sharding.state_shardings(shapes, mesh, algo.env_axes, offset=1)
+    start = jax.jit(jax.vmap(algo.start), out_shardings=placement)
+    chunk = jax.jit(jax.vmap(algo.chunk), in_shardings=(placement,), out_shardings=(placement, None))
+    evaluate = jax.jit(jax.vmap(algo.evaluate), in_shardings=(placement, None))
+    history: list[dict] = []
 
-    def record(state, metrics, index):
-        key = jax.random.fold_in(jax.random.PRNGKey(seed + 1), index)
-        metrics = {name: float(v) for name, v in {**metrics, **jax.device_get(evaluate(state, key))}.items()}
-        history.append({"eval": index, "env_steps": int(state.env_steps), **metrics})
-        progress(int(state.env_steps), metrics)
+    def record(state, metrics, index, seconds):
+        keys_now = jax.vmap(eval_key, in_axes=(0, None))(keys, index)
+        metrics = {**metrics, **jax.device_get(evaluate(state, keys_now))}
+        steps = int(jax.device_get(state.env_steps)[0])
+        rows = []
+        for i, seed in enumerate(seeds):
+            row = {"eval": index, "seed": seed, "env_steps": steps, **{k: float(v[i]) for k, v in metrics.items()}}
+            if seconds is not None:
+                row["steps_per_second"] = (steps - previous[0]) / seconds
+            rows.append(row)
+        previous[0] = steps
+        history.extend(rows)
+        progress(index, rows)
         on_eval(state, index)
 
     if resume is None:
-        state, start = first(), 1
-        record(state, {}, 0)
+        state, first = start(keys), 1
+        previous = [0]
+        record(state, {}, 0, None)
     else:
-        state, start = resume[0], resume[1] + 1
-    for index in range(start, num_evals + 1):
+        state, first = jax.device_put(resume[0], placement), resume[1] + 1
+        previous = [int(jax.device_get(state.env_steps)[0])]
+    for index in range(first, num_evals + 1):
+        began = time.perf_counter()
         state, metrics = chunk(state)
-        record(state, jax.device_get(metrics), index)
+        metrics = jax.device_get(metrics)  # waits for the chunk
+        record(state, metrics, index, time.perf_counter() - began)
     return state, history
+
+
+def seed_slice(state, i: int):
+    """Seed i's state out of a vmapped one."""
+    return jax.tree.map(lambda x: x[i], state)

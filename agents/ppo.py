@@ -9,14 +9,13 @@ observation, which auto-reset replaces).
 from __future__ import annotations
 
 import dataclasses
-from typing import Callable
 
 import flax.struct
 import jax
 import jax.numpy as jnp
 import optax
 
-from agents.loop import evaluate_policy, run_evaluations
+from agents.loop import Algorithm, evaluate_policy
 from agents.networks import MLP
 
 
@@ -73,18 +72,11 @@ class TrainState:
     env_steps: jax.Array
 
 
-@dataclasses.dataclass(frozen=True)
-class PPO:
-    config: PPOConfig
-    env: object
-    init: Callable
-    iteration: Callable
-    evaluate: Callable  # (state, key) -> metrics
-    act: Callable  # (state, obs) -> mean action
-
-
-def make_train(config: PPOConfig, env) -> PPO:
+def make_train(config: PPOConfig, env) -> Algorithm:
     c = config
+    iters_per_eval = c.total_steps // (c.num_envs * c.unroll_length) // c.num_evals
+    if iters_per_eval < 1:
+        raise ValueError(f"total_steps {c.total_steps:,} leaves no iteration between evaluations")
     policy_net = MLP(c.hidden, env.action_size)
     value_net = MLP(c.hidden, 1)
     tx = optax.chain(optax.clip_by_global_norm(c.max_grad_norm), optax.adam(c.learning_rate))
@@ -177,26 +169,11 @@ def make_train(config: PPOConfig, env) -> PPO:
         ts = ts.replace(params=params, opt=opt, normalizer=normalizer, key=key, env_steps=ts.env_steps + batch)
         return ts, {**jax.tree.map(jnp.mean, metrics), **stats}
 
+    def chunk(ts: TrainState) -> tuple[TrainState, dict]:
+        ts, metrics = jax.lax.scan(lambda t, _: iteration(t), ts, None, length=iters_per_eval)
+        return ts, jax.tree.map(jnp.mean, metrics)
+
     def evaluate(ts: TrainState, key: jax.Array) -> dict:
         return evaluate_policy(env, lambda obs: act(ts, obs), key, c.eval_envs)
 
-    return PPO(config, env, init, iteration, evaluate, act)
-
-
-def train(config: PPOConfig, env, progress: Callable[[int, dict], None] = lambda step, metrics: None,
-          on_eval: Callable = lambda ts, index: None, resume=None):
-    """Iterate rollouts and updates; evaluate once untrained (index 0) and after each of num_evals chunks."""
-    ppo = make_train(config, env)
-    per_iter = config.num_envs * config.unroll_length
-    iters_per_eval = config.total_steps // per_iter // config.num_evals
-    if iters_per_eval < 1:
-        raise ValueError(f"total_steps {config.total_steps:,} is too few for {config.num_evals} evaluations of "
-                         f"{per_iter:,}-step iterations; need at least {config.num_evals * per_iter:,}")
-
-    @jax.jit
-    def chunk(ts):
-        ts, metrics = jax.lax.scan(lambda t, _: ppo.iteration(t), ts, None, length=iters_per_eval)
-        return ts, jax.tree.map(jnp.mean, metrics)
-
-    return run_evaluations(lambda: ppo.init(jax.random.PRNGKey(config.seed)), chunk, jax.jit(ppo.evaluate),
-                           config.num_evals, config.seed, progress, on_eval, resume)
+    return Algorithm(config, env, init, chunk, evaluate, act, {"env_state": 0})

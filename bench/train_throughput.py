@@ -1,78 +1,78 @@
-"""End-to-end CRL training throughput (env steps per second, updates included) on a built field.
+"""End-to-end training throughput (env steps per second, updates included) on built fields.
 
 The reference, measured in the same run, is the same environment stepped alone
 with random actions at the same batch size (fieldgen.throughput): the ratio is
-the share of time left to simulation once training runs beside it. Optionally
-(--learn STEPS) trains for STEPS env steps and prints the success curve.
+the share of time left to simulation once training runs beside it. Each figure
+times one jitted chunk of training iterations after a warm-up call.
 
-    python bench/train_throughput.py --field build/ant_nav --envs 1024,4096 --learn 10000000
+    python bench/train_throughput.py --fields build/ant_nav,build/soccer_v1 --algos crl,ppo --envs 1024,4096
 """
 
 from __future__ import annotations
 
 import argparse
-import json
+import dataclasses
 import time
 from pathlib import Path
 
 import jax
 
 import fieldgen
-from agents import crl
+from agents import crl, ppo
 from fieldgen.throughput import append_jsonl, measure
+from fieldgen.training import peak_memory_mb
 
 
-def time_iterations(env, config: crl.CRLConfig, iterations: int) -> float:
-    """Seconds per (collect + update epoch) iteration, after a warm-up call."""
-    algo = crl.make_train(config, env)
+def config_for(algo: str, num_envs: int, iterations: int):
+    """A config whose chunk (the work between two evaluations) is `iterations` training iterations."""
+    if algo == "crl":
+        c = crl.CRLConfig(num_envs=num_envs, num_evals=1)
+        prefill, _ = crl.iterations(c)
+        return dataclasses.replace(c, total_steps=(prefill + iterations) * num_envs * c.unroll_length)
+    c = ppo.PPOConfig(num_envs=num_envs, num_evals=1)
+    return dataclasses.replace(c, total_steps=iterations * num_envs * c.unroll_length)
 
-    @jax.jit
-    def run(ts):
-        def body(ts, _):
-            ts, metrics = algo.update_epoch(algo.collect(ts)[0])
-            return ts, metrics["critic_loss"]
 
-        return jax.lax.scan(body, ts, None, length=iterations)
-
-    ts = jax.jit(lambda ts: jax.lax.fori_loop(0, 20, lambda _, t: algo.collect(t)[0], ts))(algo.init(jax.random.PRNGKey(0)))
-    ts, _ = jax.block_until_ready(run(ts))
+def time_chunk(algo, key) -> float:
+    """Seconds for one chunk, timed after two warm-up calls (the first, and the first fed its own output,
+    can both compile)."""
+    chunk = jax.jit(algo.chunk)
+    state = jax.block_until_ready(jax.jit(algo.start)(key))
+    for _ in range(2):
+        state, _ = jax.block_until_ready(chunk(state))
     t0 = time.perf_counter()
-    jax.block_until_ready(run(ts))
-    return (time.perf_counter() - t0) / iterations
+    jax.block_until_ready(chunk(state))
+    return time.perf_counter() - t0
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--field", type=Path, default=Path("build/ant_nav"))
+    parser.add_argument("--fields", default="build/ant_nav", help="comma-separated build folders or field names")
+    parser.add_argument("--algos", default="crl,ppo")
     parser.add_argument("--envs", default="1024,4096")
-    parser.add_argument("--iterations", type=int, default=5)
-    parser.add_argument("--learn", type=int, default=0, help="env steps of a learning run at the first batch size")
+    parser.add_argument("--iterations", type=int, default=4, help="training iterations per timed chunk")
     parser.add_argument("--json", type=Path)
     args = parser.parse_args()
-    env = fieldgen.make(args.field)
-    print(f"device: {jax.devices()[0].device_kind}; field {env.spec.name}; CRL defaults (2x256, repr 64, batch 256, "
-          f"unroll 62, {env.episode_length} updates per iteration)")
-    for n in [int(x) for x in args.envs.split(",")]:
-        config = crl.CRLConfig(num_envs=n)
-        sim = measure(env, n, config.unroll_length).steps_per_second
-        seconds = time_iterations(env, config, args.iterations)
-        sps = n * config.unroll_length / seconds
-        print(f"{n:>6d} envs: {sps:>10,.0f} env steps/s with training; env alone {sim:>12,.0f}; "
-              f"ratio {sps / sim:.3f}; {seconds:.2f} s per iteration")
-        append_jsonl(args.json, {"field": env.spec.name, "envs": n, "train_steps_per_second": sps,
-                            "env_steps_per_second": sim, "seconds_per_iteration": seconds})
-    if args.learn:
-        n = int(args.envs.split(",")[0])
-        config = crl.CRLConfig(num_envs=n, total_steps=args.learn, num_evals=10, eval_envs=256)
-        t0 = time.perf_counter()
-
-        def progress(step, metrics):
-            row = {"field": env.spec.name, "env_steps": step, "seconds": time.perf_counter() - t0, **metrics}
-            print(json.dumps({k: round(v, 4) if isinstance(v, float) else v for k, v in row.items()}), flush=True)
-            append_jsonl(args.json, row)
-
-        crl.train(config, env, progress)
-
+    print(f"device: {jax.devices()[0].device_kind} x {len(jax.devices())}")
+    for field in args.fields.split(","):
+        env = fieldgen.make(Path(field) if Path(field).exists() else field)
+        for n in [int(x) for x in args.envs.split(",")]:
+            sim = measure(env, n, 62).steps_per_second
+            for name in args.algos.split(","):
+                config = config_for(name, n, args.iterations)
+                algo = {"crl": crl, "ppo": ppo}[name].make_train(config, env)
+                per_iter = n * config.unroll_length
+                seconds = time_chunk(algo, jax.random.PRNGKey(0))
+                sps = args.iterations * per_iter / seconds
+                memory = peak_memory_mb()
+                print(f"{env.spec.name:>12s} {name:>4s} {n:>6d} envs: {sps:>10,.0f} env steps/s with training; "
+                      f"env alone {sim:>11,.0f}; ratio {sps / sim:.3f}; "
+                      f"{seconds / args.iterations:.3f} s per iteration; peak memory so far "
+                      f"{memory if memory is None else f'{memory:,.0f} MiB'}", flush=True)
+                append_jsonl(args.json, {"field": env.spec.name, "algo": name, "envs": n,
+                                         "train_steps_per_second": sps, "env_steps_per_second": sim,
+                                         "seconds_per_iteration": seconds / args.iterations,
+                                         "peak_memory_mb": memory})
 
 
 if __name__ == "__main__":

@@ -189,129 +189,50 @@ def bench(
 
 @app.command()
 def train(
-    spec: Annotated[Optional[str], typer.Argument(help="a YAML file or bundled field name (omit with --resume)")] = None,
+    spec: Annotated[Optional[str], typer.Argument(
+        help="a YAML file, bundled field name or build folder (omit with --resume)")] = None,
     algo: Annotated[str, typer.Option(help="training algorithm: crl or ppo")] = "crl",
     steps: Annotated[Optional[int], typer.Option(help="total env steps")] = None,
     envs: Annotated[Optional[int], typer.Option(help="parallel environments")] = None,
     seed: Annotated[int, typer.Option(help="random seed; names the run folder")] = 0,
+    seeds: Annotated[int, typer.Option(help="train this many seeds at once (seed, seed+1, ...), vmapped")] = 1,
     sets: Annotated[Optional[list[str]], typer.Option("--set", help="override a config key: crl.repr_dim=128")] = None,
     config: Annotated[Optional[Path], typer.Option(help="YAML file: {crl: {key: value}}")] = None,
-    out: Annotated[Path, typer.Option(help="folder for run folders")] = Path("runs"),
+    runs: Annotated[Path, typer.Option("--out", help="folder for run folders")] = Path("runs"),
     resume: Annotated[Optional[Path], typer.Option(help="continue the run in this folder")] = None,
+    videos: Annotated[bool, typer.Option(help="write videos/eval_NNN.gif of the policy at every evaluation")] = True,
 ) -> None:
     """Train an agent on a field; writes runs/<field>-<algo>-<seed>/ and resumes exactly after an interrupt.
 
     Example: fieldgen train point_nav --algo crl --steps 40000 --envs 16 --set 'crl.hidden=[64,64]'
     """
-    from fieldgen import training
+    from fieldgen import runner, training
 
     try:
         if resume is not None:
-            run_dir, algo, env, algo_config, rows, state = _resume_run(resume)
+            run = runner.open_run(resume)
         else:
             if spec is None:
                 _fail("name a field to train on, or --resume a run folder")
-            run_dir, env, algo_config = _new_run(spec, algo, steps, envs, seed, sets or [], config, out)
-            rows, state = [], None
+            if seeds < 1:
+                _fail(f"--seeds {seeds}: train at least one seed")
+            algo_config = training.make_config(algo, config, sets or [], total_steps=steps, num_envs=envs,
+                                               seed=seed)
+            source = Path(spec) if Path(spec).is_dir() else _spec_path(spec)
+            run = runner.new_run(source, algo, list(range(seed, seed + seeds)), algo_config, runs)
     except (SpecError, training.RunError) as exc:
         _fail(str(exc))
-    _train_loop(run_dir, algo, env, algo_config, rows, state)
-
-
-def _new_run(spec, algo, steps, envs, seed, sets, config_file, out):
-    import fieldgen
-    from fieldgen import training
-
-    algo_config = training.make_config(algo, config_file, sets, total_steps=steps, num_envs=envs, seed=seed)
-    field = load_spec(_spec_path(spec))
-    run_dir = out / f"{field.name}-{algo}-{seed}"
-    if (run_dir / training.RUN).exists():
-        raise training.RunError(f"{run_dir} already holds a run; continue it with --resume {run_dir}, "
-                                "or pick another --seed or --out")
-    env = fieldgen.make(field)
-    training.check_config(algo_config, env)
-    training.write_run(run_dir, field.model_dump(mode="json"), algo, algo_config, env.layout.to_json())
-    return run_dir, env, algo_config
-
-
-def _resume_run(run_dir: Path):
-    import jax
-
-    import fieldgen
-    from agents import checkpoint
-    from fieldgen import training
-    from fieldgen.schema import FieldSpec
-
-    record = training.read_run(run_dir)
-    env = fieldgen.make(FieldSpec.model_validate(record["field"]))
-    if record["observation"] != env.layout.to_json():
-        raise training.RunError(f"{run_dir} was trained on a different observation layout than its field gives now")
-    config = training.make_config(record["algo"], **{k: tuple(v) if isinstance(v, list) else v
-                                                     for k, v in record["config"].items()})
-    rows = training.read_metrics(run_dir)
-    template = training.algorithm(record["algo"]).make_train(config, env).init(jax.random.PRNGKey(config.seed))
     try:
-        state = checkpoint.load(run_dir / training.CHECKPOINT, template)
-    except checkpoint.CheckpointError as exc:
-        raise training.RunError(str(exc)) from None
-    rows = [r for r in rows if r["env_steps"] <= int(state.env_steps)]
-    return run_dir, record["algo"], env, config, rows, state
-
-
-def _train_loop(run_dir: Path, algo: str, env, config, rows: list, state) -> None:
-    import time
-
-    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
-
-    from agents import checkpoint
-    from fieldgen import training
-    from fieldgen.compile.artifact import write_atomic
-
-    if state is not None and rows and rows[-1]["eval"] >= config.num_evals:
-        out.print(f"{run_dir} is already complete ({rows[-1]['env_steps']:,} env steps)")
-        return
-    started = time.perf_counter()
-    first_steps = rows[-1]["env_steps"] if rows else 0
-    columns = (TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.completed:,.0f} steps"),
-               TextColumn("{task.fields[rate]}"), TextColumn("{task.fields[stats]}"), TimeElapsedColumn())
-    with Progress(*columns, console=out, transient=False) as bar:
-        task = bar.add_task(env.spec.name, total=config.total_steps, completed=first_steps, rate="compiling...",
-                            stats="")
-
-        def on_eval(ts, index):
-            write_atomic(run_dir / training.CHECKPOINT, checkpoint.to_bytes(ts))
-
-        def progress(step, metrics):
-            rate = (step - first_steps) / max(time.perf_counter() - started, 1e-9)
-            rows.append({"eval": len(rows), "env_steps": step, "wall_seconds": time.perf_counter() - started,
-                         **metrics})
-            training.write_metrics(run_dir, rows)
-            training.plot_success(run_dir, rows, f"{env.spec.name}: {algo}")
-            stats = f"success {metrics['success_any']:.2f}  at goal {metrics['time_at_goal']:.1f}"
-            for name in ("critic_loss", "actor_loss", "policy_loss", "value_loss"):
-                if name in metrics:
-                    stats += f"  {name.removesuffix('_loss')} {metrics[name]:.3f}"
-            bar.update(task, completed=step, rate=f"{rate:,.0f} steps/s", stats=stats)
-
-        try:
-            resume_at = (state, rows[-1]["eval"]) if state is not None else None
-            training.algorithm(algo).train(config, env, progress, on_eval, resume_at)
-        except KeyboardInterrupt:
-            err.print(f"interrupted; the last checkpoint is intact. Continue with: fieldgen train --resume {run_dir}")
-            raise typer.Exit(130) from None
-    table = Table("env steps", "success_any", "time_at_goal", "return", title=f"{run_dir}")
-    for r in rows:
-        table.add_row(f"{r['env_steps']:,}", f"{r['success_any']:.2f}", f"{r['time_at_goal']:.1f}",
-                      f"{r['episode_return']:.1f}")
-    out.print(table)
-    out.print(f"metrics: {run_dir / training.CSV}; plot: {run_dir / training.PLOT}")
+        runner.train(run, out, videos)
+    except KeyboardInterrupt:
+        raise typer.Exit(130) from None
 
 
 @app.command("eval")
 def evaluate(
     run_dir: Annotated[Path, typer.Argument(help="a run folder written by fieldgen train")],
-    episodes: Annotated[int, typer.Option(help="evaluation episodes, one per parallel env")] = 128,
-    video: Annotated[bool, typer.Option(help="write eval.gif of one episode")] = True,
+    episodes: Annotated[int, typer.Option(help="evaluation episodes per seed, one per parallel env")] = 128,
+    video: Annotated[bool, typer.Option(help="write eval.gif of one episode of the run's first seed")] = True,
     camera: Annotated[str, typer.Option(help="video camera: follow or top")] = "follow",
     seed: Annotated[int, typer.Option(help="evaluation seed")] = 0,
 ) -> None:
@@ -322,37 +243,34 @@ def evaluate(
     import dataclasses
 
     import jax
-    import numpy as np
 
-    from fieldgen import training
+    from agents import loop
+    from fieldgen import runner, training
     from fieldgen.compile.artifact import write_atomic
-    from fieldgen.render import CAMERAS, gif_bytes, render_rollout
+    from fieldgen.render import CAMERAS
 
     if camera not in CAMERAS:
         _fail(f"unknown camera '{camera}'; choose one of: {', '.join(CAMERAS)}")
     try:
-        run_dir, algo_name, env, config, _, state = _resume_run(run_dir)
+        run = runner.open_run(run_dir)
     except (SpecError, training.RunError) as exc:
         _fail(str(exc))
-    algo = training.algorithm(algo_name).make_train(dataclasses.replace(config, eval_envs=episodes), env)
-    result = jax.device_get(jax.jit(algo.evaluate)(state, jax.random.PRNGKey(seed)))
-    table = Table("metric", "value", title=f"{run_dir} at {int(state.env_steps):,} env steps, {episodes} episodes")
-    table.add_row("success_any", f"{result['success_any']:.3f}")
-    table.add_row("time_at_goal", f"{result['time_at_goal']:.1f} of {env.episode_length} steps")
-    table.add_row("episode_return", f"{result['episode_return']:.2f}")
+    algo = dataclasses.replace(run, config=dataclasses.replace(run.config, eval_envs=episodes)).algorithm()
+    key = jax.random.PRNGKey(seed)
+    result = jax.device_get(jax.jit(jax.vmap(algo.evaluate, in_axes=(0, None)))(run.state, key))
+    steps = int(jax.device_get(run.state.env_steps)[0])
+    table = Table("seed", "success_any", "time_at_goal", "return",
+                  title=f"{run_dir} at {steps:,} env steps, {episodes} episodes per seed")
+    for i, s in enumerate(run.seeds):
+        table.add_row(str(s), f"{result['success_any'][i]:.3f}",
+                      f"{result['time_at_goal'][i]:.1f} of {run.env.episode_length} steps",
+                      f"{result['episode_return'][i]:.2f}")
     out.print(table)
     if video:
-        def step(s, _):
-            nxt = env.step(s, algo.act(state, s.obs))
-            return nxt, (s.pipeline_state.qpos, s.pipeline_state.mocap_pos, nxt.done)
-
-        first = env.reset(jax.random.PRNGKey(seed))
-        _, (qpos, mocap, done) = jax.jit(lambda s: jax.lax.scan(step, s, None, length=env.episode_length))(first)
-        end = int(np.argmax(np.asarray(done))) + 1 if np.any(np.asarray(done)) else env.episode_length
-        stride = max(1, end // 300)  # at most ~300 frames
-        frames = render_rollout(env.mj_model, np.asarray(qpos)[:end:stride], np.asarray(mocap)[:end:stride], camera)
-        write_atomic(run_dir / "eval.gif", gif_bytes(frames, fps=1 / (env.dt * stride)))
-        out.print(f"video: {run_dir / 'eval.gif'} ({len(frames)} frames, {camera} camera)")
+        recorder = training.EpisodeRecorder(run.env, algo.act, camera)
+        data, frames = recorder.gif(loop.seed_slice(run.state, 0), key)
+        write_atomic(run_dir / "eval.gif", data)
+        out.print(f"video: {run_dir / 'eval.gif'} ({frames} frames, {camera} camera)")
 
 
 if __name__ == "__main__":

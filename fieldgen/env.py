@@ -114,7 +114,9 @@ class FieldEnv:
     def step(self, state: State, action: jax.Array) -> State:
         action = jnp.clip(action, -1.0, 1.0)
         before = state.pipeline_state
-        data = jax.lax.fori_loop(0, self.n_substeps, lambda _, d: mjx.step(self.sys, d), before.replace(ctrl=action))
+        with jax.default_matmul_precision(self.spec.sim.precision):
+            data = jax.lax.fori_loop(0, self.n_substeps, lambda _, d: mjx.step(self.sys, d),
+                                     before.replace(ctrl=action))
         goal = state.info["goal"]
         t = Transition(self._ball_pos(before), self._ball_pos(data), self._agent_pos(before), self._agent_pos(data),
                        goal, action, self.dt)

@@ -1,9 +1,10 @@
 """Training runs on disk: runs/<field>-<algo>-<seed>/ with config, metrics, checkpoint and plot.
 
 A run directory holds everything needed to resume: `run.json` (the field's
-build, the algorithm and its full config), `metrics.jsonl` / `metrics.csv` (one
-row per evaluation), `checkpoint.npz` (the whole training state after the last
-evaluation, written atomically) and `success.png`.
+build, the algorithm, its full config and the seeds), `metrics.jsonl` /
+`metrics.csv` (one row per evaluation and seed), `checkpoint.msgpack` (the whole
+training state after the last evaluation, written atomically), `success.png`
+and `videos/eval_NNN.gif` (the policy after each evaluation).
 """
 
 from __future__ import annotations
@@ -17,12 +18,15 @@ import json
 import typing
 from pathlib import Path
 
+import jax
+import numpy as np
 import yaml
 
 from fieldgen.compile.artifact import write_atomic
 
 ALGOS = {"crl": "CRLConfig", "ppo": "PPOConfig"}  # agents.<name> module -> its config class
-RUN, METRICS, CSV, CHECKPOINT, PLOT = "run.json", "metrics.jsonl", "metrics.csv", "checkpoint.npz", "success.png"
+RUN, METRICS, CSV, CHECKPOINT, PLOT = "run.json", "metrics.jsonl", "metrics.csv", "checkpoint.msgpack", "success.png"
+VIDEOS = "videos"
 
 
 class RunError(Exception):
@@ -84,8 +88,11 @@ def _cast(cls, key: str, value, where: str):
         raise RunError(f"{where}: '{value}' is not a valid {getattr(kind, '__name__', kind)}") from None
 
 
-def check_config(config, env) -> None:
+def check_config(config, env, devices: int = 1) -> None:
     """Problems a run would hit after compiling, reported before."""
+    if config.num_envs % devices:
+        raise RunError(f"num_envs {config.num_envs} does not split evenly over the {devices} local devices; "
+                       f"use a multiple of {devices}")
     per_iter = config.num_envs * config.unroll_length
     if hasattr(config, "num_minibatches"):
         _check_ppo(config, per_iter)
@@ -107,10 +114,12 @@ def _check_ppo(config, per_iter: int) -> None:
 
 def _check_crl(config, env, per_iter: int) -> None:
     from agents.contrastive import ENERGIES, LOSSES
+    from agents.crl import iterations
 
-    prefill = -(-config.min_replay_rows // config.unroll_length) * per_iter
+    prefill_iters, per_eval = iterations(config)
+    prefill = prefill_iters * per_iter
     need = prefill + config.num_evals * per_iter
-    if config.total_steps < need:
+    if per_eval < 1:
         raise RunError(f"--steps {config.total_steps:,} is too few: {config.num_envs} envs x unroll "
                        f"{config.unroll_length} need {prefill:,} steps to prefill the buffer and "
                        f"{config.num_evals} more iterations; use at least {need:,}")
@@ -123,10 +132,11 @@ def _check_crl(config, env, per_iter: int) -> None:
         raise RunError(f"unknown contrastive_loss '{config.contrastive_loss}'; choose one of {', '.join(LOSSES)}")
 
 
-def write_run(run_dir: Path, field: dict, algo: str, config, layout: dict) -> None:
-    """run.json: the resolved field spec, the algorithm, its full config and the observation layout."""
+def write_run(run_dir: Path, field: dict, algo: str, config, layout: dict, seeds: list[int]) -> None:
+    """run.json: the resolved field spec, the algorithm, its full config, the observation layout, the seeds."""
     run_dir.mkdir(parents=True, exist_ok=True)
-    record = {"field": field, "algo": algo, "config": dataclasses.asdict(config), "observation": layout}
+    record = {"field": field, "algo": algo, "config": dataclasses.asdict(config), "observation": layout,
+              "seeds": seeds}
     write_atomic(run_dir / RUN, (json.dumps(record, indent=1) + "\n").encode())
 
 
@@ -158,22 +168,75 @@ def write_metrics(run_dir: Path, rows: list[dict]) -> None:
 
 
 def plot_success(run_dir: Path, rows: list[dict], title: str) -> None:
+    """success_any and time_at_goal against env steps, one line per seed."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    steps = [r["env_steps"] for r in rows]
     fig, (left, right) = plt.subplots(1, 2, figsize=(10, 3.6))
-    left.plot(steps, [r["success_any"] for r in rows], marker="o")
+    seeds = list(dict.fromkeys(r.get("seed", 0) for r in rows))
+    for seed in seeds:
+        mine = [r for r in rows if r.get("seed", 0) == seed]
+        steps = [r["env_steps"] for r in mine]
+        label = f"seed {seed}" if len(seeds) > 1 else None
+        left.plot(steps, [r["success_any"] for r in mine], marker="o", label=label)
+        right.plot(steps, [r["time_at_goal"] for r in mine], marker="o", label=label)
     left.set(xlabel="env steps", ylabel="success_any", ylim=(-0.02, 1.02), title="episodes with a success")
-    right.plot(steps, [r["time_at_goal"] for r in rows], marker="o", color="tab:green")
     right.set(xlabel="env steps", ylabel="steps at goal per episode", title="time at goal")
     for ax in (left, right):
         ax.grid(alpha=0.3)
+        if len(seeds) > 1:
+            ax.legend(fontsize=8)
     fig.suptitle(title)
     fig.tight_layout()
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=100)
     plt.close(fig)
     write_atomic(run_dir / PLOT, buf.getvalue())
+
+
+def peak_memory_mb() -> float | None:
+    """The largest peak of bytes in use over the local devices, where the backend reports it (GPUs do)."""
+    peaks = [(d.memory_stats() or {}).get("peak_bytes_in_use") for d in jax.local_devices()]
+    peaks = [p for p in peaks if p is not None]
+    return max(peaks) / 2**20 if peaks else None
+
+
+class EpisodeRecorder:
+    """Videos of a policy's deterministic episode: simulated under jit, drawn by mujoco's renderer."""
+
+    def __init__(self, env, act, camera: str = "follow"):
+        self.env, self.camera, self.broken = env, camera, False
+
+        def rollout(state, key):
+            def step(s, _):
+                nxt = env.step(s, act(state, s.obs))
+                return nxt, (s.pipeline_state.qpos, s.pipeline_state.mocap_pos, nxt.done)
+
+            return jax.lax.scan(step, env.reset(key), None, length=env.episode_length)[1]
+
+        self._rollout = jax.jit(rollout)
+
+    def gif(self, state, key) -> tuple[bytes, int]:
+        """One episode (up to its end, at most ~300 frames) as GIF bytes, and its frame count."""
+        from fieldgen.render import gif_bytes, render_rollout
+
+        qpos, mocap, done = (np.asarray(x) for x in jax.device_get(self._rollout(state, key)))
+        end = int(np.argmax(done)) + 1 if done.any() else self.env.episode_length
+        stride = max(1, end // 300)
+        frames = render_rollout(self.env.mj_model, qpos[:end:stride], mocap[:end:stride], self.camera)
+        return gif_bytes(frames, fps=1 / (self.env.dt * stride)), len(frames)
+
+    def write(self, run_dir: Path, index: int, state, console) -> None:
+        """videos/eval_NNN.gif; a machine that cannot render gets one warning, and training goes on."""
+        if self.broken:
+            return
+        try:
+            data, _ = self.gif(state, jax.random.PRNGKey(index))
+        except Exception as exc:  # noqa: BLE001 - renderer back ends fail in many ways
+            self.broken = True
+            console.print(f"[yellow]warning:[/] no videos for this run, rendering failed: {exc}")
+            return
+        (run_dir / VIDEOS).mkdir(exist_ok=True)
+        write_atomic(run_dir / VIDEOS / f"eval_{index:03d}.gif", data)

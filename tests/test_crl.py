@@ -45,11 +45,12 @@ def test_unknown_names_are_refused():
 @pytest.mark.slow
 def test_crl_learns_point_nav(env_cache):
     """From an untrained policy to reaching a random target 3 away in at least 80% of episodes, in 40k steps."""
-    from agents.crl import CRLConfig, train
+    from agents.crl import CRLConfig, make_train
+    from agents.loop import run
 
     config = CRLConfig(total_steps=40_000, num_envs=16, unroll_length=25, batch_size=64, min_replay_rows=100,
                        max_replay_rows=2000, hidden=(64, 64), repr_dim=16, num_evals=3, eval_envs=32)
-    _, history = train(config, env_cache("point_nav"))
+    _, history = run(make_train(config, env_cache("point_nav")), [0], config.num_evals)
     assert history[0]["success_any"] <= 0.3
     assert history[-1]["success_any"] >= 0.8
     assert history[-1]["time_at_goal"] > 30

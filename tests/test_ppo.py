@@ -7,7 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from agents import ppo
+from agents import loop, ppo
 
 
 def tiny(**kw):
@@ -26,16 +26,15 @@ def test_normalizer_matches_numpy():
 
 
 def test_resume_reproduces_the_uninterrupted_run(env_cache):
-    env = env_cache("point_nav")
-    config = tiny()
-    full, _ = ppo.train(config, env)
+    algo = ppo.make_train(tiny(), env_cache("point_nav"))
+    full, _ = loop.run(algo, [0], 2)
     saved = {}
 
     def keep(ts, index):
         saved[index] = ts
 
-    ppo.train(config, env, on_eval=keep)
-    resumed, history = ppo.train(config, env, resume=(saved[1], 1))
+    loop.run(algo, [0], 2, on_eval=keep)
+    resumed, history = loop.run(algo, [0], 2, resume=(saved[1], 1))
     assert [r["eval"] for r in history] == [2]
     for a, b in zip(jax.tree.leaves(full.params), jax.tree.leaves(resumed.params)):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
@@ -50,6 +49,6 @@ def test_ppo_learns_point_nav_with_a_dense_reward(write_spec):
                       "    - {term: agent_progress, weight: 0.1}\n")
     config = ppo.PPOConfig(total_steps=100_000, num_envs=64, unroll_length=20, num_minibatches=8,
                            hidden=(64, 64), num_evals=2, eval_envs=32)
-    _, history = ppo.train(config, fieldgen.make(spec))
+    _, history = loop.run(ppo.make_train(config, fieldgen.make(spec)), [0], config.num_evals)
     assert history[0]["success_any"] <= 0.3
     assert history[-1]["success_any"] >= 0.8

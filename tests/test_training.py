@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from agents import checkpoint, crl
+from agents import checkpoint, crl, loop
 from fieldgen.cli import app
 from fieldgen.training import RunError, make_config
 
@@ -30,9 +30,8 @@ class Stop(Exception):
 
 
 def test_resume_after_interrupt_reproduces_the_uninterrupted_run(env_cache, tmp_path):
-    env = env_cache("point_nav")
-    config = tiny_config()
-    full, _ = crl.train(config, env)
+    algo = crl.make_train(tiny_config(), env_cache("point_nav"))
+    full, _ = loop.run(algo, [0], 2)
 
     saved = {}
 
@@ -42,28 +41,28 @@ def test_resume_after_interrupt_reproduces_the_uninterrupted_run(env_cache, tmp_
             raise Stop
 
     with pytest.raises(Stop):
-        crl.train(config, env, on_eval=save_then_stop)
-    template = crl.make_train(config, env).init(jax.random.PRNGKey(config.seed))
-    (tmp_path / "c.npz").write_bytes(saved[1])
-    restored = checkpoint.load(tmp_path / "c.npz", template)
-    resumed, history = crl.train(config, env, resume=(restored, 1))
+        loop.run(algo, [0], 2, on_eval=save_then_stop)
+    template = jax.eval_shape(jax.vmap(algo.start), jax.random.PRNGKey(0)[None])
+    (tmp_path / "c.msgpack").write_bytes(saved[1])
+    restored = checkpoint.load(tmp_path / "c.msgpack", template)
+    resumed, history = loop.run(algo, [0], 2, resume=(restored, 1))
     assert [row["eval"] for row in history] == [2]
     for a, b in zip(jax.tree.leaves(full.actor), jax.tree.leaves(resumed.actor)):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
-    assert int(full.env_steps) == int(resumed.env_steps)
+    assert int(full.env_steps[0]) == int(resumed.env_steps[0])
 
 
 def test_checkpoint_errors_are_clear(tmp_path, env_cache):
     env = env_cache("point_nav")
-    template = crl.make_train(tiny_config(), env).init(jax.random.PRNGKey(0))
+    template = jax.eval_shape(crl.make_train(tiny_config(), env).start, jax.random.PRNGKey(0))
     with pytest.raises(checkpoint.CheckpointError, match="no checkpoint"):
-        checkpoint.load(tmp_path / "none.npz", template)
-    bad = tmp_path / "bad.npz"
+        checkpoint.load(tmp_path / "none.msgpack", template)
+    bad = tmp_path / "bad.msgpack"
     bad.write_bytes(b"not a checkpoint")
     with pytest.raises(checkpoint.CheckpointError, match="truncated or corrupt"):
         checkpoint.load(bad, template)
-    other = tmp_path / "other.npz"
-    other.write_bytes(checkpoint.to_bytes(crl.make_train(tiny_config(repr_dim=4), env).init(jax.random.PRNGKey(0))))
+    other = tmp_path / "other.msgpack"
+    other.write_bytes(checkpoint.to_bytes(crl.make_train(tiny_config(repr_dim=4), env).start(jax.random.PRNGKey(0))))
     with pytest.raises(checkpoint.CheckpointError, match="config or the field's observation layout differs"):
         checkpoint.load(other, template)
 
@@ -73,11 +72,12 @@ def test_cli_run_folder_and_resume_of_a_finished_run(tmp_path):
     result = runner.invoke(app, args)
     assert result.exit_code == 0, result.output
     run = tmp_path / "point_nav-crl-0"
-    assert {p.name for p in run.iterdir()} == {"run.json", "metrics.jsonl", "metrics.csv", "checkpoint.npz",
-                                               "success.png"}
+    assert {p.name for p in run.iterdir()} == {"run.json", "metrics.jsonl", "metrics.csv", "checkpoint.msgpack",
+                                               "success.png", "videos", "field"}
+    assert sorted(p.name for p in (run / "videos").iterdir()) == ["eval_000.gif", "eval_001.gif", "eval_002.gif"]
     rows = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
     assert [r["eval"] for r in rows] == [0, 1, 2] and rows[-1]["env_steps"] == 800 + 12 * 80  # prefill + 2 x 6 iterations
-    assert (run / "metrics.csv").read_text().splitlines()[0].startswith("eval,env_steps")
+    assert (run / "metrics.csv").read_text().splitlines()[0].startswith("eval,seed,env_steps")
     again = runner.invoke(app, args)
     assert again.exit_code == 1 and "--resume" in again.output
     done = runner.invoke(app, ["train", "--resume", str(run)])

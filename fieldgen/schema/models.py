@@ -240,6 +240,11 @@ class SimSection(Section):
         description="pruned: only pairs that can matter are checked; study: the soccer study's contact bits "
         "(feet touch each other and the torso; walls, goalie and posts touch nothing)",
     )
+    precision: Literal["highest", "default"] = Field(
+        "highest",
+        description="matrix-multiply precision of the physics: highest (float32), or default, which on recent "
+        "NVIDIA GPUs is TF32 (faster, but it makes contacts noisy enough to throw the ant about)",
+    )
 
 
 class ObservationSection(Section):

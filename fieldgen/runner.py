@@ -1,0 +1,149 @@
+"""Executing a training run in its folder: start or resume it, show progress, checkpoint,
+write metrics, plots and videos after every evaluation, and summarise at the end."""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+from rich.console import Console
+from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+from rich.table import Table
+
+import fieldgen
+from agents import checkpoint, loop, sharding
+from fieldgen import training
+from fieldgen.compile.artifact import ArtifactError, write_artifact, write_atomic
+
+FIELD = "field"  # the run's own copy of the built field (scene.xml, field.json): resuming needs no compiler
+
+
+@dataclasses.dataclass
+class Run:
+    folder: Path
+    algo: str
+    env: object
+    config: object
+    seeds: list[int]
+    rows: list[dict]
+    state: object = None  # the checkpointed training state of a resumed run
+
+    def algorithm(self) -> loop.Algorithm:
+        return training.algorithm(self.algo).make_train(self.config, self.env)
+
+
+def run_name(field: str, algo: str, seeds: list[int]) -> str:
+    suffix = str(seeds[0]) if len(seeds) == 1 else f"{seeds[0]}to{seeds[-1]}"
+    return f"{field}-{algo}-{suffix}"
+
+
+def new_run(source: Path, algo: str, seeds: list[int], config, out: Path) -> Run:
+    """A run folder for a field given as a YAML file or a build folder."""
+    env = fieldgen.make(source)
+    folder = out / run_name(env.spec.name, algo, seeds)
+    if (folder / training.RUN).exists():
+        raise training.RunError(f"{folder} already holds a run; continue it with --resume {folder}, "
+                                "or pick another --seed or --out")
+    training.check_config(config, env, sharding.device_count())
+    folder.mkdir(parents=True, exist_ok=True)
+    write_artifact(env.artifact, folder / FIELD)
+    training.write_run(folder, env.spec.model_dump(mode="json"), algo, config, env.layout.to_json(), seeds)
+    return Run(folder, algo, env, config, seeds, [])
+
+
+def open_run(folder: Path) -> Run:
+    """A run folder with its field rebuilt and its last checkpoint loaded."""
+    record = training.read_run(folder)
+    try:
+        env = fieldgen.make(folder / FIELD)
+    except ArtifactError as exc:
+        raise training.RunError(f"{folder / FIELD}: {exc}") from None
+    if record["observation"] != env.layout.to_json():
+        raise training.RunError(f"{folder} was trained on a different observation layout than its field gives now")
+    config = training.make_config(record["algo"], **{k: tuple(v) if isinstance(v, list) else v
+                                                     for k, v in record["config"].items()})
+    seeds = record.get("seeds", [config.seed])
+    run = Run(folder, record["algo"], env, config, seeds, training.read_metrics(folder))
+    keys = jnp.stack([jax.random.PRNGKey(s) for s in seeds])
+    template = jax.eval_shape(jax.vmap(run.algorithm().start), keys)
+    try:
+        run.state = checkpoint.load(folder / training.CHECKPOINT, template)
+    except checkpoint.CheckpointError as exc:
+        raise training.RunError(str(exc)) from None
+    done = int(jax.device_get(run.state.env_steps)[0])
+    run.rows = [r for r in run.rows if r["env_steps"] <= done]
+    return run
+
+
+def train(run: Run, console: Console, videos: bool = True) -> None:
+    """Train until the run's last evaluation; Ctrl-C leaves the last checkpoint intact."""
+    config, env = run.config, run.env
+    if run.state is not None and run.rows and run.rows[-1]["eval"] >= config.num_evals:
+        console.print(f"{run.folder} is already complete ({run.rows[-1]['env_steps']:,} env steps)")
+        return
+    algo = run.algorithm()
+    recorder = training.EpisodeRecorder(env, algo.act) if videos else None
+    started = time.perf_counter()
+    columns = (TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.completed:,.0f} steps"),
+               TextColumn("{task.fields[rate]}"), TextColumn("{task.fields[stats]}"), TimeElapsedColumn())
+    with Progress(*columns, console=console, transient=False) as bar:
+        first = run.rows[-1]["env_steps"] if run.rows else 0
+        task = bar.add_task(env.spec.name, total=config.total_steps, completed=first, rate="compiling...", stats="")
+
+        def on_eval(state, index):
+            write_atomic(run.folder / training.CHECKPOINT, checkpoint.to_bytes(state))
+            if recorder is not None:
+                recorder.write(run.folder, index, loop.seed_slice(state, 0), console)
+
+        def progress(index, rows):
+            memory = training.peak_memory_mb()
+            for row in rows:
+                row["wall_seconds"] = time.perf_counter() - started
+                if memory is not None:
+                    row["peak_memory_mb"] = memory
+            run.rows.extend(rows)
+            training.write_metrics(run.folder, run.rows)
+            training.plot_success(run.folder, run.rows, f"{env.spec.name}: {run.algo}")
+            bar.update(task, completed=rows[0]["env_steps"], rate=_rate(rows[0]), stats=_stats(rows))
+
+        resume = (run.state, run.rows[-1]["eval"]) if run.state is not None else None
+        try:
+            loop.run(algo, run.seeds, config.num_evals, progress, on_eval, resume)
+        except KeyboardInterrupt:
+            console.print(f"interrupted; the last checkpoint is intact. Continue with: "
+                          f"fieldgen train --resume {run.folder}")
+            raise
+    summary(run, console)
+
+
+def _rate(row: dict) -> str:
+    return f"{row['steps_per_second']:,.0f} steps/s" if "steps_per_second" in row else ""
+
+
+def _stats(rows: list[dict]) -> str:
+    mean = lambda key: sum(r[key] for r in rows) / len(rows)  # noqa: E731
+    text = f"success {mean('success_any'):.2f}  at goal {mean('time_at_goal'):.1f}"
+    for name in ("critic_loss", "actor_loss", "policy_loss", "value_loss"):
+        if name in rows[0]:
+            text += f"  {name.removesuffix('_loss')} {mean(name):.3f}"
+    return text
+
+
+def summary(run: Run, console: Console) -> None:
+    """The last evaluation of every seed against the untrained one, and where the files are."""
+    table = Table("seed", "env steps", "success_any", "time_at_goal", "return", "steps/s", title=str(run.folder))
+    for seed in run.seeds:
+        mine = [r for r in run.rows if r.get("seed", seed) == seed]
+        first, last = mine[0], mine[-1]
+        table.add_row(str(seed), f"{last['env_steps']:,}",
+                      f"{first['success_any']:.2f} -> {last['success_any']:.2f}",
+                      f"{first['time_at_goal']:.1f} -> {last['time_at_goal']:.1f}",
+                      f"{last['episode_return']:.1f}", _rate(last).removesuffix(" steps/s"))
+    console.print(table)
+    memory = run.rows[-1].get("peak_memory_mb")
+    if memory is not None:
+        console.print(f"peak device memory: {memory:,.0f} MiB")
+    console.print(f"metrics: {run.folder / training.CSV}; plot: {run.folder / training.PLOT}")
