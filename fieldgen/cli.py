@@ -69,10 +69,14 @@ def build(
     A build whose inputs are unchanged is reused (cache hit).
     Example: fieldgen build fields/soccer_v2.yaml --out build
     """
+    from fieldgen import curriculum
     from fieldgen.compile.build import build as run_build
 
     failed = 0
     for ref in specs:
+        if curriculum.is_curriculum(Path(ref)):
+            failed += _build_curriculum(Path(ref), out_dir, preview, force)
+            continue
         try:
             result = run_build(_spec_path(ref), out_dir, preview=preview, force=force)
         except SpecError as exc:
@@ -82,6 +86,26 @@ def build(
         _report(result)
     if failed:
         raise typer.Exit(1)
+
+
+def _build_curriculum(folder: Path, out_dir: Path, preview: bool, force: bool) -> int:
+    """Build every stage; one table row each. Returns 1 on failure."""
+    from fieldgen import curriculum
+    from fieldgen.compile.build import build as run_build
+
+    try:
+        c = curriculum.load(folder)
+    except curriculum.CurriculumError as exc:
+        err.print(f"[bold red]error:[/] {exc}", highlight=False)
+        return 1
+    table = Table("stage", "name", "build", "geoms", "contact pairs", "seconds", title=f"{folder} ({c.kind})")
+    for i, path in enumerate(c.spec_paths(), 1):
+        result = run_build(path, out_dir, preview=preview, force=force)
+        meta = json.loads((result.out_dir / "field.json").read_text())
+        table.add_row(str(i), meta["name"], "cache hit" if result.cache_hit else "built", str(meta["model"]["ngeom"]),
+                      str(len(meta["contact_pairs"])), f"{result.seconds:.2f}")
+    out.print(table)
+    return 0
 
 
 def _report(result) -> None:
@@ -123,8 +147,24 @@ def render(
     from fieldgen.compile.artifact import ArtifactError, compile_spec, load_artifact, write_atomic
     from fieldgen.render import CAMERAS, png_bytes, preview, render_pose
 
+    from fieldgen import curriculum
+
     if camera not in CAMERAS + ("both",):
         _fail(f"unknown camera '{camera}'; choose one of: {', '.join(CAMERAS)}, both")
+    if curriculum.is_curriculum(Path(spec)):
+        from fieldgen.render import contact_sheet
+
+        try:
+            c = curriculum.load(Path(spec))
+            models = [compile_spec(s).model() for s in c.specs()]
+        except curriculum.CurriculumError as exc:
+            _fail(str(exc))
+        view = "top" if camera == "both" else camera
+        sheet = contact_sheet([render_pose(m, camera=view, size=(240, 320)) for m in models],
+                              [f"{i}. {st.name}" for i, st in enumerate(c.stages, 1)])
+        write_atomic(output, sheet)
+        out.print(f"wrote {output}: {len(models)} stages of {spec}, camera {view}")
+        return
     try:
         path = Path(spec)
         artifact = load_artifact(path) if path.is_dir() else compile_spec(load_spec(_spec_path(spec)))
@@ -134,6 +174,57 @@ def render(
     image = preview(model) if camera == "both" else render_pose(model, camera=camera)
     write_atomic(output, png_bytes(image))
     out.print(f"wrote {output} ({image.shape[1]}x{image.shape[0]}, camera {camera})")
+
+
+@app.command("curriculum")
+def make_curriculum(
+    base: Annotated[str, typer.Argument(help="the first (easiest) field: a YAML file or bundled name")],
+    output: Annotated[Path, typer.Option("-o", "--out", help="curriculum folder to write")],
+    to: Annotated[Optional[str], typer.Option(help="the last (hardest) field: interpolate from BASE to it")] = None,
+    stages: Annotated[int, typer.Option(help="stages of an interpolation, both ends included")] = 5,
+    geometric: Annotated[Optional[list[str]], typer.Option(help="interpolate this key geometrically")] = None,
+    switch_at: Annotated[Optional[int], typer.Option(help="stage where booleans and choices switch (default halfway)")] = None,
+    vary: Annotated[Optional[list[str]], typer.Option(help="a grid axis: KEY=V1,V2,... (repeat for more axes)")] = None,
+    stage: Annotated[Optional[list[str]], typer.Option(help="one listed variant: 'KEY=V KEY=V' (repeat)")] = None,
+    threshold: Annotated[float, typer.Option(help="success_any that promotes a run to the next stage")] = 0.5,
+    window: Annotated[int, typer.Option(help="evaluations averaged for promotion")] = 2,
+    force: Annotated[bool, typer.Option(help="replace an existing folder")] = False,
+) -> None:
+    """Write field variants and a curriculum.yaml: an interpolation (--to), a grid (--vary) or a list (--stage).
+
+    Example: fieldgen curriculum fields/soccer_v1.yaml --to fields/v2_wide_goalie.yaml --stages 6 -o curricula/v1_to_wide
+    """
+    from fieldgen import curriculum
+
+    kinds = [k for k, given in (("interpolation", to), ("grid", vary), ("list", stage)) if given]
+    if len(kinds) != 1:
+        _fail("give exactly one of --to FIELD (interpolation), --vary KEY=V1,V2 (grid) or --stage 'KEY=V' (list)")
+    base_path = _spec_path(base)
+    try:
+        if to is not None:
+            variants = curriculum.interpolate(base_path, _spec_path(to), stages, tuple(geometric or ()), switch_at)
+        elif vary:
+            variants = curriculum.grid(base_path, dict(curriculum.parse_axis(v) for v in vary))
+        else:
+            variants = curriculum.explicit(base_path, [curriculum.parse_assignments(s.split(), "--stage")
+                                                       for s in stage])
+        c = curriculum.write(output, base, base_path, kinds[0], variants,
+                             curriculum.Promotion(threshold, window), force)
+    except curriculum.CurriculumError as exc:
+        _fail(str(exc))
+    table = Table("stage", "name", "changes from the base", title=f"{output}/{curriculum.INDEX} ({c.kind})")
+    for i, st in enumerate(c.stages, 1):
+        table.add_row(str(i), st.name, _flat_changes(st.changes) or "(the base itself)")
+    out.print(table)
+    out.print(f"build them: fieldgen build {output}; see them: fieldgen render {output} -o sheet.png")
+
+
+def _flat_changes(tree: dict, prefix: str = "") -> str:
+    parts = []
+    for k, v in tree.items():
+        key = f"{prefix}.{k}" if prefix else k
+        parts.append(_flat_changes(v, key) if isinstance(v, dict) and v else f"{key}={v}")
+    return ", ".join(parts)
 
 
 @app.command("list")

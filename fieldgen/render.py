@@ -54,6 +54,28 @@ def png_bytes(image: np.ndarray) -> bytes:
     return buf.getvalue()
 
 
+def contact_sheet(images: list[np.ndarray], titles: list[str], columns: int = 3) -> bytes:
+    """PNG bytes of images in a grid, each under its title."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows = -(-len(images) // columns)
+    cols = min(columns, len(images))
+    fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 2.7 * rows), squeeze=False)
+    for ax in axes.flat:
+        ax.axis("off")
+    for ax, image, title in zip(axes.flat, images, titles):
+        ax.imshow(image)
+        ax.set_title(title, fontsize=8)
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=100)
+    plt.close(fig)
+    return buf.getvalue()
+
+
 def _scene_option() -> mujoco.MjvOption:
     option = mujoco.MjvOption()
     option.geomgroup[:] = 1  # show the painted lines, goal region, net and target marker

@@ -1,0 +1,88 @@
+"""Curriculum variants: interpolation ends, grids, lists, validation, and folders edited by hand."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from fieldgen import curriculum
+from fieldgen.cli import app
+from fieldgen.compile.artifact import compile_spec
+from fieldgen.schema import bundled_fields, load_spec
+
+runner = CliRunner()
+FIELDS = bundled_fields()
+
+
+def resolved(path: Path) -> dict:
+    data = load_spec(path).model_dump(mode="json")
+    return {k: v for k, v in data.items() if k not in ("name", "description", "extends")}
+
+
+def test_interpolation_ends_are_the_two_specs_and_every_stage_builds(tmp_path):
+    out = tmp_path / "v1_to_wide"
+    variants = curriculum.interpolate(FIELDS["soccer_v1"], FIELDS["v2_wide_goalie"], 4)
+    c = curriculum.write(out, "soccer_v1", FIELDS["soccer_v1"], "interpolation", variants, curriculum.Promotion())
+    paths = c.spec_paths()
+    assert len(paths) == 4
+    assert resolved(paths[0]) == resolved(FIELDS["soccer_v1"])
+    assert resolved(paths[-1]) == resolved(FIELDS["v2_wide_goalie"])
+    middle = load_spec(paths[1])
+    assert 10 < middle.goal.distance < 20 and middle.goal.distance == pytest.approx(10 + 10 / 3, rel=1e-5)
+    assert not middle.walls.enabled and load_spec(paths[2]).walls.enabled  # switches at stage 3 of 4
+    for spec in c.specs():
+        assert compile_spec(spec).model().ngeom > 0
+    text = paths[1].read_text()
+    assert text.startswith("# stage 2 of 4") and "extends: soccer_v1" in text and "agent:" not in text
+    assert curriculum.load(out).stages == [s.__class__(s.name, s.file, {}, s.origin) for s in c.stages]
+
+
+def test_geometric_interpolation(tmp_path):
+    variants = curriculum.interpolate(FIELDS["soccer_v1"], FIELDS["soccer_v2"], 3, geometric=("goal.distance",))
+    assert variants[1][0]["goal"]["distance"] == pytest.approx((10 * 20) ** 0.5, rel=1e-5)
+
+
+def test_grid_has_the_product_size(tmp_path):
+    axes = {"goal.distance": [8, 12, 16, 20], "obstacles.goalie.width": [0.5, 2, 4]}
+    c = curriculum.write(tmp_path / "g", "soccer_v2", FIELDS["soccer_v2"], "grid",
+                         curriculum.grid(FIELDS["soccer_v2"], axes), curriculum.Promotion())
+    specs = c.specs()
+    assert len(specs) == 12
+    assert {(s.goal.distance, s.obstacles["goalie"].width) for s in specs} == {
+        (d, w) for d in axes["goal.distance"] for w in axes["obstacles.goalie.width"]}
+
+
+@pytest.mark.parametrize("args,phrase", [
+    (["--vary", "goal.distance="], "the list of values is empty"),
+    (["--vary", "goal.distanse=8,12"], "unknown key 'goal.distanse'; did you mean 'goal.distance'?"),
+    (["--to", "point_nav"], "drives the ant agent and"),
+    (["--stage", "goal.distance=200"], "stage 1 (stage_01.yaml) is not a valid field"),
+    (["--to", "soccer_v2", "--stages", "1"], "at least 2 stages"),
+    ([], "give exactly one of"),
+])
+def test_bad_curriculum_input_writes_nothing(tmp_path, args, phrase):
+    out = tmp_path / "c"
+    result = runner.invoke(app, ["curriculum", "soccer_v1", "-o", str(out), *args])
+    assert result.exit_code == 1, result.output
+    assert phrase in " ".join(result.output.split()) and "Traceback" not in result.output
+    assert not out.exists() and list(tmp_path.iterdir()) == []
+
+
+def test_folders_edited_into_an_inconsistent_state_are_refused(tmp_path):
+    out = tmp_path / "c"
+    result = runner.invoke(app, ["curriculum", "point_nav", "-o", str(out), "--stage", "task.target.radius=1",
+                                 "--stage", "task.target.radius=2"])
+    assert result.exit_code == 0, result.output
+    assert curriculum.load(out).stages[1].name == "c_s02"
+    (out / "stage_03.yaml").write_text((out / "stage_02.yaml").read_text())
+    with pytest.raises(curriculum.CurriculumError, match="does not list stage_03.yaml"):
+        curriculum.load(out)
+    (out / "stage_03.yaml").unlink()
+    (out / "stage_02.yaml").write_text((out / "stage_02.yaml").read_text().replace("name: c_s02", "name: other"))
+    with pytest.raises(curriculum.CurriculumError, match="named 'other' but curriculum.yaml lists 'c_s02'"):
+        curriculum.load(out)
+    (out / "stage_02.yaml").unlink()
+    built = runner.invoke(app, ["build", str(out), "--no-preview"])
+    assert built.exit_code == 1 and "lists stage_02.yaml, which is missing" in " ".join(built.output.split())
