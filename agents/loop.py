@@ -85,43 +85,111 @@ def run(algo: Algorithm, seeds: Sequence[int], num_evals: int,
     `on_eval(state, index)` runs after every evaluation (checkpoints); `resume=(state, index)`
     continues after evaluation `index` exactly as if never stopped. Returns (state, rows).
     """
-    keys = jnp.stack([jax.random.PRNGKey(s) for s in seeds])
-    mesh = sharding.local_mesh()
-    shapes = jax.eval_shape(jax.vmap(algo.start), keys)
-    placement = sharding.state_shardings(shapes, mesh, algo.env_axes, offset=1)
-    start = jax.jit(jax.vmap(algo.start), out_shardings=placement)
-    chunk = jax.jit(jax.vmap(algo.chunk), in_shardings=(placement,), out_shardings=(placement, None))
-    evaluate = jax.jit(jax.vmap(algo.evaluate), in_shardings=(placement, None))
-    history: list[dict] = []
+    staged_resume = None if resume is None else (*resume, 0)
+    return run_staged([algo], seeds, num_evals, Promotion(), progress,
+                      lambda state, index, stage: on_eval(state, index), staged_resume)
 
-    def record(state, metrics, index, seconds):
-        keys_now = jax.vmap(eval_key, in_axes=(0, None))(keys, index)
-        metrics = {**metrics, **jax.device_get(evaluate(state, keys_now))}
+
+@dataclasses.dataclass(frozen=True)
+class Promotion:
+    """Move to the next stage once success_any, averaged over seeds and the last `window`
+    evaluations on the current stage, reaches `threshold`."""
+
+    threshold: float = 0.5
+    window: int = 2
+
+
+def run_staged(algos: Sequence[Algorithm], seeds: Sequence[int], num_evals: int, promotion: Promotion,
+               progress: Callable[[int, list[dict]], None] = lambda index, rows: None,
+               on_eval: Callable = lambda state, index, stage: None, resume: tuple | None = None):
+    """`run` through a sequence of environments (a curriculum's stages) that share one observation layout.
+
+    Training starts on stage 0; after each evaluation that meets the promotion rule it moves
+    on, keeping everything it learned (networks, optimizers, replay buffer, normalizer) and
+    starting fresh episodes of the next stage. With several stages every row also holds
+    `stage` and `last_stage_success_any` (the same policy evaluated on the last stage), and
+    a promoting row `promoted_to`. `on_eval(state, index, stage)` gets the stage the next
+    chunk trains on; `resume=(state, index, stage)` continues from there.
+    """
+    keys = jnp.stack([jax.random.PRNGKey(s) for s in seeds])
+    staged, last = len(algos) > 1, len(algos) - 1
+    compiled: dict[int, tuple] = {}
+
+    def programs(k: int):
+        """(placement, start, chunk, evaluate) of stage k, compiled on first use."""
+        if k not in compiled:
+            algo = algos[k]
+            mesh = sharding.local_mesh()
+            shapes = jax.eval_shape(jax.vmap(algo.start), keys)
+            placement = sharding.state_shardings(shapes, mesh, algo.env_axes, offset=1)
+            compiled[k] = (placement, jax.jit(jax.vmap(algo.start), out_shardings=placement),
+                           jax.jit(jax.vmap(algo.chunk), in_shardings=(placement,), out_shardings=(placement, None)),
+                           jax.jit(jax.vmap(algo.evaluate), in_shardings=(placement, None)))
+        return compiled[k]
+
+    def evaluate(k: int, state, index: int) -> dict:
+        return jax.device_get(programs(k)[3](state, jax.vmap(eval_key, in_axes=(0, None))(keys, index)))
+
+    history: list[dict] = []
+    if resume is None:
+        state, first, stage, previous = programs(0)[1](keys), 1, 0, 0
+    else:
+        state, index, stage = resume
+        state, first = jax.device_put(state, programs(stage)[0]), index + 1
+        previous = int(jax.device_get(state.env_steps)[0])
+    for index in range(0 if resume is None else first, num_evals + 1):
+        began = time.perf_counter()
+        metrics = {}
+        if index > 0:
+            state, metrics = programs(stage)[2](state)
+            metrics = jax.device_get(metrics)  # waits for the chunk
+        seconds = time.perf_counter() - began
+        metrics.update(evaluate(stage, state, index))
+        if staged and stage != last:
+            metrics["last_stage_success_any"] = evaluate(last, _with_env(algos[last], state, index), index)["success_any"]
+        elif staged:
+            metrics["last_stage_success_any"] = metrics["success_any"]
         steps = int(jax.device_get(state.env_steps)[0])
         rows = []
         for i, seed in enumerate(seeds):
-            row = {"eval": index, "seed": seed, "env_steps": steps, **{k: float(v[i]) for k, v in metrics.items()}}
-            if seconds is not None:
-                row["steps_per_second"] = (steps - previous[0]) / seconds
+            row = {"eval": index, "seed": seed, "env_steps": steps, **({"stage": stage} if staged else {}),
+                   **{k: float(v[i]) for k, v in metrics.items()}}
+            if index > 0:
+                row["steps_per_second"] = (steps - previous) / seconds
             rows.append(row)
-        previous[0] = steps
+        previous = steps
         history.extend(rows)
+        if staged and stage < last and index > 0 and _promote(history, stage, promotion):
+            stage += 1
+            state = jax.device_put(_with_env(algos[stage], state, index), programs(stage)[0])
+            for row in rows:
+                row["promoted_to"] = stage
         progress(index, rows)
-        on_eval(state, index)
-
-    if resume is None:
-        state, first = start(keys), 1
-        previous = [0]
-        record(state, {}, 0, None)
-    else:
-        state, first = jax.device_put(resume[0], placement), resume[1] + 1
-        previous = [int(jax.device_get(state.env_steps)[0])]
-    for index in range(first, num_evals + 1):
-        began = time.perf_counter()
-        state, metrics = chunk(state)
-        metrics = jax.device_get(metrics)  # waits for the chunk
-        record(state, metrics, index, time.perf_counter() - began)
+        on_eval(state, index, stage)
     return state, history
+
+
+def _promote(history: list[dict], stage: int, promotion: Promotion) -> bool:
+    """Whether the last `window` evaluations on `stage` (mean over seeds) reach the threshold."""
+    evals = sorted({r["eval"] for r in history if r.get("stage") == stage and r["eval"] > 0})[-promotion.window:]
+    if len(evals) < promotion.window:
+        return False
+    scores = [r["success_any"] for r in history if r.get("stage") == stage and r["eval"] in evals]
+    return sum(scores) / len(scores) >= promotion.threshold
+
+
+def _with_env(algo: Algorithm, state, index: int):
+    """The vmapped state with fresh episodes of `algo`'s environment in every slot (the next stage's field).
+
+    Episode counters carry on, so hindsight goals never join an old-stage episode to a new one."""
+
+    def one(ts):
+        key = jax.random.fold_in(ts.key, index)
+        fresh = jax.vmap(algo.env.reset)(jax.random.split(key, algo.config.num_envs))
+        info = dict(fresh.info, episode=ts.env_state.info["episode"] + 1)
+        return ts.replace(env_state=fresh.replace(info=info))
+
+    return jax.vmap(one)(state)
 
 
 def seed_slice(state, i: int):

@@ -293,7 +293,10 @@ def train(
     resume: Annotated[Optional[Path], typer.Option(help="continue the run in this folder")] = None,
     videos: Annotated[bool, typer.Option(help="write videos/eval_NNN.gif of the policy at every evaluation")] = True,
 ) -> None:
-    """Train an agent on a field; writes runs/<field>-<algo>-<seed>/ and resumes exactly after an interrupt.
+    """Train an agent on a field or through a curriculum folder's stages; writes runs/<name>-<algo>-<seed>/.
+
+    Resumes exactly after an interrupt (--resume). A curriculum run moves to the next stage when its
+    promotion rule is met and reports which stage it reached, when, and success on the last stage.
 
     Example: fieldgen train point_nav --algo crl --steps 40000 --envs 16 --set 'crl.hidden=[64,64]'
     """
@@ -327,7 +330,7 @@ def evaluate(
     camera: Annotated[str, typer.Option(help="video camera: follow or top")] = "follow",
     seed: Annotated[int, typer.Option(help="evaluation seed")] = 0,
 ) -> None:
-    """Evaluate a run's last checkpoint: success rate, time at goal, return, and a video.
+    """Evaluate a run's last checkpoint (on a curriculum's last stage): success rate, time at goal, return, video.
 
     Example: fieldgen eval runs/point_nav-crl-0 --episodes 256
     """
@@ -346,7 +349,7 @@ def evaluate(
         run = runner.open_run(run_dir)
     except (SpecError, training.RunError) as exc:
         _fail(str(exc))
-    algo = dataclasses.replace(run, config=dataclasses.replace(run.config, eval_envs=episodes)).algorithm()
+    algo = dataclasses.replace(run, config=dataclasses.replace(run.config, eval_envs=episodes)).algorithms()[-1]
     key = jax.random.PRNGKey(seed)
     result = jax.device_get(jax.jit(jax.vmap(algo.evaluate, in_axes=(0, None)))(run.state, key))
     steps = int(jax.device_get(run.state.env_steps)[0])

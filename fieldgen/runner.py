@@ -4,6 +4,7 @@ write metrics, plots and videos after every evaluation, and summarise at the end
 from __future__ import annotations
 
 import dataclasses
+import json
 import time
 from pathlib import Path
 
@@ -15,24 +16,32 @@ from rich.table import Table
 
 import fieldgen
 from agents import checkpoint, loop, sharding
-from fieldgen import training
+from fieldgen import curriculum, training
 from fieldgen.compile.artifact import ArtifactError, write_artifact, write_atomic
 
-FIELD = "field"  # the run's own copy of the built field (scene.xml, field.json): resuming needs no compiler
+FIELD, STAGES = "field", "stages"  # the run's own copies of its built fields: resuming needs no compiler
 
 
 @dataclasses.dataclass
 class Run:
     folder: Path
     algo: str
-    env: object
+    envs: list  # one per stage; a plain run has one
     config: object
     seeds: list[int]
     rows: list[dict]
+    promotion: loop.Promotion = loop.Promotion()
     state: object = None  # the checkpointed training state of a resumed run
+    stage: int = 0  # the stage the next chunk trains on
 
-    def algorithm(self) -> loop.Algorithm:
-        return training.algorithm(self.algo).make_train(self.config, self.env)
+    @property
+    def env(self):
+        """The field a run is judged on: its only one, or a curriculum's last stage."""
+        return self.envs[-1]
+
+    def algorithms(self) -> list[loop.Algorithm]:
+        module = training.algorithm(self.algo)
+        return [module.make_train(self.config, env) for env in self.envs]
 
 
 def run_name(field: str, algo: str, seeds: list[int]) -> str:
@@ -41,34 +50,55 @@ def run_name(field: str, algo: str, seeds: list[int]) -> str:
 
 
 def new_run(source: Path, algo: str, seeds: list[int], config, out: Path) -> Run:
-    """A run folder for a field given as a YAML file or a build folder."""
-    env = fieldgen.make(source)
-    folder = out / run_name(env.spec.name, algo, seeds)
+    """A run folder for a field (a YAML file or a build folder) or a curriculum folder."""
+    promotion, name = loop.Promotion(), None
+    if curriculum.is_curriculum(source):
+        try:
+            c = curriculum.load(source)
+        except curriculum.CurriculumError as exc:
+            raise training.RunError(str(exc)) from None
+        envs = [fieldgen.make(spec) for spec in c.specs()]
+        promotion, name = loop.Promotion(c.promotion.threshold, c.promotion.window), source.name
+        layouts = {json.dumps(e.layout.to_json()) for e in envs}
+        if len(layouts) > 1:
+            raise training.RunError(f"{source}: the stages' observation layouts differ; a policy cannot move between them")
+    else:
+        envs = [fieldgen.make(source)]
+    folder = out / run_name(name or envs[0].spec.name, algo, seeds)
     if (folder / training.RUN).exists():
         raise training.RunError(f"{folder} already holds a run; continue it with --resume {folder}, "
                                 "or pick another --seed or --out")
-    training.check_config(config, env, sharding.device_count())
+    for env in envs:
+        training.check_config(config, env, sharding.device_count())
     folder.mkdir(parents=True, exist_ok=True)
-    write_artifact(env.artifact, folder / FIELD)
-    training.write_run(folder, env.spec.model_dump(mode="json"), algo, config, env.layout.to_json(), seeds)
-    return Run(folder, algo, env, config, seeds, [])
+    dirs = [FIELD] if len(envs) == 1 else [f"{STAGES}/{k + 1:02d}" for k in range(len(envs))]
+    for env, sub in zip(envs, dirs):
+        write_artifact(env.artifact, folder / sub)
+    training.write_run(folder, envs[-1].spec.model_dump(mode="json"), algo, config, envs[0].layout.to_json(), seeds,
+                       {"fields": dirs, "promotion": dataclasses.asdict(promotion)})
+    return Run(folder, algo, envs, config, seeds, [], promotion)
 
 
 def open_run(folder: Path) -> Run:
-    """A run folder with its field rebuilt and its last checkpoint loaded."""
+    """A run folder with its fields loaded from the run's own copies and its last checkpoint."""
     record = training.read_run(folder)
-    try:
-        env = fieldgen.make(folder / FIELD)
-    except ArtifactError as exc:
-        raise training.RunError(f"{folder / FIELD}: {exc}") from None
-    if record["observation"] != env.layout.to_json():
-        raise training.RunError(f"{folder} was trained on a different observation layout than its field gives now")
+    envs = []
+    for sub in record.get("fields", [FIELD]):
+        try:
+            envs.append(fieldgen.make(folder / sub))
+        except ArtifactError as exc:
+            raise training.RunError(f"{folder / sub}: {exc}") from None
+    if any(record["observation"] != env.layout.to_json() for env in envs):
+        raise training.RunError(f"{folder} was trained on a different observation layout than its fields give now")
     config = training.make_config(record["algo"], **{k: tuple(v) if isinstance(v, list) else v
                                                      for k, v in record["config"].items()})
     seeds = record.get("seeds", [config.seed])
-    run = Run(folder, record["algo"], env, config, seeds, training.read_metrics(folder))
+    rows = training.read_metrics(folder)
+    run = Run(folder, record["algo"], envs, config, seeds, rows, loop.Promotion(**record.get("promotion", {})))
+    if rows:
+        run.stage = rows[-1].get("promoted_to", rows[-1].get("stage", 0))
     keys = jnp.stack([jax.random.PRNGKey(s) for s in seeds])
-    template = jax.eval_shape(jax.vmap(run.algorithm().start), keys)
+    template = jax.eval_shape(jax.vmap(run.algorithms()[run.stage].start), keys)
     try:
         run.state = checkpoint.load(folder / training.CHECKPOINT, template)
     except checkpoint.CheckpointError as exc:
@@ -84,8 +114,8 @@ def train(run: Run, console: Console, videos: bool = True) -> None:
     if run.state is not None and run.rows and run.rows[-1]["eval"] >= config.num_evals:
         console.print(f"{run.folder} is already complete ({run.rows[-1]['env_steps']:,} env steps)")
         return
-    algo = run.algorithm()
-    recorder = training.EpisodeRecorder(env, algo.act) if videos else None
+    algos = run.algorithms()
+    recorders: dict[int, training.EpisodeRecorder] = {}
     started = time.perf_counter()
     columns = (TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.completed:,.0f} steps"),
                TextColumn("{task.fields[rate]}"), TextColumn("{task.fields[stats]}"), TimeElapsedColumn())
@@ -93,10 +123,12 @@ def train(run: Run, console: Console, videos: bool = True) -> None:
         first = run.rows[-1]["env_steps"] if run.rows else 0
         task = bar.add_task(env.spec.name, total=config.total_steps, completed=first, rate="compiling...", stats="")
 
-        def on_eval(state, index):
+        def on_eval(state, index, stage):
             write_atomic(run.folder / training.CHECKPOINT, checkpoint.to_bytes(state))
-            if recorder is not None:
-                recorder.write(run.folder, index, loop.seed_slice(state, 0), console)
+            if videos:
+                if stage not in recorders:
+                    recorders[stage] = training.EpisodeRecorder(run.envs[stage], algos[stage].act)
+                recorders[stage].write(run.folder, index, loop.seed_slice(state, 0), console)
 
         def progress(index, rows):
             memory = training.peak_memory_mb()
@@ -109,9 +141,9 @@ def train(run: Run, console: Console, videos: bool = True) -> None:
             training.plot_success(run.folder, run.rows, f"{env.spec.name}: {run.algo}")
             bar.update(task, completed=rows[0]["env_steps"], rate=_rate(rows[0]), stats=_stats(rows))
 
-        resume = (run.state, run.rows[-1]["eval"]) if run.state is not None else None
+        resume = (run.state, run.rows[-1]["eval"], run.stage) if run.state is not None else None
         try:
-            loop.run(algo, run.seeds, config.num_evals, progress, on_eval, resume)
+            loop.run_staged(algos, run.seeds, config.num_evals, run.promotion, progress, on_eval, resume)
         except KeyboardInterrupt:
             console.print(f"interrupted; the last checkpoint is intact. Continue with: "
                           f"fieldgen train --resume {run.folder}")
@@ -126,6 +158,8 @@ def _rate(row: dict) -> str:
 def _stats(rows: list[dict]) -> str:
     mean = lambda key: sum(r[key] for r in rows) / len(rows)  # noqa: E731
     text = f"success {mean('success_any'):.2f}  at goal {mean('time_at_goal'):.1f}"
+    if "stage" in rows[0]:
+        text = f"stage {rows[0].get('promoted_to', rows[0]['stage']) + 1}  " + text
     for name in ("critic_loss", "actor_loss", "policy_loss", "value_loss"):
         if name in rows[0]:
             text += f"  {name.removesuffix('_loss')} {mean(name):.3f}"
@@ -143,6 +177,14 @@ def summary(run: Run, console: Console) -> None:
                       f"{first['time_at_goal']:.1f} -> {last['time_at_goal']:.1f}",
                       f"{last['episode_return']:.1f}", _rate(last).removesuffix(" steps/s"))
     console.print(table)
+    for row in run.rows:
+        if "promoted_to" in row and row["seed"] == run.seeds[0]:
+            name = run.envs[row["promoted_to"]].spec.name
+            console.print(f"promoted to stage {row['promoted_to'] + 1} ({name}) at {row['env_steps']:,} env steps")
+    if len(run.envs) > 1:
+        last = run.rows[-1]
+        console.print(f"reached stage {last.get('promoted_to', last['stage']) + 1} of {len(run.envs)}; success_any on "
+                      f"the last stage ({run.env.spec.name}): {last['last_stage_success_any']:.2f}")
     memory = run.rows[-1].get("peak_memory_mb")
     if memory is not None:
         console.print(f"peak device memory: {memory:,.0f} MiB")

@@ -132,11 +132,12 @@ def _check_crl(config, env, per_iter: int) -> None:
         raise RunError(f"unknown contrastive_loss '{config.contrastive_loss}'; choose one of {', '.join(LOSSES)}")
 
 
-def write_run(run_dir: Path, field: dict, algo: str, config, layout: dict, seeds: list[int]) -> None:
-    """run.json: the resolved field spec, the algorithm, its full config, the observation layout, the seeds."""
+def write_run(run_dir: Path, field: dict, algo: str, config, layout: dict, seeds: list[int], extra: dict) -> None:
+    """run.json: the resolved field spec (a curriculum's last stage), the algorithm, its full config,
+    the observation layout, the seeds, and `extra` (where the run keeps its fields, the promotion rule)."""
     run_dir.mkdir(parents=True, exist_ok=True)
     record = {"field": field, "algo": algo, "config": dataclasses.asdict(config), "observation": layout,
-              "seeds": seeds}
+              "seeds": seeds, **extra}
     write_atomic(run_dir / RUN, (json.dumps(record, indent=1) + "\n").encode())
 
 
@@ -168,25 +169,30 @@ def write_metrics(run_dir: Path, rows: list[dict]) -> None:
 
 
 def plot_success(run_dir: Path, rows: list[dict], title: str) -> None:
-    """success_any and time_at_goal against env steps, one line per seed."""
+    """success_any and time_at_goal against env steps: one line per seed, or for a curriculum
+    one colour per stage and a line for the last stage."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     fig, (left, right) = plt.subplots(1, 2, figsize=(10, 3.6))
-    seeds = list(dict.fromkeys(r.get("seed", 0) for r in rows))
-    for seed in seeds:
-        mine = [r for r in rows if r.get("seed", 0) == seed]
+    staged = "stage" in rows[0]
+    groups = list(dict.fromkeys(r["stage"] if staged else r.get("seed", 0) for r in rows))
+    for group in groups:
+        mine = [r for r in rows if (r["stage"] if staged else r.get("seed", 0)) == group]
         steps = [r["env_steps"] for r in mine]
-        label = f"seed {seed}" if len(seeds) > 1 else None
-        left.plot(steps, [r["success_any"] for r in mine], marker="o", label=label)
-        right.plot(steps, [r["time_at_goal"] for r in mine], marker="o", label=label)
+        label = f"stage {group + 1}" if staged else (f"seed {group}" if len(groups) > 1 else None)
+        left.plot(steps, [r["success_any"] for r in mine], marker="o", ls="" if staged else "-", label=label)
+        right.plot(steps, [r["time_at_goal"] for r in mine], marker="o", ls="" if staged else "-", label=label)
+    if staged:
+        left.plot([r["env_steps"] for r in rows], [r["last_stage_success_any"] for r in rows], color="black",
+                  label="last stage")
     left.set(xlabel="env steps", ylabel="success_any", ylim=(-0.02, 1.02), title="episodes with a success")
     right.set(xlabel="env steps", ylabel="steps at goal per episode", title="time at goal")
     for ax in (left, right):
         ax.grid(alpha=0.3)
-        if len(seeds) > 1:
+        if len(groups) > 1 or staged:
             ax.legend(fontsize=8)
     fig.suptitle(title)
     fig.tight_layout()

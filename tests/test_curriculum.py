@@ -86,3 +86,30 @@ def test_folders_edited_into_an_inconsistent_state_are_refused(tmp_path):
     (out / "stage_02.yaml").unlink()
     built = runner.invoke(app, ["build", str(out), "--no-preview"])
     assert built.exit_code == 1 and "lists stage_02.yaml, which is missing" in " ".join(built.output.split())
+
+
+@pytest.mark.slow
+def test_staged_training_reaches_the_last_stage_of_a_point_curriculum(tmp_path):
+    """Targets 1, 2 then 3 away: promoted twice, and the last stage solved, within 48k env steps."""
+    import json
+
+    made = runner.invoke(app, ["curriculum", "point_nav", "-o", str(tmp_path / "ring"), "--threshold", "0.6",
+                               "--window", "1", "--stage", "task.target.radius=1", "--stage", "task.target.radius=2",
+                               "--stage", "task.target.radius=3"])
+    assert made.exit_code == 0, made.output
+    sets = ["crl.hidden=[64,64]", "crl.repr_dim=16", "crl.batch_size=64", "crl.unroll_length=25",
+            "crl.min_replay_rows=100", "crl.max_replay_rows=2000", "crl.num_evals=8", "crl.eval_envs=32"]
+    args = ["train", str(tmp_path / "ring"), "--steps", "48000", "--envs", "16", "--out", str(tmp_path / "runs"),
+            "--no-videos", *[x for s in sets for x in ("--set", s)]]
+    result = runner.invoke(app, args)
+    assert result.exit_code == 0, result.output
+    run = tmp_path / "runs" / "ring-crl-0"
+    rows = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
+    promotions = [r["promoted_to"] for r in rows if "promoted_to" in r]
+    assert promotions == [1, 2]
+    assert rows[0]["stage"] == 0 and rows[-1]["stage"] == 2
+    assert rows[0]["last_stage_success_any"] <= 0.4 and rows[-1]["last_stage_success_any"] >= 0.8
+    assert sorted(p.name for p in (run / "stages").iterdir()) == ["01", "02", "03"]
+    assert "reached stage 3 of 3" in " ".join(result.output.split())
+    done = runner.invoke(app, ["train", "--resume", str(run)])
+    assert done.exit_code == 0 and "already complete" in done.output
