@@ -12,15 +12,19 @@ LOG_STD_MIN, LOG_STD_MAX = -5.0, 2.0
 
 
 class MLP(nn.Module):
-    """Swish hidden layers, optional layer norm, linear output."""
+    """Swish hidden layers, optional layer norm, linear output.
+
+    Weights start uniform with variance init_scale / fan_in: 1/3 is the CRL reference's
+    choice (PyTorch's default), 1 is LeCun's."""
 
     hidden: Sequence[int]
     out: int
     layer_norm: bool = False
+    init_scale: float = 1 / 3
 
     @nn.compact
     def __call__(self, x: jax.Array) -> jax.Array:
-        init = nn.initializers.lecun_uniform()
+        init = nn.initializers.variance_scaling(self.init_scale, "fan_in", "uniform")
         for width in self.hidden:
             x = nn.Dense(width, kernel_init=init)(x)
             if self.layer_norm:

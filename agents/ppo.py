@@ -77,8 +77,8 @@ def make_train(config: PPOConfig, env) -> Algorithm:
     iters_per_eval = c.total_steps // (c.num_envs * c.unroll_length) // c.num_evals
     if iters_per_eval < 1:
         raise ValueError(f"total_steps {c.total_steps:,} leaves no iteration between evaluations")
-    policy_net = MLP(c.hidden, env.action_size)
-    value_net = MLP(c.hidden, 1)
+    policy_net = MLP(c.hidden, env.action_size, init_scale=1.0)
+    value_net = MLP(c.hidden, 1, init_scale=1.0)
     tx = optax.chain(optax.clip_by_global_norm(c.max_grad_norm), optax.adam(c.learning_rate))
     batch = c.num_envs * c.unroll_length
     minibatch = batch // c.num_minibatches
