@@ -1,4 +1,4 @@
-"""The `fieldgen` command line: validate, build, render, list, schema, bench, train, eval."""
+"""The `fieldgen` command line: validate, build, render, curriculum, list, schema, bench, train, eval."""
 
 from __future__ import annotations
 

@@ -67,6 +67,6 @@ def test_render_top_and_follow(tmp_path):
 
 
 def test_every_command_has_help_with_an_example():
-    for command in ("validate", "build", "render", "list", "schema", "bench", "train", "eval"):
+    for command in ("validate", "build", "render", "list", "schema", "bench", "train", "eval", "curriculum"):
         result = runner.invoke(app, [command, "--help"])
         assert result.exit_code == 0 and "Example: fieldgen" in result.output
