@@ -116,7 +116,8 @@ def run_staged(algos: Sequence[Algorithm], seeds: Sequence[int], num_evals: int,
     compiled: dict[int, tuple] = {}
 
     def programs(k: int):
-        """(placement, start, chunk, evaluate) of stage k, compiled on first use."""
+        """(placement, start, chunk, evaluate) of stage k, compiled on first use. Evaluation reads only
+        the policy, so it takes a state of any stage (the last stage is judged while training earlier ones)."""
         if k not in compiled:
             algo = algos[k]
             mesh = sharding.local_mesh()
@@ -124,7 +125,7 @@ def run_staged(algos: Sequence[Algorithm], seeds: Sequence[int], num_evals: int,
             placement = sharding.state_shardings(shapes, mesh, algo.env_axes, offset=1)
             compiled[k] = (placement, jax.jit(jax.vmap(algo.start), out_shardings=placement),
                            jax.jit(jax.vmap(algo.chunk), in_shardings=(placement,), out_shardings=(placement, None)),
-                           jax.jit(jax.vmap(algo.evaluate), in_shardings=(placement, None)))
+                           jax.jit(jax.vmap(algo.evaluate)))
         return compiled[k]
 
     def evaluate(k: int, state, index: int) -> dict:
@@ -146,7 +147,7 @@ def run_staged(algos: Sequence[Algorithm], seeds: Sequence[int], num_evals: int,
         seconds = time.perf_counter() - began
         metrics.update(evaluate(stage, state, index))
         if staged and stage != last:
-            metrics["last_stage_success_any"] = evaluate(last, _with_env(algos[last], state, index), index)["success_any"]
+            metrics["last_stage_success_any"] = evaluate(last, state, index)["success_any"]
         elif staged:
             metrics["last_stage_success_any"] = metrics["success_any"]
         steps = int(jax.device_get(state.env_steps)[0])

@@ -19,6 +19,7 @@ from pathlib import Path
 
 import yaml
 
+from agents.loop import Promotion
 from fieldgen.schema import FieldSpec, SpecError, load_spec
 
 INDEX = "curriculum.yaml"
@@ -27,14 +28,6 @@ IGNORED = ("name", "description", "extends")  # never interpolated
 
 class CurriculumError(Exception):
     """A curriculum that cannot be generated or read; the message says which stage and why."""
-
-
-@dataclasses.dataclass(frozen=True)
-class Promotion:
-    """Move from stage k to k+1 once success_any, averaged over the last `window` evaluations, reaches threshold."""
-
-    threshold: float = 0.5
-    window: int = 2
 
 
 @dataclasses.dataclass(frozen=True)
@@ -72,8 +65,9 @@ def interpolate(base: Path, target: Path, stages: int, geometric: tuple[str, ...
     """
     if stages < 2:
         raise CurriculumError(f"--stages {stages}: an interpolation needs at least 2 stages (the two ends)")
-    a, b = _resolved(base), _resolved(target)
-    _check_compatible(base, a, target, b)
+    spec_a, spec_b = _spec(base), _spec(target)
+    _check_compatible(base, spec_a, target, spec_b)
+    a, b = spec_a.model_dump(mode="json"), spec_b.model_dump(mode="json")
     switch = switch_at if switch_at is not None else stages // 2 + 1
     if not 1 <= switch <= stages:
         raise CurriculumError(f"--switch-at {switch_at}: choose a stage from 1 to {stages}")
@@ -211,8 +205,7 @@ def _layout_key(spec: FieldSpec) -> str:
     return f"{spec.agent.kind} agent, {ball}{extra}"
 
 
-def _check_compatible(a_path: Path, a: dict, b_path: Path, b: dict) -> None:
-    sa, sb = FieldSpec.model_validate(a), FieldSpec.model_validate(b)
+def _check_compatible(a_path: Path, sa: FieldSpec, b_path: Path, sb: FieldSpec) -> None:
     if sa.agent.kind != sb.agent.kind:
         raise CurriculumError(f"{a_path} drives the {sa.agent.kind} agent and {b_path} the {sb.agent.kind}: "
                               "a curriculum keeps one agent (the policy's actions and observations depend on it)")
@@ -222,8 +215,12 @@ def _check_compatible(a_path: Path, a: dict, b_path: Path, b: dict) -> None:
 
 
 def _resolved(path: Path) -> dict:
+    return _spec(path).model_dump(mode="json")
+
+
+def _spec(path: Path) -> FieldSpec:
     try:
-        return load_spec(path).model_dump(mode="json")
+        return load_spec(path)
     except SpecError as exc:
         raise CurriculumError(f"{path} is not a valid field: {exc}") from None
 

@@ -58,7 +58,7 @@ def new_run(source: Path, algo: str, seeds: list[int], config, out: Path) -> Run
         except curriculum.CurriculumError as exc:
             raise training.RunError(str(exc)) from None
         envs = [fieldgen.make(spec) for spec in c.specs()]
-        promotion, name = loop.Promotion(c.promotion.threshold, c.promotion.window), source.name
+        promotion, name = c.promotion, source.name
         layouts = {json.dumps(e.layout.to_json()) for e in envs}
         if len(layouts) > 1:
             raise training.RunError(f"{source}: the stages' observation layouts differ; a policy cannot move between them")
