@@ -37,12 +37,15 @@ def insert(buf: Buffer, rows: dict) -> Buffer:
     return Buffer(data, (buf.pos + steps) % buf.capacity, jnp.minimum(buf.size + steps, buf.capacity))
 
 
-def window(buf: Buffer, key: jax.Array, length: int) -> tuple[dict, jax.Array]:
-    """One random environment's rows from a random stored start; `stored[i]` marks real rows."""
-    k_env, k_age = jax.random.split(key)
-    num_envs = next(iter(buf.data.values())).shape[1]
-    env = jax.random.randint(k_env, (), 0, num_envs)
-    age = jax.random.randint(k_age, (), 0, jnp.maximum(buf.size, 1))  # 0 = oldest stored row
+def window(buf: Buffer, key: jax.Array, length: int, env: jax.Array) -> tuple[dict, jax.Array]:
+    """Rows of environment `env` from a random start; `stored[i]` marks real rows.
+
+    Once the buffer holds `length` rows, windows lie wholly in stored rows (as the
+    reference samples them); before that they run to the newest row and are cut there.
+    """
+    whole = buf.size >= length
+    starts = jnp.where(whole, buf.size - length + 1, jnp.maximum(buf.size, 1))
+    age = jax.random.randint(key, (), 0, starts)  # 0 = oldest stored row
     start = (buf.pos - buf.size + age) % buf.capacity
     rows = (start + jnp.arange(length)) % buf.capacity
     stored = jnp.arange(length) < buf.size - age
@@ -76,16 +79,22 @@ def hindsight_batch(buf: Buffer, key: jax.Array, windows: int, length: int, gamm
                     goal_indices: jax.Array) -> dict:
     """`windows` trajectory windows, flattened to transitions with goals from their own future.
 
+    Windows come from distinct environments while there are enough (every environment once
+    when `windows` equals their number, as the reference samples), then with repeats.
     Returns state, action, goal and weight (0 where a step has no future in its episode).
     """
+    num_envs = next(iter(buf.data.values())).shape[1]
+    k_env, k_win = jax.random.split(key)
+    order = jax.random.permutation(k_env, num_envs)
+    envs = order[jnp.arange(windows) % num_envs]
 
-    def one(k):
+    def one(k, env):
         k_win, k_fut = jax.random.split(k)
-        rows, stored = window(buf, k_win, length)
+        rows, stored = window(buf, k_win, length, env)
         offsets, valid = future_offsets(k_fut, rows["episode"], stored, gamma)
         future = rows["state"][jnp.arange(length) + offsets]
         return {"state": rows["state"], "action": rows["action"], "goal": future[:, goal_indices],
                 "weight": valid.astype(jnp.float32)}
 
-    batch = jax.vmap(one)(jax.random.split(key, windows))
+    batch = jax.vmap(one)(jax.random.split(k_win, windows), envs)
     return jax.tree.map(lambda x: x.reshape((-1,) + x.shape[2:]), batch)

@@ -29,7 +29,9 @@ class CRLConfig:
     total_steps: int = 10_000_000
     num_envs: int = 1024
     unroll_length: int = 62  # env steps per environment between updates
-    batch_size: int = 256  # transitions per gradient step; also windows sampled per iteration
+    batch_size: int = 256  # transitions per gradient step
+    windows: int = 0  # episode-long trajectory windows sampled per iteration; 0: one per environment
+    # (the reference), so an iteration makes windows x episode_length / batch_size gradient steps
     min_replay_rows: int = 1000  # time rows collected before updates start
     max_replay_rows: int = 10000
     discount: float = 0.99
@@ -70,6 +72,12 @@ def iterations(config: CRLConfig) -> tuple[int, int]:
     return prefill, (config.total_steps - prefill * per_iter) // per_iter // config.num_evals
 
 
+def gradient_steps(config: CRLConfig, episode_length: int) -> tuple[int, int]:
+    """(windows sampled, gradient steps) per iteration."""
+    windows = config.windows or config.num_envs
+    return windows, windows * episode_length // config.batch_size
+
+
 def make_train(config: CRLConfig, env) -> Algorithm:
     c = config
     prefill_iters, iters_per_eval = iterations(config)
@@ -78,6 +86,7 @@ def make_train(config: CRLConfig, env) -> Algorithm:
     state_dim, action_size = env.state_dim, env.action_size
     goal_indices = jnp.asarray(env.goal_indices)
     window = env.episode_length
+    windows, updates = gradient_steps(config, window)
     actor = Actor(c.hidden, action_size, c.layer_norm)
     sa_encoder = MLP(c.hidden, c.repr_dim, c.layer_norm)
     g_encoder = MLP(c.hidden, c.repr_dim, c.layer_norm)
@@ -166,17 +175,17 @@ def make_train(config: CRLConfig, env) -> Algorithm:
         return ts, {**a_metrics, **c_metrics, "alpha": jnp.exp(log_alpha)}
 
     def update_epoch(ts: TrainState) -> tuple[TrainState, dict]:
-        """batch_size windows from the buffer, hindsight goals, then one pass of minibatch updates."""
+        """Windows from the buffer, hindsight goals, then one pass of shuffled minibatch updates."""
         key, k_batch, k_perm, k_upd = jax.random.split(ts.key, 4)
-        batch = replay.hindsight_batch(ts.buffer, k_batch, c.batch_size, window, c.discount, goal_indices)
-        perm = jax.random.permutation(k_perm, c.batch_size * window)
-        batch = jax.tree.map(lambda x: x[perm].reshape((window, c.batch_size) + x.shape[1:]), batch)
+        batch = replay.hindsight_batch(ts.buffer, k_batch, windows, window, c.discount, goal_indices)
+        perm = jax.random.permutation(k_perm, windows * window)[:updates * c.batch_size]
+        batch = jax.tree.map(lambda x: x[perm].reshape((updates, c.batch_size) + x.shape[1:]), batch)
 
         def body(ts, xs):
             minibatch, k = xs
             return update(ts, minibatch, k)
 
-        ts, metrics = jax.lax.scan(body, ts.replace(key=key), (batch, jax.random.split(k_upd, window)))
+        ts, metrics = jax.lax.scan(body, ts.replace(key=key), (batch, jax.random.split(k_upd, updates)))
         return ts, jax.tree.map(jnp.mean, metrics)
 
     def start(key: jax.Array) -> TrainState:

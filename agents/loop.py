@@ -9,6 +9,7 @@ work one evaluation at a time, so a caller can checkpoint, log and resume betwee
 from __future__ import annotations
 
 import dataclasses
+import functools
 import time
 from typing import Callable, Sequence
 
@@ -38,8 +39,15 @@ def evaluate_policy(env, act: Callable, key: jax.Array, n_envs: int) -> dict:
 
     success_any: share of episodes with a successful step; time_at_goal: successful steps
     per episode; episode_return; and `term_<name>`: each reward term's mean per live step.
+    An environment of several variants (`env.variant_count > 1`) is evaluated on each in turn,
+    and also reports `variant_KK_success_any` and `variant_KK_time_at_goal` (KK from 01).
     """
-    env_state = jax.vmap(env.reset)(jax.random.split(key, n_envs))
+    keys = jax.random.split(key, n_envs)
+    count = getattr(env, "variant_count", 1)
+    if count > 1:
+        env_state = jax.vmap(env.reset_variant)(keys, jnp.arange(n_envs) % count)
+    else:
+        env_state = jax.vmap(env.reset)(keys)
     terms = [name for name in env_state.metrics if name != "success"]
 
     def step(carry, _):
@@ -51,10 +59,27 @@ def evaluate_policy(env, act: Callable, key: jax.Array, n_envs: int) -> dict:
 
     _, out = jax.lax.scan(step, (env_state, jnp.ones(n_envs)), None, length=env.episode_length)
     live_steps = jnp.sum(out["alive"])
-    return {"success_any": jnp.mean(jnp.any(out["success"] > 0, axis=0)),
-            "time_at_goal": jnp.mean(jnp.sum(out["success"], axis=0)),
-            "episode_return": jnp.mean(jnp.sum(out["reward"], axis=0)),
-            **{f"term_{name}": jnp.sum(out[name]) / live_steps for name in terms}}
+    succeeded = jnp.any(out["success"] > 0, axis=0)
+    at_goal = jnp.sum(out["success"], axis=0)
+    metrics = {"success_any": jnp.mean(succeeded), "time_at_goal": jnp.mean(at_goal),
+               "episode_return": jnp.mean(jnp.sum(out["reward"], axis=0)),
+               **{f"term_{name}": jnp.sum(out[name]) / live_steps for name in terms}}
+    if count > 1:
+        variant = env_state.info["variant"]
+        for k in range(count):
+            mine = (variant == k) / jnp.sum(variant == k)
+            metrics[f"variant_{k + 1:02d}_success_any"] = jnp.sum(succeeded * mine)
+            metrics[f"variant_{k + 1:02d}_time_at_goal"] = jnp.sum(at_goal * mine)
+    return metrics
+
+
+def adapt(algo: Algorithm, state, metrics: dict) -> tuple[object, dict]:
+    """Let an environment of several variants re-weight them from an evaluation's metrics
+    (`env.adapt(env_state, metrics) -> (env_state, report)`); others pass through."""
+    if getattr(algo.env, "variant_count", 1) < 2:
+        return state, {}
+    env_state, report = algo.env.adapt(state.env_state, metrics)
+    return state.replace(env_state=env_state), report
 
 
 def eval_key(seed_key: jax.Array, index) -> jax.Array:
@@ -67,7 +92,9 @@ def pure_train(algo: Algorithm, num_evals: int) -> Callable:
     def train(key):
         def interval(state, index):
             state, metrics = algo.chunk(state)
-            return state, {**metrics, **algo.evaluate(state, eval_key(key, index))}
+            metrics.update(algo.evaluate(state, eval_key(key, index)))
+            state, report = adapt(algo, state, metrics)
+            return state, {**metrics, **report}
 
         return jax.lax.scan(interval, algo.start(key), jnp.arange(1, num_evals + 1))
 
@@ -116,7 +143,7 @@ def run_staged(algos: Sequence[Algorithm], seeds: Sequence[int], num_evals: int,
     compiled: dict[int, tuple] = {}
 
     def programs(k: int):
-        """(placement, start, chunk, evaluate) of stage k, compiled on first use. Evaluation reads only
+        """(placement, start, chunk, evaluate, adapt) of stage k, compiled on first use. Evaluation reads only
         the policy, so it takes a state of any stage (the last stage is judged while training earlier ones)."""
         if k not in compiled:
             algo = algos[k]
@@ -125,7 +152,9 @@ def run_staged(algos: Sequence[Algorithm], seeds: Sequence[int], num_evals: int,
             placement = sharding.state_shardings(shapes, mesh, algo.env_axes, offset=1)
             compiled[k] = (placement, jax.jit(jax.vmap(algo.start), out_shardings=placement),
                            jax.jit(jax.vmap(algo.chunk), in_shardings=(placement,), out_shardings=(placement, None)),
-                           jax.jit(jax.vmap(algo.evaluate)))
+                           jax.jit(jax.vmap(algo.evaluate)),
+                           jax.jit(jax.vmap(functools.partial(adapt, algo)), in_shardings=(placement, None),
+                                   out_shardings=(placement, None)))
         return compiled[k]
 
     def evaluate(k: int, state, index: int) -> dict:
@@ -146,6 +175,11 @@ def run_staged(algos: Sequence[Algorithm], seeds: Sequence[int], num_evals: int,
             metrics = jax.device_get(metrics)  # waits for the chunk
         seconds = time.perf_counter() - began
         metrics.update(evaluate(stage, state, index))
+        count = getattr(algos[stage].env, "variant_count", 1)
+        if count > 1:  # a mixed run: judged on its last variant, and re-weighted
+            metrics["last_stage_success_any"] = metrics[f"variant_{count:02d}_success_any"]
+            state, report = programs(stage)[4](state, metrics)
+            metrics.update(jax.device_get(report))
         if staged and stage != last:
             metrics["last_stage_success_any"] = evaluate(last, state, index)["success_any"]
         elif staged:

@@ -292,11 +292,16 @@ def train(
     runs: Annotated[Path, typer.Option("--out", help="folder for run folders")] = Path("runs"),
     resume: Annotated[Optional[Path], typer.Option(help="continue the run in this folder")] = None,
     videos: Annotated[bool, typer.Option(help="write videos/eval_NNN.gif of the policy at every evaluation")] = True,
+    mixed: Annotated[bool, typer.Option(help="a curriculum's stages all at once, each env its own stage, "
+                                              "re-weighted by progress (default: one stage after another)")] = False,
+    prepare: Annotated[bool, typer.Option(help="write the run folder (config, built fields) and stop; start it "
+                                                "later with --resume, e.g. on a machine without dm_control")] = False,
 ) -> None:
     """Train an agent on a field or through a curriculum folder's stages; writes runs/<name>-<algo>-<seed>/.
 
     Resumes exactly after an interrupt (--resume). A curriculum run moves to the next stage when its
-    promotion rule is met and reports which stage it reached, when, and success on the last stage.
+    promotion rule is met and reports which stage it reached, when, and success on the last stage;
+    with --mixed it trains on every stage at once, favouring those being learnt (success neither 0 nor 1).
 
     Example: fieldgen train point_nav --algo crl --steps 40000 --envs 16 --set 'crl.hidden=[64,64]'
     """
@@ -313,9 +318,12 @@ def train(
             algo_config = training.make_config(algo, config, sets or [], total_steps=steps, num_envs=envs,
                                                seed=seed)
             source = Path(spec) if Path(spec).is_dir() else _spec_path(spec)
-            run = runner.new_run(source, algo, list(range(seed, seed + seeds)), algo_config, runs)
+            run = runner.new_run(source, algo, list(range(seed, seed + seeds)), algo_config, runs, mixed)
     except (SpecError, training.RunError) as exc:
         _fail(str(exc))
+    if prepare:
+        out.print(f"prepared {run.folder}; start it with: fieldgen train --resume {run.folder}")
+        return
     try:
         runner.train(run, out, videos)
     except KeyboardInterrupt:
@@ -349,7 +357,9 @@ def evaluate(
         run = runner.open_run(run_dir)
     except (SpecError, training.RunError) as exc:
         _fail(str(exc))
-    algo = dataclasses.replace(run, config=dataclasses.replace(run.config, eval_envs=episodes)).algorithms()[-1]
+    if run.state is None:
+        _fail(f"{run_dir} has not started training yet; start it with: fieldgen train --resume {run_dir}")
+    algo = dataclasses.replace(run, config=dataclasses.replace(run.config, eval_envs=episodes)).judge()
     key = jax.random.PRNGKey(seed)
     result = jax.device_get(jax.jit(jax.vmap(algo.evaluate, in_axes=(0, None)))(run.state, key))
     steps = int(jax.device_get(run.state.env_steps)[0])

@@ -9,8 +9,10 @@ auto-reset never replays an earlier start. `done` still reads 1 on that step.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import io
 from pathlib import Path
+from typing import Sequence
 
 import jax
 import jax.numpy as jnp
@@ -31,62 +33,42 @@ with contextlib.redirect_stdout(io.StringIO()):  # mjx (also via brax) prints ab
 _STATE_FIELDS = ("time", "qpos", "qvel", "act", "ctrl", "mocap_pos", "mocap_quat", "qacc_warmstart")
 
 
-class FieldEnv:
-    """A goal-conditioned environment: obs = concat(state, goal)."""
+WEIGHT_FLOOR = 0.1  # every variant keeps at least this share of the weight mass (before normalising)
 
-    def __init__(self, artifact: Artifact, episode_length: int | None = None, auto_reset: bool = True):
-        self.artifact = artifact
-        self.spec = spec = artifact.spec
-        self.mj_model = artifact.model()
-        self.sys = mjx.put_model(self.mj_model)
-        self.layout = observation_layout(spec, self.mj_model)
+
+def sampling_weights(success: jax.Array) -> jax.Array:
+    """How often to start each variant, from its success rate p: most where p(1-p) is largest
+    (the variants being learnt now), a floor for the solved and the not yet reachable."""
+    score = WEIGHT_FLOOR + 4.0 * success * (1.0 - success)
+    return score / jnp.sum(score)
+
+
+class Variant:
+    """One field's episode rules: how episodes start, how a step scores, when an episode ends."""
+
+    def __init__(self, spec, mj_model, layout):
+        self.spec = spec
         self.task = task_fns(spec)
-        self.episode_length = episode_length or spec.episode.length
-        self.auto_reset = auto_reset
-        self.n_substeps = spec.episode.substeps
-        self.dt = spec.episode.control_dt
-        self.observation_size = self.layout.size
-        self.action_size = int(self.mj_model.nu)
-        self.state_dim = self.layout.state_dim
-        self.goal_indices = np.array(self.layout.goal_indices)
-        self.metric_names = ("success", *self.task.terms)
-        key = self.mj_model.key("home")
-        self._home_qpos = jnp.asarray(key.qpos)
-        self._data0 = mjx.make_data(self.mj_model).replace(qpos=self._home_qpos)
-        self._agent_qpos = jnp.asarray(self.layout.agent_qpos)
-        self._agent_qvel = jnp.asarray(self.layout.agent_qvel)
-        self._ball_qpos = jnp.asarray(self.layout.ball_qpos)
-        self._ball_qvel = jnp.asarray(self.layout.ball_qvel)
-        self._is_ant = spec.agent.kind == "ant"
-        self._ball_z = spec.ball.radius
-        self._agent_z = geometry.POINT_RADIUS
+        self.episode_length = spec.episode.length
+        self.home_qpos = jnp.asarray(mj_model.key("home").qpos)
+        self.data0 = mjx.make_data(mj_model).replace(qpos=self.home_qpos)
+        self.layout = layout
+        self.is_ant = spec.agent.kind == "ant"
 
-    # -- reset -------------------------------------------------------------
-
-    def reset(self, rng: jax.Array) -> State:
-        rng, episode_key = jax.random.split(rng)
-        data, goal = self._fresh_episode(episode_key)
-        zero = jnp.zeros(())
-        info = {"rng": rng, "goal": goal, "steps": jnp.zeros((), jnp.int32), "truncation": zero,
-                "episode": jnp.zeros((), jnp.int32)}
-        metrics = {name: zero for name in self.metric_names}
-        return State(data, self._obs(data, goal), zero, zero, metrics, info)
-
-    def _fresh_episode(self, key: jax.Array):
+    def fresh_episode(self, key: jax.Array):
         """Agent pose noise, target and ball spawn: new draws from `key`."""
         k_q, k_v, k_target, k_ball = jax.random.split(key, 4)
-        noise = self.spec.agent.reset_noise
-        qpos = self._home_qpos
-        agent_noise = jax.random.uniform(k_q, (len(self.layout.agent_qpos),), minval=-noise.qpos, maxval=noise.qpos)
-        if self._is_ant:
+        noise, layout = self.spec.agent.reset_noise, self.layout
+        agent_noise = jax.random.uniform(k_q, (len(layout.agent_qpos),), minval=-noise.qpos, maxval=noise.qpos)
+        if self.is_ant:
             agent_noise = agent_noise.at[3:7].set(0.0)  # keep the torso quaternion a unit quaternion
-        qpos = qpos.at[self._agent_qpos].add(agent_noise)
-        qvel = jnp.zeros(self.mj_model.nv).at[self._agent_qvel].set(
-            noise.qvel * jax.random.normal(k_v, (len(self.layout.agent_qvel),)))
+        qpos = self.home_qpos.at[jnp.asarray(layout.agent_qpos)].add(agent_noise)
+        qvel = jnp.zeros(self.data0.qvel.shape).at[jnp.asarray(layout.agent_qvel)].set(
+            noise.qvel * jax.random.normal(k_v, (len(layout.agent_qvel),)))
         target = self._sample_target(k_target)
         if self.spec.ball.enabled:
-            qpos = qpos.at[self._ball_qpos[:2]].set(self._sample_ball(k_ball, target))
-        data = self._data0.replace(qpos=qpos, qvel=qvel, mocap_pos=self._data0.mocap_pos.at[0, :2].set(target))
+            qpos = qpos.at[jnp.asarray(layout.ball_qpos[:2])].set(self._sample_ball(k_ball, target))
+        data = self.data0.replace(qpos=qpos, qvel=qvel, mocap_pos=self.data0.mocap_pos.at[0, :2].set(target))
         return data, target
 
     def _sample_target(self, key: jax.Array) -> jax.Array:
@@ -109,33 +91,138 @@ class FieldEnv:
         jitter = jax.random.uniform(key, (2,), minval=-s.jitter, maxval=s.jitter)
         return start + s.fraction * (target - start) + jitter
 
+    def score(self, t: Transition, names: tuple[str, ...]) -> tuple[dict, jax.Array]:
+        """(metrics, reward) of one step; terms this field does not use read 0."""
+        metrics = {"success": self.task.success(t)}
+        metrics.update({name: self.task.terms[name](t) if name in self.task.terms else jnp.zeros(())
+                        for name in names})
+        return metrics, self.task.reward(metrics)
+
+    def ended(self, data: mjx.Data, steps: jax.Array, episode_length: int) -> tuple[jax.Array, jax.Array]:
+        """(time ran out, the agent fell)."""
+        fell = jnp.zeros((), bool)
+        if self.is_ant and self.spec.episode.terminate_unhealthy:
+            lo, hi = self.spec.agent.healthy_z
+            z = data.qpos[self.layout.agent_qpos[2]]
+            fell = (z < lo) | (z > hi)
+        return steps >= episode_length, fell
+
+
+class FieldEnv:
+    """A goal-conditioned environment: obs = concat(state, goal).
+
+    Given several variants of a field (built to one structure by fieldgen.compile.variants),
+    every environment carries its own variant (`info["variant"]`), all stepped in one
+    batched simulation; each new episode draws its variant from `info["variant_weights"]`.
+    """
+
+    def __init__(self, artifacts: Artifact | Sequence[Artifact], episode_length: int | None = None,
+                 auto_reset: bool = True):
+        artifacts = [artifacts] if isinstance(artifacts, Artifact) else list(artifacts)
+        self.artifacts = artifacts
+        self.artifact = artifacts[-1]  # a mixed environment is judged on its last variant
+        self.spec = spec = self.artifact.spec
+        models = [a.model() for a in artifacts]
+        self.mj_model = models[-1]
+        self.layout = observation_layout(spec, self.mj_model)
+        self.variants = [Variant(a.spec, m, self.layout) for a, m in zip(artifacts, models)]
+        _check_compatible(self.variants, models, self.layout)
+        self.task = self.variants[-1].task
+        self.sys, self._varying = _batched_model(models, [a.spec.name for a in artifacts])
+        self.episode_length = episode_length or max(v.episode_length for v in self.variants)
+        self._lengths = jnp.asarray([episode_length or v.episode_length for v in self.variants])
+        self.auto_reset = auto_reset
+        self.n_substeps = spec.episode.substeps
+        self.dt = spec.episode.control_dt
+        self.observation_size = self.layout.size
+        self.action_size = int(self.mj_model.nu)
+        self.state_dim = self.layout.state_dim
+        self.goal_indices = np.array(self.layout.goal_indices)
+        self.terms = tuple(dict.fromkeys(n for v in self.variants for n in v.task.terms))
+        self.metric_names = ("success", *self.terms)
+        self._agent_qpos = jnp.asarray(self.layout.agent_qpos)
+        self._agent_qvel = jnp.asarray(self.layout.agent_qvel)
+        self._ball_qpos = jnp.asarray(self.layout.ball_qpos)
+        self._ball_qvel = jnp.asarray(self.layout.ball_qvel)
+        self._is_ant = spec.agent.kind == "ant"
+        self._agent_z = geometry.POINT_RADIUS
+
+    @property
+    def variant_count(self) -> int:
+        return len(self.variants)
+
+    @property
+    def mixed(self) -> bool:
+        return len(self.variants) > 1
+
+    def adapt(self, env_state: State, metrics: dict) -> tuple[State, dict]:
+        """New variant weights for the episodes to come (envs batched on axis 0), from an evaluation's
+        `variant_KK_success_any`: `sampling_weights`. Returns the state and `variant_KK_weight`."""
+        success = jnp.stack([metrics[f"variant_{k + 1:02d}_success_any"] for k in range(self.variant_count)])
+        weights = sampling_weights(success)
+        info = dict(env_state.info, variant_weights=jnp.broadcast_to(weights, env_state.info["variant_weights"].shape))
+        return env_state.replace(info=info), {f"variant_{k + 1:02d}_weight": w for k, w in enumerate(weights)}
+
+    def _each(self, variant: jax.Array, fn):
+        """fn(the variant's rules), for a traced variant index (every branch runs under vmap: all are cheap)."""
+        if not self.mixed:
+            return fn(self.variants[0])
+        return jax.lax.switch(variant, [lambda v=v: fn(v) for v in self.variants])
+
+    def _model(self, variant: jax.Array):
+        if not self._varying:
+            return self.sys
+        leaves, treedef = jax.tree.flatten(self.sys)
+        return treedef.unflatten([x[variant] if i in self._varying else x for i, x in enumerate(leaves)])
+
+    # -- reset -------------------------------------------------------------
+
+    def reset(self, rng: jax.Array) -> State:
+        """A fresh episode; a mixed environment draws its variant uniformly."""
+        if not self.mixed:
+            return self.reset_variant(rng, 0)
+        rng, k_variant = jax.random.split(rng)
+        return self.reset_variant(rng, jax.random.randint(k_variant, (), 0, len(self.variants)))
+
+    def reset_variant(self, rng: jax.Array, variant) -> State:
+        rng, episode_key = jax.random.split(rng)
+        variant = jnp.asarray(variant, jnp.int32)
+        data, goal = self._each(variant, lambda v: v.fresh_episode(episode_key))
+        zero = jnp.zeros(())
+        info = {"rng": rng, "goal": goal, "steps": jnp.zeros((), jnp.int32), "truncation": zero,
+                "episode": jnp.zeros((), jnp.int32)}
+        if self.mixed:
+            n = len(self.variants)
+            info.update(variant=variant, variant_weights=jnp.full(n, 1.0 / n))
+        metrics = {name: zero for name in self.metric_names}
+        return State(data, self._obs(data, goal), zero, zero, metrics, info)
+
     # -- step --------------------------------------------------------------
 
     def step(self, state: State, action: jax.Array) -> State:
         action = jnp.clip(action, -1.0, 1.0)
         before = state.pipeline_state
+        variant = state.info.get("variant", jnp.zeros((), jnp.int32))
+        sys = self._model(variant)
         with jax.default_matmul_precision(self.spec.sim.precision):
-            data = jax.lax.fori_loop(0, self.n_substeps, lambda _, d: mjx.step(self.sys, d),
-                                     before.replace(ctrl=action))
+            data = jax.lax.fori_loop(0, self.n_substeps, lambda _, d: mjx.step(sys, d), before.replace(ctrl=action))
         goal = state.info["goal"]
-        t = Transition(self._ball_pos(before), self._ball_pos(data), self._agent_pos(before), self._agent_pos(data),
-                       goal, action, self.dt)
-        metrics = {"success": self.task.success(t)}
-        metrics.update({name: fn(t) for name, fn in self.task.terms.items()})
-        reward = self.task.reward(metrics)
+        t = Transition(self._ball_pos(before, variant), self._ball_pos(data, variant), self._agent_pos(before),
+                       self._agent_pos(data), goal, action, self.dt)
         steps = state.info["steps"] + 1
-        truncated = steps >= self.episode_length
-        fell = jnp.zeros((), bool)
-        if self._is_ant and self.spec.episode.terminate_unhealthy:
-            lo, hi = self.spec.agent.healthy_z
-            z = data.qpos[self._agent_qpos[2]]
-            fell = (z < lo) | (z > hi)
+        metrics, reward, (truncated, fell) = self._each(
+            variant, lambda v: (*v.score(t, self.terms), v.ended(data, steps, self._lengths[variant])))
         done = truncated | fell
         info = dict(state.info, steps=steps, truncation=(truncated & ~fell).astype(jnp.float32))
         obs = self._obs(data, goal)
         if self.auto_reset:
             rng, key = jax.random.split(state.info["rng"])
-            fresh, fresh_goal = self._fresh_episode(key)
+            if self.mixed:
+                key, k_variant = jax.random.split(key)
+                drawn = jax.random.categorical(k_variant, jnp.log(state.info["variant_weights"]))
+                variant = jnp.where(done, drawn, variant).astype(jnp.int32)
+                info.update(variant=variant)
+            fresh, fresh_goal = self._each(variant, lambda v: v.fresh_episode(key))
             data = data.replace(**{f: jnp.where(done, getattr(fresh, f), getattr(data, f)) for f in _STATE_FIELDS})
             goal = jnp.where(done, fresh_goal, goal)
             obs = jnp.where(done, self._obs(fresh, fresh_goal), obs)
@@ -150,15 +237,81 @@ class FieldEnv:
                  data.qvel[self._ball_qvel], goal]
         return jnp.concatenate(parts)
 
-    def _ball_pos(self, data: mjx.Data) -> jax.Array:
+    def _ball_pos(self, data: mjx.Data, variant: jax.Array) -> jax.Array:
         if not self.spec.ball.enabled:
             return jnp.zeros(3)
         p = data.qpos[self._ball_qpos]
-        return p if p.shape[0] == 3 else jnp.append(p, self._ball_z)
+        if p.shape[0] == 3:
+            return p
+        radius = jnp.asarray([v.spec.ball.radius for v in self.variants])[variant]
+        return jnp.append(p, radius)
 
     def _agent_pos(self, data: mjx.Data) -> jax.Array:
         p = data.qpos[self._agent_qpos[:3]] if self._is_ant else data.qpos[self._agent_qpos[:2]]
         return p if self._is_ant else jnp.append(p, self._agent_z)
+
+
+def _check_compatible(variants: list[Variant], models, layout) -> None:
+    """Variants batched together must share the observation layout, the control period and the structure."""
+    first = variants[0].spec
+    for v, model in zip(variants[1:], models[1:]):
+        if observation_layout(v.spec, model).to_json() != layout.to_json():
+            raise ValueError(f"{v.spec.name} and {first.name} observe different things; "
+                             "variants trained in one batch need one observation layout")
+        e, f = v.spec.episode, first.episode
+        if (e.control_dt, e.substeps) != (f.control_dt, f.substeps):
+            raise ValueError(f"{v.spec.name} steps {e.substeps} x {e.physics_dt} s and {first.name} "
+                             f"{f.substeps} x {f.physics_dt} s; variants trained in one batch need one control period")
+        if v.spec.sim.precision != first.sim.precision:
+            raise ValueError(f"{v.spec.name} and {first.name} differ in sim.precision")
+
+
+# Static (non-array) model fields that differ between variants but that stepping never reads:
+# keyframes (each variant's home pose is read from its own MjModel) and height-field bounds.
+_UNREAD_STATIC = {"key_time", "key_qpos", "key_qvel", "key_act", "key_mpos", "key_mquat", "key_ctrl",
+                  "geom_rbound_hfield"}
+
+
+def _batched_model(models, names: list[str]) -> tuple[object, frozenset[int]]:
+    """One mjx.Model whose leaves that differ between the variants are stacked on a leading axis,
+    and the indices of those leaves."""
+    systems = [mjx.put_model(m) for m in models]
+    systems = [systems[0]] + [_static_like(systems[0], s, f"{n} and {names[0]}") for s, n in zip(systems[1:], names[1:])]
+    columns = zip(*(jax.tree.leaves(s) for s in systems))
+    leaves, varying = [], set()
+    for i, column in enumerate(columns):
+        if all(np.array_equal(np.asarray(column[0]), np.asarray(c)) for c in column[1:]):
+            leaves.append(column[0])
+        else:
+            leaves.append(jnp.stack(column))
+            varying.add(i)
+    return jax.tree.structure(systems[0]).unflatten(leaves), frozenset(varying)
+
+
+def _static_like(first, other, which: str):
+    """`other` with the unread static fields of `first`; any other static difference is an error."""
+    changes = {}
+    for field in dataclasses.fields(other):
+        a, b = getattr(first, field.name), getattr(other, field.name)
+        if dataclasses.is_dataclass(b) and not isinstance(b, type):
+            b = _static_like(a, b, which)
+        elif isinstance(b, jax.Array) or _same(a, b):
+            continue
+        elif field.name not in _UNREAD_STATIC:
+            raise ValueError(f"{which} differ in the model's structure ({field.name}); variants trained in one "
+                             "batch must share bodies, joints, geoms and contact settings (build them with "
+                             "fieldgen.compile.variants.compile_variants)")
+        else:
+            b = a
+        changes[field.name] = b
+    return other.replace(**changes) if changes else other
+
+
+def _same(a, b) -> bool:
+    try:
+        return bool(np.array_equal(np.asarray(a), np.asarray(b)))
+    except (TypeError, ValueError):
+        return a == b
 
 
 def make(source, backend: str = "mjx", **kwargs) -> FieldEnv:

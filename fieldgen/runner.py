@@ -4,6 +4,7 @@ write metrics, plots and videos after every evaluation, and summarise at the end
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 import time
 from pathlib import Path
@@ -18,6 +19,7 @@ import fieldgen
 from agents import checkpoint, loop, sharding
 from fieldgen import curriculum, training
 from fieldgen.compile.artifact import ArtifactError, write_artifact, write_atomic
+from fieldgen.compile.variants import VariantError, compile_variants
 
 FIELD, STAGES = "field", "stages"  # the run's own copies of its built fields: resuming needs no compiler
 
@@ -33,15 +35,24 @@ class Run:
     promotion: loop.Promotion = loop.Promotion()
     state: object = None  # the checkpointed training state of a resumed run
     stage: int = 0  # the stage the next chunk trains on
+    mixed: bool = False  # a curriculum trained all at once: every environment carries its own stage
 
     @property
     def env(self):
         """The field a run is judged on: its only one, or a curriculum's last stage."""
         return self.envs[-1]
 
+    @functools.cached_property
     def algorithms(self) -> list[loop.Algorithm]:
+        """What trains: one algorithm per stage, or for a mixed run one on all stages batched together."""
         module = training.algorithm(self.algo)
+        if self.mixed:
+            return [module.make_train(self.config, fieldgen.FieldEnv([e.artifact for e in self.envs]))]
         return [module.make_train(self.config, env) for env in self.envs]
+
+    def judge(self) -> loop.Algorithm:
+        """The algorithm evaluated on the field the run is judged on."""
+        return self.algorithms[-1] if not self.mixed else training.algorithm(self.algo).make_train(self.config, self.env)
 
 
 def run_name(field: str, algo: str, seeds: list[int]) -> str:
@@ -49,20 +60,24 @@ def run_name(field: str, algo: str, seeds: list[int]) -> str:
     return f"{field}-{algo}-{suffix}"
 
 
-def new_run(source: Path, algo: str, seeds: list[int], config, out: Path) -> Run:
-    """A run folder for a field (a YAML file or a build folder) or a curriculum folder."""
+def new_run(source: Path, algo: str, seeds: list[int], config, out: Path, mixed: bool = False) -> Run:
+    """A run folder for a field (a YAML file or a build folder) or a curriculum folder (staged, or mixed:
+    every stage in one batch, built to one structure)."""
     promotion, name = loop.Promotion(), None
     if curriculum.is_curriculum(source):
         try:
             c = curriculum.load(source)
-        except curriculum.CurriculumError as exc:
+            specs = c.specs()
+            envs = [fieldgen.FieldEnv(a) for a in compile_variants(specs)] if mixed else [fieldgen.make(s) for s in specs]
+        except (curriculum.CurriculumError, VariantError) as exc:
             raise training.RunError(str(exc)) from None
-        envs = [fieldgen.make(spec) for spec in c.specs()]
-        promotion, name = c.promotion, source.name
+        promotion, name = c.promotion, source.name + ("-mixed" if mixed else "")
         layouts = {json.dumps(e.layout.to_json()) for e in envs}
         if len(layouts) > 1:
             raise training.RunError(f"{source}: the stages' observation layouts differ; a policy cannot move between them")
     else:
+        if mixed:
+            raise training.RunError(f"{source} is a single field; --mixed trains the stages of a curriculum folder")
         envs = [fieldgen.make(source)]
     folder = out / run_name(name or envs[0].spec.name, algo, seeds)
     if (folder / training.RUN).exists():
@@ -75,8 +90,8 @@ def new_run(source: Path, algo: str, seeds: list[int], config, out: Path) -> Run
     for env, sub in zip(envs, dirs):
         write_artifact(env.artifact, folder / sub)
     training.write_run(folder, envs[-1].spec.model_dump(mode="json"), algo, config, envs[0].layout.to_json(), seeds,
-                       {"fields": dirs, "promotion": dataclasses.asdict(promotion)})
-    return Run(folder, algo, envs, config, seeds, [], promotion)
+                       {"fields": dirs, "promotion": dataclasses.asdict(promotion), "mixed": mixed})
+    return Run(folder, algo, envs, config, seeds, [], promotion, mixed=mixed)
 
 
 def open_run(folder: Path) -> Run:
@@ -94,11 +109,14 @@ def open_run(folder: Path) -> Run:
                                                      for k, v in record["config"].items()})
     seeds = record.get("seeds", [config.seed])
     rows = training.read_metrics(folder)
-    run = Run(folder, record["algo"], envs, config, seeds, rows, loop.Promotion(**record.get("promotion", {})))
-    if rows:
+    run = Run(folder, record["algo"], envs, config, seeds, rows, loop.Promotion(**record.get("promotion", {})),
+              mixed=record.get("mixed", False))
+    if not (folder / training.CHECKPOINT).exists() and not rows:
+        return run  # set up by `fieldgen train --prepare`, never started
+    if rows and not run.mixed:
         run.stage = rows[-1].get("promoted_to", rows[-1].get("stage", 0))
     keys = jnp.stack([jax.random.PRNGKey(s) for s in seeds])
-    template = jax.eval_shape(jax.vmap(run.algorithms()[run.stage].start), keys)
+    template = jax.eval_shape(jax.vmap(run.algorithms[run.stage].start), keys)
     try:
         run.state = checkpoint.load(folder / training.CHECKPOINT, template)
     except checkpoint.CheckpointError as exc:
@@ -114,7 +132,7 @@ def train(run: Run, console: Console, videos: bool = True) -> None:
     if run.state is not None and run.rows and run.rows[-1]["eval"] >= config.num_evals:
         console.print(f"{run.folder} is already complete ({run.rows[-1]['env_steps']:,} env steps)")
         return
-    algos = run.algorithms()
+    algos = run.algorithms
     recorders: dict[int, training.EpisodeRecorder] = {}
     started = time.perf_counter()
     columns = (TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.completed:,.0f} steps"),
@@ -126,8 +144,8 @@ def train(run: Run, console: Console, videos: bool = True) -> None:
         def on_eval(state, index, stage):
             write_atomic(run.folder / training.CHECKPOINT, checkpoint.to_bytes(state))
             if videos:
-                if stage not in recorders:
-                    recorders[stage] = training.EpisodeRecorder(run.envs[stage], algos[stage].act)
+                if stage not in recorders:  # a mixed run films its last stage
+                    recorders[stage] = training.EpisodeRecorder(run.envs[-1 if run.mixed else stage], algos[stage].act)
                 recorders[stage].write(run.folder, index, loop.seed_slice(state, 0), console)
 
         def progress(index, rows):
@@ -158,6 +176,8 @@ def _rate(row: dict) -> str:
 def _stats(rows: list[dict]) -> str:
     mean = lambda key: sum(r[key] for r in rows) / len(rows)  # noqa: E731
     text = f"success {mean('success_any'):.2f}  at goal {mean('time_at_goal'):.1f}"
+    if "variant_01_success_any" in rows[0]:
+        text += f"  last stage {mean('last_stage_success_any'):.2f}"
     if "stage" in rows[0]:
         text = f"stage {rows[0].get('promoted_to', rows[0]['stage']) + 1}  " + text
     for name in ("critic_loss", "actor_loss", "policy_loss", "value_loss"):
@@ -181,7 +201,14 @@ def summary(run: Run, console: Console) -> None:
         if "promoted_to" in row and row["seed"] == run.seeds[0]:
             name = run.envs[row["promoted_to"]].spec.name
             console.print(f"promoted to stage {row['promoted_to'] + 1} ({name}) at {row['env_steps']:,} env steps")
-    if len(run.envs) > 1:
+    if run.mixed:
+        last = run.rows[-1]
+        stages = sorted(k for k in last if k.startswith("variant_") and k.endswith("_success_any"))
+        console.print("success_any per stage at the end: " + ", ".join(
+            f"{i}. {last[k]:.2f} (weight {last.get(k.replace('success_any', 'weight'), 0):.2f})"
+            for i, k in enumerate(stages, 1)))
+        console.print(f"success_any on the last stage ({run.env.spec.name}): {last['last_stage_success_any']:.2f}")
+    elif len(run.envs) > 1:
         last = run.rows[-1]
         console.print(f"reached stage {last.get('promoted_to', last['stage']) + 1} of {len(run.envs)}; success_any on "
                       f"the last stage ({run.env.spec.name}): {last['last_stage_success_any']:.2f}")

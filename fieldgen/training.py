@@ -114,7 +114,7 @@ def _check_ppo(config, per_iter: int) -> None:
 
 def _check_crl(config, env, per_iter: int) -> None:
     from agents.contrastive import ENERGIES, LOSSES
-    from agents.crl import iterations
+    from agents.crl import gradient_steps, iterations
 
     prefill_iters, per_eval = iterations(config)
     prefill = prefill_iters * per_iter
@@ -126,6 +126,10 @@ def _check_crl(config, env, per_iter: int) -> None:
     if config.max_replay_rows < max(config.min_replay_rows, env.episode_length):
         raise RunError(f"max_replay_rows {config.max_replay_rows} must hold min_replay_rows "
                        f"({config.min_replay_rows}) and one episode ({env.episode_length} steps)")
+    windows, updates = gradient_steps(config, env.episode_length)
+    if updates < 1:
+        raise RunError(f"{windows} windows of {env.episode_length} steps hold fewer transitions than one batch "
+                       f"({config.batch_size}); raise crl.windows or lower crl.batch_size")
     if config.energy not in ENERGIES:
         raise RunError(f"unknown energy '{config.energy}'; choose one of {', '.join(ENERGIES)}")
     if config.contrastive_loss not in LOSSES:
@@ -169,14 +173,31 @@ def write_metrics(run_dir: Path, rows: list[dict]) -> None:
 
 
 def plot_success(run_dir: Path, rows: list[dict], title: str) -> None:
-    """success_any and time_at_goal against env steps: one line per seed, or for a curriculum
-    one colour per stage and a line for the last stage."""
+    """success_any and time_at_goal against env steps: one line per seed; for a staged curriculum
+    one colour per stage and a line for the last stage; for a mixed one a line per stage."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     fig, (left, right) = plt.subplots(1, 2, figsize=(10, 3.6))
+    (_plot_variants if "variant_01_success_any" in rows[0] else _plot_groups)(left, right, rows)
+    left.set(xlabel="env steps", ylabel="success_any", ylim=(-0.02, 1.02), title="episodes with a success")
+    right.set(xlabel="env steps", ylabel="steps at goal per episode", title="time at goal")
+    for ax in (left, right):
+        ax.grid(alpha=0.3)
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(fontsize=8)
+    fig.suptitle(title)
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=100)
+    plt.close(fig)
+    write_atomic(run_dir / PLOT, buf.getvalue())
+
+
+def _plot_groups(left, right, rows: list[dict]) -> None:
+    """A line per seed, or the points of each stage of a staged run and its last stage's line."""
     staged = "stage" in rows[0]
     groups = list(dict.fromkeys(r["stage"] if staged else r.get("seed", 0) for r in rows))
     for group in groups:
@@ -188,18 +209,18 @@ def plot_success(run_dir: Path, rows: list[dict], title: str) -> None:
     if staged:
         left.plot([r["env_steps"] for r in rows], [r["last_stage_success_any"] for r in rows], color="black",
                   label="last stage")
-    left.set(xlabel="env steps", ylabel="success_any", ylim=(-0.02, 1.02), title="episodes with a success")
-    right.set(xlabel="env steps", ylabel="steps at goal per episode", title="time at goal")
-    for ax in (left, right):
-        ax.grid(alpha=0.3)
-        if len(groups) > 1 or staged:
-            ax.legend(fontsize=8)
-    fig.suptitle(title)
-    fig.tight_layout()
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=100)
-    plt.close(fig)
-    write_atomic(run_dir / PLOT, buf.getvalue())
+
+
+def _plot_variants(left, right, rows: list[dict]) -> None:
+    """A mixed run: one line per stage (mean over seeds), the last stage in black."""
+    steps = sorted({r["env_steps"] for r in rows})
+    names = sorted(k.removesuffix("_success_any") for k in rows[0] if k.startswith("variant_") and
+                   k.endswith("_success_any"))
+    for i, name in enumerate(names, 1):
+        style = {"color": "black", "lw": 2} if i == len(names) else {}
+        for ax, metric in ((left, "success_any"), (right, "time_at_goal")):
+            values = [np.mean([r[f"{name}_{metric}"] for r in rows if r["env_steps"] == s]) for s in steps]
+            ax.plot(steps, values, marker="o", label=f"stage {i}" + (" (last)" if i == len(names) else ""), **style)
 
 
 def peak_memory_mb() -> float | None:

@@ -70,3 +70,18 @@ def test_hindsight_batch_goals_come_from_the_same_episode():
         if w:
             assert g > s and ep[g] == ep[s]
     assert weight.sum() > 0
+
+
+def test_windows_cover_every_environment_once_and_lie_in_stored_rows():
+    """As the reference samples: one window per environment, wholly stored once the buffer holds one."""
+    num_envs, length = 5, 4
+    buf = filled([0] * 10, num_envs=num_envs, capacity=16)
+    envs_state = buf.data["state"].at[:, :, 0].add(100.0 * jnp.arange(num_envs))  # env e's states are 100e + t
+    buf = buf.replace(data=dict(buf.data, state=envs_state))
+    for seed in range(20):
+        batch = buffer.hindsight_batch(buf, jax.random.PRNGKey(seed), windows=num_envs, length=length, gamma=0.9,
+                                       goal_indices=jnp.array([0]))
+        state = np.asarray(batch["state"][:, 0]).reshape(num_envs, length)
+        assert sorted((state[:, 0] // 100).astype(int).tolist()) == list(range(num_envs))
+        assert np.all(np.diff(state, axis=1) == 1)  # consecutive stored steps: never past the newest row
+        assert np.asarray(batch["weight"]).reshape(num_envs, length)[:, :-1].all()

@@ -48,7 +48,7 @@ def test_crl_learns_point_nav(env_cache):
     from agents.crl import CRLConfig, make_train
     from agents.loop import run
 
-    config = CRLConfig(total_steps=40_000, num_envs=16, unroll_length=25, batch_size=64, min_replay_rows=100,
+    config = CRLConfig(total_steps=40_000, num_envs=16, unroll_length=25, batch_size=64, windows=64, min_replay_rows=100,
                        max_replay_rows=2000, hidden=(64, 64), repr_dim=16, num_evals=3, eval_envs=32)
     _, history = run(make_train(config, env_cache("point_nav")), [0], config.num_evals)
     assert history[0]["success_any"] <= 0.3

@@ -97,7 +97,7 @@ def test_staged_training_reaches_the_last_stage_of_a_point_curriculum(tmp_path):
                                "--window", "1", "--stage", "task.target.radius=1", "--stage", "task.target.radius=2",
                                "--stage", "task.target.radius=3"])
     assert made.exit_code == 0, made.output
-    sets = ["crl.hidden=[64,64]", "crl.repr_dim=16", "crl.batch_size=64", "crl.unroll_length=25",
+    sets = ["crl.hidden=[64,64]", "crl.repr_dim=16", "crl.batch_size=64", "crl.windows=64", "crl.unroll_length=25",
             "crl.min_replay_rows=100", "crl.max_replay_rows=2000", "crl.num_evals=8", "crl.eval_envs=32"]
     args = ["train", str(tmp_path / "ring"), "--steps", "48000", "--envs", "16", "--out", str(tmp_path / "runs"),
             "--no-videos", *[x for s in sets for x in ("--set", s)]]

@@ -33,7 +33,8 @@ DECORATIVE_ALPHA = 0.45
 GRAVITY = 9.81
 
 
-def build_scene(spec: FieldSpec) -> mjcf.RootElement:
+def build_scene(spec: FieldSpec, statics: list[dict] | None = None) -> mjcf.RootElement:
+    """The scene of `spec`; `statics` (default: `fixtures(spec)`) are its goal, walls and obstacles."""
     root = mjcf.RootElement(model=spec.name)
     _options(root, spec)
     _floor(root, spec)
@@ -41,13 +42,18 @@ def build_scene(spec: FieldSpec) -> mjcf.RootElement:
     agent_home = BUILDERS[spec.agent.kind](root, spec)
     ball_home = _ball(root, spec) if spec.ball.enabled else ()
     _target_marker(root, spec)
-    _goal(root, spec)
-    for box in geometry.walls(spec):
-        _box(root, box, "wall", spec)
-    for box in geometry.obstacles(spec):
-        _box(root, box, "obstacle", spec)
+    for attrs in fixtures(spec) if statics is None else statics:
+        root.worldbody.add("geom", **attrs)
     root.keyframe.add("key", name="home", qpos=agent_home + ball_home)
     return root
+
+
+def fixtures(spec: FieldSpec) -> list[dict]:
+    """The field's static geoms (goal, walls, obstacles) as MJCF geom attributes, in scene order.
+
+    Variants trained in one batch share one list of fixtures (fieldgen.compile.variants)."""
+    return _goal(spec) + [_box(b, "wall", spec) for b in geometry.walls(spec)] + [
+        _box(b, "obstacle", spec) for b in geometry.obstacles(spec)]
 
 
 def _options(root: mjcf.RootElement, spec: FieldSpec) -> None:
@@ -152,19 +158,19 @@ def _target_marker(root: mjcf.RootElement, spec: FieldSpec) -> None:
              contype=0, conaffinity=0, group=1)
 
 
-def _goal(root: mjcf.RootElement, spec: FieldSpec) -> None:
+def _goal(spec: FieldSpec) -> list[dict]:
     region = geometry.goal_region(spec)
     if region is None:
-        return
+        return []
     g = spec.goal
-    root.worldbody.add("geom", name="goal_region", type="box", pos=region.center, size=region.half,
-                       rgba=RGBA["goal_region"], contype=0, conaffinity=0, group=1)
+    out = [dict(name="goal_region", type="box", pos=region.center, size=region.half, rgba=RGBA["goal_region"],
+                contype=0, conaffinity=0, group=1)]
     alpha = 1.0 if g.solid else DECORATIVE_ALPHA
     for cap in geometry.goal_frame(spec):
         reachable = min(cap.start[2], cap.end[2]) - cap.radius < geometry.reach_height(spec)
         ct, ca = bits("post", spec) if (g.solid and reachable) else (0, 0)
-        root.worldbody.add("geom", name=cap.name, type="capsule", fromto=cap.start + cap.end, size=(cap.radius,),
-                           rgba=RGBA["post"][:3] + (alpha,), contype=ct, conaffinity=ca)
+        out.append(dict(name=cap.name, type="capsule", fromto=cap.start + cap.end, size=(cap.radius,),
+                        rgba=RGBA["post"][:3] + (alpha,), contype=ct, conaffinity=ca))
     if g.net:
         (cx, cy, cz), (hx, hy, hz) = region.center, region.half
         t = 0.01
@@ -174,12 +180,12 @@ def _goal(root: mjcf.RootElement, spec: FieldSpec) -> None:
             ("net_right", (cx + hx, cy, cz), (t, hy, hz)),
             ("net_top", (cx, cy, cz + hz), (hx, hy, t)),
         ):
-            root.worldbody.add("geom", name=name, type="box", pos=pos, size=size, rgba=RGBA["net"],
-                               contype=0, conaffinity=0, group=1)
+            out.append(dict(name=name, type="box", pos=pos, size=size, rgba=RGBA["net"], contype=0, conaffinity=0,
+                            group=1))
+    return out
 
 
-def _box(root: mjcf.RootElement, box: geometry.Box, role: str, spec: FieldSpec) -> None:
+def _box(box: geometry.Box, role: str, spec: FieldSpec) -> dict:
     ct, ca = bits(role, spec) if box.solid else (0, 0)
     rgba = RGBA[role][:3] + ((1.0,) if box.solid else (DECORATIVE_ALPHA,))
-    root.worldbody.add("geom", name=box.name, type="box", pos=box.center, size=box.half, rgba=rgba,
-                       contype=ct, conaffinity=ca)
+    return dict(name=box.name, type="box", pos=box.center, size=box.half, rgba=rgba, contype=ct, conaffinity=ca)
