@@ -12,7 +12,7 @@ from typer.testing import CliRunner
 
 from fieldgen import curriculum
 from fieldgen.cli import app
-from fieldgen.compile.variants import PARK_X, VariantError, compile_variants
+from fieldgen.compile.variants import PARK_DEPTH, VariantError, compile_variants
 from fieldgen.env import FieldEnv, sampling_weights
 from fieldgen.schema import bundled_fields
 
@@ -40,7 +40,7 @@ def test_variants_share_one_structure_with_absent_walls_parked(walled):
     names = [[m.geom(i).name for i in range(m.ngeom)] for m in models]
     assert names[0] == names[1] == names[2]
     wall = models[2].geom("wall_left")
-    assert wall.pos[0] > PARK_X / 2 and wall.rgba[3] == 0  # parked and invisible where walls are off
+    assert wall.pos[2] < -PARK_DEPTH / 2 and wall.rgba[3] == 0  # parked and invisible where walls are off
     assert abs(models[0].geom("wall_left").pos[0]) == pytest.approx(3.0)
     assert abs(models[1].geom("wall_left").pos[0]) == pytest.approx(2.0)
 

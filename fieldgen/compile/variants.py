@@ -3,8 +3,8 @@
 MJX batches models that differ only in array values (geom positions and sizes,
 body positions...). Variants of a curriculum differ in structure too: one has
 walls or a goalie, another not. Here every variant gets the union of all the
-variants' static geoms, in one order; a geom a variant lacks is kept, parked far
-outside the field and made invisible, so it never touches anything.
+variants' static geoms, in one order; a geom a variant lacks is kept, parked deep
+under the floor and made invisible, so it never touches anything.
 """
 
 from __future__ import annotations
@@ -14,7 +14,9 @@ import hashlib
 from fieldgen.compile.artifact import Artifact, spec_hash
 from fieldgen.schema.models import FieldSpec
 
-PARK_X = 1000.0  # metres beyond the field: no body gets there, no camera sees that far (zfar 500)
+# Metres below where the geom would stand: no body gets there, and the floor hides it. Not far away
+# sideways: the model's extent (which scales the cameras' near plane) would grow with it.
+PARK_DEPTH = 20.0
 
 
 class VariantError(Exception):
@@ -47,8 +49,8 @@ def _parked(attrs: dict) -> dict:
     out = dict(attrs, rgba=tuple(attrs["rgba"][:3]) + (0.0,))
     if "fromto" in attrs:
         x0, y0, z0, x1, y1, z1 = attrs["fromto"]
-        out["fromto"] = (x0 + PARK_X, y0, z0, x1 + PARK_X, y1, z1)
+        out["fromto"] = (x0, y0, z0 - PARK_DEPTH, x1, y1, z1 - PARK_DEPTH)
     else:
         x, y, z = attrs["pos"]
-        out["pos"] = (x + PARK_X, y, z)
+        out["pos"] = (x, y, z - PARK_DEPTH)
     return out
