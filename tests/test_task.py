@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from fieldgen.compile.task import MIN_SCALE_DISTANCE, Transition, task_fns
-from fieldgen.schema import load_spec
+from fieldgen.schema import bundled_fields, load_spec
 
 DT = 0.05
 
@@ -120,3 +120,32 @@ def test_every_term_the_schema_accepts_has_a_function(write_spec):
     reward = "".join(f"    - {{term: {n}}}\n" for n in names)
     v, _ = values(write_spec, reward, transition())
     assert set(v) == set(names) and all(np.isfinite(x) for x in v.values())
+
+
+@pytest.mark.parametrize("field,progress_weight", [("soccer_v1_shaped", 5.0), ("soccer_v2_shaped", 10.0)])
+def test_the_study_shaped_soccer_rewards(field, progress_weight):
+    """10 x ball-in-goal + upright(0.3..1) + 2 x approach + w / ||B-G|| x ball progress, term by term."""
+    spec = load_spec(bundled_fields()[field])
+    goal_y = spec.goal.distance
+    fns = task_fns(spec)
+    # The ball rolls 0.1 towards the goal, 3 from it; the standing ant closes 0.2 on the ball.
+    t = transition(ball_before=(0, goal_y - 3.1, 0.5), ball=(0, goal_y - 3.0, 0.5), agent_before=(0, 0, 0.55),
+                   agent=(0, 0.2, 0.55), target=(0, goal_y))
+    v = {name: float(fn(t)) for name, fn in fns.terms.items()}
+    assert v == pytest.approx({"ball_in_goal": 0.0, "upright": 1.0, "agent_approaches_ball": (0.2 - 0.1) / DT,
+                               "scaled_ball_progress": 0.1 / DT / 3.0}, rel=1e-4)
+    assert float(fns.reward(v)) == pytest.approx(1.0 + 2 * 0.1 / DT + progress_weight * 0.1 / DT / 3.0, rel=1e-4)
+    inside = transition(ball_before=(0, goal_y, 0.5), ball=(0, goal_y, 0.5), agent=(0, 0, 0.1), target=(0, goal_y))
+    v = {name: float(fn(inside)) for name, fn in fns.terms.items()}
+    assert v["ball_in_goal"] == 1.0 and v["upright"] == 0.0  # in the goal, the ant lying down
+    assert float(fns.reward(v)) == pytest.approx(10.0 + 2 * v["agent_approaches_ball"], rel=1e-4)
+
+
+def test_the_study_ball_dense_reward():
+    """10 x ball progress + upright(0.2..1) - 0.5 |a|^2 on ant_ball_dense."""
+    fns = task_fns(load_spec(bundled_fields()["ant_ball_dense"]))
+    t = transition(ball_before=(0, 2.0, 0.5), ball=(0, 2.05, 0.5), agent=(0, 0, 0.25), target=(0, 5),
+                   action=(0.5,) * 8)
+    v = {name: float(fn(t)) for name, fn in fns.terms.items()}
+    assert v == pytest.approx({"ball_progress": 0.05 / DT, "upright": 1.0, "control_cost": -8 * 0.25}, rel=1e-4)
+    assert float(fns.reward(v)) == pytest.approx(10 * 0.05 / DT + 1.0 - 0.5 * 2.0, rel=1e-4)
