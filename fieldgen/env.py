@@ -276,7 +276,8 @@ def _batched_model(models, names: list[str]) -> tuple[object, frozenset[int]]:
     """One mjx.Model whose leaves that differ between the variants are stacked on a leading axis,
     and the indices of those leaves."""
     systems = [mjx.put_model(m) for m in models]
-    systems = [systems[0]] + [_static_like(systems[0], s, f"{n} and {names[0]}") for s, n in zip(systems[1:], names[1:])]
+    first = systems[0]
+    systems = [first] + [_static_like(first, s, f"{n} and {names[0]}") for s, n in zip(systems[1:], names[1:])]
     columns = zip(*(jax.tree.leaves(s) for s in systems))
     leaves, varying = [], set()
     for i, column in enumerate(columns):

@@ -52,7 +52,9 @@ class Run:
 
     def judge(self) -> loop.Algorithm:
         """The algorithm evaluated on the field the run is judged on."""
-        return self.algorithms[-1] if not self.mixed else training.algorithm(self.algo).make_train(self.config, self.env)
+        if not self.mixed:
+            return self.algorithms[-1]
+        return training.algorithm(self.algo).make_train(self.config, self.env)
 
 
 def run_name(field: str, algo: str, seeds: list[int]) -> str:
@@ -68,7 +70,10 @@ def new_run(source: Path, algo: str, seeds: list[int], config, out: Path, mixed:
         try:
             c = curriculum.load(source)
             specs = c.specs()
-            envs = [fieldgen.FieldEnv(a) for a in compile_variants(specs)] if mixed else [fieldgen.make(s) for s in specs]
+            if mixed:
+                envs = [fieldgen.FieldEnv(a) for a in compile_variants(specs)]
+            else:
+                envs = [fieldgen.make(s) for s in specs]
         except (curriculum.CurriculumError, VariantError) as exc:
             raise training.RunError(str(exc)) from None
         promotion, name = c.promotion, source.name + ("-mixed" if mixed else "")

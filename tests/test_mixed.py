@@ -92,7 +92,8 @@ def test_variants_that_disagree_on_what_collides_are_refused(tmp_path):
 
 def test_mixed_needs_a_curriculum(tmp_path):
     result = runner.invoke(app, ["train", "point_nav", "--mixed", "--out", str(tmp_path)])
-    assert result.exit_code == 1 and "--mixed trains the stages of a curriculum folder" in " ".join(result.output.split())
+    assert result.exit_code == 1
+    assert "--mixed trains the stages of a curriculum folder" in " ".join(result.output.split())
 
 
 @pytest.mark.slow
