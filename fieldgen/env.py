@@ -46,10 +46,10 @@ def sampling_weights(success: jax.Array) -> jax.Array:
 class Variant:
     """One field's episode rules: how episodes start, how a step scores, when an episode ends."""
 
-    def __init__(self, spec, mj_model, layout):
+    def __init__(self, spec, mj_model, layout, episode_length: int | None = None):
         self.spec = spec
         self.task = task_fns(spec)
-        self.episode_length = spec.episode.length
+        self.episode_length = episode_length or spec.episode.length
         self.home_qpos = jnp.asarray(mj_model.key("home").qpos)
         self.data0 = mjx.make_data(mj_model).replace(qpos=self.home_qpos)
         self.layout = layout
@@ -98,14 +98,14 @@ class Variant:
                         for name in names})
         return metrics, self.task.reward(metrics)
 
-    def ended(self, data: mjx.Data, steps: jax.Array, episode_length: int) -> tuple[jax.Array, jax.Array]:
+    def ended(self, data: mjx.Data, steps: jax.Array) -> tuple[jax.Array, jax.Array]:
         """(time ran out, the agent fell)."""
         fell = jnp.zeros((), bool)
         if self.is_ant and self.spec.episode.terminate_unhealthy:
             lo, hi = self.spec.agent.healthy_z
             z = data.qpos[self.layout.agent_qpos[2]]
             fell = (z < lo) | (z > hi)
-        return steps >= episode_length, fell
+        return steps >= self.episode_length, fell
 
 
 class FieldEnv:
@@ -125,12 +125,12 @@ class FieldEnv:
         models = [a.model() for a in artifacts]
         self.mj_model = models[-1]
         self.layout = observation_layout(spec, self.mj_model)
-        self.variants = [Variant(a.spec, m, self.layout) for a, m in zip(artifacts, models)]
+        self.variants = [Variant(a.spec, m, self.layout, episode_length) for a, m in zip(artifacts, models)]
         _check_compatible(self.variants, models, self.layout)
         self.task = self.variants[-1].task
         self.sys, self._varying = _batched_model(models, [a.spec.name for a in artifacts])
-        self.episode_length = episode_length or max(v.episode_length for v in self.variants)
-        self._lengths = jnp.asarray([episode_length or v.episode_length for v in self.variants])
+        self.episode_length = max(v.episode_length for v in self.variants)
+        self._ball_radii = jnp.asarray([v.spec.ball.radius for v in self.variants])
         self.auto_reset = auto_reset
         self.n_substeps = spec.episode.substeps
         self.dt = spec.episode.control_dt
@@ -211,7 +211,7 @@ class FieldEnv:
                        self._agent_pos(data), goal, action, self.dt)
         steps = state.info["steps"] + 1
         metrics, reward, (truncated, fell) = self._each(
-            variant, lambda v: (*v.score(t, self.terms), v.ended(data, steps, self._lengths[variant])))
+            variant, lambda v: (*v.score(t, self.terms), v.ended(data, steps)))
         done = truncated | fell
         info = dict(state.info, steps=steps, truncation=(truncated & ~fell).astype(jnp.float32))
         obs = self._obs(data, goal)
@@ -243,8 +243,7 @@ class FieldEnv:
         p = data.qpos[self._ball_qpos]
         if p.shape[0] == 3:
             return p
-        radius = jnp.asarray([v.spec.ball.radius for v in self.variants])[variant]
-        return jnp.append(p, radius)
+        return jnp.append(p, self._ball_radii[variant])
 
     def _agent_pos(self, data: mjx.Data) -> jax.Array:
         p = data.qpos[self._agent_qpos[:3]] if self._is_ant else data.qpos[self._agent_qpos[:2]]
