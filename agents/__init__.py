@@ -2,7 +2,9 @@
 
 The contract (README, "Make your own field"): brax-style `reset(rng)` and
 `step(state, action)`; `obs = concat(state, goal)`; `observation_size`,
-`action_size`, `state_dim`, `goal_indices`, `episode_length`; `State.metrics`
-holds `success` and every reward term. Nothing here imports fieldgen's
+`action_size`, `state_dim`, `goal_indices`, `episode_length`; `observation_names`
+and `action_names` (trainers that split a body among agents pick by name);
+`goal_reached(state, goal)` (the success predicate, for hindsight relabelling);
+`State.metrics` holds `success` and every reward term. Nothing here imports fieldgen's
 internals, and fieldgen/compile never imports this package.
 """

@@ -29,6 +29,20 @@ def init(capacity: int, num_envs: int, example: dict) -> Buffer:
     return Buffer(data, jnp.zeros((), jnp.int32), jnp.zeros((), jnp.int32))
 
 
+def iterations(config) -> tuple[int, int]:
+    """(iterations that prefill min_replay_rows, training iterations per evaluation) of an off-policy run."""
+    per_iter = config.num_envs * config.unroll_length
+    prefill = -(-config.min_replay_rows // config.unroll_length)
+    return prefill, (config.total_steps - prefill * per_iter) // per_iter // config.num_evals
+
+
+def gradient_steps(config, episode_length: int) -> tuple[int, int]:
+    """(episode-long windows sampled, gradient steps) per iteration: `config.windows` windows, or one
+    per environment when it is 0, cut into batches of `config.batch_size` transitions."""
+    windows = config.windows or config.num_envs
+    return windows, windows * episode_length // config.batch_size
+
+
 def insert(buf: Buffer, rows: dict) -> Buffer:
     """Append rows ([T, num_envs, ...] each), overwriting the oldest once full."""
     steps = next(iter(rows.values())).shape[0]
@@ -77,11 +91,14 @@ def future_offsets(key: jax.Array, episode: jax.Array, stored: jax.Array, gamma:
 
 def hindsight_batch(buf: Buffer, key: jax.Array, windows: int, length: int, gamma: float,
                     goal_indices: jax.Array) -> dict:
-    """`windows` trajectory windows, flattened to transitions with goals from their own future.
+    """`windows` trajectory windows, flattened to transitions that know their own future.
 
     Windows come from distinct environments while there are enough (every environment once
     when `windows` equals their number, as the reference samples), then with repeats.
-    Returns state, action, goal and weight (0 where a step has no future in its episode).
+    Returns every stored field per step, and `future_goal` (the goal entries of a later state
+    of the same episode, P(k steps later) proportional to gamma^k), `next_state` (the state
+    one step later), and `has_future`: whether the episode goes on within the window, the
+    condition for both (false at an episode's last step).
     """
     num_envs = next(iter(buf.data.values())).shape[1]
     k_env, k_win = jax.random.split(key)
@@ -91,10 +108,12 @@ def hindsight_batch(buf: Buffer, key: jax.Array, windows: int, length: int, gamm
     def one(k, env):
         k_win, k_fut = jax.random.split(k)
         rows, stored = window(buf, k_win, length, env)
-        offsets, valid = future_offsets(k_fut, rows["episode"], stored, gamma)
-        future = rows["state"][jnp.arange(length) + offsets]
-        return {"state": rows["state"], "action": rows["action"], "goal": future[:, goal_indices],
-                "weight": valid.astype(jnp.float32)}
+        offsets, has_future = future_offsets(k_fut, rows["episode"], stored, gamma)
+        steps = jnp.arange(length)
+        future = rows["state"][steps + offsets]
+        later = jnp.minimum(steps + 1, length - 1)
+        return {**rows, "future_goal": future[:, goal_indices], "has_future": has_future,
+                "next_state": rows["state"][later]}
 
     batch = jax.vmap(one)(jax.random.split(k_win, windows), envs)
     return jax.tree.map(lambda x: x.reshape((-1,) + x.shape[2:]), batch)

@@ -6,12 +6,16 @@ is a tanh-Gaussian that maximises the energy towards its goal, with an entropy
 coefficient tuned to a target entropy. Defaults follow the reference
 implementation (JaxGCRL) so results compare.
 
-`make_train(config, env)` returns the run as pure functions (agents.loop.Algorithm).
+`make_train(config, env, team)` returns the run as pure functions (agents.loop.Algorithm).
+With a team of several agents (agents.team, used by agents.icrl) every network, loss
+and entropy coefficient gains a leading agent axis and is vmapped over it; the default
+team is one agent that sees and drives everything.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 import flax.struct
 import jax
@@ -20,8 +24,9 @@ import optax
 
 from agents import buffer as replay
 from agents.contrastive import energy, infonce, logsumexp_penalty, weighted_mean
-from agents.loop import Algorithm, evaluate_policy
-from agents.networks import MLP, Actor, sample_tanh_gaussian
+from agents.loop import Algorithm
+from agents.networks import MLP, Actor, PerAgent, sample_tanh_gaussian
+from agents.team import Team, whole
 
 
 @dataclasses.dataclass(frozen=True)
@@ -65,43 +70,36 @@ class TrainState:
     grad_steps: jax.Array
 
 
-def iterations(config: CRLConfig) -> tuple[int, int]:
-    """(prefill iterations, training iterations per evaluation) of a run."""
-    per_iter = config.num_envs * config.unroll_length
-    prefill = -(-config.min_replay_rows // config.unroll_length)
-    return prefill, (config.total_steps - prefill * per_iter) // per_iter // config.num_evals
-
-
-def gradient_steps(config: CRLConfig, episode_length: int) -> tuple[int, int]:
-    """(windows sampled, gradient steps) per iteration."""
-    windows = config.windows or config.num_envs
-    return windows, windows * episode_length // config.batch_size
-
-
-def make_train(config: CRLConfig, env) -> Algorithm:
+def make_train(config: CRLConfig, env, team: Team | None = None) -> Algorithm:
+    """CRL for one agent that sees and drives everything, or for a team of independent agents (ICRL):
+    each with its own actor, critic and entropy coefficient, all vmapped over a leading agent axis."""
     c = config
-    prefill_iters, iters_per_eval = iterations(config)
+    team = team or whole(env)
+    prefill_iters, iters_per_eval = replay.iterations(config)
     if iters_per_eval < 1:
         raise ValueError(f"total_steps {c.total_steps:,} leaves no training iteration between evaluations")
     state_dim, action_size = env.state_dim, env.action_size
     goal_indices = jnp.asarray(env.goal_indices)
     window = env.episode_length
-    windows, updates = gradient_steps(config, window)
-    actor = Actor(c.hidden, action_size, c.layer_norm)
-    sa_encoder = MLP(c.hidden, c.repr_dim, c.layer_norm)
-    g_encoder = MLP(c.hidden, c.repr_dim, c.layer_norm)
+    windows, updates = replay.gradient_steps(config, window)
+    shared = getattr(c, "share_parameters", False)
+    seen, own, goal_size = team.observed.shape[1], team.actions.shape[1], len(env.goal_indices)
+    actor = PerAgent(Actor(c.hidden, own, c.layer_norm), team.size, shared)
+    sa_encoder = PerAgent(MLP(c.hidden, c.repr_dim, c.layer_norm), team.size, shared)
+    g_encoder = PerAgent(MLP(c.hidden, c.repr_dim, c.layer_norm), team.size, shared)
     actor_tx, critic_tx, alpha_tx = optax.adam(c.actor_lr), optax.adam(c.critic_lr), optax.adam(c.alpha_lr)
-    target_entropy = c.target_entropy_per_action * action_size
+    target_entropy = c.target_entropy_per_action * own
+    energies = jax.vmap(functools.partial(energy, c.energy))
 
     def init(key: jax.Array) -> TrainState:
         k_actor, k_sa, k_g, k_env, key = jax.random.split(key, 5)
-        actor_params = actor.init(k_actor, jnp.zeros((1, env.observation_size)))
+        actor_params = actor.init(k_actor, jnp.zeros((1, seen + goal_size)))
         critic_params = {
-            "sa": sa_encoder.init(k_sa, jnp.zeros((1, state_dim + action_size))),
-            "g": g_encoder.init(k_g, jnp.zeros((1, len(env.goal_indices)))),
-            "log_temperature": jnp.zeros(()),
+            "sa": sa_encoder.init(k_sa, jnp.zeros((1, seen + own))),
+            "g": g_encoder.init(k_g, jnp.zeros((1, goal_size))),
+            "log_temperature": jnp.zeros(team.size),
         }
-        log_alpha = jnp.zeros(())
+        log_alpha = jnp.zeros(team.size)
         env_state = jax.vmap(env.reset)(jax.random.split(k_env, c.num_envs))
         example = {"state": jnp.zeros(state_dim), "action": jnp.zeros(action_size),
                    "episode": jnp.zeros((), jnp.int32)}
@@ -110,12 +108,17 @@ def make_train(config: CRLConfig, env) -> Algorithm:
                           replay.init(c.max_replay_rows, c.num_envs, example), key,
                           jnp.zeros((), jnp.int32), jnp.zeros((), jnp.int32))
 
+    def agent_obs(state, goal):
+        mine, goals = team.observe(state, goal)
+        return jnp.concatenate([mine, goals], -1), mine, goals
+
     def policy(actor_params, obs, key=None):
         """A sampled action, or the mean action when key is None."""
-        mean, log_std = actor.apply(actor_params, obs)
+        agent_input, _, _ = agent_obs(obs[:, :state_dim], obs[:, state_dim:])
+        mean, log_std = actor.apply(actor_params, agent_input)
         if key is None:
-            return jnp.tanh(mean)
-        return sample_tanh_gaussian(key, mean, log_std)[0]
+            return team.joint_action(jnp.tanh(mean))
+        return team.joint_action(sample_tanh_gaussian(key, mean, log_std)[0])
 
     def collect(ts: TrainState) -> tuple[TrainState, dict]:
         """unroll_length steps of every environment, appended to the buffer; returns step statistics."""
@@ -134,30 +137,37 @@ def make_train(config: CRLConfig, env) -> Algorithm:
                         env_steps=ts.env_steps + c.num_envs * c.unroll_length)
         return ts, jax.tree.map(jnp.mean, stats)
 
+    def logits(critic_params, mine, actions, goals):
+        phi = sa_encoder.apply(critic_params["sa"], jnp.concatenate([mine, actions], -1))
+        psi = g_encoder.apply(critic_params["g"], goals)
+        return energies(phi, psi, critic_params["log_temperature"])  # [agents, batch, batch]
+
     def critic_loss(critic_params, batch):
-        phi = sa_encoder.apply(critic_params["sa"], jnp.concatenate([batch["state"], batch["action"]], -1))
-        psi = g_encoder.apply(critic_params["g"], batch["goal"])
-        logits = energy(c.energy, phi, psi, critic_params["log_temperature"])
+        """Each agent's InfoNCE on its own view and actions, summed: the gradients stay per agent."""
+        _, mine, goals = agent_obs(batch["state"], batch["goal"])
+        energy_ = logits(critic_params, mine, team.own_actions(batch["action"]), goals)
         w = batch["weight"]
-        contrastive = infonce(c.contrastive_loss, logits, w)
-        loss = contrastive + c.logsumexp_penalty * logsumexp_penalty(logits, w)
-        accuracy = weighted_mean((jnp.argmax(logits, axis=1) == jnp.arange(len(w))).astype(jnp.float32), w)
-        return loss, {"critic_loss": loss, "contrastive_loss": contrastive, "critic_accuracy": accuracy}
+        contrastive = jax.vmap(lambda x: infonce(c.contrastive_loss, x, w))(energy_)
+        penalty = jax.vmap(lambda x: logsumexp_penalty(x, w))(energy_)
+        diagonal = jnp.argmax(energy_, axis=2) == jnp.arange(len(w))
+        accuracy = jax.vmap(lambda x: weighted_mean(x.astype(jnp.float32), w))(diagonal)
+        loss = contrastive + c.logsumexp_penalty * penalty
+        return jnp.sum(loss), {"critic_loss": jnp.mean(loss), "contrastive_loss": jnp.mean(contrastive),
+                               "critic_accuracy": jnp.mean(accuracy)}
 
     def actor_loss(actor_params, critic_params, log_alpha, batch, key):
-        obs = jnp.concatenate([batch["state"], batch["goal"]], -1)
-        mean, log_std = actor.apply(actor_params, obs)
-        action, log_prob = sample_tanh_gaussian(key, mean, log_std)
-        phi = sa_encoder.apply(critic_params["sa"], jnp.concatenate([batch["state"], action], -1))
-        psi = g_encoder.apply(critic_params["g"], batch["goal"])
-        q = jnp.diagonal(energy(c.energy, phi, psi, critic_params["log_temperature"]))
-        alpha = jnp.exp(log_alpha)
-        loss = weighted_mean(alpha * log_prob - q, batch["weight"])
-        return loss, (log_prob, {"actor_loss": loss, "entropy": -jnp.mean(log_prob)})
+        agent_input, mine, goals = agent_obs(batch["state"], batch["goal"])
+        mean, log_std = actor.apply(actor_params, agent_input)
+        action, log_prob = sample_tanh_gaussian(key, mean, log_std)  # [agents, batch, own], [agents, batch]
+        q = jnp.diagonal(logits(critic_params, mine, action, goals), axis1=1, axis2=2)
+        alpha = jnp.exp(log_alpha)[:, None]
+        loss = jax.vmap(lambda x: weighted_mean(x, batch["weight"]))(alpha * log_prob - q)
+        return jnp.sum(loss), (log_prob, {"actor_loss": jnp.mean(loss), "entropy": -jnp.mean(log_prob)})
 
     def alpha_loss(log_alpha, log_prob, weight):
-        """alpha * (entropy - target): alpha grows while the policy is below its target entropy."""
-        return weighted_mean(jnp.exp(log_alpha) * jax.lax.stop_gradient(-log_prob - target_entropy), weight)
+        """alpha * (entropy - target) per agent: alpha grows while a policy is below its target entropy."""
+        gap = jax.lax.stop_gradient(-log_prob - target_entropy)
+        return jnp.sum(jax.vmap(lambda a, g: weighted_mean(jnp.exp(a) * g, weight))(log_alpha, gap))
 
     def update(ts: TrainState, batch: dict, key: jax.Array) -> tuple[TrainState, dict]:
         (_, (log_prob, a_metrics)), a_grads = jax.value_and_grad(actor_loss, has_aux=True)(
@@ -172,12 +182,14 @@ def make_train(config: CRLConfig, env) -> Algorithm:
         critic_params = optax.apply_updates(ts.critic, updates)
         ts = ts.replace(actor=actor_params, critic=critic_params, log_alpha=log_alpha, actor_opt=actor_opt,
                         critic_opt=critic_opt, alpha_opt=alpha_opt, grad_steps=ts.grad_steps + 1)
-        return ts, {**a_metrics, **c_metrics, "alpha": jnp.exp(log_alpha)}
+        return ts, {**a_metrics, **c_metrics, "alpha": jnp.mean(jnp.exp(log_alpha))}
 
     def update_epoch(ts: TrainState) -> tuple[TrainState, dict]:
         """Windows from the buffer, hindsight goals, then one pass of shuffled minibatch updates."""
         key, k_batch, k_perm, k_upd = jax.random.split(ts.key, 4)
-        batch = replay.hindsight_batch(ts.buffer, k_batch, windows, window, c.discount, goal_indices)
+        sampled = replay.hindsight_batch(ts.buffer, k_batch, windows, window, c.discount, goal_indices)
+        batch = {"state": sampled["state"], "action": sampled["action"], "goal": sampled["future_goal"],
+                 "weight": sampled["has_future"].astype(jnp.float32)}
         perm = jax.random.permutation(k_perm, windows * window)[:updates * c.batch_size]
         batch = jax.tree.map(lambda x: x[perm].reshape((updates, c.batch_size) + x.shape[1:]), batch)
 
@@ -203,7 +215,4 @@ def make_train(config: CRLConfig, env) -> Algorithm:
     def act(ts: TrainState, obs: jax.Array) -> jax.Array:
         return policy(ts.actor, obs)
 
-    def evaluate(ts: TrainState, key: jax.Array) -> dict:
-        return evaluate_policy(env, lambda obs: act(ts, obs), key, c.eval_envs)
-
-    return Algorithm(config, env, start, chunk, evaluate, act, {"env_state": 0, "buffer": 1})
+    return Algorithm(config, env, start, chunk, act, {"env_state": 0, "buffer": 1})

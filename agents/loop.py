@@ -29,7 +29,6 @@ class Algorithm:
     env: object
     start: Callable  # key -> state, ready for the first chunk (a CRL buffer is prefilled)
     chunk: Callable  # state -> (state, mean training metrics): the iterations between two evaluations
-    evaluate: Callable  # (state, key) -> metrics
     act: Callable  # (state, obs) -> deterministic action
     env_axes: dict  # state field -> the axis of its leaves that runs over environments (sharded)
 
@@ -73,6 +72,11 @@ def evaluate_policy(env, act: Callable, key: jax.Array, n_envs: int) -> dict:
     return metrics
 
 
+def evaluate(algo: Algorithm, state, key: jax.Array) -> dict:
+    """Every algorithm is judged here, by the environment's own success metric (`evaluate_policy`)."""
+    return evaluate_policy(algo.env, functools.partial(algo.act, state), key, algo.config.eval_envs)
+
+
 def adapt(algo: Algorithm, state, metrics: dict) -> tuple[object, dict]:
     """Let an environment of several variants re-weight them from an evaluation's metrics
     (`env.adapt(env_state, metrics) -> (env_state, report)`); others pass through."""
@@ -92,7 +96,7 @@ def pure_train(algo: Algorithm, num_evals: int) -> Callable:
     def train(key):
         def interval(state, index):
             state, metrics = algo.chunk(state)
-            metrics.update(algo.evaluate(state, eval_key(key, index)))
+            metrics.update(evaluate(algo, state, eval_key(key, index)))
             state, report = adapt(algo, state, metrics)
             return state, {**metrics, **report}
 
@@ -152,12 +156,12 @@ def run_staged(algos: Sequence[Algorithm], seeds: Sequence[int], num_evals: int,
             placement = sharding.state_shardings(shapes, mesh, algo.env_axes, offset=1)
             compiled[k] = (placement, jax.jit(jax.vmap(algo.start), out_shardings=placement),
                            jax.jit(jax.vmap(algo.chunk), in_shardings=(placement,), out_shardings=(placement, None)),
-                           jax.jit(jax.vmap(algo.evaluate)),
+                           jax.jit(jax.vmap(functools.partial(evaluate, algo))),
                            jax.jit(jax.vmap(functools.partial(adapt, algo)), in_shardings=(placement, None),
                                    out_shardings=(placement, None)))
         return compiled[k]
 
-    def evaluate(k: int, state, index: int) -> dict:
+    def judge(k: int, state, index: int) -> dict:
         return jax.device_get(programs(k)[3](state, jax.vmap(eval_key, in_axes=(0, None))(keys, index)))
 
     history: list[dict] = []
@@ -174,14 +178,14 @@ def run_staged(algos: Sequence[Algorithm], seeds: Sequence[int], num_evals: int,
             state, metrics = programs(stage)[2](state)
             metrics = jax.device_get(metrics)  # waits for the chunk
         seconds = time.perf_counter() - began
-        metrics.update(evaluate(stage, state, index))
+        metrics.update(judge(stage, state, index))
         count = getattr(algos[stage].env, "variant_count", 1)
         if count > 1:  # a mixed run: judged on its last variant, and re-weighted
             metrics["last_stage_success_any"] = metrics[f"variant_{count:02d}_success_any"]
             state, report = programs(stage)[4](state, metrics)
             metrics.update(jax.device_get(report))
         if staged and stage != last:
-            metrics["last_stage_success_any"] = evaluate(last, state, index)["success_any"]
+            metrics["last_stage_success_any"] = judge(last, state, index)["success_any"]
         elif staged:
             metrics["last_stage_success_any"] = metrics["success_any"]
         steps = int(jax.device_get(state.env_steps)[0])

@@ -48,6 +48,22 @@ class Actor(nn.Module):
         return mean, LOG_STD_MIN + 0.5 * (LOG_STD_MAX - LOG_STD_MIN) * (jnp.tanh(raw) + 1.0)
 
 
+class PerAgent:
+    """A network per agent, vmapped over a leading agent axis, or one shared by all agents."""
+
+    def __init__(self, module: nn.Module, agents: int, shared: bool = False):
+        self.module, self.agents, self.shared = module, agents, shared
+
+    def init(self, key: jax.Array, example: jax.Array) -> dict:
+        if self.shared:
+            return self.module.init(key, example)
+        return jax.vmap(self.module.init, in_axes=(0, None))(jax.random.split(key, self.agents), example)
+
+    def apply(self, params: dict, x: jax.Array):
+        """x: [agents, batch, features] -> the module's output per agent."""
+        return jax.vmap(self.module.apply, in_axes=(None if self.shared else 0, 0))(params, x)
+
+
 def sample_tanh_gaussian(key: jax.Array, mean: jax.Array, log_std: jax.Array) -> tuple[jax.Array, jax.Array]:
     """A squashed sample and its log-probability (with the tanh change of variables)."""
     std = jnp.exp(log_std)

@@ -15,7 +15,7 @@ import jax
 import jax.numpy as jnp
 import optax
 
-from agents.loop import Algorithm, evaluate_policy
+from agents.loop import Algorithm
 from agents.networks import MLP
 
 
@@ -173,7 +173,4 @@ def make_train(config: PPOConfig, env) -> Algorithm:
         ts, metrics = jax.lax.scan(lambda t, _: iteration(t), ts, None, length=iters_per_eval)
         return ts, jax.tree.map(jnp.mean, metrics)
 
-    def evaluate(ts: TrainState, key: jax.Array) -> dict:
-        return evaluate_policy(env, lambda obs: act(ts, obs), key, c.eval_envs)
-
-    return Algorithm(config, env, init, chunk, evaluate, act, {"env_state": 0})
+    return Algorithm(config, env, init, chunk, act, {"env_state": 0})

@@ -282,7 +282,7 @@ def bench(
 def train(
     spec: Annotated[Optional[str], typer.Argument(
         help="a YAML file, bundled field name or build folder (omit with --resume)")] = None,
-    algo: Annotated[str, typer.Option(help="training algorithm: crl or ppo")] = "crl",
+    algo: Annotated[str, typer.Option(help="training algorithm: crl, icrl, ppo, sac or td3")] = "crl",
     steps: Annotated[Optional[int], typer.Option(help="total env steps")] = None,
     envs: Annotated[Optional[int], typer.Option(help="parallel environments")] = None,
     seed: Annotated[int, typer.Option(help="random seed; names the run folder")] = 0,
@@ -330,6 +330,56 @@ def train(
         raise typer.Exit(130) from None
 
 
+@app.command()
+def compare(
+    spec: Annotated[str, typer.Argument(help="a YAML file, bundled field name or build folder")],
+    algos: Annotated[str, typer.Option(help="comma-separated algorithms: crl, icrl, ppo, sac, td3")] = "crl,ppo",
+    steps: Annotated[Optional[int], typer.Option(help="total env steps of each run")] = None,
+    envs: Annotated[Optional[int], typer.Option(help="parallel environments of each run")] = None,
+    seeds: Annotated[int, typer.Option(help="seeds per algorithm (0, 1, ...), vmapped in one run")] = 1,
+    sets: Annotated[Optional[list[str]], typer.Option("--set", help="override a config key: sac.her=0.8")] = None,
+    config: Annotated[Optional[Path], typer.Option(help="YAML file: {crl: {...}, sac: {...}}")] = None,
+    runs: Annotated[Optional[Path], typer.Option("--out", help="folder of the runs and the plot "
+                                                               "(default runs/compare-<field>)")] = None,
+    videos: Annotated[bool, typer.Option(help="write each run's videos")] = False,
+    prepare: Annotated[bool, typer.Option(help="write the run folders and stop (train them with "
+                                                "fieldgen train --resume, then compare again to plot)")] = False,
+) -> None:
+    """Train several algorithms on one field and plot success against env steps and wall-clock time.
+
+    Runs train one after another (the seeds of each at once); rerunning the same comparison
+    resumes unfinished runs and redraws compare.png and compare.json.
+
+    Example: fieldgen compare point_nav --algos crl,icrl,sac --steps 40000 --envs 16 --seeds 2
+    """
+    from fieldgen import compare as comparing
+    from fieldgen import runner, training
+
+    if seeds < 1:
+        _fail(f"--seeds {seeds}: compare at least one seed")
+    source = Path(spec) if Path(spec).is_dir() else _spec_path(spec)
+    names = [a.strip() for a in algos.split(",") if a.strip()]
+    try:
+        folder, todo = comparing.runs(source, names, list(range(seeds)), runs, config, sets or [],
+                                      total_steps=steps, num_envs=envs)
+    except (SpecError, training.RunError) as exc:
+        _fail(str(exc))
+    if prepare:
+        out.print(f"prepared {len(todo)} runs in {folder}; train each with fieldgen train --resume RUN, "
+                  "then run this comparison again to plot")
+        return
+    try:
+        for run in todo:
+            if run.finished:
+                out.print(f"{run.folder} is already complete ({run.rows[-1]['env_steps']:,} env steps)")
+                continue
+            out.print(f"[bold]{run.algo}[/] -> {run.folder}")
+            runner.train(run, out, videos)
+    except KeyboardInterrupt:
+        raise typer.Exit(130) from None
+    comparing.report(todo, folder, out)
+
+
 @app.command("eval")
 def evaluate(
     run_dir: Annotated[Path, typer.Argument(help="a run folder written by fieldgen train")],
@@ -343,6 +393,7 @@ def evaluate(
     Example: fieldgen eval runs/point_nav-crl-0 --episodes 256
     """
     import dataclasses
+    import functools
 
     import jax
 
@@ -361,7 +412,8 @@ def evaluate(
         _fail(f"{run_dir} has not started training yet; start it with: fieldgen train --resume {run_dir}")
     algo = dataclasses.replace(run, config=dataclasses.replace(run.config, eval_envs=episodes)).judge()
     key = jax.random.PRNGKey(seed)
-    result = jax.device_get(jax.jit(jax.vmap(algo.evaluate, in_axes=(0, None)))(run.state, key))
+    judged = jax.vmap(functools.partial(loop.evaluate, algo), in_axes=(0, None))
+    result = jax.device_get(jax.jit(judged)(run.state, key))
     steps = int(jax.device_get(run.state.env_steps)[0])
     table = Table("seed", "success_any", "time_at_goal", "return",
                   title=f"{run_dir} at {steps:,} env steps, {episodes} episodes per seed")

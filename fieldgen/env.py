@@ -138,6 +138,8 @@ class FieldEnv:
         self.action_size = int(self.mj_model.nu)
         self.state_dim = self.layout.state_dim
         self.goal_indices = np.array(self.layout.goal_indices)
+        self.observation_names = self.layout.names
+        self.action_names = tuple(self.mj_model.actuator(i).name for i in range(self.mj_model.nu))  # = joint names
         self.terms = tuple(dict.fromkeys(n for v in self.variants for n in v.task.terms))
         self.metric_names = ("success", *self.terms)
         self._agent_qpos = jnp.asarray(self.layout.agent_qpos)
@@ -229,6 +231,17 @@ class FieldEnv:
             info.update(rng=rng, goal=goal, steps=jnp.where(done, 0, steps),
                         episode=state.info["episode"] + done.astype(jnp.int32))
         return State(data, obs, reward, done.astype(jnp.float32), metrics, info)
+
+    def goal_reached(self, state: jax.Array, goal: jax.Array) -> jax.Array:
+        """The field's success predicate (0/1) of an observation's state part and any goal: what
+        hindsight relabelling scores a stored state against a goal taken from its future."""
+        agent = state[:3] if self._is_ant else jnp.append(state[:2], self._agent_z)
+        ball = jnp.zeros(3)
+        if self.spec.ball.enabled:
+            start, stop = self.layout.slices["ball_pos"]
+            ball = state[start:stop] if stop - start == 3 else jnp.append(state[start:stop], self._ball_radii[-1])
+        t = Transition(ball, ball, agent, agent, goal, jnp.zeros(self.action_size), self.dt)
+        return self.task.success(t)
 
     # -- views -------------------------------------------------------------
 

@@ -38,6 +38,10 @@ class Run:
     mixed: bool = False  # a curriculum trained all at once: every environment carries its own stage
 
     @property
+    def finished(self) -> bool:
+        return bool(self.rows) and self.rows[-1]["eval"] >= self.config.num_evals
+
+    @property
     def env(self):
         """The field a run is judged on: its only one, or a curriculum's last stage."""
         return self.envs[-1]
@@ -99,8 +103,9 @@ def new_run(source: Path, algo: str, seeds: list[int], config, out: Path, mixed:
     return Run(folder, algo, envs, config, seeds, [], promotion, mixed=mixed)
 
 
-def open_run(folder: Path) -> Run:
-    """A run folder with its fields loaded from the run's own copies and its last checkpoint."""
+def open_run(folder: Path, load_state: bool = True) -> Run:
+    """A run folder with its fields loaded from the run's own copies and (with load_state) its last
+    checkpoint; without, the run's record and metrics alone, enough to report on a finished run."""
     record = training.read_run(folder)
     envs = []
     for sub in record.get("fields", [FIELD]):
@@ -116,8 +121,8 @@ def open_run(folder: Path) -> Run:
     rows = training.read_metrics(folder)
     run = Run(folder, record["algo"], envs, config, seeds, rows, loop.Promotion(**record.get("promotion", {})),
               mixed=record.get("mixed", False))
-    if not (folder / training.CHECKPOINT).exists() and not rows:
-        return run  # set up by `fieldgen train --prepare`, never started
+    if not load_state or not (folder / training.CHECKPOINT).exists() and not rows:
+        return run  # only reported on, or set up by `fieldgen train --prepare` and never started
     if rows and not run.mixed:
         run.stage = rows[-1].get("promoted_to", rows[-1].get("stage", 0))
     keys = jnp.stack([jax.random.PRNGKey(s) for s in seeds])
@@ -134,12 +139,12 @@ def open_run(folder: Path) -> Run:
 def train(run: Run, console: Console, videos: bool = True) -> None:
     """Train until the run's last evaluation; Ctrl-C leaves the last checkpoint intact."""
     config, env = run.config, run.env
-    if run.state is not None and run.rows and run.rows[-1]["eval"] >= config.num_evals:
+    if run.state is not None and run.finished:
         console.print(f"{run.folder} is already complete ({run.rows[-1]['env_steps']:,} env steps)")
         return
     algos = run.algorithms
     recorders: dict[int, training.EpisodeRecorder] = {}
-    started = time.perf_counter()
+    started = time.perf_counter() - (run.rows[-1].get("wall_seconds", 0.0) if run.rows else 0.0)  # over resumes
     columns = (TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.completed:,.0f} steps"),
                TextColumn("{task.fields[rate]}"), TextColumn("{task.fields[stats]}"), TimeElapsedColumn())
     with Progress(*columns, console=console, transient=False) as bar:

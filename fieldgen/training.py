@@ -24,7 +24,8 @@ import yaml
 
 from fieldgen.compile.artifact import write_atomic
 
-ALGOS = {"crl": "CRLConfig", "ppo": "PPOConfig"}  # agents.<name> module -> its config class
+ALGOS = {"crl": "CRLConfig", "icrl": "ICRLConfig", "ppo": "PPOConfig", "sac": "SACConfig",
+         "td3": "TD3Config"}  # agents.<name> module -> its config class
 RUN, METRICS, CSV, CHECKPOINT, PLOT = "run.json", "metrics.jsonl", "metrics.csv", "checkpoint.msgpack", "success.png"
 VIDEOS = "videos"
 
@@ -46,8 +47,11 @@ def config_class(algo: str):
     return getattr(algorithm(algo), ALGOS[algo])
 
 
-def make_config(algo: str, file: Path | None = None, sets: list[str] = (), **fixed):
-    """Defaults < config file ({algo: {key: value}}) < --set algo.key=value < explicit options."""
+def make_config(algo: str, file: Path | None = None, sets: list[str] = (), others: tuple[str, ...] = (),
+                **fixed):
+    """Defaults < config file ({algo: {key: value}}) < --set algo.key=value < explicit options.
+
+    Sections and --set items of the algorithms in `others` (those compared beside this one) are skipped."""
     cls = config_class(algo)
     values: dict = {}
     if file is not None:
@@ -55,13 +59,17 @@ def make_config(algo: str, file: Path | None = None, sets: list[str] = (), **fix
             loaded = yaml.safe_load(file.read_text()) or {}
         except (OSError, yaml.YAMLError) as exc:
             raise RunError(f"cannot read config file {file}: {exc}") from None
-        if not isinstance(loaded, dict) or set(loaded) - {algo}:
-            raise RunError(f"{file}: a config file is a mapping with one section, '{algo}:', of config keys")
+        if not isinstance(loaded, dict) or set(loaded) - {algo, *others}:
+            sections = ", ".join(f"'{a}:'" for a in (algo, *others))
+            what = f"sections {sections}" if others else f"one section, {sections},"
+            raise RunError(f"{file}: a config file is a mapping with {what} of config keys")
         for key, value in (loaded.get(algo) or {}).items():
             values[key] = _cast(cls, key, value, f"{file}: {algo}.{key}")
     for item in sets:
         name, sep, raw = item.partition("=")
         section, dot, key = name.partition(".")
+        if section in others:
+            continue
         if not sep or not dot or section != algo:
             raise RunError(f"--set {item!r}: write {algo}.KEY=VALUE, e.g. {algo}.repr_dim=128")
         values[key] = _cast(cls, key, yaml.safe_load(raw), f"--set {item}")
@@ -93,11 +101,16 @@ def check_config(config, env, devices: int = 1) -> None:
     if config.num_envs % devices:
         raise RunError(f"num_envs {config.num_envs} does not split evenly over the {devices} local devices; "
                        f"use a multiple of {devices}")
+    from agents.crl import CRLConfig
+    from agents.sac import OffPolicyConfig
+
     per_iter = config.num_envs * config.unroll_length
-    if hasattr(config, "num_minibatches"):
-        _check_ppo(config, per_iter)
-    else:
+    if isinstance(config, CRLConfig):
         _check_crl(config, env, per_iter)
+    elif isinstance(config, OffPolicyConfig):
+        _check_off_policy(config, env, per_iter)
+    else:
+        _check_ppo(config, per_iter)
 
 
 def _check_ppo(config, per_iter: int) -> None:
@@ -112,9 +125,10 @@ def _check_ppo(config, per_iter: int) -> None:
         raise RunError(f"unknown reward '{config.reward}'; choose dense (the field's terms) or sparse (its success)")
 
 
-def _check_crl(config, env, per_iter: int) -> None:
-    from agents.contrastive import ENERGIES, LOSSES
-    from agents.crl import gradient_steps, iterations
+def _check_replay(config, env, per_iter: int, algo: str) -> None:
+    """What every trainer with a replay buffer needs: steps to prefill it and train, room for an episode,
+    a batch's worth of transitions in the windows it samples."""
+    from agents.buffer import gradient_steps, iterations
 
     prefill_iters, per_eval = iterations(config)
     prefill = prefill_iters * per_iter
@@ -129,11 +143,40 @@ def _check_crl(config, env, per_iter: int) -> None:
     windows, updates = gradient_steps(config, env.episode_length)
     if updates < 1:
         raise RunError(f"{windows} windows of {env.episode_length} steps hold fewer transitions than one batch "
-                       f"({config.batch_size}); raise crl.windows or lower crl.batch_size")
+                       f"({config.batch_size}); raise {algo}.windows or lower {algo}.batch_size")
+
+
+def _check_crl(config, env, per_iter: int) -> None:
+    from agents.contrastive import ENERGIES, LOSSES
+    from agents.team import split
+
+    _check_replay(config, env, per_iter, "icrl" if hasattr(config, "agents") else "crl")
+    if hasattr(config, "agents"):
+        try:
+            split(env, config.agents)
+        except ValueError as exc:
+            raise RunError(f"icrl.agents: {exc}") from None
     if config.energy not in ENERGIES:
         raise RunError(f"unknown energy '{config.energy}'; choose one of {', '.join(ENERGIES)}")
     if config.contrastive_loss not in LOSSES:
         raise RunError(f"unknown contrastive_loss '{config.contrastive_loss}'; choose one of {', '.join(LOSSES)}")
+
+
+def _check_off_policy(config, env, per_iter: int) -> None:
+    algo = "sac" if hasattr(config, "alpha_lr") else "td3"
+    _check_replay(config, env, per_iter, algo)
+    if config.reward not in ("dense", "sparse"):
+        raise RunError(f"unknown reward '{config.reward}'; choose dense (the field's terms) or sparse (its success)")
+    if not 0 <= config.her <= 1:
+        raise RunError(f"{algo}.her {config.her} is a share of relabelled goals: between 0 and 1")
+    if config.her and config.reward != "sparse":
+        raise RunError(f"{algo}.her relabels goals and rescores them by the field's success; set {algo}.reward=sparse")
+    kind = env.spec.task.success.kind
+    if config.her and kind == "ball_in_goal":
+        raise RunError(f"{algo}.her needs a success that depends on the goal; {env.spec.name}'s is {kind} "
+                       "(the goal box, wherever the goal is); use ball_near_target or agent_near_target")
+    if getattr(config, "policy_delay", 1) < 1:
+        raise RunError(f"td3.policy_delay must be at least 1, not {config.policy_delay}")
 
 
 def write_run(run_dir: Path, field: dict, algo: str, config, layout: dict, seeds: list[int], extra: dict) -> None:
@@ -184,7 +227,14 @@ def plot_success(run_dir: Path, rows: list[dict], title: str) -> None:
     (_plot_variants if "variant_01_success_any" in rows[0] else _plot_groups)(left, right, rows)
     left.set(xlabel="env steps", ylabel="success_any", ylim=(-0.02, 1.02), title="episodes with a success")
     right.set(xlabel="env steps", ylabel="steps at goal per episode", title="time at goal")
-    for ax in (left, right):
+    save_figure(fig, (left, right), title, run_dir / PLOT)
+
+
+def save_figure(fig, axes, title: str, path: Path) -> None:
+    """Grids, legends where there are labels, the title; then the PNG, written atomically."""
+    import matplotlib.pyplot as plt
+
+    for ax in axes:
         ax.grid(alpha=0.3)
         if ax.get_legend_handles_labels()[0]:
             ax.legend(fontsize=8)
@@ -193,7 +243,7 @@ def plot_success(run_dir: Path, rows: list[dict], title: str) -> None:
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=100)
     plt.close(fig)
-    write_atomic(run_dir / PLOT, buf.getvalue())
+    write_atomic(path, buf.getvalue())
 
 
 def _plot_groups(left, right, rows: list[dict]) -> None:

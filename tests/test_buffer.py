@@ -59,17 +59,20 @@ def test_future_offsets_follow_truncated_geometric():
     np.testing.assert_allclose(counts, expected, atol=0.015)
 
 
-def test_hindsight_batch_goals_come_from_the_same_episode():
+def test_hindsight_batch_goals_and_next_states_come_from_the_same_episode():
     episodes = [0, 0, 0, 0, 1, 1, 1, 2, 2, 2, 2, 2]
     buf = filled(episodes, num_envs=3)
     batch = buffer.hindsight_batch(buf, jax.random.PRNGKey(0), windows=64, length=6, gamma=0.9,
                                    goal_indices=jnp.array([0]))
-    state, goal, weight = (np.asarray(batch[k]) for k in ("state", "goal", "weight"))
+    state, goal, nxt, valid = (np.asarray(batch[k]) for k in ("state", "future_goal", "next_state", "has_future"))
     ep = np.asarray(episodes)
-    for s, g, w in zip(state[:, 0].astype(int), goal[:, 0].astype(int), weight):
-        if w:
-            assert g > s and ep[g] == ep[s]
-    assert weight.sum() > 0
+    for i, (s, g, n, v) in enumerate(zip(state[:, 0].astype(int), goal[:, 0].astype(int), nxt[:, 0].astype(int),
+                                         valid)):
+        goes_on = s + 1 < len(ep) and ep[s + 1] == ep[s]
+        assert v == (goes_on and i % 6 < 5)  # an episode's last step, or a window's, has no future
+        if v:
+            assert g > s and ep[g] == ep[s] and n == s + 1
+    assert valid.sum() > 0
 
 
 def test_windows_cover_every_environment_once_and_lie_in_stored_rows():
@@ -84,4 +87,4 @@ def test_windows_cover_every_environment_once_and_lie_in_stored_rows():
         state = np.asarray(batch["state"][:, 0]).reshape(num_envs, length)
         assert sorted((state[:, 0] // 100).astype(int).tolist()) == list(range(num_envs))
         assert np.all(np.diff(state, axis=1) == 1)  # consecutive stored steps: never past the newest row
-        assert np.asarray(batch["weight"]).reshape(num_envs, length)[:, :-1].all()
+        assert np.asarray(batch["has_future"]).reshape(num_envs, length)[:, :-1].all()

@@ -100,6 +100,10 @@ def test_cli_run_folder_and_resume_of_a_finished_run(tmp_path):
     (["--set", "crl.energy=cos"], "unknown energy 'cos'"),
     (["--algo", "ppo", "--set", "ppo.num_minibatches=3", "--set", "ppo.unroll_length=10"], "does not divide"),
     (["--algo", "ppo", "--set", "ppo.reward=shaped"], "unknown reward 'shaped'"),
+    (["--algo", "sca"], "did you mean 'sac'?"),
+    (["--algo", "sac", "--set", "sac.her=0.8"], "set sac.reward=sparse"),
+    (["--algo", "td3", "--set", "td3.her=1.5"], "between 0 and 1"),
+    (["--algo", "icrl", "--set", "icrl.agents=arm"], "icrl.agents: unknown grouping 'arm'"),
 ])
 def test_bad_training_input_is_reported_before_compiling(tmp_path, args, phrase):
     result = runner.invoke(app, ["train", "point_nav", "--envs", "8", "--out", str(tmp_path), *args])

@@ -30,6 +30,7 @@ class Layout:
     ball_qvel: np.ndarray  # empty unless observation.ball_velocity
     state_dim: int
     goal_indices: tuple[int, ...]
+    names: tuple[str, ...]  # one per observation entry: "<joint>.<coordinate>", "ball.x", "goal.y"...
 
     @property
     def size(self) -> int:
@@ -44,27 +45,38 @@ class Layout:
         }
 
 
-def _addresses(model: mujoco.MjModel, joints: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
-    qpos, qvel = [], []
-    widths = {mujoco.mjtJoint.mjJNT_FREE: (7, 6), mujoco.mjtJoint.mjJNT_BALL: (4, 3)}
+COORDINATES = {  # joint type -> names of its qpos and qvel entries
+    mujoco.mjtJoint.mjJNT_FREE: (("x", "y", "z", "qw", "qx", "qy", "qz"), ("vx", "vy", "vz", "wx", "wy", "wz")),
+    mujoco.mjtJoint.mjJNT_BALL: (("qw", "qx", "qy", "qz"), ("wx", "wy", "wz")),
+}
+
+
+def _addresses(model: mujoco.MjModel, joints: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray, list, list]:
+    """qpos and qvel addresses of the joints, and a name for each ("front_left_hip.pos", "root.vx")."""
+    qpos, qvel, qpos_names, qvel_names = [], [], [], []
     for name in joints:
         j = model.joint(name)
-        nq, nv = widths.get(int(j.type[0]), (1, 1))
-        qpos += range(int(j.qposadr[0]), int(j.qposadr[0]) + nq)
-        qvel += range(int(j.dofadr[0]), int(j.dofadr[0]) + nv)
-    return np.array(qpos, dtype=np.int32), np.array(qvel, dtype=np.int32)
+        pos, vel = COORDINATES.get(int(j.type[0]), (("pos",), ("vel",)))
+        qpos += range(int(j.qposadr[0]), int(j.qposadr[0]) + len(pos))
+        qvel += range(int(j.dofadr[0]), int(j.dofadr[0]) + len(vel))
+        qpos_names += [f"{name}.{c}" for c in pos]
+        qvel_names += [f"{name}.{c}" for c in vel]
+    return np.array(qpos, dtype=np.int32), np.array(qvel, dtype=np.int32), qpos_names, qvel_names
 
 
 def observation_layout(spec: FieldSpec, model: mujoco.MjModel) -> Layout:
-    agent_qpos, agent_qvel = _addresses(model, AGENT_JOINTS[spec.agent.kind])
+    agent_qpos, agent_qvel, qpos_names, qvel_names = _addresses(model, AGENT_JOINTS[spec.agent.kind])
+    names = qpos_names + qvel_names
     empty = np.zeros(0, dtype=np.int32)
     ball_qpos = ball_qvel = empty
     if spec.ball.enabled:
         joints = ("ball",) if spec.ball.joint == "free" else ("ball_x", "ball_y")
-        qpos, qvel = _addresses(model, joints)
+        qpos, qvel, _, _ = _addresses(model, joints)
         ball_qpos = qpos[:3] if spec.ball.joint == "free" else qpos
+        names += ["ball.x", "ball.y", "ball.z"][:len(ball_qpos)]
         if spec.observation.ball_velocity:
             ball_qvel = qvel[:3] if spec.ball.joint == "free" else qvel
+            names += ["ball.vx", "ball.vy", "ball.vz"][:len(ball_qvel)]
     parts = [("agent_qpos", len(agent_qpos)), ("agent_qvel", len(agent_qvel))]
     if spec.ball.enabled:
         parts.append(("ball_pos", len(ball_qpos)))
@@ -80,4 +92,5 @@ def observation_layout(spec: FieldSpec, model: mujoco.MjModel) -> Layout:
         start = slices["ball_pos"][0]
     else:
         start = slices["agent_qpos"][0]  # torso or point x, y come first in the agent's qpos
-    return Layout(slices, agent_qpos, agent_qvel, ball_qpos, ball_qvel, state_dim, (start, start + 1))
+    return Layout(slices, agent_qpos, agent_qvel, ball_qpos, ball_qvel, state_dim, (start, start + 1),
+                  (*names, "goal.x", "goal.y"))

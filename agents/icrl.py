@@ -1,0 +1,26 @@
+"""Independent contrastive RL (ICRL): the body's actuators split among agents, one per leg
+or one per joint, each with its own actor, contrastive critic and entropy coefficient.
+
+Every agent observes the torso, the ball and the goal, plus its own joints' angles and
+velocities (picked by name: agents.team), and acts on its own actuators only. The agents
+are vmapped over a leading agent axis inside CRL's training step, so they cost one batched
+network call rather than a loop; success is the environment's own metric, as for CRL.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+from agents import crl
+from agents.loop import Algorithm
+from agents.team import split
+
+
+@dataclasses.dataclass(frozen=True)
+class ICRLConfig(crl.CRLConfig):
+    agents: str = "leg"  # leg: one agent per leg (the study's code); joint: one per actuated joint (its text)
+    share_parameters: bool = False  # one actor and one critic applied by every agent
+
+
+def make_train(config: ICRLConfig, env) -> Algorithm:
+    return crl.make_train(config, env, split(env, config.agents))
