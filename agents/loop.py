@@ -29,7 +29,7 @@ class Algorithm:
     env: object
     start: Callable  # key -> state, ready for the first chunk (a CRL buffer is prefilled)
     chunk: Callable  # state -> (state, mean training metrics): the iterations between two evaluations
-    act: Callable  # (state, obs) -> deterministic action
+    act: Callable  # (state, obs [batch, observation_size]) -> deterministic actions [batch, action_size]
     env_axes: dict  # state field -> the axis of its leaves that runs over environments (sharded)
 
 

@@ -288,7 +288,7 @@ class EpisodeRecorder:
 
         def rollout(state, key):
             def step(s, _):
-                nxt = env.step(s, act(state, s.obs))
+                nxt = env.step(s, act(state, s.obs[None])[0])
                 return nxt, (s.pipeline_state.qpos, s.pipeline_state.mocap_pos, nxt.done)
 
             return jax.lax.scan(step, env.reset(key), None, length=env.episode_length)[1]
