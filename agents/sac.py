@@ -132,9 +132,11 @@ def make_train(config: OffPolicyConfig, env, deterministic: bool = False) -> Alg
         """updates x batch_size transitions: (obs, action, reward, next_obs, continues, weight)."""
         k_batch, k_her, k_perm = jax.random.split(key, 3)
         s = replay.hindsight_batch(ts.buffer, k_batch, windows, window, c.discount, goal_indices)
-        relabel = s["has_future"] & (jax.random.uniform(k_her, s["has_future"].shape) < c.her)
-        goal = jnp.where(relabel[:, None], s["future_goal"], s["goal"])
-        reward = jnp.where(relabel, reached(s["next_state"], goal), s["reward"])
+        goal, reward = s["goal"], s["reward"]
+        if c.her:
+            relabel = s["has_future"] & (jax.random.uniform(k_her, s["has_future"].shape) < c.her)
+            goal = jnp.where(relabel[:, None], s["future_goal"], goal)
+            reward = jnp.where(relabel, reached(s["next_state"], goal), reward)
         fell = s["fell"] > 0
         batch = {"obs": jnp.concatenate([s["state"], goal], -1), "action": s["action"],
                  "reward": c.reward_scale * reward, "next_obs": jnp.concatenate([s["next_state"], goal], -1),
