@@ -23,7 +23,7 @@ import jax.numpy as jnp
 import optax
 
 from agents import buffer as replay
-from agents.contrastive import energy, infonce, logsumexp_penalty, weighted_mean
+from agents.contrastive import energy, infonce, logsumexp_penalty, paired_energy, weighted_mean
 from agents.loop import Algorithm
 from agents.networks import MLP, Actor, PerAgent, sample_tanh_gaussian
 from agents.team import Team, whole
@@ -90,6 +90,7 @@ def make_train(config: CRLConfig, env, team: Team | None = None) -> Algorithm:
     actor_tx, critic_tx, alpha_tx = optax.adam(c.actor_lr), optax.adam(c.critic_lr), optax.adam(c.alpha_lr)
     target_entropy = c.target_entropy_per_action * own
     energies = jax.vmap(functools.partial(energy, c.energy))
+    paired_energies = jax.vmap(functools.partial(paired_energy, c.energy))
 
     def init(key: jax.Array) -> TrainState:
         k_actor, k_sa, k_g, k_env, key = jax.random.split(key, 5)
@@ -137,52 +138,50 @@ def make_train(config: CRLConfig, env, team: Team | None = None) -> Algorithm:
                         env_steps=ts.env_steps + c.num_envs * c.unroll_length)
         return ts, jax.tree.map(jnp.mean, stats)
 
-    def logits(critic_params, mine, actions, goals):
-        phi = sa_encoder.apply(critic_params["sa"], jnp.concatenate([mine, actions], -1))
-        psi = g_encoder.apply(critic_params["g"], goals)
-        return energies(phi, psi, critic_params["log_temperature"])  # [agents, batch, batch]
+    def losses(learner: tuple, batch: dict, key: jax.Array) -> tuple[jax.Array, dict]:
+        """Critic, actor and entropy-coefficient losses, summed over agents and over the three.
 
-    def critic_loss(critic_params, batch):
-        """Each agent's InfoNCE on its own view and actions, summed: the gradients stay per agent."""
-        _, mine, goals = agent_obs(batch["state"], batch["goal"])
-        energy_ = logits(critic_params, mine, team.own_actions(batch["action"]), goals)
+        Each part reads the others' parameters through stop_gradient, so the one gradient equals the
+        three separate ones taken at the same parameters, while the goals are encoded once. The critic
+        is each agent's InfoNCE on its own view and actions; the actor maximises the energy of its own
+        sampled action towards the goal; alpha grows while a policy is below its target entropy."""
+        actor_params, critic_params, log_alpha = learner
+        agent_input, mine, goals = agent_obs(batch["state"], batch["goal"])
         w = batch["weight"]
+        mean_w = jax.vmap(lambda x: weighted_mean(x, w))
+        phi = sa_encoder.apply(critic_params["sa"], jnp.concatenate([mine, team.own_actions(batch["action"])], -1))
+        psi = g_encoder.apply(critic_params["g"], goals)
+        energy_ = energies(phi, psi, critic_params["log_temperature"])  # [agents, batch, batch]
         contrastive = jax.vmap(lambda x: infonce(c.contrastive_loss, x, w))(energy_)
         penalty = jax.vmap(lambda x: logsumexp_penalty(x, w))(energy_)
-        diagonal = jnp.argmax(energy_, axis=2) == jnp.arange(len(w))
-        accuracy = jax.vmap(lambda x: weighted_mean(x.astype(jnp.float32), w))(diagonal)
-        loss = contrastive + c.logsumexp_penalty * penalty
-        return jnp.sum(loss), {"critic_loss": jnp.mean(loss), "contrastive_loss": jnp.mean(contrastive),
-                               "critic_accuracy": jnp.mean(accuracy)}
+        critic = contrastive + c.logsumexp_penalty * penalty
+        accuracy = mean_w((jnp.argmax(energy_, axis=2) == jnp.arange(len(w))).astype(jnp.float32))
 
-    def actor_loss(actor_params, critic_params, log_alpha, batch, key):
-        agent_input, mine, goals = agent_obs(batch["state"], batch["goal"])
         mean, log_std = actor.apply(actor_params, agent_input)
         action, log_prob = sample_tanh_gaussian(key, mean, log_std)  # [agents, batch, own], [agents, batch]
-        q = jnp.diagonal(logits(critic_params, mine, action, goals), axis1=1, axis2=2)
+        frozen = jax.lax.stop_gradient(critic_params)
+        phi_pi = sa_encoder.apply(frozen["sa"], jnp.concatenate([mine, action], -1))
+        q = paired_energies(phi_pi, jax.lax.stop_gradient(psi), frozen["log_temperature"])
         alpha = jnp.exp(log_alpha)[:, None]
-        loss = jax.vmap(lambda x: weighted_mean(x, batch["weight"]))(alpha * log_prob - q)
-        return jnp.sum(loss), (log_prob, {"actor_loss": jnp.mean(loss), "entropy": -jnp.mean(log_prob)})
-
-    def alpha_loss(log_alpha, log_prob, weight):
-        """alpha * (entropy - target) per agent: alpha grows while a policy is below its target entropy."""
-        gap = jax.lax.stop_gradient(-log_prob - target_entropy)
-        return jnp.sum(jax.vmap(lambda a, g: weighted_mean(jnp.exp(a) * g, weight))(log_alpha, gap))
+        actor_ = mean_w(jax.lax.stop_gradient(alpha) * log_prob - q)
+        alpha_ = mean_w(alpha * jax.lax.stop_gradient(-log_prob - target_entropy))
+        total = jnp.sum(critic) + jnp.sum(actor_) + jnp.sum(alpha_)
+        return total, {"critic_loss": jnp.mean(critic), "contrastive_loss": jnp.mean(contrastive),
+                       "critic_accuracy": jnp.mean(accuracy), "actor_loss": jnp.mean(actor_),
+                       "entropy": -jnp.mean(log_prob)}
 
     def update(ts: TrainState, batch: dict, key: jax.Array) -> tuple[TrainState, dict]:
-        (_, (log_prob, a_metrics)), a_grads = jax.value_and_grad(actor_loss, has_aux=True)(
-            ts.actor, ts.critic, ts.log_alpha, batch, key)
+        (a_grads, c_grads, alpha_grad), metrics = jax.grad(losses, has_aux=True)(
+            (ts.actor, ts.critic, ts.log_alpha), batch, key)
         updates, actor_opt = actor_tx.update(a_grads, ts.actor_opt)
         actor_params = optax.apply_updates(ts.actor, updates)
-        alpha_grad = jax.grad(alpha_loss)(ts.log_alpha, log_prob, batch["weight"])
         updates, alpha_opt = alpha_tx.update(alpha_grad, ts.alpha_opt)
         log_alpha = optax.apply_updates(ts.log_alpha, updates)
-        (_, c_metrics), c_grads = jax.value_and_grad(critic_loss, has_aux=True)(ts.critic, batch)
         updates, critic_opt = critic_tx.update(c_grads, ts.critic_opt)
         critic_params = optax.apply_updates(ts.critic, updates)
         ts = ts.replace(actor=actor_params, critic=critic_params, log_alpha=log_alpha, actor_opt=actor_opt,
                         critic_opt=critic_opt, alpha_opt=alpha_opt, grad_steps=ts.grad_steps + 1)
-        return ts, {**a_metrics, **c_metrics, "alpha": jnp.mean(jnp.exp(log_alpha))}
+        return ts, {**metrics, "alpha": jnp.mean(jnp.exp(log_alpha))}
 
     def update_epoch(ts: TrainState) -> tuple[TrainState, dict]:
         """Windows from the buffer, hindsight goals, then one pass of shuffled minibatch updates."""
@@ -197,7 +196,8 @@ def make_train(config: CRLConfig, env, team: Team | None = None) -> Algorithm:
             minibatch, k = xs
             return update(ts, minibatch, k)
 
-        ts, metrics = jax.lax.scan(body, ts.replace(key=key), (batch, jax.random.split(k_upd, updates)))
+        # two updates per loop iteration: a GPU pays a loop-condition round trip per iteration
+        ts, metrics = jax.lax.scan(body, ts.replace(key=key), (batch, jax.random.split(k_upd, updates)), unroll=2)
         return ts, jax.tree.map(jnp.mean, metrics)
 
     def start(key: jax.Array) -> TrainState:

@@ -31,6 +31,9 @@ class Algorithm:
     chunk: Callable  # state -> (state, mean training metrics): the iterations between two evaluations
     act: Callable  # (state, obs [batch, observation_size]) -> deterministic actions [batch, action_size]
     env_axes: dict  # state field -> the axis of its leaves that runs over environments (sharded)
+    # jitted programs by seed count, kept here so that later runs of this algorithm in the same
+    # process (a resume, an evaluation) reuse them instead of compiling again
+    compiled: dict = dataclasses.field(default_factory=dict, init=False, compare=False, repr=False)
 
 
 def evaluate_policy(env, act: Callable, key: jax.Array, n_envs: int) -> dict:
@@ -144,22 +147,22 @@ def run_staged(algos: Sequence[Algorithm], seeds: Sequence[int], num_evals: int,
     """
     keys = jnp.stack([jax.random.PRNGKey(s) for s in seeds])
     staged, last = len(algos) > 1, len(algos) - 1
-    compiled: dict[int, tuple] = {}
 
     def programs(k: int):
         """(placement, start, chunk, evaluate, adapt) of stage k, compiled on first use. Evaluation reads only
         the policy, so it takes a state of any stage (the last stage is judged while training earlier ones)."""
-        if k not in compiled:
-            algo = algos[k]
+        algo = algos[k]
+        if len(seeds) not in algo.compiled:
             mesh = sharding.local_mesh()
             shapes = jax.eval_shape(jax.vmap(algo.start), keys)
             placement = sharding.state_shardings(shapes, mesh, algo.env_axes, offset=1)
-            compiled[k] = (placement, jax.jit(jax.vmap(algo.start), out_shardings=placement),
-                           jax.jit(jax.vmap(algo.chunk), in_shardings=(placement,), out_shardings=(placement, None)),
-                           jax.jit(jax.vmap(functools.partial(evaluate, algo))),
-                           jax.jit(jax.vmap(functools.partial(adapt, algo)), in_shardings=(placement, None),
-                                   out_shardings=(placement, None)))
-        return compiled[k]
+            algo.compiled[len(seeds)] = (
+                placement, jax.jit(jax.vmap(algo.start), out_shardings=placement),
+                jax.jit(jax.vmap(algo.chunk), in_shardings=(placement,), out_shardings=(placement, None)),
+                jax.jit(jax.vmap(functools.partial(evaluate, algo))),
+                jax.jit(jax.vmap(functools.partial(adapt, algo)), in_shardings=(placement, None),
+                        out_shardings=(placement, None)))
+        return algo.compiled[len(seeds)]
 
     def judge(k: int, state, index: int) -> dict:
         return jax.device_get(programs(k)[3](state, jax.vmap(eval_key, in_axes=(0, None))(keys, index)))

@@ -6,7 +6,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from agents.contrastive import energy, infonce, logsumexp_penalty
+from agents.contrastive import ENERGIES, energy, infonce, logsumexp_penalty, paired_energy
 
 PHI = jnp.array([[0.0, 0.0], [1.0, 0.0]])
 PSI = jnp.array([[0.0, 1.0], [1.0, 1.0]])
@@ -20,6 +20,17 @@ def test_energies_by_hand():
     np.testing.assert_allclose(energy("dot", PHI, PSI), [[0, 0], [0, 1]], atol=1e-6)
     cos = energy("cosine", PHI + jnp.array([0.0, 1.0]), PSI, jnp.log(0.5))  # phi rows (0,1), (1,1)
     np.testing.assert_allclose(cos, np.array([[1, 1 / r2], [1 / r2, 1]]) / 0.5, rtol=1e-5)
+
+
+def test_paired_energy_is_the_diagonal_and_near_pairs_keep_their_distance():
+    rng = np.random.default_rng(0)
+    phi = jnp.asarray(rng.normal(0, 5, (6, 64)), jnp.float32)
+    psi = phi + jnp.asarray(rng.normal(0, 1e-2, (6, 64)), jnp.float32)  # positives close to their rows
+    for kind in ENERGIES:
+        np.testing.assert_allclose(paired_energy(kind, phi, psi, jnp.log(0.5)),
+                                   jnp.diagonal(energy(kind, phi, psi, jnp.log(0.5))), rtol=1e-5, atol=1e-6)
+    direct = -np.linalg.norm(np.asarray(phi)[:, None] - np.asarray(psi)[None], axis=-1)
+    np.testing.assert_allclose(energy("norm", phi, psi), direct, rtol=1e-3, atol=1e-3)
 
 
 def test_infonce_by_hand():
