@@ -1,4 +1,4 @@
-"""The `fieldgen` command line: validate, build, render, curriculum, list, schema, bench, train, eval."""
+"""The `fieldgen` command line: validate, build, render, curriculum, list, schema, bench, train, eval, videos."""
 
 from __future__ import annotations
 
@@ -427,6 +427,50 @@ def evaluate(
         data, frames = recorder.gif(loop.seed_slice(run.state, 0), key)
         write_atomic(run_dir / "eval.gif", data)
         out.print(f"video: {run_dir / 'eval.gif'} ({frames} frames, {camera} camera)")
+
+
+@app.command()
+def videos(
+    run_dir: Annotated[Path, typer.Argument(help="a run folder written by fieldgen train")],
+) -> None:
+    """Draw the episodes a run kept where nothing could render (videos/eval_NNN.npz) as videos/eval_NNN.gif.
+
+    A training machine without OpenGL keeps each evaluation's episode as joint positions; run this
+    wherever mujoco's renderer works (MUJOCO_GL=egl or osmesa). GIFs already drawn are left alone.
+
+    Example: fieldgen videos runs/soccer_v1-crl-0
+    """
+    import numpy as np
+
+    from fieldgen import runner, training
+    from fieldgen.compile.artifact import write_atomic
+
+    try:
+        run = runner.open_run(run_dir, load_state=False)
+    except (SpecError, training.RunError) as exc:
+        _fail(str(exc))
+    kept = sorted((run_dir / training.VIDEOS).glob("eval_*.npz"))
+    if not kept:
+        _fail(f"nothing to draw: {run_dir / training.VIDEOS} holds no eval_NNN.npz "
+              "(a run keeps them only where it could not render)")
+    models = {env.spec.name: env.mj_model for env in run.envs}
+    table = Table("episode", "field", "frames", "video", title=f"{run_dir}: kept episodes")
+    for path in kept:
+        gif = path.with_suffix(".gif")
+        try:
+            with np.load(path) as episode:
+                field, camera, episode = str(episode["field"]), str(episode["camera"]), dict(episode)
+        except (OSError, ValueError, KeyError) as exc:
+            _fail(f"{path} is not an episode kept by fieldgen train ({exc}); delete it or train again")
+        if field not in models:
+            _fail(f"{path} records field '{field}', which is not one of this run's fields ({', '.join(models)})")
+        if gif.exists():
+            table.add_row(path.name, field, "", f"{gif.name} (already drawn)")
+            continue
+        data, frames = training.draw_episode(models[field], episode, camera)
+        write_atomic(gif, data)
+        table.add_row(path.name, field, str(frames), gif.name)
+    out.print(table)
 
 
 if __name__ == "__main__":

@@ -295,25 +295,40 @@ class EpisodeRecorder:
 
         self._rollout = jax.jit(rollout)
 
-    def gif(self, state, key) -> tuple[bytes, int]:
-        """One episode (up to its end, at most ~300 frames) as GIF bytes, and its frame count."""
-        from fieldgen.render import gif_bytes, render_rollout
-
+    def episode(self, state, key) -> dict:
+        """One episode up to its end, at most ~300 frames: {qpos [T, nq], mocap_pos [T, nmocap, 3], fps}."""
         qpos, mocap, done = (np.asarray(x) for x in jax.device_get(self._rollout(state, key)))
         end = int(np.argmax(done)) + 1 if done.any() else self.env.episode_length
         stride = max(1, end // 300)
-        frames = render_rollout(self.env.mj_model, qpos[:end:stride], mocap[:end:stride], self.camera)
-        return gif_bytes(frames, fps=1 / (self.env.dt * stride)), len(frames)
+        return {"qpos": qpos[:end:stride], "mocap_pos": mocap[:end:stride], "fps": 1 / (self.env.dt * stride)}
+
+    def gif(self, state, key) -> tuple[bytes, int]:
+        """One episode as GIF bytes, and its frame count."""
+        return draw_episode(self.env.mj_model, self.episode(state, key), self.camera)
 
     def write(self, run_dir: Path, index: int, state, console) -> None:
-        """videos/eval_NNN.gif; a machine that cannot render gets one warning, and training goes on."""
-        if self.broken:
-            return
-        try:
-            data, _ = self.gif(state, jax.random.PRNGKey(index))
-        except Exception as exc:  # noqa: BLE001 - renderer back ends fail in many ways
-            self.broken = True
-            console.print(f"[yellow]warning:[/] no videos for this run, rendering failed: {exc}")
-            return
+        """videos/eval_NNN.gif. A machine that cannot render keeps the episode instead (videos/eval_NNN.npz,
+        drawn later by `fieldgen videos` where a renderer works), with one warning; training goes on."""
+        episode = self.episode(state, jax.random.PRNGKey(index))
         (run_dir / VIDEOS).mkdir(exist_ok=True)
-        write_atomic(run_dir / VIDEOS / f"eval_{index:03d}.gif", data)
+        name = run_dir / VIDEOS / f"eval_{index:03d}"
+        if not self.broken:
+            try:
+                write_atomic(name.with_suffix(".gif"), draw_episode(self.env.mj_model, episode, self.camera)[0])
+                return
+            except Exception as exc:  # noqa: BLE001 - renderer back ends fail in many ways
+                self.broken = True
+                console.print(f"[yellow]warning:[/] cannot render here ({exc}); keeping each episode as "
+                              f"{run_dir / VIDEOS}/eval_NNN.npz: draw them with `fieldgen videos {run_dir}` "
+                              "on a machine that renders")
+        buf = io.BytesIO()
+        np.savez(buf, field=self.env.spec.name, camera=self.camera, **episode)
+        write_atomic(name.with_suffix(".npz"), buf.getvalue())
+
+
+def draw_episode(model, episode, camera: str) -> tuple[bytes, int]:
+    """GIF bytes of a recorded episode ({qpos, mocap_pos, fps}) and its frame count."""
+    from fieldgen.render import gif_bytes, render_rollout
+
+    frames = render_rollout(model, episode["qpos"], episode["mocap_pos"], camera)
+    return gif_bytes(frames, fps=float(episode["fps"])), len(frames)

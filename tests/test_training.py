@@ -119,3 +119,45 @@ def test_config_file_and_precedence(tmp_path):
     file.write_text("ppo: {}\n")
     with pytest.raises(RunError, match="one section, 'crl:'"):
         make_config("crl", file)
+
+
+def test_a_machine_that_cannot_render_keeps_episodes_for_fieldgen_videos(tmp_path, monkeypatch):
+    import imageio.v3 as iio
+    import jax.numpy as jnp
+    from rich.console import Console
+
+    from fieldgen import render, runner as runs, training
+
+    prepared = runner.invoke(app, ["train", "point_nav", "--envs", "8", "--steps", "1900", "--prepare",
+                                   "--out", str(tmp_path), *TINY])
+    assert prepared.exit_code == 0, prepared.output
+    run_dir = tmp_path / "point_nav-crl-0"
+    nothing = runner.invoke(app, ["videos", str(run_dir)])
+    assert nothing.exit_code == 1 and "holds no eval_NNN.npz" in nothing.output
+
+    env = runs.open_run(run_dir, load_state=False).env
+    recorder = training.EpisodeRecorder(env, lambda state, obs: jnp.full((obs.shape[0], env.action_size), 0.5))
+
+    def no_opengl(*args, **kwargs):
+        raise RuntimeError("no OpenGL here")
+
+    monkeypatch.setattr(render, "render_rollout", no_opengl)
+    console = Console(record=True, width=200)
+    for index in (0, 1):
+        recorder.write(run_dir, index, None, console)
+    videos = run_dir / training.VIDEOS
+    assert sorted(p.name for p in videos.iterdir()) == ["eval_000.npz", "eval_001.npz"]
+    assert console.export_text().count("cannot render here (no OpenGL here)") == 1
+    monkeypatch.undo()
+
+    drawn = runner.invoke(app, ["videos", str(run_dir)])
+    assert drawn.exit_code == 0, drawn.output
+    with np.load(videos / "eval_000.npz") as kept:
+        frames = len(kept["qpos"])
+        assert kept["qpos"][-1, 0] > kept["qpos"][0, 0] + 0.5  # the held action moved the point along +x
+    assert iio.imread(videos / "eval_000.gif", index=None).shape[0] == frames
+    assert "already drawn" in runner.invoke(app, ["videos", str(run_dir)]).output
+    (videos / "eval_001.gif").unlink()
+    (videos / "eval_001.npz").write_bytes(b"truncated")
+    broken = runner.invoke(app, ["videos", str(run_dir)])
+    assert broken.exit_code == 1 and "eval_001.npz is not an episode kept by fieldgen train" in broken.output
