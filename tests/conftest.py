@@ -1,15 +1,41 @@
-"""Shared fixtures: compiled environments are expensive on CPU, so build each once."""
+"""Shared fixtures: compiled environments are expensive on CPU, so build each once.
+
+Tests also compile many identical programs (the same tiny configs through the CLI, resumes,
+evaluations), so the session shares one JAX compilation cache among its workers: each such
+program compiles once per session.
+"""
 
 from __future__ import annotations
 
+import os
+import shutil
+import tempfile
 from pathlib import Path
 
+import jax
 import pytest
 
 import fieldgen
 from fieldgen.schema import bundled_fields
 
 FIELDS = sorted(bundled_fields())
+CACHE_VARIABLE = "FIELDGEN_TEST_JAX_CACHE"
+
+
+def pytest_configure(config):
+    """The first process of the session (the controller, or the only one) makes the cache folder;
+    workers started after it inherit the variable."""
+    if "JAX_COMPILATION_CACHE_DIR" in os.environ:  # the user's own cache wins
+        return
+    if CACHE_VARIABLE not in os.environ:
+        os.environ[CACHE_VARIABLE] = tempfile.mkdtemp(prefix="fieldgen-test-jax-cache-")
+        config.owns_jax_cache = True
+    jax.config.update("jax_compilation_cache_dir", os.environ[CACHE_VARIABLE])
+
+
+def pytest_unconfigure(config):
+    if getattr(config, "owns_jax_cache", False):
+        shutil.rmtree(os.environ.pop(CACHE_VARIABLE), ignore_errors=True)
 
 
 @pytest.fixture(scope="session")
