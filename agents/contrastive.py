@@ -15,31 +15,21 @@ LOSSES = ("fwd_infonce", "bwd_infonce", "sym_infonce")
 
 def energy(kind: str, phi: jax.Array, psi: jax.Array, log_temperature: jax.Array | None = None) -> jax.Array:
     """Pairwise energies between rows of phi [B, d] and psi [B, d] -> [B, B]."""
-    if kind in ("norm", "l2"):
-        squared = jnp.sum((phi[:, None, :] - psi[None, :, :]) ** 2, axis=-1)
-        return -jnp.sqrt(squared + 1e-12) if kind == "norm" else -squared
-    if kind == "dot":
-        return phi @ psi.T
-    if kind == "cosine":
-        return (_unit(phi) @ _unit(psi).T) / jnp.exp(log_temperature)
-    raise ValueError(f"unknown energy {kind!r}; choose one of {', '.join(ENERGIES)}")
+    return paired_energy(kind, phi[:, None, :], psi[None, :, :], log_temperature)
 
 
 def paired_energy(kind: str, phi: jax.Array, psi: jax.Array, log_temperature: jax.Array | None = None) -> jax.Array:
-    """The diagonal of `energy` (row i of phi against row i of psi) -> [B], without the rest of the
-    matrix: all the actor's objective needs."""
+    """Energy of row i of phi against row i of psi, over the last axis (broadcasting) -> [B]: the
+    diagonal of `energy` without the rest of the matrix, all the actor's objective needs."""
     if kind in ("norm", "l2"):
         squared = jnp.sum((phi - psi) ** 2, axis=-1)
         return -jnp.sqrt(squared + 1e-12) if kind == "norm" else -squared
     if kind == "dot":
         return jnp.sum(phi * psi, axis=-1)
     if kind == "cosine":
-        return jnp.sum(_unit(phi) * _unit(psi), axis=-1) / jnp.exp(log_temperature)
+        unit = lambda x: x / (jnp.linalg.norm(x, axis=-1, keepdims=True) + 1e-12)  # noqa: E731
+        return jnp.sum(unit(phi) * unit(psi), axis=-1) / jnp.exp(log_temperature)
     raise ValueError(f"unknown energy {kind!r}; choose one of {', '.join(ENERGIES)}")
-
-
-def _unit(x: jax.Array) -> jax.Array:
-    return x / (jnp.linalg.norm(x, axis=-1, keepdims=True) + 1e-12)
 
 
 def infonce(kind: str, logits: jax.Array, weight: jax.Array) -> jax.Array:
