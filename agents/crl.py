@@ -26,6 +26,7 @@ from agents import buffer as replay
 from agents.contrastive import energy, infonce, logsumexp_penalty, paired_energy, weighted_mean
 from agents.loop import Algorithm
 from agents.networks import MLP, Actor, PerAgent, sample_tanh_gaussian
+from agents.optim import adam_by_group
 from agents.team import Team, whole
 
 
@@ -60,9 +61,7 @@ class TrainState:
     actor: dict
     critic: dict
     log_alpha: jax.Array
-    actor_opt: optax.OptState
-    critic_opt: optax.OptState
-    alpha_opt: optax.OptState
+    opt: optax.OptState  # of (actor, critic, log_alpha), one flat Adam
     env_state: object
     buffer: replay.Buffer
     key: jax.Array
@@ -87,7 +86,7 @@ def make_train(config: CRLConfig, env, team: Team | None = None) -> Algorithm:
     actor = PerAgent(Actor(c.hidden, own, c.layer_norm), team.size, shared)
     sa_encoder = PerAgent(MLP(c.hidden, c.repr_dim, c.layer_norm), team.size, shared)
     g_encoder = PerAgent(MLP(c.hidden, c.repr_dim, c.layer_norm), team.size, shared)
-    actor_tx, critic_tx, alpha_tx = optax.adam(c.actor_lr), optax.adam(c.critic_lr), optax.adam(c.alpha_lr)
+    tx = adam_by_group(c.actor_lr, c.critic_lr, c.alpha_lr)
     target_entropy = c.target_entropy_per_action * own
     energies = jax.vmap(functools.partial(energy, c.energy))
     paired_energies = jax.vmap(functools.partial(paired_energy, c.energy))
@@ -104,9 +103,8 @@ def make_train(config: CRLConfig, env, team: Team | None = None) -> Algorithm:
         env_state = jax.vmap(env.reset)(jax.random.split(k_env, c.num_envs))
         example = {"state": jnp.zeros(state_dim), "action": jnp.zeros(action_size),
                    "episode": jnp.zeros((), jnp.int32)}
-        return TrainState(actor_params, critic_params, log_alpha, actor_tx.init(actor_params),
-                          critic_tx.init(critic_params), alpha_tx.init(log_alpha), env_state,
-                          replay.init(c.max_replay_rows, c.num_envs, example), key,
+        return TrainState(actor_params, critic_params, log_alpha, tx.init((actor_params, critic_params, log_alpha)),
+                          env_state, replay.init(c.max_replay_rows, c.num_envs, example), key,
                           jnp.zeros((), jnp.int32), jnp.zeros((), jnp.int32))
 
     def agent_obs(state, goal):
@@ -170,18 +168,13 @@ def make_train(config: CRLConfig, env, team: Team | None = None) -> Algorithm:
                        "critic_accuracy": jnp.mean(accuracy), "actor_loss": jnp.mean(actor_),
                        "entropy": -jnp.mean(log_prob)}
 
-    def update(ts: TrainState, batch: dict, key: jax.Array) -> tuple[TrainState, dict]:
-        (a_grads, c_grads, alpha_grad), metrics = jax.grad(losses, has_aux=True)(
-            (ts.actor, ts.critic, ts.log_alpha), batch, key)
-        updates, actor_opt = actor_tx.update(a_grads, ts.actor_opt)
-        actor_params = optax.apply_updates(ts.actor, updates)
-        updates, alpha_opt = alpha_tx.update(alpha_grad, ts.alpha_opt)
-        log_alpha = optax.apply_updates(ts.log_alpha, updates)
-        updates, critic_opt = critic_tx.update(c_grads, ts.critic_opt)
-        critic_params = optax.apply_updates(ts.critic, updates)
-        ts = ts.replace(actor=actor_params, critic=critic_params, log_alpha=log_alpha, actor_opt=actor_opt,
-                        critic_opt=critic_opt, alpha_opt=alpha_opt, grad_steps=ts.grad_steps + 1)
-        return ts, {**metrics, "alpha": jnp.mean(jnp.exp(log_alpha))}
+    def update(ts: TrainState, batch: dict, key: jax.Array) -> TrainState:
+        learner = (ts.actor, ts.critic, ts.log_alpha)
+        grads, _ = jax.grad(losses, has_aux=True)(learner, batch, key)
+        updates, opt = tx.update(grads, ts.opt)
+        actor_params, critic_params, log_alpha = optax.apply_updates(learner, updates)
+        return ts.replace(actor=actor_params, critic=critic_params, log_alpha=log_alpha, opt=opt,
+                          grad_steps=ts.grad_steps + 1)
 
     def update_epoch(ts: TrainState) -> tuple[TrainState, dict]:
         """Windows from the buffer, hindsight goals, then one pass of shuffled minibatch updates."""
@@ -194,11 +187,16 @@ def make_train(config: CRLConfig, env, team: Team | None = None) -> Algorithm:
 
         def body(ts, xs):
             minibatch, k = xs
-            return update(ts, minibatch, k)
+            return update(ts, minibatch, k), None
 
+        keys = jax.random.split(k_upd, updates)
         # two updates per loop iteration: a GPU pays a loop-condition round trip per iteration
-        ts, metrics = jax.lax.scan(body, ts.replace(key=key), (batch, jax.random.split(k_upd, updates)), unroll=2)
-        return ts, jax.tree.map(jnp.mean, metrics)
+        ts, _ = jax.lax.scan(body, ts.replace(key=key), (batch, keys), unroll=2)
+        # the losses are logged once per epoch, on its last minibatch after the updates: computing them at
+        # every step would cost a GPU more small kernels than the step's own matmuls
+        last = jax.tree.map(lambda x: x[-1], batch)
+        _, metrics = losses((ts.actor, ts.critic, ts.log_alpha), last, keys[-1])
+        return ts, {**metrics, "alpha": jnp.mean(jnp.exp(ts.log_alpha))}
 
     def start(key: jax.Array) -> TrainState:
         return jax.lax.fori_loop(0, prefill_iters, lambda _, ts: collect(ts)[0], init(key))

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from agents.contrastive import ENERGIES, energy, infonce, logsumexp_penalty, paired_energy
+from agents.optim import adam_by_group
 
 PHI = jnp.array([[0.0, 0.0], [1.0, 0.0]])
 PSI = jnp.array([[0.0, 1.0], [1.0, 1.0]])
@@ -51,6 +52,29 @@ def test_unknown_names_are_refused():
         energy("cos", PHI, PSI)
     with pytest.raises(ValueError, match="unknown contrastive loss"):
         infonce("nce", PHI @ PSI.T, ONES)
+
+
+def test_adam_by_group_equals_one_adam_per_group():
+    import jax
+    import optax
+
+    rng = np.random.default_rng(1)
+    groups = ({"w": jnp.asarray(rng.normal(size=(3, 2))), "b": jnp.ones(2)}, jnp.asarray(rng.normal(size=4)))
+    rates = (1e-2, 3e-1)
+    grouped, single = adam_by_group(*rates), [optax.adam(r) for r in rates]
+    state, states = grouped.init(groups), [tx.init(g) for tx, g in zip(single, groups)]
+    for step in range(3):
+        grads = jax.tree.map(lambda x: jnp.sin(x * (step + 1)), groups)
+        updates, state = grouped.update(grads, state)
+        expected = []
+        for i, tx in enumerate(single):
+            update, states[i] = tx.update(grads[i], states[i])
+            expected.append(update)
+        for got, want in zip(jax.tree.leaves(updates), jax.tree.leaves(tuple(expected))):
+            np.testing.assert_allclose(got, want, rtol=1e-6, atol=1e-9)
+        groups = optax.apply_updates(groups, updates)
+    with pytest.raises(ValueError, match="2 learning rates"):
+        grouped.init(groups[:1])
 
 
 @pytest.mark.slow
