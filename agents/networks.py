@@ -69,6 +69,9 @@ def sample_tanh_gaussian(key: jax.Array, mean: jax.Array, log_std: jax.Array) ->
     std = jnp.exp(log_std)
     u = mean + std * jax.random.normal(key, mean.shape)
     gaussian = -0.5 * (((u - mean) / std) ** 2 + 2 * log_std + jnp.log(2 * jnp.pi))
-    # log(1 - tanh(u)^2), written stably
-    squash = 2 * (jnp.log(2.0) - u - jax.nn.softplus(-2 * u))
-    return jnp.tanh(u), jnp.sum(gaussian - squash, axis=-1)
+    return jnp.tanh(u), jnp.sum(gaussian - tanh_log_slope(u), axis=-1)
+
+
+def tanh_log_slope(u: jax.Array) -> jax.Array:
+    """log(1 - tanh(u)^2), elementwise, written stably: the log-density change of squashing by tanh."""
+    return 2 * (jnp.log(2.0) - u - jax.nn.softplus(-2 * u))

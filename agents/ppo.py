@@ -1,5 +1,10 @@
 """PPO: on-policy, clipped surrogate, GAE, value loss, entropy bonus, observation normalisation.
 
+Actions are a Gaussian squashed by tanh into the motors' range, as brax's PPO draws them.
+The entropy bonus is the squashed distribution's (the Gaussian's plus the expected log-slope
+of tanh), which is bounded: an unsquashed Gaussian clipped by the motors lets the bonus widen
+the spread without limit, and on long runs that drowned the policy in noise.
+
 The reward is the field's dense reward (`env.step(...).reward`, the spec's
 weighted terms) or, with `reward: sparse`, its success metric. A time-limit
 truncation is treated as an episode end (no bootstrap from the lost final
@@ -16,7 +21,7 @@ import jax.numpy as jnp
 import optax
 
 from agents.loop import Algorithm
-from agents.networks import MLP
+from agents.networks import MLP, tanh_log_slope
 
 
 @dataclasses.dataclass(frozen=True)
@@ -96,23 +101,26 @@ def make_train(config: PPOConfig, env) -> Algorithm:
     def distribution(params, obs):
         return policy_net.apply(params["policy"], obs), params["log_std"]
 
-    def log_prob(mean, log_std, action):
-        return jnp.sum(-0.5 * ((action - mean) / jnp.exp(log_std)) ** 2 - log_std - 0.5 * jnp.log(2 * jnp.pi), -1)
+    def log_prob(mean, log_std, noise):
+        """The Gaussian's log-density of mean + std * noise before tanh: a ratio of two policies' densities
+        at the same squashed action needs no more, as tanh's slope cancels."""
+        return jnp.sum(-0.5 * noise**2 - log_std - 0.5 * jnp.log(2 * jnp.pi), -1)
 
     def act(ts: TrainState, obs: jax.Array) -> jax.Array:
-        """The mean action, clipped to the motors' range."""
+        """The squashed mean action."""
         mean, _ = distribution(ts.params, ts.normalizer(obs, c.normalize_observations))
-        return jnp.clip(mean, -1.0, 1.0)
+        return jnp.tanh(mean)
 
     def rollout(ts: TrainState):
         def step(env_state, key):
             obs = ts.normalizer(env_state.obs, c.normalize_observations)
             mean, log_std = distribution(ts.params, obs)
-            action = mean + jnp.exp(log_std) * jax.random.normal(key, mean.shape)
-            nxt = jax.vmap(env.step)(env_state, action)
+            noise = jax.random.normal(key, mean.shape)
+            raw = mean + jnp.exp(log_std) * noise
+            nxt = jax.vmap(env.step)(env_state, jnp.tanh(raw))
             reward = nxt.reward if c.reward == "dense" else nxt.metrics["success"]
             value = value_net.apply(ts.params["value"], obs)[:, 0]
-            return nxt, {"obs": env_state.obs, "action": action, "log_prob": log_prob(mean, log_std, action),
+            return nxt, {"obs": env_state.obs, "raw": raw, "log_prob": log_prob(mean, log_std, noise),
                          "value": value, "reward": reward, "done": nxt.done, "success": nxt.metrics["success"]}
 
         key, k = jax.random.split(ts.key)
@@ -134,11 +142,15 @@ def make_train(config: PPOConfig, env) -> Algorithm:
     def loss(params, normalizer, mb):
         obs = normalizer(mb["obs"], c.normalize_observations)
         mean, log_std = distribution(params, obs)
-        ratio = jnp.exp(log_prob(mean, log_std, mb["action"]) - mb["log_prob"])
+        noise = (mb["raw"] - mean) / jnp.exp(log_std)
+        ratio = jnp.exp(log_prob(mean, log_std, noise) - mb["log_prob"])
         adv = (mb["adv"] - mb["adv"].mean()) / (mb["adv"].std() + 1e-8)
         surrogate = -jnp.mean(jnp.minimum(ratio * adv, jnp.clip(ratio, 1 - c.clip, 1 + c.clip) * adv))
         value_loss = jnp.mean((value_net.apply(params["value"], obs)[:, 0] - mb["target"]) ** 2)
-        entropy = jnp.sum(log_std + 0.5 * jnp.log(2 * jnp.pi * jnp.e))
+        # the squashed entropy, its tanh part estimated at the stored samples moved with the current
+        # mean and spread (reparameterised, so it has a gradient)
+        fresh = mean + jnp.exp(log_std) * jax.lax.stop_gradient(noise)
+        entropy = jnp.sum(log_std + 0.5 * jnp.log(2 * jnp.pi * jnp.e)) + jnp.mean(jnp.sum(tanh_log_slope(fresh), -1))
         total = surrogate + c.value_coef * value_loss - c.entropy_coef * entropy
         return total, {"policy_loss": surrogate, "value_loss": value_loss, "entropy": entropy}
 
@@ -146,7 +158,7 @@ def make_train(config: PPOConfig, env) -> Algorithm:
         ts, data, last = rollout(ts)
         adv, target = advantages(data, last)
         flat = jax.tree.map(lambda x: x.reshape((batch,) + x.shape[2:]),
-                            {"obs": data["obs"], "action": data["action"], "log_prob": data["log_prob"],
+                            {"obs": data["obs"], "raw": data["raw"], "log_prob": data["log_prob"],
                              "adv": adv, "target": target})
         normalizer = ts.normalizer.update(flat["obs"])
 

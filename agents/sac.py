@@ -23,7 +23,6 @@ import jax.numpy as jnp
 import optax
 
 from agents import buffer as replay
-from agents import crl
 from agents.contrastive import weighted_mean
 from agents.loop import Algorithm
 from agents.networks import MLP, Actor, sample_tanh_gaussian
@@ -60,9 +59,21 @@ class SACConfig(OffPolicyConfig):
 
 
 @flax.struct.dataclass
-class TrainState(crl.TrainState):
-    """CRL's state (here `critic` holds twin Q-functions, stacked on a leading axis of 2) and target networks."""
+class TrainState:
+    """`critic` holds twin Q-functions, stacked on a leading axis of 2. Actor, critic and alpha keep
+    their own optimizers: the actor steps against the critic just updated, and TD3 skips it at times."""
 
+    actor: dict
+    critic: dict
+    log_alpha: jax.Array
+    actor_opt: optax.OptState
+    critic_opt: optax.OptState
+    alpha_opt: optax.OptState
+    env_state: object
+    buffer: replay.Buffer
+    key: jax.Array
+    env_steps: jax.Array
+    grad_steps: jax.Array
     target_actor: dict
     target_critic: dict
 

@@ -1,0 +1,60 @@
+"""Success on a curriculum's last field against env steps, for runs trained directly on it and through it.
+
+Each run is a metrics.jsonl (a run folder's, or one kept in bench/results): a direct run's own
+success, a staged or mixed run's `last_stage_success_any` (the policy judged on the last field
+at every evaluation, whichever stage it trained on). Time at goal is drawn where the run was
+judged on the last field (a direct run, a mixed run's last variant, a staged run once there).
+
+    python bench/curriculum_curves.py direct=bench/results/h200_ppo_tanh_direct_v2_dense.jsonl \\
+        staged=bench/results/h200_ppo_tanh_staged_v2_dense.jsonl mixed=... -o curves.png
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+from fieldgen.training import save_figure
+
+
+def last_field(rows: list[dict]) -> tuple[list, list, list, list]:
+    """(steps, success on the last field, steps judged there for time at goal, time at goal)."""
+    last = max((r.get("stage", 0) for r in rows), default=0)
+    variants = sorted(k for k in rows[0] if k.startswith("variant_") and k.endswith("_time_at_goal"))
+    steps = [r["env_steps"] for r in rows]
+    success = [r.get("last_stage_success_any", r["success_any"]) for r in rows]
+    if variants:
+        judged = [(r["env_steps"], r[variants[-1]]) for r in rows]
+    else:
+        judged = [(r["env_steps"], r["time_at_goal"]) for r in rows if r.get("stage", 0) == last]
+    return steps, success, [s for s, _ in judged], [t for _, t in judged]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("runs", nargs="+", metavar="LABEL=METRICS_JSONL")
+    parser.add_argument("-o", "--out", type=Path, required=True)
+    parser.add_argument("--title", default="success on the last field")
+    args = parser.parse_args()
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, (left, right) = plt.subplots(1, 2, figsize=(10, 3.6))
+    for item in args.runs:
+        label, _, path = item.partition("=")
+        rows = [json.loads(line) for line in Path(path).read_text().splitlines() if line.strip()]
+        steps, success, judged, at_goal = last_field(rows)
+        left.plot(steps, success, marker="o", label=label)
+        right.plot(judged, at_goal, marker="o", label=label)
+        print(f"{label:>10s}: last evaluation {success[-1]:.2f} success_any, best {max(success):.2f}; "
+              f"time at goal {at_goal[-1]:.0f}")
+    left.set(xlabel="env steps", ylabel="success_any", ylim=(-0.02, 1.02), title="episodes with a success")
+    right.set(xlabel="env steps", ylabel="steps at goal per episode", title="time at goal")
+    save_figure(fig, (left, right), args.title, args.out)
+
+
+if __name__ == "__main__":
+    main()
