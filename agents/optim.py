@@ -8,6 +8,7 @@ vector makes the whole update one kernel, with each group's learning rate kept.
 
 from __future__ import annotations
 
+import jax
 import jax.numpy as jnp
 import optax
 from jax.flatten_util import ravel_pytree
@@ -25,8 +26,8 @@ def adam_by_group(*learning_rates: float) -> optax.GradientTransformation:
 
     def update(grads, state, params=None):
         flat, unravel = ravel_pytree(grads)
-        rates = jnp.concatenate([jnp.full(ravel_pytree(group)[0].size, -rate, flat.dtype)
-                                 for group, rate in zip(grads, learning_rates)])
+        sizes = [sum(leaf.size for leaf in jax.tree.leaves(group)) for group in grads]
+        rates = jnp.concatenate([jnp.full(size, -rate, flat.dtype) for size, rate in zip(sizes, learning_rates)])
         step, state = adam.update(flat, state)
         return unravel(step * rates), state
 

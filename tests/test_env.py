@@ -22,8 +22,8 @@ def distinct_scenes(names: list[str]) -> list[str]:
     seen, kept = set(), []
     for name in names:
         spec = load_spec(bundled_fields()[name])
-        key = repr(spec.model_dump(exclude={"name": True, "description": True, "extends": True,
-                                                      "task": {"reward": True}}))
+        ignored = {"name": True, "description": True, "extends": True, "task": {"reward": True}}
+        key = repr(spec.model_dump(exclude=ignored))
         if key not in seen:
             seen.add(key)
             kept.append(name)
