@@ -1,6 +1,8 @@
 """PPO: on-policy, clipped surrogate, GAE, value loss, entropy bonus, observation normalisation.
 
-Actions are a Gaussian squashed by tanh into the motors' range, as brax's PPO draws them.
+Actions are a Gaussian squashed by tanh into the motors' range, as brax's PPO draws them, with
+a spread the policy network sets for each state (brax's choice; `spread: global` keeps one
+learned log-std per action, which learned the ant fields later).
 The entropy bonus is the squashed distribution's (the Gaussian's plus the expected log-slope
 of tanh), which is bounded: an unsquashed Gaussian clipped by the motors lets the bonus widen
 the spread without limit, and on long runs that drowned the policy in noise.
@@ -24,6 +26,9 @@ from agents.loop import Algorithm
 from agents.networks import MLP, tanh_log_slope
 
 
+SPREADS = ("global", "state")
+
+
 @dataclasses.dataclass(frozen=True)
 class PPOConfig:
     total_steps: int = 50_000_000
@@ -39,6 +44,7 @@ class PPOConfig:
     value_coef: float = 0.5
     max_grad_norm: float = 1.0
     hidden: tuple[int, ...] = (256, 256)
+    spread: str = "state"  # state: the policy network's softplus head (brax's); global: one learned log-std per action
     reward: str = "dense"  # dense: the field's weighted terms; sparse: its success metric
     normalize_observations: bool = True
     num_evals: int = 10
@@ -82,7 +88,7 @@ def make_train(config: PPOConfig, env) -> Algorithm:
     iters_per_eval = c.total_steps // (c.num_envs * c.unroll_length) // c.num_evals
     if iters_per_eval < 1:
         raise ValueError(f"total_steps {c.total_steps:,} leaves no iteration between evaluations")
-    policy_net = MLP(c.hidden, env.action_size, init_scale=1.0)
+    policy_net = MLP(c.hidden, env.action_size * (2 if c.spread == "state" else 1), init_scale=1.0)
     value_net = MLP(c.hidden, 1, init_scale=1.0)
     tx = optax.chain(optax.clip_by_global_norm(c.max_grad_norm), optax.adam(c.learning_rate))
     batch = c.num_envs * c.unroll_length
@@ -91,15 +97,21 @@ def make_train(config: PPOConfig, env) -> Algorithm:
     def init(key: jax.Array) -> TrainState:
         k_pi, k_v, k_env, key = jax.random.split(key, 4)
         obs = jnp.zeros((1, env.observation_size))
-        params = {"policy": policy_net.init(k_pi, obs), "value": value_net.init(k_v, obs),
-                  "log_std": jnp.full(env.action_size, -0.5)}
+        params = {"policy": policy_net.init(k_pi, obs), "value": value_net.init(k_v, obs)}
+        if c.spread == "global":
+            params["log_std"] = jnp.full(env.action_size, -0.5)
         n = env.observation_size
         normalizer = Normalizer(jnp.zeros(()), jnp.zeros(n), jnp.zeros(n))
         env_state = jax.vmap(env.reset)(jax.random.split(k_env, c.num_envs))
         return TrainState(params, tx.init(params), normalizer, env_state, key, jnp.zeros((), jnp.int32))
 
     def distribution(params, obs):
-        return policy_net.apply(params["policy"], obs), params["log_std"]
+        """The pre-tanh Gaussian's mean and log-std."""
+        out = policy_net.apply(params["policy"], obs)
+        if c.spread == "global":
+            return out, params["log_std"]
+        mean, raw = jnp.split(out, 2, axis=-1)
+        return mean, jnp.log(jax.nn.softplus(raw) + 1e-3)
 
     def log_prob(mean, log_std, noise):
         """The Gaussian's log-density of mean + std * noise before tanh: a ratio of two policies' densities
@@ -150,7 +162,8 @@ def make_train(config: PPOConfig, env) -> Algorithm:
         # the squashed entropy, its tanh part estimated at the stored samples moved with the current
         # mean and spread (reparameterised, so it has a gradient)
         fresh = mean + jnp.exp(log_std) * jax.lax.stop_gradient(noise)
-        entropy = jnp.sum(log_std + 0.5 * jnp.log(2 * jnp.pi * jnp.e)) + jnp.mean(jnp.sum(tanh_log_slope(fresh), -1))
+        gaussian = jnp.broadcast_to(log_std, mean.shape) + 0.5 * jnp.log(2 * jnp.pi * jnp.e)
+        entropy = jnp.mean(jnp.sum(gaussian + tanh_log_slope(fresh), -1))
         total = surrogate + c.value_coef * value_loss - c.entropy_coef * entropy
         return total, {"policy_loss": surrogate, "value_loss": value_loss, "entropy": entropy}
 

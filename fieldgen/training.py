@@ -123,6 +123,11 @@ def _check_ppo(config, per_iter: int) -> None:
                        f"{per_iter:,}-step iterations need at least {need:,}")
     if config.reward not in ("dense", "sparse"):
         raise RunError(f"unknown reward '{config.reward}'; choose dense (the field's terms) or sparse (its success)")
+    from agents.ppo import SPREADS
+
+    if config.spread not in SPREADS:
+        raise RunError(f"unknown ppo.spread '{config.spread}'; choose global (one learned log-std per action) "
+                       "or state (the policy network's own spread for each state)")
 
 
 def _check_replay(config, env, per_iter: int, algo: str) -> None:

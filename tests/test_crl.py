@@ -6,7 +6,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from agents.contrastive import ENERGIES, energy, infonce, logsumexp_penalty, paired_energy
+from agents.contrastive import ENERGIES, diagonal, energy, infonce, logsumexp_penalty, paired_energy
 from agents.optim import adam_by_group
 
 PHI = jnp.array([[0.0, 0.0], [1.0, 0.0]])
@@ -75,6 +75,15 @@ def test_adam_by_group_equals_one_adam_per_group():
         groups = optax.apply_updates(groups, updates)
     with pytest.raises(ValueError, match="2 learning rates"):
         grouped.init(groups[:1])
+
+
+def test_diagonal_and_its_gradient():
+    import jax
+
+    x = jnp.arange(9.0).reshape(3, 3)
+    np.testing.assert_allclose(diagonal(x), [0.0, 4.0, 8.0])
+    np.testing.assert_allclose(jax.grad(lambda m: jnp.sum(diagonal(m) * jnp.arange(1.0, 4.0)))(x),
+                               np.diag([1.0, 2.0, 3.0]))
 
 
 @pytest.mark.slow

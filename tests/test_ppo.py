@@ -25,8 +25,9 @@ def test_normalizer_matches_numpy():
     np.testing.assert_allclose(n.m2 / n.count, both.var(0), rtol=1e-4)
 
 
-def test_resume_reproduces_the_uninterrupted_run(env_cache):
-    algo = ppo.make_train(tiny(), env_cache("point_nav"))
+@pytest.mark.parametrize("spread", ppo.SPREADS)
+def test_resume_reproduces_the_uninterrupted_run(env_cache, spread):
+    algo = ppo.make_train(tiny(spread=spread), env_cache("point_nav"))
     full, _ = loop.run(algo, [0], 2)
     saved = {}
 

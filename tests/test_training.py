@@ -100,6 +100,7 @@ def test_cli_run_folder_and_resume_of_a_finished_run(tmp_path):
     (["--set", "crl.energy=cos"], "unknown energy 'cos'"),
     (["--algo", "ppo", "--set", "ppo.num_minibatches=3", "--set", "ppo.unroll_length=10"], "does not divide"),
     (["--algo", "ppo", "--set", "ppo.reward=shaped"], "unknown reward 'shaped'"),
+    (["--algo", "ppo", "--set", "ppo.spread=wide"], "unknown ppo.spread 'wide'; choose global"),
     (["--algo", "sca"], "did you mean 'sac'?"),
     (["--algo", "sac", "--set", "sac.her=0.8"], "set sac.reward=sparse"),
     (["--algo", "td3", "--set", "td3.her=1.5"], "between 0 and 1"),
