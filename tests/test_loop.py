@@ -46,8 +46,10 @@ def test_pure_train_is_the_stepwise_run(env_cache):
     algo = ppo.make_train(config, env_cache("point_nav"))
     state, metrics = jax.jit(jax.vmap(loop.pure_train(algo, 2)))(jax.random.PRNGKey(3)[None])
     _, rows = loop.run(algo, [3], 2)
+    # the surrogate is a mean of advantage-normalised terms that can cancel to near 0: float32 rounding
+    # of the vmapped run is then an absolute, not a relative, difference
     np.testing.assert_allclose(np.asarray(metrics["policy_loss"][0]), [r["policy_loss"] for r in rows[1:]],
-                               rtol=1e-4)
+                               rtol=1e-4, atol=1e-6)
     np.testing.assert_allclose(np.asarray(metrics["time_at_goal"][0]), [r["time_at_goal"] for r in rows[1:]])
 
 
