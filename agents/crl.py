@@ -25,7 +25,7 @@ import optax
 from agents import buffer as replay
 from agents.contrastive import energy, infonce, logsumexp_penalty, paired_energy, weighted_mean
 from agents.loop import Algorithm
-from agents.networks import MLP, Actor, PerAgent, sample_tanh_gaussian
+from agents.networks import Stacked, gaussian_head, sample_tanh_gaussian
 from agents.optim import adam_by_group
 from agents.team import Team, whole
 
@@ -58,10 +58,10 @@ class CRLConfig:
 
 @flax.struct.dataclass
 class TrainState:
-    actor: dict
-    critic: dict
+    nets: dict  # the actor, phi(s, a) and psi(g), stacked in that order (agents.networks.Stacked)
+    log_temperature: jax.Array
     log_alpha: jax.Array
-    opt: optax.OptState  # of (actor, critic, log_alpha), one flat Adam
+    opt: optax.OptState  # of (nets, log_temperature, log_alpha), one flat Adam
     env_state: object
     buffer: replay.Buffer
     key: jax.Array
@@ -83,27 +83,22 @@ def make_train(config: CRLConfig, env, team: Team | None = None) -> Algorithm:
     windows, updates = replay.gradient_steps(config, window)
     shared = getattr(c, "share_parameters", False)
     seen, own, goal_size = team.observed.shape[1], team.actions.shape[1], len(env.goal_indices)
-    actor = PerAgent(Actor(c.hidden, own, c.layer_norm), team.size, shared)
-    sa_encoder = PerAgent(MLP(c.hidden, c.repr_dim, c.layer_norm), team.size, shared)
-    g_encoder = PerAgent(MLP(c.hidden, c.repr_dim, c.layer_norm), team.size, shared)
-    tx = adam_by_group(c.actor_lr, c.critic_lr, c.alpha_lr)
+    # one batched network call evaluates the actor and both encoders together
+    nets = Stacked(c.hidden, (seen + goal_size, seen + own, goal_size), (2 * own, c.repr_dim, c.repr_dim),
+                   c.layer_norm, team.size, shared)
+    tx = adam_by_group(jnp.array([c.actor_lr, c.critic_lr, c.critic_lr]), c.critic_lr, c.alpha_lr)
     target_entropy = c.target_entropy_per_action * own
     energies = jax.vmap(functools.partial(energy, c.energy))
     paired_energies = jax.vmap(functools.partial(paired_energy, c.energy))
 
     def init(key: jax.Array) -> TrainState:
         k_actor, k_sa, k_g, k_env, key = jax.random.split(key, 5)
-        actor_params = actor.init(k_actor, jnp.zeros((1, seen + goal_size)))
-        critic_params = {
-            "sa": sa_encoder.init(k_sa, jnp.zeros((1, seen + own))),
-            "g": g_encoder.init(k_g, jnp.zeros((1, goal_size))),
-            "log_temperature": jnp.zeros(team.size),
-        }
-        log_alpha = jnp.zeros(team.size)
+        params = nets.init([k_actor, k_sa, k_g])
+        log_temperature, log_alpha = jnp.zeros(team.size), jnp.zeros(team.size)
         env_state = jax.vmap(env.reset)(jax.random.split(k_env, c.num_envs))
         example = {"state": jnp.zeros(state_dim), "action": jnp.zeros(action_size),
                    "episode": jnp.zeros((), jnp.int32)}
-        return TrainState(actor_params, critic_params, log_alpha, tx.init((actor_params, critic_params, log_alpha)),
+        return TrainState(params, log_temperature, log_alpha, tx.init((params, log_temperature, log_alpha)),
                           env_state, replay.init(c.max_replay_rows, c.num_envs, example), key,
                           jnp.zeros((), jnp.int32), jnp.zeros((), jnp.int32))
 
@@ -111,10 +106,10 @@ def make_train(config: CRLConfig, env, team: Team | None = None) -> Algorithm:
         mine, goals = team.observe(state, goal)
         return jnp.concatenate([mine, goals], -1), mine, goals
 
-    def policy(actor_params, obs, key=None):
+    def policy(params, obs, key=None):
         """A sampled action, or the mean action when key is None."""
         agent_input, _, _ = agent_obs(obs[:, :state_dim], obs[:, state_dim:])
-        mean, log_std = actor.apply(actor_params, agent_input)
+        mean, log_std = gaussian_head(nets.apply_one(params, 0, agent_input))
         if key is None:
             return team.joint_action(jnp.tanh(mean))
         return team.joint_action(sample_tanh_gaussian(key, mean, log_std)[0])
@@ -124,7 +119,7 @@ def make_train(config: CRLConfig, env, team: Team | None = None) -> Algorithm:
 
         def step(carry, key):
             env_state = carry
-            action = policy(ts.actor, env_state.obs, key)
+            action = policy(ts.nets, env_state.obs, key)
             row = {"state": env_state.obs[:, :state_dim], "action": action, "episode": env_state.info["episode"]}
             nxt = jax.vmap(env.step)(env_state, action)
             fell = nxt.done * (1.0 - nxt.info["truncation"])
@@ -143,23 +138,24 @@ def make_train(config: CRLConfig, env, team: Team | None = None) -> Algorithm:
         three separate ones taken at the same parameters, while the goals are encoded once. The critic
         is each agent's InfoNCE on its own view and actions; the actor maximises the energy of its own
         sampled action towards the goal; alpha grows while a policy is below its target entropy."""
-        actor_params, critic_params, log_alpha = learner
+        params, log_temperature, log_alpha = learner
         agent_input, mine, goals = agent_obs(batch["state"], batch["goal"])
         w = batch["weight"]
         mean_w = jax.vmap(lambda x: weighted_mean(x, w))
-        phi = sa_encoder.apply(critic_params["sa"], jnp.concatenate([mine, team.own_actions(batch["action"])], -1))
-        psi = g_encoder.apply(critic_params["g"], goals)
-        energy_ = energies(phi, psi, critic_params["log_temperature"])  # [agents, batch, batch]
+        taken = jnp.concatenate([mine, team.own_actions(batch["action"])], -1)
+        actor_out, phi, psi = nets.apply(params, [agent_input, taken, goals])
+        energy_ = energies(phi, psi, log_temperature)  # [agents, batch, batch]
         contrastive = jax.vmap(lambda x: infonce(c.contrastive_loss, x, w))(energy_)
         penalty = jax.vmap(lambda x: logsumexp_penalty(x, w))(energy_)
         critic = contrastive + c.logsumexp_penalty * penalty
         accuracy = mean_w((jnp.argmax(energy_, axis=2) == jnp.arange(len(w))).astype(jnp.float32))
 
-        mean, log_std = actor.apply(actor_params, agent_input)
-        action, log_prob = sample_tanh_gaussian(key, mean, log_std)  # [agents, batch, own], [agents, batch]
-        frozen = jax.lax.stop_gradient(critic_params)
-        phi_pi = sa_encoder.apply(frozen["sa"], jnp.concatenate([mine, action], -1))
-        q = paired_energies(phi_pi, jax.lax.stop_gradient(psi), frozen["log_temperature"])
+        action, log_prob = sample_tanh_gaussian(key, *gaussian_head(actor_out))  # [agents, batch, own], [agents, batch]
+        # the whole stack again, frozen, for phi of the actor's own action: a stack call costs the
+        # same kernels as one network, and slicing phi's weights out would cost copies
+        frozen = jax.lax.stop_gradient(params)
+        phi_pi = nets.apply(frozen, [agent_input, jnp.concatenate([mine, action], -1), goals])[1]
+        q = paired_energies(phi_pi, jax.lax.stop_gradient(psi), jax.lax.stop_gradient(log_temperature))
         alpha = jnp.exp(log_alpha)[:, None]
         actor_ = mean_w(jax.lax.stop_gradient(alpha) * log_prob - q)
         alpha_ = mean_w(alpha * jax.lax.stop_gradient(-log_prob - target_entropy))
@@ -169,11 +165,11 @@ def make_train(config: CRLConfig, env, team: Team | None = None) -> Algorithm:
                        "entropy": -jnp.mean(log_prob)}
 
     def update(ts: TrainState, batch: dict, key: jax.Array) -> TrainState:
-        learner = (ts.actor, ts.critic, ts.log_alpha)
+        learner = (ts.nets, ts.log_temperature, ts.log_alpha)
         grads, _ = jax.grad(losses, has_aux=True)(learner, batch, key)
         updates, opt = tx.update(grads, ts.opt)
-        actor_params, critic_params, log_alpha = optax.apply_updates(learner, updates)
-        return ts.replace(actor=actor_params, critic=critic_params, log_alpha=log_alpha, opt=opt,
+        params, log_temperature, log_alpha = optax.apply_updates(learner, updates)
+        return ts.replace(nets=params, log_temperature=log_temperature, log_alpha=log_alpha, opt=opt,
                           grad_steps=ts.grad_steps + 1)
 
     def update_epoch(ts: TrainState) -> tuple[TrainState, dict]:
@@ -195,7 +191,7 @@ def make_train(config: CRLConfig, env, team: Team | None = None) -> Algorithm:
         # the losses are logged once per epoch, on its last minibatch after the updates: computing them at
         # every step would cost a GPU more small kernels than the step's own matmuls
         last = jax.tree.map(lambda x: x[-1], batch)
-        _, metrics = losses((ts.actor, ts.critic, ts.log_alpha), last, keys[-1])
+        _, metrics = losses((ts.nets, ts.log_temperature, ts.log_alpha), last, keys[-1])
         return ts, {**metrics, "alpha": jnp.mean(jnp.exp(ts.log_alpha))}
 
     def start(key: jax.Array) -> TrainState:
@@ -211,6 +207,6 @@ def make_train(config: CRLConfig, env, team: Team | None = None) -> Algorithm:
         return ts, jax.tree.map(jnp.mean, metrics)
 
     def act(ts: TrainState, obs: jax.Array) -> jax.Array:
-        return policy(ts.actor, obs)
+        return policy(ts.nets, obs)
 
     return Algorithm(config, env, start, chunk, act, {"env_state": 0, "buffer": 1})

@@ -40,9 +40,13 @@ def evaluate_policy(env, act: Callable, key: jax.Array, n_envs: int) -> dict:
     """One episode per environment with `act(obs)`, counted up to its first `done`.
 
     success_any: share of episodes with a successful step; time_at_goal: successful steps
-    per episode; episode_return; and `term_<name>`: each reward term's mean per live step.
+    per episode; closest_distance: the mean over episodes of the smallest distance between the
+    goal and what is compared with it (the state at `env.goal_indices`), over the states
+    observed before the episode ended, a sign of progress long before the first success;
+    episode_return; and `term_<name>`: each reward term's mean per live step.
     An environment of several variants (`env.variant_count > 1`) is evaluated on each in turn,
-    and also reports `variant_KK_success_any` and `variant_KK_time_at_goal` (KK from 01).
+    and also reports `variant_KK_success_any`, `variant_KK_time_at_goal` and
+    `variant_KK_closest_distance` (KK from 01).
     """
     keys = jax.random.split(key, n_envs)
     count = getattr(env, "variant_count", 1)
@@ -51,19 +55,28 @@ def evaluate_policy(env, act: Callable, key: jax.Array, n_envs: int) -> dict:
     else:
         env_state = jax.vmap(env.reset)(keys)
     terms = [name for name in env_state.metrics if name != "success"]
+    goal_indices = jnp.asarray(env.goal_indices)
+
+    def goal_distance(obs):
+        return jnp.linalg.norm(obs[:, goal_indices] - obs[:, env.state_dim:], axis=-1)
 
     def step(carry, _):
-        env_state, alive = carry
+        env_state, alive, closest = carry
         nxt = jax.vmap(env.step)(env_state, act(env_state.obs))
         out = {"success": nxt.metrics["success"] * alive, "reward": nxt.reward * alive, "alive": alive,
                **{name: nxt.metrics[name] * alive for name in terms}}
-        return (nxt, alive * (1.0 - nxt.done)), out
+        # under auto-reset the obs of an episode's last step is already the next episode's
+        still = alive * (1.0 - nxt.done)
+        closest = jnp.where(still > 0, jnp.minimum(closest, goal_distance(nxt.obs)), closest)
+        return (nxt, still, closest), out
 
-    _, out = jax.lax.scan(step, (env_state, jnp.ones(n_envs)), None, length=env.episode_length)
+    start = (env_state, jnp.ones(n_envs), goal_distance(env_state.obs))
+    (_, _, closest), out = jax.lax.scan(step, start, None, length=env.episode_length)
     live_steps = jnp.sum(out["alive"])
     succeeded = jnp.any(out["success"] > 0, axis=0)
     at_goal = jnp.sum(out["success"], axis=0)
     metrics = {"success_any": jnp.mean(succeeded), "time_at_goal": jnp.mean(at_goal),
+               "closest_distance": jnp.mean(closest),
                "episode_return": jnp.mean(jnp.sum(out["reward"], axis=0)),
                **{f"term_{name}": jnp.sum(out[name]) / live_steps for name in terms}}
     if count > 1:
@@ -72,6 +85,7 @@ def evaluate_policy(env, act: Callable, key: jax.Array, n_envs: int) -> dict:
             mine = (variant == k) / jnp.sum(variant == k)
             metrics[f"variant_{k + 1:02d}_success_any"] = jnp.sum(succeeded * mine)
             metrics[f"variant_{k + 1:02d}_time_at_goal"] = jnp.sum(at_goal * mine)
+            metrics[f"variant_{k + 1:02d}_closest_distance"] = jnp.sum(closest * mine)
     return metrics
 
 

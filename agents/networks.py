@@ -42,10 +42,14 @@ class Actor(nn.Module):
 
     @nn.compact
     def __call__(self, obs: jax.Array) -> tuple[jax.Array, jax.Array]:
-        out = MLP(self.hidden, 2 * self.action_size, self.layer_norm)(obs)
-        mean, raw = jnp.split(out, 2, axis=-1)
-        # squash into [LOG_STD_MIN, LOG_STD_MAX] smoothly, so the bounds never stop the gradient
-        return mean, LOG_STD_MIN + 0.5 * (LOG_STD_MAX - LOG_STD_MIN) * (jnp.tanh(raw) + 1.0)
+        return gaussian_head(MLP(self.hidden, 2 * self.action_size, self.layer_norm)(obs))
+
+
+def gaussian_head(out: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """An actor network's 2A outputs -> (mean, log_std), the log-std squashed into
+    [LOG_STD_MIN, LOG_STD_MAX] smoothly, so the bounds never stop the gradient."""
+    mean, raw = jnp.split(out, 2, axis=-1)
+    return mean, LOG_STD_MIN + 0.5 * (LOG_STD_MAX - LOG_STD_MIN) * (jnp.tanh(raw) + 1.0)
 
 
 class PerAgent:
@@ -62,6 +66,45 @@ class PerAgent:
     def apply(self, params: dict, x: jax.Array):
         """x: [agents, batch, features] -> the module's output per agent."""
         return jax.vmap(self.module.apply, in_axes=(None if self.shared else 0, 0))(params, x)
+
+
+class Stacked:
+    """MLPs of the same hidden widths (each per agent, as PerAgent) kept as one: their parameters
+    stacked on a leading axis and zero-padded to the widest input and output.
+
+    On the small batches of a gradient step a GPU's time goes to launching kernels, one per
+    matmul and per fused elementwise op of each network; stacked, the networks share each
+    layer's kernels. The padding is exact: padded weights meet zero inputs or feed outputs
+    that are cut off, so their gradients are zero and they stay zero. Each network starts as
+    it would alone (its own fan-in), so the stacking changes no result."""
+
+    def __init__(self, hidden: Sequence[int], inputs: Sequence[int], outputs: Sequence[int],
+                 layer_norm: bool, agents: int, shared: bool = False):
+        self.members = [PerAgent(MLP(hidden, out, layer_norm), agents, shared) for out in outputs]
+        self.joint = PerAgent(MLP(hidden, max(outputs), layer_norm), agents, shared)
+        self.inputs, self.outputs = tuple(inputs), tuple(outputs)
+
+    def init(self, keys: Sequence[jax.Array]) -> dict:
+        """One key per network."""
+        alone = [m.init(k, jnp.zeros((1, n))) for m, k, n in zip(self.members, keys, self.inputs)]
+
+        def stack(*leaves):
+            shape = [max(sizes) for sizes in zip(*(x.shape for x in leaves))]
+            return jnp.stack([jnp.pad(x, [(0, w - d) for w, d in zip(shape, x.shape)]) for x in leaves])
+
+        return jax.tree.map(stack, *alone)
+
+    def apply(self, params: dict, xs: Sequence[jax.Array]) -> list[jax.Array]:
+        """xs: one input per network, [agents, batch, its inputs] -> one output per network."""
+        out = jax.vmap(self.joint.apply)(params, jnp.stack([self._widen(x) for x in xs]))
+        return [out[k, ..., :n] for k, n in enumerate(self.outputs)]
+
+    def apply_one(self, params: dict, k: int, x: jax.Array) -> jax.Array:
+        """Network k alone (for acting, where the others are not needed)."""
+        return self.joint.apply(jax.tree.map(lambda p: p[k], params), self._widen(x))[..., :self.outputs[k]]
+
+    def _widen(self, x: jax.Array) -> jax.Array:
+        return jnp.pad(x, [(0, 0)] * (x.ndim - 1) + [(0, max(self.inputs) - x.shape[-1])])
 
 
 def sample_tanh_gaussian(key: jax.Array, mean: jax.Array, log_std: jax.Array) -> tuple[jax.Array, jax.Array]:

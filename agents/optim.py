@@ -8,15 +8,20 @@ vector makes the whole update one kernel, with each group's learning rate kept.
 
 from __future__ import annotations
 
+import functools
+
 import jax
 import jax.numpy as jnp
 import optax
 from jax.flatten_util import ravel_pytree
 
 
-def adam_by_group(*learning_rates: float) -> optax.GradientTransformation:
+def adam_by_group(*learning_rates) -> optax.GradientTransformation:
     """Adam over a tuple of parameter groups (one learning rate each), elementwise equal to
-    `optax.adam(rate)` applied to each group on its own."""
+    `optax.adam(rate)` applied to each group on its own.
+
+    A rate may also be an array: it then runs along the leading axes of its group's leaves, for
+    groups that stack several networks on a leading axis, each with its own learning rate."""
     adam = optax.scale_by_adam()
 
     def init(groups):
@@ -26,9 +31,14 @@ def adam_by_group(*learning_rates: float) -> optax.GradientTransformation:
 
     def update(grads, state, params=None):
         flat, unravel = ravel_pytree(grads)
-        sizes = [sum(leaf.size for leaf in jax.tree.leaves(group)) for group in grads]
-        rates = jnp.concatenate([jnp.full(size, -rate, flat.dtype) for size, rate in zip(sizes, learning_rates)])
+        rates = [jax.tree.map(functools.partial(_spread, -jnp.asarray(rate, flat.dtype)), group)
+                 for group, rate in zip(grads, learning_rates)]
         step, state = adam.update(flat, state)
-        return unravel(step * rates), state
+        return unravel(step * ravel_pytree(rates)[0]), state
 
     return optax.GradientTransformation(init, update)
+
+
+def _spread(rate: jax.Array, leaf: jax.Array) -> jax.Array:
+    """A rate over a leaf's leading axes, broadcast to the whole leaf."""
+    return jnp.broadcast_to(rate.reshape(rate.shape + (1,) * (leaf.ndim - rate.ndim)), leaf.shape)

@@ -415,12 +415,12 @@ def evaluate(
     judged = jax.vmap(functools.partial(loop.evaluate, algo), in_axes=(0, None))
     result = jax.device_get(jax.jit(judged)(run.state, key))
     steps = int(jax.device_get(run.state.env_steps)[0])
-    table = Table("seed", "success_any", "time_at_goal", "return",
+    table = Table("seed", "success_any", "time_at_goal", "closest", "return",
                   title=f"{run_dir} at {steps:,} env steps, {episodes} episodes per seed")
     for i, s in enumerate(run.seeds):
         table.add_row(str(s), f"{result['success_any'][i]:.3f}",
                       f"{result['time_at_goal'][i]:.1f} of {run.env.episode_length} steps",
-                      f"{result['episode_return'][i]:.2f}")
+                      f"{result['closest_distance'][i]:.2f}", f"{result['episode_return'][i]:.2f}")
     out.print(table)
     if video:
         recorder = training.EpisodeRecorder(run.env, algo.act, camera)

@@ -198,13 +198,15 @@ def _stats(rows: list[dict]) -> str:
 
 def summary(run: Run, console: Console) -> None:
     """The last evaluation of every seed against the untrained one, and where the files are."""
-    table = Table("seed", "env steps", "success_any", "time_at_goal", "return", "steps/s", title=str(run.folder))
+    table = Table("seed", "env steps", "success_any", "time_at_goal", "closest", "return", "steps/s",
+                  title=str(run.folder))
     for seed in run.seeds:
         mine = [r for r in run.rows if r.get("seed", seed) == seed]
         first, last = mine[0], mine[-1]
+        closest = " -> ".join(f"{r['closest_distance']:.2f}" for r in (first, last) if "closest_distance" in r)
         table.add_row(str(seed), f"{last['env_steps']:,}",
                       f"{first['success_any']:.2f} -> {last['success_any']:.2f}",
-                      f"{first['time_at_goal']:.1f} -> {last['time_at_goal']:.1f}",
+                      f"{first['time_at_goal']:.1f} -> {last['time_at_goal']:.1f}", closest,
                       f"{last['episode_return']:.1f}", _rate(last).removesuffix(" steps/s"))
     console.print(table)
     for row in run.rows:

@@ -220,19 +220,28 @@ def write_metrics(run_dir: Path, rows: list[dict]) -> None:
     write_atomic(run_dir / CSV, text.getvalue().encode())
 
 
+# metric -> (axis label, panel title, y limits or None); a panel is drawn where the rows have the metric
+PANELS = {"success_any": ("success_any", "episodes with a success", (-0.02, 1.02)),
+          "time_at_goal": ("steps at goal per episode", "time at goal", None),
+          "closest_distance": ("distance", "closest approach to the goal", None)}
+
+
 def plot_success(run_dir: Path, rows: list[dict], title: str) -> None:
-    """success_any and time_at_goal against env steps: one line per seed; for a staged curriculum
-    one colour per stage and a line for the last stage; for a mixed one a line per stage."""
+    """success_any, time_at_goal and closest_distance against env steps: one line per seed; for a
+    staged curriculum one colour per stage and a line for the last stage; for a mixed one a line per stage."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, (left, right) = plt.subplots(1, 2, figsize=(10, 3.6))
-    (_plot_variants if "variant_01_success_any" in rows[0] else _plot_groups)(left, right, rows)
-    left.set(xlabel="env steps", ylabel="success_any", ylim=(-0.02, 1.02), title="episodes with a success")
-    right.set(xlabel="env steps", ylabel="steps at goal per episode", title="time at goal")
-    save_figure(fig, (left, right), title, run_dir / PLOT)
+    metrics = [m for m in PANELS if any(m in r for r in rows)]
+    fig, axes = plt.subplots(1, len(metrics), figsize=(5 * len(metrics), 3.6))
+    panels = dict(zip(metrics, axes))
+    (_plot_variants if "variant_01_success_any" in rows[0] else _plot_groups)(panels, rows)
+    for metric, ax in panels.items():
+        label, name, limits = PANELS[metric]
+        ax.set(xlabel="env steps", ylabel=label, title=name, ylim=limits)
+    save_figure(fig, axes, title, run_dir / PLOT)
 
 
 def save_figure(fig, axes, title: str, path: Path) -> None:
@@ -251,30 +260,35 @@ def save_figure(fig, axes, title: str, path: Path) -> None:
     write_atomic(path, buf.getvalue())
 
 
-def _plot_groups(left, right, rows: list[dict]) -> None:
+def _series(rows: list[dict], metric: str) -> tuple[list, list]:
+    """(env steps, values) of the rows that have the metric (a run resumed from older code may lack it)."""
+    have = [r for r in rows if metric in r]
+    return [r["env_steps"] for r in have], [r[metric] for r in have]
+
+
+def _plot_groups(panels: dict, rows: list[dict]) -> None:
     """A line per seed, or the points of each stage of a staged run and its last stage's line."""
     staged = "stage" in rows[0]
     groups = list(dict.fromkeys(r["stage"] if staged else r.get("seed", 0) for r in rows))
     for group in groups:
         mine = [r for r in rows if (r["stage"] if staged else r.get("seed", 0)) == group]
-        steps = [r["env_steps"] for r in mine]
         label = f"stage {group + 1}" if staged else (f"seed {group}" if len(groups) > 1 else None)
-        left.plot(steps, [r["success_any"] for r in mine], marker="o", ls="" if staged else "-", label=label)
-        right.plot(steps, [r["time_at_goal"] for r in mine], marker="o", ls="" if staged else "-", label=label)
+        for metric, ax in panels.items():
+            ax.plot(*_series(mine, metric), marker="o", ls="" if staged else "-", label=label)
     if staged:
-        left.plot([r["env_steps"] for r in rows], [r["last_stage_success_any"] for r in rows], color="black",
-                  label="last stage")
+        panels["success_any"].plot(*_series(rows, "last_stage_success_any"), color="black", label="last stage")
 
 
-def _plot_variants(left, right, rows: list[dict]) -> None:
+def _plot_variants(panels: dict, rows: list[dict]) -> None:
     """A mixed run: one line per stage (mean over seeds), the last stage in black."""
-    steps = sorted({r["env_steps"] for r in rows})
     names = sorted(k.removesuffix("_success_any") for k in rows[0] if k.startswith("variant_") and
                    k.endswith("_success_any"))
     for i, name in enumerate(names, 1):
         style = {"color": "black", "lw": 2} if i == len(names) else {}
-        for ax, metric in ((left, "success_any"), (right, "time_at_goal")):
-            values = [np.mean([r[f"{name}_{metric}"] for r in rows if r["env_steps"] == s]) for s in steps]
+        for metric, ax in panels.items():
+            key = f"{name}_{metric}"
+            steps = sorted({r["env_steps"] for r in rows if key in r})
+            values = [np.mean([r[key] for r in rows if r["env_steps"] == s and key in r]) for s in steps]
             ax.plot(steps, values, marker="o", label=f"stage {i}" + (" (last)" if i == len(names) else ""), **style)
 
 

@@ -59,18 +59,20 @@ def test_adam_by_group_equals_one_adam_per_group():
     import optax
 
     rng = np.random.default_rng(1)
-    groups = ({"w": jnp.asarray(rng.normal(size=(3, 2))), "b": jnp.ones(2)}, jnp.asarray(rng.normal(size=4)))
-    rates = (1e-2, 3e-1)
-    grouped, single = adam_by_group(*rates), [optax.adam(r) for r in rates]
-    state, states = grouped.init(groups), [tx.init(g) for tx, g in zip(single, groups)]
+    # the first group stacks two networks on a leading axis, each with its own rate
+    groups = ({"w": jnp.asarray(rng.normal(size=(2, 3, 2))), "b": jnp.ones((2, 2))}, jnp.asarray(rng.normal(size=4)))
+    rates = (1e-2, 1e-3, 3e-1)  # network 0, network 1, the second group
+    grouped, single = adam_by_group(jnp.array(rates[:2]), rates[2]), [optax.adam(r) for r in rates]
+    split = lambda g: (jax.tree.map(lambda x: x[0], g[0]), jax.tree.map(lambda x: x[1], g[0]), g[1])  # noqa: E731
+    state, states = grouped.init(groups), [tx.init(g) for tx, g in zip(single, split(groups))]
     for step in range(3):
         grads = jax.tree.map(lambda x: jnp.sin(x * (step + 1)), groups)
         updates, state = grouped.update(grads, state)
         expected = []
         for i, tx in enumerate(single):
-            update, states[i] = tx.update(grads[i], states[i])
+            update, states[i] = tx.update(split(grads)[i], states[i])
             expected.append(update)
-        for got, want in zip(jax.tree.leaves(updates), jax.tree.leaves(tuple(expected))):
+        for got, want in zip(jax.tree.leaves(split(updates)), jax.tree.leaves(tuple(expected))):
             np.testing.assert_allclose(got, want, rtol=1e-6, atol=1e-9)
         groups = optax.apply_updates(groups, updates)
     with pytest.raises(ValueError, match="2 learning rates"):

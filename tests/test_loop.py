@@ -30,7 +30,7 @@ def seed_one(env_cache):
 def test_vmapped_seeds_match_seeds_run_alone(env_cache, seed_one):
     both, rows = loop.run(crl.make_train(tiny_crl(), env_cache("point_nav")), [0, 1], 2)
     alone, alone_rows = seed_one
-    for a, b in zip(jax.tree.leaves(loop.seed_slice(both.actor, 1)), jax.tree.leaves(loop.seed_slice(alone.actor, 0))):
+    for a, b in zip(jax.tree.leaves(loop.seed_slice(both.nets, 1)), jax.tree.leaves(loop.seed_slice(alone.nets, 0))):
         np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-4, atol=1e-5)
     assert {r["seed"] for r in rows} == {0, 1} and len(rows) == 6
     ours = [r for r in rows if r["seed"] == 1]
@@ -92,7 +92,7 @@ def test_evaluation_reports_each_reward_terms_mean(write_spec):
                       "    - {term: agent_progress, weight: 0.1}\n")
     env = fieldgen.make(spec)
     metrics = jax.device_get(loop.evaluate_policy(env, lambda obs: obs[:, -2:] - obs[:, :2], jax.random.PRNGKey(0), 8))
-    assert set(metrics) == {"success_any", "time_at_goal", "episode_return", "term_agent_progress"}
+    assert set(metrics) == {"success_any", "time_at_goal", "closest_distance", "episode_return", "term_agent_progress"}
     assert metrics["term_agent_progress"] > 0  # the policy heads for the target
     expected = metrics["time_at_goal"] + 0.1 * env.episode_length * metrics["term_agent_progress"]
     assert metrics["episode_return"] == pytest.approx(expected, rel=1e-4)

@@ -47,7 +47,7 @@ def test_resume_after_interrupt_reproduces_the_uninterrupted_run(env_cache, tmp_
     restored = checkpoint.load(tmp_path / "c.msgpack", template)
     resumed, history = loop.run(algo, [0], 2, resume=(restored, 1))
     assert [row["eval"] for row in history] == [2]
-    for a, b in zip(jax.tree.leaves(full.actor), jax.tree.leaves(resumed.actor)):
+    for a, b in zip(jax.tree.leaves(full.nets), jax.tree.leaves(resumed.nets)):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
     assert int(full.env_steps[0]) == int(resumed.env_steps[0])
 
