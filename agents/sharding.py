@@ -16,8 +16,9 @@ from jax.sharding import Mesh, NamedSharding, PartitionSpec
 AXIS = "envs"
 
 
-def local_mesh() -> Mesh:
-    return Mesh(np.array(jax.local_devices()), (AXIS,))
+def local_mesh(count: int | None = None) -> Mesh:
+    """A mesh over the first `count` local devices (all of them by default)."""
+    return Mesh(np.array(jax.local_devices()[:count]), (AXIS,))
 
 
 def state_shardings(state, mesh: Mesh, env_axes: dict[str, int], offset: int = 0):
