@@ -127,9 +127,10 @@ def run(algo: Algorithm, seeds: Sequence[int], num_evals: int,
         on_eval: Callable = lambda state, index: None, resume: tuple | None = None):
     """Train every seed at once (vmapped), evaluating untrained (index 0) and after each of num_evals chunks.
 
-    With several local devices the environments (and whatever else `algo.env_axes` names)
-    are sharded across them; gradients of the losses, means over the sharded batch, are then
-    averaged across devices by the compiler. `progress(index, rows)` gets one row per seed;
+    With several local devices, seeds that fill them evenly are split among them (each device
+    trains its own); otherwise the environments (and whatever else `algo.env_axes` names)
+    are sharded across them, and gradients of the losses, means over the sharded batch, are
+    averaged across devices by the compiler (agents.sharding). `progress(index, rows)` gets one row per seed;
     `on_eval(state, index)` runs after every evaluation (checkpoints); `resume=(state, index)`
     continues after evaluation `index` exactly as if never stopped. Returns (state, rows).
     """
@@ -167,9 +168,8 @@ def run_staged(algos: Sequence[Algorithm], seeds: Sequence[int], num_evals: int,
         the policy, so it takes a state of any stage (the last stage is judged while training earlier ones)."""
         algo = algos[k]
         if len(seeds) not in algo.compiled:
-            mesh = sharding.local_mesh()
             shapes = jax.eval_shape(jax.vmap(algo.start), keys)
-            placement = sharding.state_shardings(shapes, mesh, algo.env_axes, offset=1)
+            placement = sharding.training_shardings(shapes, sharding.local_mesh(), algo.env_axes)
             algo.compiled[len(seeds)] = (
                 placement, jax.jit(jax.vmap(algo.start), out_shardings=placement),
                 jax.jit(jax.vmap(algo.chunk), in_shardings=(placement,), out_shardings=(placement, None)),

@@ -1,10 +1,12 @@
 """Spreading a training state over the local devices with jax.sharding.
 
-The environments (and anything stored per environment, such as the replay buffer's
+Seeds trained at once (vmapped) that fill the devices evenly are split by seed: each
+device trains its own seeds and nothing passes between devices. Otherwise the
+environments (and anything stored per environment, such as the replay buffer's
 columns) are split across devices along one mesh axis; everything else (parameters,
-optimizer states, keys) is replicated. Code stays single-device code: the compiler
-partitions it from these placements, and a loss averaged over a sharded batch becomes a
-cross-device mean of gradients.
+optimizer states, keys) is replicated, and a loss averaged over the sharded batch
+becomes a cross-device mean of gradients. Code stays single-device code: the compiler
+partitions it from these placements.
 """
 
 from __future__ import annotations
@@ -38,6 +40,15 @@ def state_shardings(state, mesh: Mesh, env_axes: dict[str, int], offset: int = 0
 
     return state.replace(**{name: jax.tree.map(place(env_axes.get(name)), getattr(state, name))
                             for name in state.__dataclass_fields__})
+
+
+def training_shardings(state, mesh: Mesh, env_axes: dict[str, int]):
+    """Shardings for a training state vmapped over seeds (a leading seed axis on every leaf): by seed
+    when the seeds are a multiple of the devices, else by environment (`state_shardings`)."""
+    seeds = jax.tree.leaves(state)[0].shape[0]
+    if seeds > 1 and seeds % mesh.size == 0:
+        return jax.tree.map(lambda x: NamedSharding(mesh, PartitionSpec(AXIS)), state)
+    return state_shardings(state, mesh, env_axes, offset=1)
 
 
 def device_count() -> int:

@@ -4,7 +4,8 @@ The reference, measured in the same run, is the same environment stepped alone
 with random actions at the same batch size (fieldgen.throughput): the ratio is
 the share of time left to simulation once training runs beside it. Each figure
 times one jitted chunk of training iterations after a warm-up call, its state
-spread over the devices as `fieldgen train` spreads it (agents.sharding). The first
+spread over the devices as `fieldgen train` spreads it (agents.sharding): by seed
+when `--seeds` fill the devices evenly, else by environment. The first
 algorithm listed is also the others' reference: `crl/icrl 1.20` means ICRL runs
 1.2 times slower per env step than CRL. With `--devices 1,2` each row is timed on
 one device and then on two, and the second is also printed as a ratio to the first.
@@ -12,6 +13,7 @@ one device and then on two, and the second is also printed as a ratio to the fir
     python bench/train_throughput.py --fields build/ant_nav,build/soccer_v1 --algos crl,ppo --envs 1024,4096
     python bench/train_throughput.py --fields build/soccer_v1 --algos crl,icrl,icrl:agents=joint,sac,td3 --envs 1024
     python bench/train_throughput.py --fields build/ant_nav --algos crl,ppo --envs 4096 --devices 1,2
+    python bench/train_throughput.py --fields build/ant_nav --algos crl --envs 1024 --seeds 2 --devices 1,2
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ import time
 from pathlib import Path
 
 import jax
+import jax.numpy as jnp
 
 import fieldgen
 from agents import buffer, sharding
@@ -39,13 +42,15 @@ def config_for(entry: str, num_envs: int, iterations: int, sets: list[str]):
     return dataclasses.replace(c, total_steps=(prefill + iterations) * num_envs * c.unroll_length)
 
 
-def time_chunk(algo, key, devices: int | None = None) -> float:
-    """Seconds for one chunk on the first `devices` local devices (all by default), timed after two
-    warm-up calls (the first, and the first fed its own output, can both compile)."""
-    mesh = sharding.local_mesh(devices)
-    placement = sharding.state_shardings(jax.eval_shape(algo.start, key), mesh, algo.env_axes)
-    chunk = jax.jit(algo.chunk, in_shardings=(placement,), out_shardings=(placement, None))
-    state = jax.block_until_ready(jax.jit(algo.start, out_shardings=placement)(key))
+def time_chunk(algo, seeds: int, devices: int | None = None) -> float:
+    """Seconds for one chunk of `seeds` vmapped seeds placed on the first `devices` local devices (all by
+    default) as training places them, timed after two warm-up calls (the first, and the first fed its
+    own output, can both compile)."""
+    keys = jnp.stack([jax.random.PRNGKey(s) for s in range(seeds)])
+    shapes = jax.eval_shape(jax.vmap(algo.start), keys)
+    placement = sharding.training_shardings(shapes, sharding.local_mesh(devices), algo.env_axes)
+    chunk = jax.jit(jax.vmap(algo.chunk), in_shardings=(placement,), out_shardings=(placement, None))
+    state = jax.block_until_ready(jax.jit(jax.vmap(algo.start), out_shardings=placement)(keys))
     for _ in range(2):
         state, _ = jax.block_until_ready(chunk(state))
     t0 = time.perf_counter()
@@ -62,6 +67,7 @@ def main() -> None:
     parser.add_argument("--iterations", type=int, default=4, help="training iterations per timed chunk")
     parser.add_argument("--set", action="append", default=[], metavar="ALGO.KEY=VALUE", help="config overrides")
     parser.add_argument("--devices", help="comma-separated device counts to time each row on; default: all")
+    parser.add_argument("--seeds", type=int, default=1, help="seeds trained at once (vmapped); env steps count all")
     parser.add_argument("--json", type=Path)
     args = parser.parse_args()
     counts = [int(x) for x in args.devices.split(",")] if args.devices else [sharding.device_count()]
@@ -69,7 +75,7 @@ def main() -> None:
     for field in args.fields.split(","):
         env = fieldgen.make(Path(field) if Path(field).exists() else field)
         for n in [int(x) for x in args.envs.split(",")]:
-            sim = measure(env, n, 62).steps_per_second
+            sim = measure(env, n * args.seeds, 62).steps_per_second  # as many envs as all seeds step
             algos = args.algos.split(",")
             first = {}  # the first algorithm's figure by device count
             for name in algos:
@@ -78,17 +84,18 @@ def main() -> None:
                 per_iter = n * config.unroll_length
                 alone = None
                 for devices in counts:
-                    seconds = time_chunk(algo, jax.random.PRNGKey(0), devices)
-                    sps = args.iterations * per_iter / seconds
+                    seconds = time_chunk(algo, args.seeds, devices)
+                    sps = args.seeds * args.iterations * per_iter / seconds
                     memory = peak_memory_mb()
                     first.setdefault(devices, sps)
                     alone = alone or sps
                     scaling = f"; x{devices} devices / x{counts[0]} {sps / alone:.2f}" if len(counts) > 1 else ""
-                    print(f"{env.spec.name:>12s} {name:>17s} {n:>6d} envs: {sps:>10,.0f} env steps/s with training; "
+                    per_seed = f" x {args.seeds} seeds" if args.seeds > 1 else ""
+                    print(f"{env.spec.name:>12s} {name:>17s} {n:>6d} envs{per_seed}: {sps:>10,.0f} env steps/s with training; "
                           f"env alone {sim:>11,.0f}; ratio {sps / sim:.3f}; {algos[0]}/{name} {first[devices] / sps:.2f}; "
                           f"{seconds / args.iterations:.3f} s per iteration; peak memory so far "
                           f"{memory if memory is None else f'{memory:,.0f} MiB'}{scaling}", flush=True)
-                    append_jsonl(args.json, {"field": env.spec.name, "algo": name, "envs": n, "devices": devices,
+                    append_jsonl(args.json, {"field": env.spec.name, "algo": name, "envs": n, "seeds": args.seeds, "devices": devices,
                                              "train_steps_per_second": sps, "env_steps_per_second": sim,
                                              f"{algos[0]}_over_this": first[devices] / sps, "sets": args.set,
                                              "seconds_per_iteration": seconds / args.iterations,
