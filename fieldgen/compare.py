@@ -55,15 +55,16 @@ def runs(source: Path, algos: list[str], seeds: list[int], folder: Path | None, 
 
 
 def curves(run: runner.Run) -> dict:
-    """Per evaluation: env steps, wall seconds, and success_any / time_at_goal over the seeds."""
+    """Per evaluation: env steps, wall seconds, and success_any / time_at_goal / closest_distance over the
+    seeds (closest_distance NaN in rows written before it was logged)."""
     evals = sorted({r["eval"] for r in run.rows})
-    out = {"env_steps": [], "wall_seconds": [], "success_any": [], "time_at_goal": []}
+    out = {"env_steps": [], "wall_seconds": [], "success_any": [], "time_at_goal": [], "closest_distance": []}
     for e in evals:
         rows = [r for r in run.rows if r["eval"] == e]
         out["env_steps"].append(rows[0]["env_steps"])
         out["wall_seconds"].append(rows[0].get("wall_seconds", np.nan))
-        out["success_any"].append([r["success_any"] for r in rows])
-        out["time_at_goal"].append([r["time_at_goal"] for r in rows])
+        for metric in ("success_any", "time_at_goal", "closest_distance"):
+            out[metric].append([r.get(metric, np.nan) for r in rows])
     return out
 
 
@@ -79,24 +80,29 @@ def summary(runs_: list[runner.Run]) -> list[dict]:
                       "success_any": float(last.mean()), "success_any_std": float(last.std()),
                       "best_success_any": float(max(np.mean(s) for s in c["success_any"])),
                       "time_at_goal": float(np.mean(c["time_at_goal"][-1])),
+                      "closest_distance": _finite(np.mean(c["closest_distance"][-1])),
                       "steps_per_second": float(np.median(rates)) if rates else None,  # the first chunk compiles
                       "wall_seconds": c["wall_seconds"][-1], "folder": str(run.folder)})
     return table
 
 
+def _finite(x: float) -> float | None:
+    return None if np.isnan(x) else float(x)
+
+
 def plot(runs_: list[runner.Run], path: Path, title: str) -> None:
-    """success_any against env steps and against wall-clock seconds, and time at goal against env steps:
-    the mean over seeds, with the seeds' range shaded."""
+    """success_any against env steps and against wall-clock seconds, time at goal and the closest approach
+    to the goal against env steps: the mean over seeds, with the seeds' range shaded."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, 3, figsize=(14, 3.8))
+    fig, axes = plt.subplots(1, 4, figsize=(18, 3.8))
     for run in runs_:
         c = curves(run)
         for ax, x, metric in ((axes[0], "env_steps", "success_any"), (axes[1], "wall_seconds", "success_any"),
-                              (axes[2], "env_steps", "time_at_goal")):
+                              (axes[2], "env_steps", "time_at_goal"), (axes[3], "env_steps", "closest_distance")):
             values = np.asarray(c[metric])
             line, = ax.plot(c[x], values.mean(1), marker="o", ms=3, label=run.algo)
             if values.shape[1] > 1:
@@ -105,6 +111,7 @@ def plot(runs_: list[runner.Run], path: Path, title: str) -> None:
     axes[1].set(xlabel="wall-clock seconds (compiling, training, evaluating)", ylabel="success_any", ylim=(-0.02, 1.02),
                 title="against time")
     axes[2].set(xlabel="env steps", ylabel="steps at goal per episode", title="time at goal")
+    axes[3].set(xlabel="env steps", ylabel="distance", title="closest approach to the goal")
     training.save_figure(fig, axes, title, path)
 
 
@@ -114,12 +121,13 @@ def report(runs_: list[runner.Run], folder: Path, console: Console) -> None:
     rows, seeds = summary(runs_), len(runs_[0].seeds)
     write_atomic(folder / TABLE, (json.dumps(rows, indent=1) + "\n").encode())
     plot(runs_, folder / PLOT, f"{field}: {', '.join(r.algo for r in runs_)} ({seeds} seed{'s' * (seeds > 1)} each)")
-    table = Table("algo", "env steps", "success_any (last)", "best", "time_at_goal", "steps/s", "wall s",
+    table = Table("algo", "env steps", "success_any (last)", "best", "time_at_goal", "closest", "steps/s", "wall s",
                   title=f"{field}: {folder}")
     for r in rows:
         spread = f" ± {r['success_any_std']:.2f}" if r["seeds"] > 1 else ""
         table.add_row(r["algo"], f"{r['env_steps']:,}", f"{r['success_any']:.2f}{spread}",
                       f"{r['best_success_any']:.2f}", f"{r['time_at_goal']:.1f}",
+                      "" if r["closest_distance"] is None else f"{r['closest_distance']:.2f}",
                       "" if r["steps_per_second"] is None else f"{r['steps_per_second']:,.0f}",
                       f"{r['wall_seconds']:,.0f}")
     console.print(table)

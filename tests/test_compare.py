@@ -28,6 +28,7 @@ def test_compare_trains_each_algorithm_then_only_redraws(tmp_path):
     assert [r["algo"] for r in table] == ["crl", "td3"]
     assert all(r["seeds"] == 2 and r["env_steps"] == 1920 and 0 <= r["success_any"] <= 1 for r in table)  # 2000
     # less what does not fill an iteration of 8 envs x 10 steps
+    assert all(0 <= r["closest_distance"] <= 3.0 + 1e-4 for r in table)  # targets start 3 away
     assert (tmp_path / "compare.png").stat().st_size > 10_000
     metrics = (tmp_path / "point_nav-td3-0to1" / "metrics.jsonl").read_text()
     again = runner.invoke(app, args)
