@@ -17,12 +17,14 @@ from fieldgen.schema import bundled_fields, load_spec
 
 
 def distinct_scenes(names: list[str]) -> list[str]:
-    """One field per distinct scene and episode rule: fields that differ only in their reward terms
-    step the same physics (their terms are checked against their formulas in test_task)."""
+    """One field per distinct scene and episode rule: fields that differ only in their reward terms or
+    in how far their targets are drawn step the same physics through the same code (the terms are
+    checked against their formulas in test_task)."""
     seen, kept = set(), []
     for name in names:
         spec = load_spec(bundled_fields()[name])
-        ignored = {"name": True, "description": True, "extends": True, "task": {"reward": True}}
+        ignored = {"name": True, "description": True, "extends": True,
+                   "task": {"reward": True, "target": {"radius": True}}}
         key = repr(spec.model_dump(exclude=ignored))
         if key not in seen:
             seen.add(key)
