@@ -39,7 +39,8 @@ def load(path: Path, template):
     expected, treedef = jax.tree.flatten(template)
     if len(leaves) != len(expected):
         raise CheckpointError(f"{path} holds {len(leaves)} arrays but this run has {len(expected)}: "
-                              "it was written by a different algorithm, network or field")
+                              "it was written by a different algorithm, network or field, or by an earlier "
+                              "version of the trainer whose training state was laid out differently")
     for i, (got, want) in enumerate(zip(leaves, expected)):
         if got.shape != tuple(want.shape) or got.dtype != want.dtype:
             raise CheckpointError(f"{path}: array {i} is {got.dtype}{list(got.shape)} but this run expects "

@@ -91,8 +91,9 @@ def main() -> None:
                     alone = alone or sps
                     scaling = f"; x{devices} devices / x{counts[0]} {sps / alone:.2f}" if len(counts) > 1 else ""
                     per_seed = f" x {args.seeds} seeds" if args.seeds > 1 else ""
-                    print(f"{env.spec.name:>12s} {name:>17s} {n:>6d} envs{per_seed}: {sps:>10,.0f} env steps/s with training; "
-                          f"env alone {sim:>11,.0f}; ratio {sps / sim:.3f}; {algos[0]}/{name} {first[devices] / sps:.2f}; "
+                    print(f"{env.spec.name:>12s} {name:>17s} {n:>6d} envs{per_seed}: {sps:>10,.0f} env steps/s "
+                          f"with training; env alone {sim:>11,.0f}; ratio {sps / sim:.3f}; "
+                          f"{algos[0]}/{name} {first[devices] / sps:.2f}; "
                           f"{seconds / args.iterations:.3f} s per iteration; peak memory so far "
                           f"{memory if memory is None else f'{memory:,.0f} MiB'}{scaling}", flush=True)
                     append_jsonl(args.json, {"field": env.spec.name, "algo": name, "envs": n, "seeds": args.seeds, "devices": devices,
