@@ -106,10 +106,10 @@ def make_train(config: CRLConfig, env, team: Team | None = None) -> Algorithm:
         mine, goals = team.observe(state, goal)
         return jnp.concatenate([mine, goals], -1), mine, goals
 
-    def policy(params, obs, key=None):
-        """A sampled action, or the mean action when key is None."""
+    def policy(actor, obs, key=None):
+        """A sampled action, or the mean action when key is None; `actor`: the stack's member 0."""
         agent_input, _, _ = agent_obs(obs[:, :state_dim], obs[:, state_dim:])
-        mean, log_std = gaussian_head(nets.apply_one(params, 0, agent_input))
+        mean, log_std = gaussian_head(nets.apply_member(actor, 0, agent_input))
         if key is None:
             return team.joint_action(jnp.tanh(mean))
         return team.joint_action(sample_tanh_gaussian(key, mean, log_std)[0])
@@ -117,9 +117,11 @@ def make_train(config: CRLConfig, env, team: Team | None = None) -> Algorithm:
     def collect(ts: TrainState) -> tuple[TrainState, dict]:
         """unroll_length steps of every environment, appended to the buffer; returns step statistics."""
 
+        actor = nets.member(ts.nets, 0)
+
         def step(carry, key):
             env_state = carry
-            action = policy(ts.nets, env_state.obs, key)
+            action = policy(actor, env_state.obs, key)
             row = {"state": env_state.obs[:, :state_dim], "action": action, "episode": env_state.info["episode"]}
             nxt = jax.vmap(env.step)(env_state, action)
             fell = nxt.done * (1.0 - nxt.info["truncation"])
@@ -150,7 +152,8 @@ def make_train(config: CRLConfig, env, team: Team | None = None) -> Algorithm:
         critic = contrastive + c.logsumexp_penalty * penalty
         accuracy = mean_w((jnp.argmax(energy_, axis=2) == jnp.arange(len(w))).astype(jnp.float32))
 
-        action, log_prob = sample_tanh_gaussian(key, *gaussian_head(actor_out))  # [agents, batch, own], [agents, batch]
+        # [agents, batch, own], [agents, batch]
+        action, log_prob = sample_tanh_gaussian(key, *gaussian_head(actor_out))
         # the whole stack again, frozen, for phi of the actor's own action: a stack call costs the
         # same kernels as one network, and slicing phi's weights out would cost copies
         frozen = jax.lax.stop_gradient(params)
@@ -207,6 +210,6 @@ def make_train(config: CRLConfig, env, team: Team | None = None) -> Algorithm:
         return ts, jax.tree.map(jnp.mean, metrics)
 
     def act(ts: TrainState, obs: jax.Array) -> jax.Array:
-        return policy(ts.nets, obs)
+        return policy(nets.member(ts.nets, 0), obs)
 
     return Algorithm(config, env, start, chunk, act, {"env_state": 0, "buffer": 1})

@@ -99,9 +99,13 @@ class Stacked:
         out = jax.vmap(self.joint.apply)(params, jnp.stack([self._widen(x) for x in xs]))
         return [out[k, ..., :n] for k, n in enumerate(self.outputs)]
 
-    def apply_one(self, params: dict, k: int, x: jax.Array) -> jax.Array:
-        """Network k alone (for acting, where the others are not needed)."""
-        return self.joint.apply(jax.tree.map(lambda p: p[k], params), self._widen(x))[..., :self.outputs[k]]
+    def member(self, params: dict, k: int) -> dict:
+        """Network k's weights (still padded), to call it alone with `apply_member`: taken once
+        outside a loop that only acts, rather than at every step."""
+        return jax.tree.map(lambda p: p[k], params)
+
+    def apply_member(self, member: dict, k: int, x: jax.Array) -> jax.Array:
+        return self.joint.apply(member, self._widen(x))[..., :self.outputs[k]]
 
     def _widen(self, x: jax.Array) -> jax.Array:
         return jnp.pad(x, [(0, 0)] * (x.ndim - 1) + [(0, max(self.inputs) - x.shape[-1])])

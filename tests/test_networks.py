@@ -7,7 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from agents.networks import PerAgent, MLP, Stacked
+from agents.networks import MLP, PerAgent, Stacked
 
 INPUTS, OUTPUTS = (5, 7, 2), (6, 4, 4)
 
@@ -30,7 +30,8 @@ def test_stacked_networks_equal_the_networks_alone(agents, shared):
     grads = jax.jit(jax.grad(lambda p: loss(stack.apply(p, xs))))(params)
     for k, (net, own) in enumerate(zip(alone, alone_params)):
         np.testing.assert_allclose(outs[k], net.apply(own, xs[k]), rtol=1e-5, atol=1e-6)
-        np.testing.assert_allclose(stack.apply_one(params, k, xs[k]), outs[k], rtol=1e-5, atol=1e-6)
+        np.testing.assert_allclose(stack.apply_member(stack.member(params, k), k, xs[k]), outs[k], rtol=1e-5,
+                                   atol=1e-6)
         own_grads = jax.grad(lambda p: (k + 1.0) * jnp.sum(jnp.sin(net.apply(p, xs[k]))))(own)
         for got, want in zip(jax.tree.leaves(grads), jax.tree.leaves(own_grads)):
             got = np.asarray(got[k])
