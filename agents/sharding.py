@@ -42,11 +42,15 @@ def state_shardings(state, mesh: Mesh, env_axes: dict[str, int], offset: int = 0
                             for name in state.__dataclass_fields__})
 
 
+def by_seed(seeds: int, devices: int) -> bool:
+    """Whether `seeds` vmapped seeds are split by seed over `devices` (else by environment)."""
+    return seeds > 1 and seeds % devices == 0
+
+
 def training_shardings(state, mesh: Mesh, env_axes: dict[str, int]):
     """Shardings for a training state vmapped over seeds (a leading seed axis on every leaf): by seed
     when the seeds are a multiple of the devices, else by environment (`state_shardings`)."""
-    seeds = jax.tree.leaves(state)[0].shape[0]
-    if seeds > 1 and seeds % mesh.size == 0:
+    if by_seed(jax.tree.leaves(state)[0].shape[0], mesh.size):
         return jax.tree.map(lambda x: NamedSharding(mesh, PartitionSpec(AXIS)), state)
     return state_shardings(state, mesh, env_axes, offset=1)
 

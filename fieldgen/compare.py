@@ -17,6 +17,7 @@ from rich.console import Console
 from rich.table import Table
 
 import fieldgen
+from agents import sharding
 from fieldgen import runner, training
 from fieldgen.compile.artifact import write_atomic
 
@@ -37,7 +38,7 @@ def runs(source: Path, algos: list[str], seeds: list[int], folder: Path | None, 
     for algo in algos:
         others = tuple(a for a in training.ALGOS if a != algo)
         configs[algo] = training.make_config(algo, config_file, sets, others=others, **fixed)
-        training.check_config(configs[algo], env)
+        training.check_config(configs[algo], env, sharding.device_count(), len(seeds))
     result = []
     for algo in algos:
         existing = folder / runner.run_name(env.spec.name, algo, seeds)

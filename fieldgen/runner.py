@@ -93,7 +93,7 @@ def new_run(source: Path, algo: str, seeds: list[int], config, out: Path, mixed:
         raise training.RunError(f"{folder} already holds a run; continue it with --resume {folder}, "
                                 "or pick another --seed or --out")
     for env in envs:
-        training.check_config(config, env, sharding.device_count())
+        training.check_config(config, env, sharding.device_count(), len(seeds))
     folder.mkdir(parents=True, exist_ok=True)
     dirs = [FIELD] if len(envs) == 1 else [f"{STAGES}/{k + 1:02d}" for k in range(len(envs))]
     for env, sub in zip(envs, dirs):

@@ -112,6 +112,17 @@ def test_bad_training_input_is_reported_before_compiling(tmp_path, args, phrase)
     assert phrase in result.output and "Traceback" not in result.output
 
 
+def test_envs_must_split_over_the_devices_unless_the_seeds_do(env_cache):
+    from fieldgen.training import check_config
+
+    env, config = env_cache("point_nav"), tiny_config(num_envs=9, batch_size=9, total_steps=20000)
+    check_config(config, env, devices=2, seeds=2)  # a seed per device: each keeps all 9 environments
+    check_config(config, env, devices=2, seeds=4)
+    for seeds in (1, 3):
+        with pytest.raises(RunError, match="num_envs 9 does not split evenly over the 2 local devices"):
+            check_config(config, env, devices=2, seeds=seeds)
+
+
 def test_config_file_and_precedence(tmp_path):
     file = tmp_path / "c.yaml"
     file.write_text("crl: {repr_dim: 32, batch_size: 128}\n")
