@@ -399,7 +399,6 @@ def evaluate(
 
     from agents import loop
     from fieldgen import runner, training
-    from fieldgen.compile.artifact import write_atomic
     from fieldgen.render import CAMERAS
 
     if camera not in CAMERAS:
@@ -424,16 +423,17 @@ def evaluate(
     out.print(table)
     if video:
         recorder = training.EpisodeRecorder(run.env, algo.act, camera)
-        data, frames = recorder.gif(loop.seed_slice(run.state, 0), key)
-        write_atomic(run_dir / "eval.gif", data)
-        out.print(f"video: {run_dir / 'eval.gif'} ({frames} frames, {camera} camera)")
+        episode = recorder.episode(loop.seed_slice(run.state, 0), key)
+        frames = recorder.save(run_dir, run_dir / "eval", episode, err)
+        if frames is not None:
+            out.print(f"video: {run_dir / 'eval.gif'} ({frames} frames, {camera} camera)")
 
 
 @app.command()
 def videos(
     run_dir: Annotated[Path, typer.Argument(help="a run folder written by fieldgen train")],
 ) -> None:
-    """Draw the episodes a run kept where nothing could render (videos/eval_NNN.npz) as videos/eval_NNN.gif.
+    """Draw the episodes a run kept where nothing could render (videos/eval_NNN.npz, eval.npz) as GIFs beside them.
 
     A training machine without OpenGL keeps each evaluation's episode as joint positions; run this
     wherever mujoco's renderer works (MUJOCO_GL=egl or osmesa). GIFs already drawn are left alone.
@@ -449,10 +449,10 @@ def videos(
         run = runner.open_run(run_dir, load_state=False)
     except (SpecError, training.RunError) as exc:
         _fail(str(exc))
-    kept = sorted((run_dir / training.VIDEOS).glob("eval_*.npz"))
+    kept = sorted((run_dir / training.VIDEOS).glob("eval_*.npz")) + sorted(run_dir.glob("eval.npz"))
     if not kept:
-        _fail(f"nothing to draw: {run_dir / training.VIDEOS} holds no eval_NNN.npz "
-              "(a run keeps them only where it could not render)")
+        _fail(f"nothing to draw: {run_dir / training.VIDEOS} holds no eval_NNN.npz and {run_dir} no eval.npz "
+              "(training and fieldgen eval keep them only where they could not render)")
     models = {env.spec.name: env.mj_model for env in run.envs}
     table = Table("episode", "field", "frames", "video", title=f"{run_dir}: kept episodes")
     for path in kept:

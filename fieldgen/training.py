@@ -324,28 +324,29 @@ class EpisodeRecorder:
         stride = max(1, end // 300)
         return {"qpos": qpos[:end:stride], "mocap_pos": mocap[:end:stride], "fps": 1 / (self.env.dt * stride)}
 
-    def gif(self, state, key) -> tuple[bytes, int]:
-        """One episode as GIF bytes, and its frame count."""
-        return draw_episode(self.env.mj_model, self.episode(state, key), self.camera)
-
     def write(self, run_dir: Path, index: int, state, console) -> None:
-        """videos/eval_NNN.gif. A machine that cannot render keeps the episode instead (videos/eval_NNN.npz,
-        drawn later by `fieldgen videos` where a renderer works), with one warning; training goes on."""
-        episode = self.episode(state, jax.random.PRNGKey(index))
+        """videos/eval_NNN.gif of evaluation `index` (see `save`); training goes on where nothing renders."""
         (run_dir / VIDEOS).mkdir(exist_ok=True)
-        name = run_dir / VIDEOS / f"eval_{index:03d}"
+        self.save(run_dir, run_dir / VIDEOS / f"eval_{index:03d}", self.episode(state, jax.random.PRNGKey(index)),
+                  console)
+
+    def save(self, run_dir: Path, name: Path, episode: dict, console) -> int | None:
+        """name.gif, and its frame count. A machine that cannot render keeps the episode instead (name.npz,
+        drawn later by `fieldgen videos` where a renderer works), with one warning, and returns None."""
         if not self.broken:
             try:
-                write_atomic(name.with_suffix(".gif"), draw_episode(self.env.mj_model, episode, self.camera)[0])
-                return
+                data, frames = draw_episode(self.env.mj_model, episode, self.camera)
+                write_atomic(name.with_suffix(".gif"), data)
+                return frames
             except Exception as exc:  # noqa: BLE001 - renderer back ends fail in many ways
                 self.broken = True
-                console.print(f"[yellow]warning:[/] cannot render here ({exc}); keeping each episode as "
-                              f"{run_dir / VIDEOS}/eval_NNN.npz: draw them with `fieldgen videos {run_dir}` "
+                console.print(f"[yellow]warning:[/] cannot render here ({exc}); keeping episodes as .npz files "
+                              f"where their videos would be: draw them with `fieldgen videos {run_dir}` "
                               "on a machine that renders")
         buf = io.BytesIO()
         np.savez(buf, field=self.env.spec.name, camera=self.camera, **episode)
         write_atomic(name.with_suffix(".npz"), buf.getvalue())
+        return None
 
 
 def draw_episode(model, episode, camera: str) -> tuple[bytes, int]:

@@ -67,7 +67,7 @@ def test_checkpoint_errors_are_clear(tmp_path, env_cache):
         checkpoint.load(other, template)
 
 
-def test_cli_run_folder_and_resume_of_a_finished_run(tmp_path):
+def test_cli_run_folder_and_resume_of_a_finished_run(tmp_path, monkeypatch):
     args = ["train", "point_nav", "--steps", "1900", "--envs", "8", "--out", str(tmp_path), *TINY]
     result = runner.invoke(app, args)
     assert result.exit_code == 0, result.output
@@ -89,6 +89,19 @@ def test_cli_run_folder_and_resume_of_a_finished_run(tmp_path):
 
     frames = iio.imread(run / "eval.gif", index=None)
     assert frames.shape[0] == 100 and frames.shape[1:3] == (240, 320)
+
+    from fieldgen import render
+
+    (run / "eval.gif").unlink()
+    monkeypatch.setattr(render, "render_rollout", lambda *a, **k: (_ for _ in ()).throw(RuntimeError("no GL")))
+    blind = runner.invoke(app, ["eval", str(run), "--episodes", "8"])
+    assert blind.exit_code == 0 and "Traceback" not in blind.output, blind.output
+    assert "cannot render here (no GL)" in blind.output and "success_any" in blind.output
+    assert (run / "eval.npz").exists() and not (run / "eval.gif").exists()
+    monkeypatch.undo()
+    drawn = runner.invoke(app, ["videos", str(run)])
+    assert drawn.exit_code == 0 and "eval.npz" in drawn.output, drawn.output
+    assert iio.imread(run / "eval.gif", index=None).shape[0] == 100
 
 
 @pytest.mark.parametrize("args,phrase", [
