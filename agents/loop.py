@@ -131,8 +131,9 @@ def run(algo: Algorithm, seeds: Sequence[int], num_evals: int,
     trains its own); otherwise the environments (and whatever else `algo.env_axes` names)
     are sharded across them, and gradients of the losses, means over the sharded batch, are
     averaged across devices by the compiler (agents.sharding). `progress(index, rows)` gets
-    one row per seed; `on_eval(state, index)` runs after every evaluation (checkpoints); `resume=(state, index)`
-    continues after evaluation `index` exactly as if never stopped. Returns (state, rows).
+    one row per seed; `on_eval(state, index)` runs after every evaluation (checkpoints);
+    `resume=(state, index)` continues after evaluation `index` exactly as if never stopped.
+    Returns (state, rows).
     """
     staged_resume = None if resume is None else (*resume, 0)
     return run_staged([algo], seeds, num_evals, Promotion(), progress,

@@ -99,14 +99,13 @@ def _cast(cls, key: str, value, where: str):
 def check_config(config, env, devices: int = 1, seeds: int = 1) -> None:
     """Problems a run would hit after compiling, reported before. `seeds` trained at once on `devices`
     local devices split by seed when they can, and otherwise split each seed's environments."""
+    from agents.crl import CRLConfig
+    from agents.sac import OffPolicyConfig
     from agents.sharding import by_seed
 
     if config.num_envs % devices and not by_seed(seeds, devices):
         raise RunError(f"num_envs {config.num_envs} does not split evenly over the {devices} local devices; "
                        f"use a multiple of {devices}, or train a multiple of {devices} seeds at once")
-    from agents.crl import CRLConfig
-    from agents.sac import OffPolicyConfig
-
     per_iter = config.num_envs * config.unroll_length
     if isinstance(config, CRLConfig):
         _check_crl(config, env, per_iter)
