@@ -29,6 +29,11 @@ class Stop(Exception):
     pass
 
 
+def no_opengl(*args, **kwargs):
+    """Stands in for the renderer of a machine without OpenGL."""
+    raise RuntimeError("no OpenGL here")
+
+
 def test_resume_after_interrupt_reproduces_the_uninterrupted_run(env_cache, tmp_path):
     algo = crl.make_train(tiny_config(), env_cache("point_nav"))
     full, _ = loop.run(algo, [0], 2)
@@ -93,10 +98,10 @@ def test_cli_run_folder_and_resume_of_a_finished_run(tmp_path, monkeypatch):
     from fieldgen import render
 
     (run / "eval.gif").unlink()
-    monkeypatch.setattr(render, "render_rollout", lambda *a, **k: (_ for _ in ()).throw(RuntimeError("no GL")))
+    monkeypatch.setattr(render, "render_rollout", no_opengl)
     blind = runner.invoke(app, ["eval", str(run), "--episodes", "8"])
     assert blind.exit_code == 0 and "Traceback" not in blind.output, blind.output
-    assert "cannot render here (no GL)" in blind.output and "success_any" in blind.output
+    assert "cannot render here (no OpenGL here)" in blind.output and "success_any" in blind.output
     assert (run / "eval.npz").exists() and not (run / "eval.gif").exists()
     monkeypatch.undo()
     drawn = runner.invoke(app, ["videos", str(run)])
@@ -162,9 +167,6 @@ def test_a_machine_that_cannot_render_keeps_episodes_for_fieldgen_videos(tmp_pat
 
     env = runs.open_run(run_dir, load_state=False).env
     recorder = training.EpisodeRecorder(env, lambda state, obs: jnp.full((obs.shape[0], env.action_size), 0.5))
-
-    def no_opengl(*args, **kwargs):
-        raise RuntimeError("no OpenGL here")
 
     monkeypatch.setattr(render, "render_rollout", no_opengl)
     console = Console(record=True, width=200)
