@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 from collections import Counter
+from decimal import Decimal, InvalidOperation
 from pathlib import Path
 from typing import Annotated, Optional
 
@@ -23,6 +24,24 @@ out = Console()
 err = Console(stderr=True, soft_wrap=True)  # messages wrap in the terminal, not mid-phrase here
 
 SpecArg = Annotated[str, typer.Argument(help="a YAML file, a bundled field name, or (render, bench) a build directory")]
+
+
+SUFFIXES = {"k": 1_000, "m": 1_000_000, "g": 1_000_000_000}
+
+
+def count(text: str) -> int:
+    """A whole count as people write them: 50M, 1.5k, 2e6, 10_000_000 or 40000 (read as a Decimal, so
+    that 1.1k is exactly 1100)."""
+    cleaned = text.strip().replace("_", "").replace(",", "")
+    scale = SUFFIXES.get(cleaned[-1:].lower(), 1)
+    try:
+        value = Decimal(cleaned[:-1] if scale > 1 else cleaned) * scale
+    except InvalidOperation:
+        value = Decimal(0)
+    if not (value.is_finite() and 1 <= value < 10**15 and value == value.to_integral_value()):
+        raise typer.BadParameter(f"'{text}' is not a positive whole count; write it as 40000, 50M, 1.5k or 2e6 "
+                                 "(k, M and G stand for thousand, million and billion)")
+    return int(value)
 
 
 def _fail(message: str) -> None:
@@ -283,8 +302,9 @@ def train(
     spec: Annotated[Optional[str], typer.Argument(
         help="a YAML file, bundled field name or build folder (omit with --resume)")] = None,
     algo: Annotated[str, typer.Option(help="training algorithm: crl, icrl, ppo, sac or td3")] = "crl",
-    steps: Annotated[Optional[int], typer.Option(help="total env steps")] = None,
-    envs: Annotated[Optional[int], typer.Option(help="parallel environments")] = None,
+    steps: Annotated[Optional[int], typer.Option(parser=count, metavar="N",
+                                                 help="total env steps: 40000, 50M, 1.5k, 2e6")] = None,
+    envs: Annotated[Optional[int], typer.Option(parser=count, metavar="N", help="parallel environments")] = None,
     seed: Annotated[int, typer.Option(help="random seed; names the run folder")] = 0,
     seeds: Annotated[int, typer.Option(help="train this many seeds at once (seed, seed+1, ...), vmapped")] = 1,
     sets: Annotated[Optional[list[str]], typer.Option("--set", help="override a config key: crl.repr_dim=128")] = None,
@@ -334,8 +354,10 @@ def train(
 def compare(
     spec: Annotated[str, typer.Argument(help="a YAML file, bundled field name or build folder")],
     algos: Annotated[str, typer.Option(help="comma-separated algorithms: crl, icrl, ppo, sac, td3")] = "crl,ppo",
-    steps: Annotated[Optional[int], typer.Option(help="total env steps of each run")] = None,
-    envs: Annotated[Optional[int], typer.Option(help="parallel environments of each run")] = None,
+    steps: Annotated[Optional[int], typer.Option(parser=count, metavar="N",
+                                                 help="total env steps of each run: 40000, 50M, 1.5k")] = None,
+    envs: Annotated[Optional[int], typer.Option(parser=count, metavar="N",
+                                                help="parallel environments of each run")] = None,
     seeds: Annotated[int, typer.Option(help="seeds per algorithm (0, 1, ...), vmapped in one run")] = 1,
     sets: Annotated[Optional[list[str]], typer.Option("--set", help="override a config key: sac.her=0.8")] = None,
     config: Annotated[Optional[Path], typer.Option(help="YAML file: {crl: {...}, sac: {...}}")] = None,

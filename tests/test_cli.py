@@ -70,3 +70,16 @@ def test_every_command_has_help_with_an_example():
     for command in ("validate", "build", "render", "list", "schema", "bench", "train", "eval", "curriculum"):
         result = runner.invoke(app, [command, "--help"])
         assert result.exit_code == 0 and "Example: fieldgen" in result.output
+
+
+def test_counts_are_read_as_people_write_them(tmp_path):
+    result = runner.invoke(app, ["train", "point_nav", "--steps", "50M", "--envs", "4", "--prepare",
+                                 "--out", str(tmp_path)])
+    assert result.exit_code == 0, result.output
+    config = json.loads((tmp_path / "point_nav-crl-0" / "run.json").read_text())["config"]
+    assert (config["total_steps"], config["num_envs"]) == (50_000_000, 4)
+    for bad in ("5X", "0", "1.5", "-2M"):
+        result = runner.invoke(app, ["train", "point_nav", "--steps", bad, "--prepare", "--out", str(tmp_path)])
+        message = " ".join(result.output.split())
+        assert result.exit_code == 2 and f"'{bad}' is not a positive whole count" in message, result.output
+        assert "Traceback" not in result.output
