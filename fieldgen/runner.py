@@ -173,8 +173,9 @@ def train(run: Run, console: Console, videos: bool = True) -> None:
         try:
             loop.run_staged(algos, run.seeds, config.num_evals, run.promotion, progress, on_eval, resume)
         except KeyboardInterrupt:
-            console.print(f"interrupted; the last checkpoint is intact. Continue with: "
-                          f"fieldgen train --resume {run.folder}")
+            saved = (run.folder / training.CHECKPOINT).exists()
+            console.print(f"interrupted; {'the last checkpoint is intact' if saved else 'no checkpoint yet'}. "
+                          f"{'Continue' if saved else 'Start again'} with: fieldgen train --resume {run.folder}")
             raise
     summary(run, console)
 

@@ -57,6 +57,25 @@ def test_resume_after_interrupt_reproduces_the_uninterrupted_run(env_cache, tmp_
     assert int(full.env_steps[0]) == int(resumed.env_steps[0])
 
 
+def test_an_interrupt_says_whether_a_checkpoint_was_kept(tmp_path, monkeypatch):
+    """Ctrl-C exits with 130 and tells how to go on, before and after the first checkpoint."""
+    args = ["train", "point_nav", "--steps", "1900", "--envs", "8", "--out", str(tmp_path), "--no-videos", *TINY]
+    run = tmp_path / "point_nav-crl-0"
+
+    def interrupted(*args, checkpoint=False):
+        if checkpoint:
+            (run / "checkpoint.msgpack").write_bytes(b"")
+        raise KeyboardInterrupt
+
+    resume = ["train", "--resume", str(run)]  # the advice of the first message, followed
+    for saved, phrase, command in ((False, "no checkpoint yet. Start again with", args),
+                                   (True, "the last checkpoint is intact. Continue with", resume)):
+        monkeypatch.setattr(loop, "run_staged", lambda *a, saved=saved: interrupted(*a, checkpoint=saved))
+        result = runner.invoke(app, command)
+        assert result.exit_code == 130, result.output
+        assert f"{phrase}: fieldgen train --resume {run}" in " ".join(result.output.split())
+
+
 def test_checkpoint_errors_are_clear(tmp_path, env_cache):
     env = env_cache("point_nav")
     template = jax.eval_shape(crl.make_train(tiny_config(), env).start, jax.random.PRNGKey(0))
