@@ -297,6 +297,20 @@ def bench(
     out.print(table)
 
 
+def _train(run, videos: bool) -> None:
+    """Train a run; Ctrl-C exits with 130 and a failed write says what to do (runner.train says how to go on)."""
+    from fieldgen import runner
+
+    try:
+        runner.train(run, out, videos)
+    except KeyboardInterrupt:
+        raise typer.Exit(130) from None
+    except OSError as exc:  # every file of a run is replaced atomically, so the last good ones remain
+        _fail(f"could not write {exc.filename or run.folder}: {exc.strerror or exc}; the files already there are "
+              f"intact: free some space (or fix the folder's permissions) and continue with "
+              f"fieldgen train --resume {run.folder}")
+
+
 @app.command()
 def train(
     spec: Annotated[Optional[str], typer.Argument(
@@ -344,10 +358,7 @@ def train(
     if prepare:
         out.print(f"prepared {run.folder}; start it with: fieldgen train --resume {run.folder}")
         return
-    try:
-        runner.train(run, out, videos)
-    except KeyboardInterrupt:
-        raise typer.Exit(130) from None
+    _train(run, videos)
 
 
 @app.command()
@@ -375,7 +386,7 @@ def compare(
     Example: fieldgen compare point_nav --algos crl,icrl,sac --steps 40000 --envs 16 --seeds 2
     """
     from fieldgen import compare as comparing
-    from fieldgen import runner, training
+    from fieldgen import training
 
     if seeds < 1:
         _fail(f"--seeds {seeds}: compare at least one seed")
@@ -390,15 +401,12 @@ def compare(
         out.print(f"prepared {len(todo)} runs in {folder}; train each with fieldgen train --resume RUN, "
                   "then run this comparison again to plot")
         return
-    try:
-        for run in todo:
-            if run.finished:
-                out.print(f"{run.folder} is already complete ({run.rows[-1]['env_steps']:,} env steps)")
-                continue
-            out.print(f"[bold]{run.algo}[/] -> {run.folder}")
-            runner.train(run, out, videos)
-    except KeyboardInterrupt:
-        raise typer.Exit(130) from None
+    for run in todo:
+        if run.finished:
+            out.print(f"{run.folder} is already complete ({run.rows[-1]['env_steps']:,} env steps)")
+            continue
+        out.print(f"[bold]{run.algo}[/] -> {run.folder}")
+        _train(run, videos)
     comparing.report(todo, folder, out)
 
 

@@ -76,6 +76,18 @@ def test_an_interrupt_says_whether_a_checkpoint_was_kept(tmp_path, monkeypatch):
         assert f"{phrase}: fieldgen train --resume {run}" in " ".join(result.output.split())
 
 
+def test_a_full_disk_is_a_clear_error(tmp_path, monkeypatch):
+    def full(*args):
+        raise OSError(28, "No space left on device", str(tmp_path / "point_nav-crl-0" / "checkpoint.msgpack"))
+
+    monkeypatch.setattr(loop, "run_staged", full)
+    result = runner.invoke(app, ["train", "point_nav", "--steps", "1900", "--envs", "8", "--out", str(tmp_path), *TINY])
+    message = " ".join(result.output.split())
+    assert result.exit_code == 1 and "Traceback" not in result.output
+    assert "checkpoint.msgpack: No space left on device; the files already there are intact" in message
+    assert f"continue with fieldgen train --resume {tmp_path / 'point_nav-crl-0'}" in message
+
+
 def test_checkpoint_errors_are_clear(tmp_path, env_cache):
     env = env_cache("point_nav")
     template = jax.eval_shape(crl.make_train(tiny_config(), env).start, jax.random.PRNGKey(0))
