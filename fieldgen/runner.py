@@ -17,7 +17,7 @@ from rich.table import Table
 
 import fieldgen
 from agents import checkpoint, loop, sharding
-from fieldgen import curriculum, training
+from fieldgen import background, curriculum, training
 from fieldgen.compile.artifact import ArtifactError, write_artifact, write_atomic
 from fieldgen.compile.variants import VariantError, compile_variants
 
@@ -147,16 +147,20 @@ def train(run: Run, console: Console, videos: bool = True) -> None:
     started = time.perf_counter() - (run.rows[-1].get("wall_seconds", 0.0) if run.rows else 0.0)  # over resumes
     columns = (TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.completed:,.0f} steps"),
                TextColumn("{task.fields[rate]}"), TextColumn("{task.fields[stats]}"), TimeElapsedColumn())
-    with Progress(*columns, console=console, transient=False) as bar:
+    with Progress(*columns, console=console, transient=False) as bar, background.Writer() as writer:
         first = run.rows[-1]["env_steps"] if run.rows else 0
         task = bar.add_task(env.spec.name, total=config.total_steps, completed=first, rate="compiling...", stats="")
 
         def on_eval(state, index, stage):
-            write_atomic(run.folder / training.CHECKPOINT, checkpoint.to_bytes(state))
+            writer.wait()  # one snapshot at a time in host memory; a failed write stops training here
+            snapshot = jax.device_get(state)
+            writer.submit(lambda: write_atomic(run.folder / training.CHECKPOINT, checkpoint.to_bytes(snapshot)))
             if videos:
                 if stage not in recorders:  # a mixed run films its last stage
                     recorders[stage] = training.EpisodeRecorder(run.envs[-1 if run.mixed else stage], algos[stage].act)
-                recorders[stage].write(run.folder, index, loop.seed_slice(state, 0), console)
+                recorder = recorders[stage]
+                episode = recorder.episode(loop.seed_slice(state, 0), jax.random.PRNGKey(index))
+                writer.submit(recorder.save, run.folder, training.video_name(run.folder, index), episode, console)
 
         def progress(index, rows):
             memory = training.peak_memory_mb()
@@ -173,6 +177,9 @@ def train(run: Run, console: Console, videos: bool = True) -> None:
         try:
             loop.run_staged(algos, run.seeds, config.num_evals, run.promotion, progress, on_eval, resume)
         except KeyboardInterrupt:
+            if writer.busy:
+                console.print("interrupted; finishing the checkpoint being written...")
+            writer.wait()
             saved = (run.folder / training.CHECKPOINT).exists()
             console.print(f"interrupted; {'the last checkpoint is intact' if saved else 'no checkpoint yet'}. "
                           f"{'Continue' if saved else 'Start again'} with: fieldgen train --resume {run.folder}")

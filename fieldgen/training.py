@@ -301,6 +301,12 @@ def peak_memory_mb() -> float | None:
     return max(peaks) / 2**20 if peaks else None
 
 
+def video_name(run_dir: Path, index: int) -> Path:
+    """Where the video of evaluation `index` goes, without its suffix: videos/eval_NNN."""
+    (run_dir / VIDEOS).mkdir(exist_ok=True)
+    return run_dir / VIDEOS / f"eval_{index:03d}"
+
+
 class EpisodeRecorder:
     """Videos of a policy's deterministic episode: simulated under jit, drawn by mujoco's renderer."""
 
@@ -322,12 +328,6 @@ class EpisodeRecorder:
         end = int(np.argmax(done)) + 1 if done.any() else self.env.episode_length
         stride = max(1, end // 300)
         return {"qpos": qpos[:end:stride], "mocap_pos": mocap[:end:stride], "fps": 1 / (self.env.dt * stride)}
-
-    def write(self, run_dir: Path, index: int, state, console) -> None:
-        """videos/eval_NNN.gif of evaluation `index` (see `save`); training goes on where nothing renders."""
-        (run_dir / VIDEOS).mkdir(exist_ok=True)
-        self.save(run_dir, run_dir / VIDEOS / f"eval_{index:03d}", self.episode(state, jax.random.PRNGKey(index)),
-                  console)
 
     def save(self, run_dir: Path, name: Path, episode: dict, console) -> int | None:
         """name.gif, and its frame count. A machine that cannot render keeps the episode instead (name.npz,

@@ -25,6 +25,11 @@ def tiny_config(**kw):
     return crl.CRLConfig(**{**base, **kw})
 
 
+def unwrapped(text: str) -> str:
+    """The text without whitespace: the console breaks long paths anywhere."""
+    return "".join(text.split())
+
+
 class Stop(Exception):
     pass
 
@@ -73,7 +78,7 @@ def test_an_interrupt_says_whether_a_checkpoint_was_kept(tmp_path, monkeypatch):
         monkeypatch.setattr(loop, "run_staged", lambda *a, saved=saved: interrupted(*a, checkpoint=saved))
         result = runner.invoke(app, command)
         assert result.exit_code == 130, result.output
-        assert f"{phrase}: fieldgen train --resume {run}" in " ".join(result.output.split())
+        assert unwrapped(f"{phrase}: fieldgen train --resume {run}") in unwrapped(result.output)
 
 
 def test_a_full_disk_is_a_clear_error(tmp_path, monkeypatch):
@@ -82,10 +87,10 @@ def test_a_full_disk_is_a_clear_error(tmp_path, monkeypatch):
 
     monkeypatch.setattr(loop, "run_staged", full)
     result = runner.invoke(app, ["train", "point_nav", "--steps", "1900", "--envs", "8", "--out", str(tmp_path), *TINY])
-    message = " ".join(result.output.split())
     assert result.exit_code == 1 and "Traceback" not in result.output
-    assert "checkpoint.msgpack: No space left on device; the files already there are intact" in message
-    assert f"continue with fieldgen train --resume {tmp_path / 'point_nav-crl-0'}" in message
+    assert unwrapped("checkpoint.msgpack: No space left on device; the files already there are intact") in \
+        unwrapped(result.output)
+    assert unwrapped(f"continue with fieldgen train --resume {tmp_path / 'point_nav-crl-0'}") in unwrapped(result.output)
 
 
 def test_checkpoint_errors_are_clear(tmp_path, env_cache):
@@ -202,7 +207,8 @@ def test_a_machine_that_cannot_render_keeps_episodes_for_fieldgen_videos(tmp_pat
     monkeypatch.setattr(render, "render_rollout", no_opengl)
     console = Console(record=True, width=200)
     for index in (0, 1):
-        recorder.write(run_dir, index, None, console)
+        recorder.save(run_dir, training.video_name(run_dir, index), recorder.episode(None, jax.random.PRNGKey(index)),
+                      console)
     videos = run_dir / training.VIDEOS
     assert sorted(p.name for p in videos.iterdir()) == ["eval_000.npz", "eval_001.npz"]
     assert console.export_text().count("cannot render here (no OpenGL here)") == 1

@@ -1,0 +1,75 @@
+"""Wall-clock cost of a whole `fieldgen train` run beside the rate of its training chunks alone.
+
+Each code root given runs the same `fieldgen train` command in a subprocess (its folder first on
+PYTHONPATH). The reference, measured in the same run, is the mean of the training chunks' own
+env steps per second (`steps_per_second` in metrics.jsonl): what training would reach if
+evaluations, checkpoints and videos cost nothing. The end-to-end rate counts everything between
+the first and the last evaluation row (`wall_seconds`); compile time and start-up are left out.
+With several roots the later ones are also printed as a ratio to the first.
+
+    python bench/train_wallclock.py --field build/soccer_v1 --steps 12000000 --evals 4
+    python bench/train_wallclock.py --field build/soccer_v1 --roots /tmp/previous,. --json out.jsonl
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from fieldgen.throughput import append_jsonl
+
+
+def run_once(root: Path, args) -> dict:
+    """One `fieldgen train` run with `root`'s code; its end-to-end and chunk rates."""
+    with tempfile.TemporaryDirectory(prefix="fieldgen-wallclock-") as out:
+        command = [sys.executable, "-m", "fieldgen.cli", "train", args.field, "--algo", args.algo,
+                   "--steps", str(args.steps), "--envs", str(args.envs), "--set", f"{args.algo}.num_evals={args.evals}",
+                   "--out", out, *([] if args.videos else ["--no-videos"])]
+        env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(root.resolve()), os.environ.get("PYTHONPATH", "")])}
+        started = time.perf_counter()
+        subprocess.run(command, env=env, check=True, stdout=subprocess.DEVNULL)
+        total = time.perf_counter() - started
+        rows = [json.loads(line) for path in Path(out).glob("*/metrics.jsonl") for line in path.read_text().splitlines()]
+        checkpoint = next(Path(out).glob("*/checkpoint.msgpack")).stat().st_size
+    timed = [r for r in rows if r["eval"] >= 1]
+    first, last = timed[0], timed[-1]
+    end_to_end = (last["env_steps"] - first["env_steps"]) / (last["wall_seconds"] - first["wall_seconds"])
+    chunks = sum(r["steps_per_second"] for r in timed[1:]) / len(timed[1:])
+    return {"end_to_end_steps_per_second": end_to_end, "chunk_steps_per_second": chunks,
+            "ratio_to_chunks": end_to_end / chunks, "process_seconds": total, "checkpoint_bytes": checkpoint}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--field", default="build/soccer_v1", help="a build folder or bundled field name")
+    parser.add_argument("--algo", default="crl")
+    parser.add_argument("--steps", type=int, default=12_000_000)
+    parser.add_argument("--envs", type=int, default=1024)
+    parser.add_argument("--evals", type=int, default=4, help="evaluations (each one a checkpoint and a video)")
+    parser.add_argument("--roots", default=".", help="comma-separated folders holding fieldgen/ and agents/")
+    parser.add_argument("--videos", action=argparse.BooleanOptionalAction, default=True)
+    parser.add_argument("--json", type=Path)
+    args = parser.parse_args()
+    first = None
+    for root in [Path(r) for r in args.roots.split(",")]:
+        result = run_once(root, args)
+        first = first or result
+        over_first = result["end_to_end_steps_per_second"] / first["end_to_end_steps_per_second"]
+        print(f"{str(root):>24s} {args.algo} {args.envs} envs: {result['end_to_end_steps_per_second']:>10,.0f} env steps/s "
+              f"end to end; chunks alone {result['chunk_steps_per_second']:>10,.0f}; ratio "
+              f"{result['ratio_to_chunks']:.3f}; over the first root {over_first:.2f}; "
+              f"{result['process_seconds']:.0f} s in all; checkpoint {result['checkpoint_bytes'] / 1e9:.2f} GB",
+              flush=True)
+        append_jsonl(args.json, {"root": str(root), "field": args.field, "algo": args.algo, "envs": args.envs,
+                                 "steps": args.steps, "evals": args.evals, "videos": args.videos,
+                                 "over_first_root": over_first, **result})
+
+
+if __name__ == "__main__":
+    main()
