@@ -13,7 +13,8 @@ import jax
 import jax.numpy as jnp
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
-from rich.table import Table
+from rich.table import Column, Table
+from rich.text import Text
 
 import fieldgen
 from agents import checkpoint, loop, sharding
@@ -145,9 +146,7 @@ def train(run: Run, console: Console, videos: bool = True) -> None:
     algos = run.algorithms
     recorders: dict[int, training.EpisodeRecorder] = {}
     started = time.perf_counter() - (run.rows[-1].get("wall_seconds", 0.0) if run.rows else 0.0)  # over resumes
-    columns = (TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.completed:,.0f} steps"),
-               TextColumn("{task.fields[rate]}"), TextColumn("{task.fields[stats]}"), TimeElapsedColumn())
-    with Progress(*columns, console=console, transient=False) as bar, background.Writer() as writer:
+    with TrainingProgress(console) as bar, background.Writer() as writer:
         first = run.rows[-1]["env_steps"] if run.rows else 0
         task = bar.add_task(env.spec.name, total=config.total_steps, completed=first, rate="compiling...", stats="")
 
@@ -171,11 +170,14 @@ def train(run: Run, console: Console, videos: bool = True) -> None:
             run.rows.extend(rows)
             training.write_metrics(run.folder, run.rows)
             training.plot_success(run.folder, run.rows, f"{env.spec.name}: {run.algo}")
-            bar.update(task, completed=rows[0]["env_steps"], rate=_rate(rows[0]), stats=_stats(rows))
+            bar.update(task, completed=rows[0]["env_steps"], rate=_rate(run.rows, config.total_steps),
+                       stats=_stats(rows))
 
         resume = (run.state, run.rows[-1]["eval"], run.stage) if run.state is not None else None
         try:
             loop.run_staged(algos, run.seeds, config.num_evals, run.promotion, progress, on_eval, resume)
+            done = run.rows[-1]["env_steps"]  # whole iterations can stop short of --steps
+            bar.update(task, total=done, rate=_rate(run.rows, done))
         except KeyboardInterrupt:
             if writer.busy:
                 console.print("interrupted; finishing the checkpoint being written...")
@@ -187,8 +189,43 @@ def train(run: Run, console: Console, videos: bool = True) -> None:
     summary(run, console)
 
 
-def _rate(row: dict) -> str:
-    return f"{row['steps_per_second']:,.0f} steps/s" if "steps_per_second" in row else ""
+class TrainingProgress(Progress):
+    """One line of steps, rate and time for each run, and its evaluation statistics on a line below, so
+    that neither squeezes the other out of a narrow terminal."""
+
+    def __init__(self, console: Console):
+        whole = lambda: Column(no_wrap=True)  # noqa: E731
+        super().__init__(TextColumn("[bold]{task.description}", table_column=whole()), BarColumn(bar_width=12),
+                         TextColumn("{task.completed:,.0f} steps {task.percentage:>3.0f}%", table_column=whole()),
+                         TextColumn("{task.fields[rate]}", table_column=whole()),
+                         TimeElapsedColumn(table_column=whole()), console=console, transient=False)
+
+    def get_renderables(self):
+        yield self.make_tasks_table(self.tasks)
+        for task in self.tasks:
+            if task.fields.get("stats"):
+                yield Text("  " + task.fields["stats"], no_wrap=True, overflow="ellipsis")
+
+
+def _rate(history: list[dict], total: int) -> str:
+    """The last chunk's env steps/s and the time left, from the wall clock between the last two evaluations
+    (chunk, evaluation, checkpoint and video together)."""
+    last = history[-1]
+    if "steps_per_second" not in last:
+        return ""
+    text = f"{last['steps_per_second']:,.0f} steps/s"
+    evals = [r for r in history if r.get("seed") == last.get("seed")]
+    if len(evals) > 1 and evals[-1]["env_steps"] > evals[-2]["env_steps"] and total > last["env_steps"]:
+        before, after = evals[-2:]
+        per_step = (after["wall_seconds"] - before["wall_seconds"]) / (after["env_steps"] - before["env_steps"])
+        text += f", {_duration((total - last['env_steps']) * per_step)} left"
+    return text
+
+
+def _duration(seconds: float) -> str:
+    if seconds < 60:
+        return "<1 min"
+    return f"{seconds / 60:.0f} min" if seconds < 5400 else f"{seconds / 3600:.1f} h"
 
 
 def _stats(rows: list[dict]) -> str:
@@ -215,7 +252,8 @@ def summary(run: Run, console: Console) -> None:
         table.add_row(str(seed), f"{last['env_steps']:,}",
                       f"{first['success_any']:.2f} -> {last['success_any']:.2f}",
                       f"{first['time_at_goal']:.1f} -> {last['time_at_goal']:.1f}", closest,
-                      f"{last['episode_return']:.1f}", _rate(last).removesuffix(" steps/s"))
+                      f"{last['episode_return']:.1f}",
+                      f"{last['steps_per_second']:,.0f}" if "steps_per_second" in last else "")
     console.print(table)
     for row in run.rows:
         if "promoted_to" in row and row["seed"] == run.seeds[0]:

@@ -225,3 +225,15 @@ def test_a_machine_that_cannot_render_keeps_episodes_for_fieldgen_videos(tmp_pat
     (videos / "eval_001.npz").write_bytes(b"truncated")
     broken = runner.invoke(app, ["videos", str(run_dir)])
     assert broken.exit_code == 1 and "eval_001.npz is not an episode kept by fieldgen train" in broken.output
+
+
+def test_progress_tells_the_time_left_from_the_last_two_evaluations():
+    from fieldgen.runner import _rate
+
+    rows = [{"seed": 0, "env_steps": 0, "wall_seconds": 5.0},
+            {"seed": 0, "env_steps": 1_000_000, "wall_seconds": 65.0, "steps_per_second": 25_000.0},
+            {"seed": 0, "env_steps": 2_000_000, "wall_seconds": 185.0, "steps_per_second": 20_000.0}]
+    assert _rate(rows[:1], 10_000_000) == ""  # the untrained evaluation: nothing timed yet
+    assert _rate(rows[:2], 10_000_000) == "25,000 steps/s, 9 min left"  # 9M steps at 60 s per million
+    assert _rate(rows, 10_000_000) == "20,000 steps/s, 16 min left"  # 8M at 120 s per million
+    assert _rate(rows, 2_000_000) == "20,000 steps/s"  # done
