@@ -90,7 +90,8 @@ def test_a_full_disk_is_a_clear_error(tmp_path, monkeypatch):
     assert result.exit_code == 1 and "Traceback" not in result.output
     assert unwrapped("checkpoint.msgpack: No space left on device; the files already there are intact") in \
         unwrapped(result.output)
-    assert unwrapped(f"continue with fieldgen train --resume {tmp_path / 'point_nav-crl-0'}") in unwrapped(result.output)
+    run = tmp_path / "point_nav-crl-0"
+    assert unwrapped(f"continue with fieldgen train --resume {run}") in unwrapped(result.output)
 
 
 def test_checkpoint_errors_are_clear(tmp_path, env_cache):
