@@ -14,7 +14,6 @@ With several roots the later ones are also printed as a ratio to the first.
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import subprocess
 import sys
@@ -22,6 +21,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from fieldgen import training
 from fieldgen.throughput import append_jsonl
 
 
@@ -35,8 +35,9 @@ def run_once(root: Path, args) -> dict:
         started = time.perf_counter()
         subprocess.run(command, env=env, check=True, stdout=subprocess.DEVNULL)
         total = time.perf_counter() - started
-        rows = [json.loads(line) for path in Path(out).glob("*/metrics.jsonl") for line in path.read_text().splitlines()]
-        checkpoint = next(Path(out).glob("*/checkpoint.msgpack")).stat().st_size
+        run = next(Path(out).iterdir())  # the one run folder
+        rows = training.read_metrics(run)
+        checkpoint = (run / training.CHECKPOINT).stat().st_size
     timed = [r for r in rows if r["eval"] >= 1]
     first, last = timed[0], timed[-1]
     end_to_end = (last["env_steps"] - first["env_steps"]) / (last["wall_seconds"] - first["wall_seconds"])
@@ -61,8 +62,8 @@ def main() -> None:
         result = run_once(root, args)
         first = first or result
         over_first = result["end_to_end_steps_per_second"] / first["end_to_end_steps_per_second"]
-        print(f"{str(root):>24s} {args.algo} {args.envs} envs: {result['end_to_end_steps_per_second']:>10,.0f} env steps/s "
-              f"end to end; chunks alone {result['chunk_steps_per_second']:>10,.0f}; ratio "
+        print(f"{str(root):>24s} {args.algo} {args.envs} envs: "
+              f"{result['end_to_end_steps_per_second']:>10,.0f} env steps/s end to end; chunks alone {result['chunk_steps_per_second']:>10,.0f}; ratio "
               f"{result['ratio_to_chunks']:.3f}; over the first root {over_first:.2f}; "
               f"{result['process_seconds']:.0f} s in all; checkpoint {result['checkpoint_bytes'] / 1e9:.2f} GB",
               flush=True)

@@ -180,7 +180,7 @@ def train(run: Run, console: Console, videos: bool = True) -> None:
             bar.update(task, total=done, rate=_rate(run.rows, done))
         except KeyboardInterrupt:
             if writer.busy:
-                console.print("interrupted; finishing the checkpoint being written...")
+                console.print("finishing the checkpoint being written...")
             writer.wait()
             saved = (run.folder / training.CHECKPOINT).exists()
             console.print(f"interrupted; {'the last checkpoint is intact' if saved else 'no checkpoint yet'}. "
@@ -215,9 +215,9 @@ def _rate(history: list[dict], total: int) -> str:
         return ""
     text = f"{last['steps_per_second']:,.0f} steps/s"
     evals = [r for r in history if r.get("seed") == last.get("seed")]
-    if len(evals) > 1 and evals[-1]["env_steps"] > evals[-2]["env_steps"] and total > last["env_steps"]:
-        before, after = evals[-2:]
-        per_step = (after["wall_seconds"] - before["wall_seconds"]) / (after["env_steps"] - before["env_steps"])
+    if len(evals) > 1 and evals[-2]["env_steps"] < last["env_steps"] < total:
+        before = evals[-2]
+        per_step = (last["wall_seconds"] - before["wall_seconds"]) / (last["env_steps"] - before["env_steps"])
         text += f", {_duration((total - last['env_steps']) * per_step)} left"
     return text
 
