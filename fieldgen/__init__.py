@@ -4,9 +4,24 @@
 start without loading JAX.
 """
 
+import ctypes.util
 import os
 
-os.environ.setdefault("MUJOCO_GL", "egl")  # headless rendering; no display on training machines
+
+def headless_gl(find_library=ctypes.util.find_library) -> str:
+    """mujoco's offscreen back end for a machine without a display: EGL, else OSMesa, else none.
+
+    Naming a back end whose library is missing breaks `import mujoco` itself (PyOpenGL raises
+    AttributeError, which mujoco does not catch), so a training machine without EGL could not
+    even simulate; with none, only drawing fails, and fieldgen says so where it draws."""
+    for backend, library in (("egl", "EGL"), ("osmesa", "OSMesa")):
+        if find_library(library):
+            return backend
+    return "disable"
+
+
+if "MUJOCO_GL" not in os.environ:
+    os.environ["MUJOCO_GL"] = headless_gl()
 
 __version__ = "0.1.0"
 

@@ -90,18 +90,21 @@ def build(
     """
     from fieldgen import curriculum
     from fieldgen.compile.build import build as run_build
+    from fieldgen.render import RenderError
 
     failed = 0
     for ref in specs:
-        if curriculum.is_curriculum(Path(ref)):
-            failed += _build_curriculum(Path(ref), out_dir, preview, force)
-            continue
         try:
+            if curriculum.is_curriculum(Path(ref)):
+                failed += _build_curriculum(Path(ref), out_dir, preview, force)
+                continue
             result = run_build(_spec_path(ref), out_dir, preview=preview, force=force)
         except SpecError as exc:
             failed += 1
             err.print(str(exc), highlight=False)
             continue
+        except RenderError as exc:
+            _fail(f"{exc}; or build without preview.png: fieldgen build {' '.join(specs)} --no-preview")
         _report(result)
     if failed:
         raise typer.Exit(1)
@@ -164,7 +167,7 @@ def render(
     Example: fieldgen render fields/soccer_v2.yaml -o v2.png --camera follow
     """
     from fieldgen.compile.artifact import ArtifactError, compile_spec, load_artifact, write_atomic
-    from fieldgen.render import CAMERAS, png_bytes, preview, render_pose
+    from fieldgen.render import CAMERAS, RenderError, png_bytes, preview, render_pose
 
     from fieldgen import curriculum
 
@@ -179,9 +182,11 @@ def render(
         except curriculum.CurriculumError as exc:
             _fail(str(exc))
         view = "top" if camera == "both" else camera
-        sheet = contact_sheet([render_pose(m, camera=view, size=(240, 320)) for m in models],
-                              [f"{i}. {st.name}" for i, st in enumerate(c.stages, 1)])
-        write_atomic(output, sheet)
+        try:
+            images = [render_pose(m, camera=view, size=(240, 320)) for m in models]
+        except RenderError as exc:
+            _fail(str(exc))
+        write_atomic(output, contact_sheet(images, [f"{i}. {st.name}" for i, st in enumerate(c.stages, 1)]))
         out.print(f"wrote {output}: {len(models)} stages of {spec}, camera {view}")
         return
     try:
@@ -190,7 +195,10 @@ def render(
     except (SpecError, ArtifactError) as exc:
         _fail(str(exc))
     model = artifact.model()
-    image = preview(model) if camera == "both" else render_pose(model, camera=camera)
+    try:
+        image = preview(model) if camera == "both" else render_pose(model, camera=camera)
+    except RenderError as exc:
+        _fail(str(exc))
     write_atomic(output, png_bytes(image))
     out.print(f"wrote {output} ({image.shape[1]}x{image.shape[0]}, camera {camera})")
 
@@ -474,6 +482,7 @@ def videos(
 
     from fieldgen import runner, training
     from fieldgen.compile.artifact import write_atomic
+    from fieldgen.render import RenderError
 
     try:
         run = runner.open_run(run_dir, load_state=False)
@@ -497,7 +506,10 @@ def videos(
         if gif.exists():
             table.add_row(path.name, field, "", f"{gif.name} (already drawn)")
             continue
-        data, frames = training.draw_episode(models[field], episode, camera)
+        try:
+            data, frames = training.draw_episode(models[field], episode, camera)
+        except RenderError as exc:
+            _fail(str(exc))
         write_atomic(gif, data)
         table.add_row(path.name, field, str(frames), gif.name)
     out.print(table)

@@ -1,8 +1,10 @@
-"""Images of a field with mujoco's offscreen renderer (headless through EGL)."""
+"""Images of a field with mujoco's offscreen renderer (headless through EGL or OSMesa)."""
 
 from __future__ import annotations
 
+import contextlib
 import io
+import os
 
 import imageio.v3 as iio
 import mujoco
@@ -12,15 +14,34 @@ CAMERAS = ("top", "follow")
 SIZE = (480, 640)  # height, width; the top camera frames the field for this aspect
 
 
+class RenderError(RuntimeError):
+    """mujoco's renderer cannot start on this machine."""
+
+
+@contextlib.contextmanager
+def renderer(model: mujoco.MjModel, size: tuple[int, int]):
+    """A mujoco.Renderer, or a RenderError that says what is missing instead of the back end's traceback."""
+    try:
+        context = mujoco.Renderer(model, height=size[0], width=size[1])
+    except Exception as exc:  # noqa: BLE001 - each OpenGL back end fails in its own way
+        backend = os.environ.get("MUJOCO_GL", "")
+        why = "no EGL or OSMesa library was found" if backend == "disable" else f"MUJOCO_GL={backend}: {exc}"
+        raise RenderError(
+            f"mujoco cannot render on this machine ({why}); install EGL (Debian and Ubuntu: apt install "
+            "libegl1) or OSMesa (libosmesa6), or set MUJOCO_GL to a back end that works here") from exc
+    with context:
+        yield context
+
+
 def render_pose(model: mujoco.MjModel, qpos: np.ndarray | None = None, camera: str = "top",
                 size: tuple[int, int] = SIZE) -> np.ndarray:
     """One RGB frame of the model at `qpos` (default: the `home` keyframe)."""
     data = mujoco.MjData(model)
     data.qpos[:] = model.key("home").qpos if qpos is None else qpos
     mujoco.mj_forward(model, data)
-    with mujoco.Renderer(model, height=size[0], width=size[1]) as renderer:
-        renderer.update_scene(data, camera=camera, scene_option=_scene_option())
-        return renderer.render()
+    with renderer(model, size) as r:
+        r.update_scene(data, camera=camera, scene_option=_scene_option())
+        return r.render()
 
 
 def preview(model: mujoco.MjModel) -> np.ndarray:
@@ -33,12 +54,12 @@ def render_rollout(model: mujoco.MjModel, qpos: np.ndarray, mocap_pos: np.ndarra
     """Frames of a recorded rollout: qpos [T, nq] and mocap_pos [T, nmocap, 3]."""
     data = mujoco.MjData(model)
     frames = []
-    with mujoco.Renderer(model, height=size[0], width=size[1]) as renderer:
+    with renderer(model, size) as r:
         for q, m in zip(qpos, mocap_pos):
             data.qpos[:], data.mocap_pos[:] = q, m
             mujoco.mj_forward(model, data)
-            renderer.update_scene(data, camera=camera, scene_option=_scene_option())
-            frames.append(renderer.render())
+            r.update_scene(data, camera=camera, scene_option=_scene_option())
+            frames.append(r.render())
     return frames
 
 

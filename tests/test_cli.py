@@ -66,6 +66,31 @@ def test_render_top_and_follow(tmp_path):
     assert result.exit_code == 1 and "unknown camera 'side'" in result.output
 
 
+def test_the_gl_back_end_is_one_the_machine_has():
+    from fieldgen import headless_gl
+
+    assert headless_gl(lambda lib: f"lib{lib}.so.1") == "egl"
+    assert headless_gl(lambda lib: "libOSMesa.so.8" if lib == "OSMesa" else None) == "osmesa"
+    assert headless_gl(lambda lib: None) == "disable"  # mujoco still imports; only drawing fails
+
+
+def test_a_machine_that_cannot_render_is_told_what_to_install(tmp_path, monkeypatch):
+    import mujoco
+
+    def no_opengl(*args, **kwargs):
+        raise AttributeError("module 'mujoco.rendering.classic.gl_context' has no attribute 'GLContext'")
+
+    monkeypatch.setattr(mujoco, "Renderer", no_opengl)
+    monkeypatch.setenv("MUJOCO_GL", "disable")
+    build = runner.invoke(app, ["build", "point_soccer", "--out", str(tmp_path)])
+    assert build.exit_code == 1 and "Traceback" not in build.output
+    assert "no EGL or OSMesa library was found" in build.output and "apt install libegl1" in build.output
+    assert "fieldgen build point_soccer --no-preview" in build.output
+    assert not (tmp_path / "point_soccer").exists()  # nothing half-built
+    render = runner.invoke(app, ["render", "point_soccer", "-o", str(tmp_path / "x.png")])
+    assert render.exit_code == 1 and "apt install libegl1" in render.output and not (tmp_path / "x.png").exists()
+
+
 def test_every_command_has_help_with_an_example():
     for command in ("validate", "build", "render", "list", "schema", "bench", "train", "eval", "curriculum"):
         result = runner.invoke(app, [command, "--help"])
