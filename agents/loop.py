@@ -36,8 +36,8 @@ class Algorithm:
     compiled: dict = dataclasses.field(default_factory=dict, init=False, compare=False, repr=False)
 
 
-def evaluate_policy(env, act: Callable, key: jax.Array, n_envs: int) -> dict:
-    """One episode per environment with `act(obs)`, counted up to its first `done`.
+def evaluate_policy(env, act: Callable, key: jax.Array, n_envs: int, film: Callable | None = None) -> tuple[dict, object]:
+    """One episode per environment with `act(obs)`, counted up to its first `done`. Returns (metrics, film).
 
     success_any: share of episodes with a successful step; time_at_goal: successful steps
     per episode; closest_distance: the mean over episodes of the smallest distance between the
@@ -47,6 +47,11 @@ def evaluate_policy(env, act: Callable, key: jax.Array, n_envs: int) -> dict:
     An environment of several variants (`env.variant_count > 1`) is evaluated on each in turn,
     and also reports `variant_KK_success_any`, `variant_KK_time_at_goal` and
     `variant_KK_closest_distance` (KK from 01).
+
+    With `film` (a batch of environment states -> arrays with a leading environment axis), also
+    one episode as a video needs it, for free: `film` of the state before each step and that
+    step's `done`, both [episode_length, ...], of the first episode (of the last variant's first,
+    with several); without, None.
     """
     keys = jax.random.split(key, n_envs)
     count = getattr(env, "variant_count", 1)
@@ -60,6 +65,8 @@ def evaluate_policy(env, act: Callable, key: jax.Array, n_envs: int) -> dict:
     def goal_distance(obs):
         return jnp.linalg.norm(obs[:, goal_indices] - obs[:, env.state_dim:], axis=-1)
 
+    filmed = count - 1  # 0 without variants; with them, the last (a mixed curriculum's hardest stage)
+
     def step(carry, _):
         env_state, alive, closest = carry
         nxt = jax.vmap(env.step)(env_state, act(env_state.obs))
@@ -68,10 +75,11 @@ def evaluate_policy(env, act: Callable, key: jax.Array, n_envs: int) -> dict:
         # under auto-reset the obs of an episode's last step is already the next episode's
         still = alive * (1.0 - nxt.done)
         closest = jnp.where(still > 0, jnp.minimum(closest, goal_distance(nxt.obs)), closest)
-        return (nxt, still, closest), out
+        frame = None if film is None else (jax.tree.map(lambda x: x[filmed], film(env_state)), nxt.done[filmed])
+        return (nxt, still, closest), (out, frame)
 
     start = (env_state, jnp.ones(n_envs), goal_distance(env_state.obs))
-    (_, _, closest), out = jax.lax.scan(step, start, None, length=env.episode_length)
+    (_, _, closest), (out, frames) = jax.lax.scan(step, start, None, length=env.episode_length)
     live_steps = jnp.sum(out["alive"])
     succeeded = jnp.any(out["success"] > 0, axis=0)
     at_goal = jnp.sum(out["success"], axis=0)
@@ -86,12 +94,12 @@ def evaluate_policy(env, act: Callable, key: jax.Array, n_envs: int) -> dict:
             metrics[f"variant_{k + 1:02d}_success_any"] = jnp.sum(succeeded * mine)
             metrics[f"variant_{k + 1:02d}_time_at_goal"] = jnp.sum(at_goal * mine)
             metrics[f"variant_{k + 1:02d}_closest_distance"] = jnp.sum(closest * mine)
-    return metrics
+    return metrics, frames
 
 
-def evaluate(algo: Algorithm, state, key: jax.Array) -> dict:
+def evaluate(algo: Algorithm, state, key: jax.Array, film: Callable | None = None) -> tuple[dict, object]:
     """Every algorithm is judged here, by the environment's own success metric (`evaluate_policy`)."""
-    return evaluate_policy(algo.env, functools.partial(algo.act, state), key, algo.config.eval_envs)
+    return evaluate_policy(algo.env, functools.partial(algo.act, state), key, algo.config.eval_envs, film)
 
 
 def adapt(algo: Algorithm, state, metrics: dict) -> tuple[object, dict]:
@@ -113,7 +121,7 @@ def pure_train(algo: Algorithm, num_evals: int) -> Callable:
     def train(key):
         def interval(state, index):
             state, metrics = algo.chunk(state)
-            metrics.update(evaluate(algo, state, eval_key(key, index)))
+            metrics.update(evaluate(algo, state, eval_key(key, index))[0])
             state, report = adapt(algo, state, metrics)
             return state, {**metrics, **report}
 
@@ -137,7 +145,7 @@ def run(algo: Algorithm, seeds: Sequence[int], num_evals: int,
     """
     staged_resume = None if resume is None else (*resume, 0)
     return run_staged([algo], seeds, num_evals, Promotion(), progress,
-                      lambda state, index, stage: on_eval(state, index), staged_resume)
+                      lambda state, index, stage, episode: on_eval(state, index), staged_resume)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -151,15 +159,18 @@ class Promotion:
 
 def run_staged(algos: Sequence[Algorithm], seeds: Sequence[int], num_evals: int, promotion: Promotion,
                progress: Callable[[int, list[dict]], None] = lambda index, rows: None,
-               on_eval: Callable = lambda state, index, stage: None, resume: tuple | None = None):
+               on_eval: Callable = lambda state, index, stage, episode: None, resume: tuple | None = None,
+               film: Callable | None = None):
     """`run` through a sequence of environments (a curriculum's stages) that share one observation layout.
 
     Training starts on stage 0; after each evaluation that meets the promotion rule it moves
     on, keeping everything it learned (networks, optimizers, replay buffer, normalizer) and
     starting fresh episodes of the next stage. With several stages every row also holds
     `stage` and `last_stage_success_any` (the same policy evaluated on the last stage), and
-    a promoting row `promoted_to`. `on_eval(state, index, stage)` gets the stage the next
-    chunk trains on; `resume=(state, index, stage)` continues from there.
+    a promoting row `promoted_to`. `on_eval(state, index, stage, episode)` gets the stage the next
+    chunk trains on and, with `film`, the first seed's episode filmed by the evaluation just done
+    (`evaluate_policy`) with the stage it was filmed on, `(stage, film)`, else None;
+    `resume=(state, index, stage)` continues from there.
     """
     keys = jnp.stack([jax.random.PRNGKey(s) for s in seeds])
     staged, last = len(algos) > 1, len(algos) - 1
@@ -168,19 +179,21 @@ def run_staged(algos: Sequence[Algorithm], seeds: Sequence[int], num_evals: int,
         """(placement, start, chunk, evaluate, adapt) of stage k, compiled on first use. Evaluation reads only
         the policy, so it takes a state of any stage (the last stage is judged while training earlier ones)."""
         algo = algos[k]
-        if len(seeds) not in algo.compiled:
+        if (len(seeds), film) not in algo.compiled:
             shapes = jax.eval_shape(jax.vmap(algo.start), keys)
             placement = sharding.training_shardings(shapes, sharding.local_mesh(), algo.env_axes)
-            algo.compiled[len(seeds)] = (
+            algo.compiled[len(seeds), film] = (
                 placement, jax.jit(jax.vmap(algo.start), out_shardings=placement),
                 jax.jit(jax.vmap(algo.chunk), in_shardings=(placement,), out_shardings=(placement, None)),
-                jax.jit(jax.vmap(functools.partial(evaluate, algo))),
+                jax.jit(jax.vmap(functools.partial(evaluate, algo, film=film))),
                 jax.jit(jax.vmap(functools.partial(adapt, algo)), in_shardings=(placement, None),
                         out_shardings=(placement, None)))
-        return algo.compiled[len(seeds)]
+        return algo.compiled[len(seeds), film]
 
-    def judge(k: int, state, index: int) -> dict:
-        return jax.device_get(programs(k)[3](state, jax.vmap(eval_key, in_axes=(0, None))(keys, index)))
+    def judge(k: int, state, index: int) -> tuple[dict, object]:
+        """Metrics per seed, and the first seed's episode filmed on stage k (None without `film`)."""
+        metrics, frames = jax.device_get(programs(k)[3](state, jax.vmap(eval_key, in_axes=(0, None))(keys, index)))
+        return metrics, None if frames is None else (k, seed_slice(frames, 0))
 
     history: list[dict] = []
     if resume is None:
@@ -196,14 +209,15 @@ def run_staged(algos: Sequence[Algorithm], seeds: Sequence[int], num_evals: int,
             state, metrics = programs(stage)[2](state)
             metrics = jax.device_get(metrics)  # waits for the chunk
         seconds = time.perf_counter() - began
-        metrics.update(judge(stage, state, index))
+        judged, episode = judge(stage, state, index)
+        metrics.update(judged)
         count = getattr(algos[stage].env, "variant_count", 1)
         if count > 1:  # a mixed run: judged on its last variant, and re-weighted
             metrics["last_stage_success_any"] = metrics[f"variant_{count:02d}_success_any"]
             state, report = programs(stage)[4](state, metrics)
             metrics.update(jax.device_get(report))
         if staged and stage != last:
-            metrics["last_stage_success_any"] = judge(last, state, index)["success_any"]
+            metrics["last_stage_success_any"] = judge(last, state, index)[0]["success_any"]
         elif staged:
             metrics["last_stage_success_any"] = metrics["success_any"]
         steps = int(jax.device_get(state.env_steps)[0])
@@ -222,7 +236,7 @@ def run_staged(algos: Sequence[Algorithm], seeds: Sequence[int], num_evals: int,
             for row in rows:
                 row["promoted_to"] = stage
         progress(index, rows)
-        on_eval(state, index, stage)
+        on_eval(state, index, stage, episode)
     return state, history
 
 

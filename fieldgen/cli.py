@@ -449,8 +449,9 @@ def evaluate(
         _fail(f"{run_dir} has not started training yet; start it with: fieldgen train --resume {run_dir}")
     algo = dataclasses.replace(run, config=dataclasses.replace(run.config, eval_envs=episodes)).judge()
     key = jax.random.PRNGKey(seed)
-    judged = jax.vmap(functools.partial(loop.evaluate, algo), in_axes=(0, None))
-    result = jax.device_get(jax.jit(judged)(run.state, key))
+    film = training.EpisodeRecorder.film if video else None
+    judged = jax.vmap(functools.partial(loop.evaluate, algo, film=film), in_axes=(0, None))
+    result, frames = jax.device_get(jax.jit(judged)(run.state, key))
     steps = int(jax.device_get(run.state.env_steps)[0])
     table = Table("seed", "success_any", "time_at_goal", "closest", "return",
                   title=f"{run_dir} at {steps:,} env steps, {episodes} episodes per seed")
@@ -459,12 +460,11 @@ def evaluate(
                       f"{result['time_at_goal'][i]:.1f} of {run.env.episode_length} steps",
                       f"{result['closest_distance'][i]:.2f}", f"{result['episode_return'][i]:.2f}")
     out.print(table)
-    if video:
-        recorder = training.EpisodeRecorder(run.env, algo.act, camera)
-        episode = recorder.episode(loop.seed_slice(run.state, 0), key)
-        frames = recorder.save(run_dir, run_dir / "eval", episode, err)
-        if frames is not None:
-            out.print(f"video: {run_dir / 'eval.gif'} ({frames} frames, {camera} camera)")
+    if video:  # the first seed's first evaluation episode
+        recorder = training.EpisodeRecorder(run.env, camera)
+        drawn = recorder.save(run_dir, run_dir / "eval", recorder.episode(loop.seed_slice(frames, 0)), err)
+        if drawn is not None:
+            out.print(f"video: {run_dir / 'eval.gif'} ({drawn} frames, {camera} camera)")
 
 
 @app.command()

@@ -150,16 +150,17 @@ def train(run: Run, console: Console, videos: bool = True) -> None:
         first = run.rows[-1]["env_steps"] if run.rows else 0
         task = bar.add_task(env.spec.name, total=config.total_steps, completed=first, rate="compiling...", stats="")
 
-        def on_eval(state, index, stage):
+        def on_eval(state, index, stage, filmed):
             writer.wait()  # one snapshot at a time in host memory; a failed write stops training here
             snapshot = jax.device_get(state)
             writer.submit(lambda: write_atomic(run.folder / training.CHECKPOINT, checkpoint.to_bytes(snapshot)))
-            if videos:
-                if stage not in recorders:  # a mixed run films its last stage
-                    recorders[stage] = training.EpisodeRecorder(run.envs[-1 if run.mixed else stage], algos[stage].act)
-                recorder = recorders[stage]
-                episode = recorder.episode(loop.seed_slice(state, 0), jax.random.PRNGKey(index))
-                writer.submit(recorder.save, run.folder, training.video_name(run.folder, index), episode, console)
+            if filmed is not None:  # the episode just evaluated (a mixed run films its last stage)
+                filmed_stage, frames = filmed
+                if filmed_stage not in recorders:
+                    recorders[filmed_stage] = training.EpisodeRecorder(run.envs[-1 if run.mixed else filmed_stage])
+                recorder = recorders[filmed_stage]
+                writer.submit(recorder.save, run.folder, training.video_name(run.folder, index),
+                              recorder.episode(frames), console)
 
         def progress(index, rows):
             memory = training.peak_memory_mb()
@@ -175,7 +176,8 @@ def train(run: Run, console: Console, videos: bool = True) -> None:
 
         resume = (run.state, run.rows[-1]["eval"], run.stage) if run.state is not None else None
         try:
-            loop.run_staged(algos, run.seeds, config.num_evals, run.promotion, progress, on_eval, resume)
+            loop.run_staged(algos, run.seeds, config.num_evals, run.promotion, progress, on_eval, resume,
+                            film=training.EpisodeRecorder.film if videos else None)
             done = run.rows[-1]["env_steps"]  # whole iterations can stop short of --steps
             bar.update(task, total=done, rate=_rate(run.rows, done))
         except KeyboardInterrupt:

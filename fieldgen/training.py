@@ -308,23 +308,21 @@ def video_name(run_dir: Path, index: int) -> Path:
 
 
 class EpisodeRecorder:
-    """Videos of a policy's deterministic episode: simulated under jit, drawn by mujoco's renderer."""
+    """Videos of a policy's deterministic episode, filmed by its evaluation (`film`, passed to
+    agents.loop's evaluation) and drawn by mujoco's renderer."""
 
-    def __init__(self, env, act, camera: str = "follow"):
+    def __init__(self, env, camera: str = "follow"):
         self.env, self.camera, self.broken = env, camera, False
 
-        def rollout(state, key):
-            def step(s, _):
-                nxt = env.step(s, act(state, s.obs[None])[0])
-                return nxt, (s.pipeline_state.qpos, s.pipeline_state.mocap_pos, nxt.done)
+    @staticmethod
+    def film(env_state) -> tuple:
+        """What a frame needs of a batch of environment states: joint positions and mocap bodies (targets)."""
+        return env_state.pipeline_state.qpos, env_state.pipeline_state.mocap_pos
 
-            return jax.lax.scan(step, env.reset(key), None, length=env.episode_length)[1]
-
-        self._rollout = jax.jit(rollout)
-
-    def episode(self, state, key) -> dict:
-        """One episode up to its end, at most ~300 frames: {qpos [T, nq], mocap_pos [T, nmocap, 3], fps}."""
-        qpos, mocap, done = (np.asarray(x) for x in jax.device_get(self._rollout(state, key)))
+    def episode(self, filmed) -> dict:
+        """An evaluation's filmed episode ((qpos, mocap_pos), done), cut at its end to at most ~300
+        frames: {qpos [T, nq], mocap_pos [T, nmocap, 3], fps}."""
+        (qpos, mocap), done = (jax.tree.map(np.asarray, x) for x in filmed)
         end = int(np.argmax(done)) + 1 if done.any() else self.env.episode_length
         stride = max(1, end // 300)
         return {"qpos": qpos[:end:stride], "mocap_pos": mocap[:end:stride], "fps": 1 / (self.env.dt * stride)}

@@ -110,7 +110,7 @@ def test_success_is_counted_by_the_environment_for_every_algorithm(env_cache):
              "ppo": ppo.make_train(ppo.PPOConfig(**small, num_minibatches=2), env)}
     for name, algo in algos.items():
         replaying = dataclasses.replace(algo, act=lambda _, obs: scripted(obs))
-        metrics = jax.device_get(loop.evaluate(replaying, None, key))
+        metrics, _ = jax.device_get(loop.evaluate(replaying, None, key))
         for metric, value in expected.items():
             assert float(metrics[metric]) == pytest.approx(value, rel=1e-5), (name, metric)
 

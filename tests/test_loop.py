@@ -101,8 +101,18 @@ def test_evaluation_reports_each_reward_terms_mean(write_spec):
     spec = write_spec("extends: point_nav\nname: point_nav_dense\ntask:\n  reward:\n    - {term: success}\n"
                       "    - {term: agent_progress, weight: 0.1}\n")
     env = fieldgen.make(spec)
-    metrics = jax.device_get(loop.evaluate_policy(env, lambda obs: obs[:, -2:] - obs[:, :2], jax.random.PRNGKey(0), 8))
+    policy, key = (lambda obs: obs[:, -2:] - obs[:, :2]), jax.random.PRNGKey(0)
+    metrics, nothing = jax.device_get(loop.evaluate_policy(env, policy, key, 8))
     assert set(metrics) == {"success_any", "time_at_goal", "closest_distance", "episode_return", "term_agent_progress"}
     assert metrics["term_agent_progress"] > 0  # the policy heads for the target
     expected = metrics["time_at_goal"] + 0.1 * env.episode_length * metrics["term_agent_progress"]
     assert metrics["episode_return"] == pytest.approx(expected, rel=1e-4)
+    assert nothing is None
+
+    filmed, (qpos, done) = jax.device_get(loop.evaluate_policy(env, policy, key, 8, lambda s: s.pipeline_state.qpos))
+    floats = lambda m: {k: float(v) for k, v in m.items()}  # noqa: E731
+    assert floats(filmed) == pytest.approx(floats(metrics))  # filming changes nothing measured
+    assert qpos.shape == (env.episode_length, env.mj_model.nq) and done.shape == (env.episode_length,)
+    first = env.reset(jax.random.split(key, 8)[0])  # the first episode is the one filmed
+    np.testing.assert_allclose(qpos[0], first.pipeline_state.qpos)
+    assert np.linalg.norm(qpos[-1, :2] - first.info["goal"]) < np.linalg.norm(qpos[0, :2] - first.info["goal"])

@@ -75,14 +75,14 @@ def test_an_interrupt_says_whether_a_checkpoint_was_kept(tmp_path, monkeypatch):
     resume = ["train", "--resume", str(run)]  # the advice of the first message, followed
     for saved, phrase, command in ((False, "no checkpoint yet. Start again with", args),
                                    (True, "the last checkpoint is intact. Continue with", resume)):
-        monkeypatch.setattr(loop, "run_staged", lambda *a, saved=saved: interrupted(*a, checkpoint=saved))
+        monkeypatch.setattr(loop, "run_staged", lambda *a, saved=saved, **kw: interrupted(*a, checkpoint=saved))
         result = runner.invoke(app, command)
         assert result.exit_code == 130, result.output
         assert unwrapped(f"{phrase}: fieldgen train --resume {run}") in unwrapped(result.output)
 
 
 def test_a_full_disk_is_a_clear_error(tmp_path, monkeypatch):
-    def full(*args):
+    def full(*args, **kwargs):
         raise OSError(28, "No space left on device", str(tmp_path / "point_nav-crl-0" / "checkpoint.msgpack"))
 
     monkeypatch.setattr(loop, "run_staged", full)
@@ -203,13 +203,14 @@ def test_a_machine_that_cannot_render_keeps_episodes_for_fieldgen_videos(tmp_pat
     assert nothing.exit_code == 1 and "holds no eval_NNN.npz" in nothing.output
 
     env = runs.open_run(run_dir, load_state=False).env
-    recorder = training.EpisodeRecorder(env, lambda state, obs: jnp.full((obs.shape[0], env.action_size), 0.5))
+    recorder = training.EpisodeRecorder(env)
+    hold = lambda obs: jnp.full((obs.shape[0], env.action_size), 0.5)  # noqa: E731
 
     monkeypatch.setattr(render, "render_rollout", no_opengl)
     console = Console(record=True, width=200)
     for index in (0, 1):
-        recorder.save(run_dir, training.video_name(run_dir, index), recorder.episode(None, jax.random.PRNGKey(index)),
-                      console)
+        _, filmed = loop.evaluate_policy(env, hold, jax.random.PRNGKey(index), 2, training.EpisodeRecorder.film)
+        recorder.save(run_dir, training.video_name(run_dir, index), recorder.episode(filmed), console)
     videos = run_dir / training.VIDEOS
     assert sorted(p.name for p in videos.iterdir()) == ["eval_000.npz", "eval_001.npz"]
     assert console.export_text().count("cannot render here (no OpenGL here)") == 1
