@@ -14,9 +14,7 @@ the next chunk trains.
 
 from __future__ import annotations
 
-import argparse
 import time
-from pathlib import Path
 
 import jax
 import numpy as np
@@ -24,20 +22,13 @@ import numpy as np
 import fieldgen
 from agents import checkpoint, loop
 from fieldgen import training
-from fieldgen.throughput import append_jsonl
+from fieldgen.throughput import append_jsonl, run_arguments
 
 PARTS = ("evaluation", "state_to_host", "serialize_checkpoint", "draw_gif")
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--field", default="build/soccer_v1", help="a build folder or bundled field name")
-    parser.add_argument("--algo", default="crl")
-    parser.add_argument("--steps", type=int, default=12_000_000)
-    parser.add_argument("--envs", type=int, default=1024)
-    parser.add_argument("--evals", type=int, default=4)
-    parser.add_argument("--json", type=Path)
-    args = parser.parse_args()
+    args = run_arguments(__doc__).parse_args()
 
     env = fieldgen.make(args.field)
     config = training.make_config(args.algo, total_steps=args.steps, num_envs=args.envs, num_evals=args.evals)

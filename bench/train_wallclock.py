@@ -22,7 +22,7 @@ import time
 from pathlib import Path
 
 from fieldgen import training
-from fieldgen.throughput import append_jsonl
+from fieldgen.throughput import append_jsonl, run_arguments
 
 
 def run_once(root: Path, args) -> dict:
@@ -47,15 +47,9 @@ def run_once(root: Path, args) -> dict:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--field", default="build/soccer_v1", help="a build folder or bundled field name")
-    parser.add_argument("--algo", default="crl")
-    parser.add_argument("--steps", type=int, default=12_000_000)
-    parser.add_argument("--envs", type=int, default=1024)
-    parser.add_argument("--evals", type=int, default=4, help="evaluations (each one a checkpoint and a video)")
+    parser = run_arguments(__doc__)
     parser.add_argument("--roots", default=".", help="comma-separated folders holding fieldgen/ and agents/")
     parser.add_argument("--videos", action=argparse.BooleanOptionalAction, default=True)
-    parser.add_argument("--json", type=Path)
     args = parser.parse_args()
     first = None
     for root in [Path(r) for r in args.roots.split(",")]:

@@ -6,6 +6,7 @@ call fed its own output can compile again.
 
 from __future__ import annotations
 
+import argparse
 import json
 import time
 from dataclasses import dataclass
@@ -64,3 +65,15 @@ def append_jsonl(path: Path | None, row: dict) -> None:
     if path is not None:
         with path.open("a") as f:
             f.write(json.dumps(row) + "\n")
+
+
+def run_arguments(description: str) -> argparse.ArgumentParser:
+    """The options of a benchmark that trains one run: field, algorithm, steps, envs, evaluations, --json."""
+    parser = argparse.ArgumentParser(description=description, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--field", default="build/soccer_v1", help="a build folder or bundled field name")
+    parser.add_argument("--algo", default="crl")
+    parser.add_argument("--steps", type=int, default=12_000_000)
+    parser.add_argument("--envs", type=int, default=1024)
+    parser.add_argument("--evals", type=int, default=4, help="evaluations (each one a checkpoint and a video)")
+    parser.add_argument("--json", type=Path)
+    return parser
