@@ -9,19 +9,45 @@ doing it atomically) is the caller's business.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Iterator
 
 import jax
+import msgpack
 import numpy as np
 from flax import serialization
+
+BLOCK_BYTES = 16 * 2**20  # a larger leaf (a replay buffer) is stored as a map of row blocks of about this size
 
 
 class CheckpointError(Exception):
     """A checkpoint that is missing, corrupt, or from a different run shape."""
 
 
+def pieces(state) -> Iterator[bytes]:
+    """The checkpoint of `state`, a msgpack map from leaf index to leaf, as consecutive pieces of bytes.
+
+    Each leaf, and each row block of a leaf over BLOCK_BYTES, is serialized by flax on its own. Python's
+    lock is then held for one block at a time rather than for the whole state: serializing a gigabyte
+    in one call would stall the training thread beside it for seconds. Written one after another,
+    the pieces also never hold a second copy of the whole state in memory."""
+    leaves = [np.asarray(x) for x in jax.tree.leaves(jax.device_get(state))]
+    packer = msgpack.Packer()
+    yield packer.pack_map_header(len(leaves))
+    for i, leaf in enumerate(leaves):
+        yield packer.pack(str(i))
+        if leaf.nbytes <= BLOCK_BYTES or leaf.ndim == 0:
+            yield serialization.msgpack_serialize(leaf)
+            continue
+        rows = max(1, BLOCK_BYTES * leaf.shape[0] // leaf.nbytes)
+        starts = range(0, leaf.shape[0], rows)
+        yield packer.pack_map_header(len(starts))
+        for k, start in enumerate(starts):
+            yield packer.pack(str(k))
+            yield serialization.msgpack_serialize(leaf[start:start + rows])
+
+
 def to_bytes(state) -> bytes:
-    leaves = jax.tree.leaves(jax.device_get(state))
-    return serialization.msgpack_serialize({str(i): np.asarray(x) for i, x in enumerate(leaves)})
+    return b"".join(pieces(state))
 
 
 def load(path: Path, template):
@@ -32,7 +58,7 @@ def load(path: Path, template):
         raise CheckpointError(f"no checkpoint at {path}") from None
     try:
         saved = serialization.msgpack_restore(blob)
-        leaves = [np.asarray(saved[str(i)]) for i in range(len(saved))]
+        leaves = [_joined(saved[str(i)]) for i in range(len(saved))]
     except Exception as exc:  # msgpack raises many types on damaged input
         raise CheckpointError(f"{path} is not a readable checkpoint ({type(exc).__name__}); "
                               "it may be truncated or corrupt") from None
@@ -47,3 +73,10 @@ def load(path: Path, template):
                                   f"{want.dtype}{list(want.shape)}: the config or the field's "
                                   "observation layout differs from the run that wrote it")
     return jax.tree.unflatten(treedef, [jax.numpy.asarray(x) for x in leaves])
+
+
+def _joined(leaf) -> np.ndarray:
+    """A leaf as saved: an array, or the row blocks of one (`pieces`)."""
+    if isinstance(leaf, dict):
+        return np.concatenate([np.asarray(leaf[str(k)]) for k in range(len(leaf))])
+    return np.asarray(leaf)

@@ -3,18 +3,21 @@
 Trains one field through the runner's own loop (`agents.loop.run_staged`, filming as
 `fieldgen train` does) and, after every chunk, times each piece of work done there, one after
 another and waited for: the evaluation episodes, the filmed one among them (between the chunk's
-end and the progress callback), copying the training state to the host, serializing the
-checkpoint and drawing the GIF. The reference, measured in the same run, is the chunk itself;
-each piece is printed in seconds and as a share of it, the mean over the evaluations after the
-first (the first one compiles). In `fieldgen train` the last two run on a worker thread while
-the next chunk trains.
+end and the progress callback), copying the training state to the host, serializing and
+writing the checkpoint (atomically, synced to disk, into the run folder's file system: `--out`)
+and drawing the GIF. The reference, measured in the same run, is the chunk itself; each piece
+is printed in seconds and as a share of it, the mean over the evaluations after the first (the
+first one compiles). In `fieldgen train` the last two run on a worker thread while the next
+chunk trains.
 
     python bench/eval_overhead.py --field build/soccer_v1 --steps 12000000 --evals 4
 """
 
 from __future__ import annotations
 
+import os
 import time
+from pathlib import Path
 
 import jax
 import numpy as np
@@ -22,13 +25,18 @@ import numpy as np
 import fieldgen
 from agents import checkpoint, loop
 from fieldgen import training
+from fieldgen.compile.artifact import write_atomic
 from fieldgen.throughput import append_jsonl, run_arguments
 
-PARTS = ("evaluation", "state_to_host", "serialize_checkpoint", "draw_gif")
+PARTS = ("evaluation", "state_to_host", "write_checkpoint", "draw_gif")
 
 
 def main() -> None:
-    args = run_arguments(__doc__).parse_args()
+    parser = run_arguments(__doc__)
+    parser.add_argument("--out", type=Path, default=Path("runs"), help="where the checkpoint is written (then removed)")
+    args = parser.parse_args()
+    args.out.mkdir(parents=True, exist_ok=True)
+    written = args.out / f".eval_overhead_{os.getpid()}.msgpack"
 
     env = fieldgen.make(args.field)
     config = training.make_config(args.algo, total_steps=args.steps, num_envs=args.envs, num_evals=args.evals)
@@ -54,7 +62,7 @@ def main() -> None:
             return result
 
         snapshot = timed("state_to_host", lambda: jax.device_get(state))
-        timed("serialize_checkpoint", lambda: checkpoint.to_bytes(snapshot))
+        timed("write_checkpoint", lambda: write_atomic(written, checkpoint.pieces(snapshot)))
         try:
             timed("draw_gif", lambda: training.draw_episode(env.mj_model, recorder.episode(filmed[1]), recorder.camera))
         except Exception:  # noqa: BLE001 - a machine without OpenGL: the GIF is drawn elsewhere
@@ -62,8 +70,11 @@ def main() -> None:
         mark["t"] = time.perf_counter()
 
     mark["t"] = time.perf_counter()
-    loop.run_staged([algo], [config.seed], config.num_evals, loop.Promotion(), progress, on_eval,
-                    film=training.EpisodeRecorder.film)
+    try:
+        loop.run_staged([algo], [config.seed], config.num_evals, loop.Promotion(), progress, on_eval,
+                        film=training.EpisodeRecorder.film)
+    finally:
+        written.unlink(missing_ok=True)
     timed_rows = times[2:] if len(times) > 2 else times[1:]
     chunk = float(np.mean([t["chunk"] for t in timed_rows]))
     result = {"bench": "eval_overhead", "field": env.spec.name, "algo": args.algo, "envs": args.envs,

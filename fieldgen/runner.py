@@ -153,7 +153,7 @@ def train(run: Run, console: Console, videos: bool = True) -> None:
         def on_eval(state, index, stage, filmed):
             writer.wait()  # one snapshot at a time in host memory; a failed write stops training here
             snapshot = jax.device_get(state)
-            writer.submit(lambda: write_atomic(run.folder / training.CHECKPOINT, checkpoint.to_bytes(snapshot)))
+            writer.submit(write_atomic, run.folder / training.CHECKPOINT, checkpoint.pieces(snapshot))
             if filmed is not None:  # the episode just evaluated (a mixed run films its last stage)
                 filmed_stage, frames = filmed
                 if filmed_stage not in recorders:
