@@ -122,3 +122,12 @@ def test_mixed_training_reports_every_stage_and_resumes(tmp_path):
     assert "success_any per stage at the end: 1." in text and "success_any on the last stage (ring_s02)" in text
     assert (run / "success.png").stat().st_size > 0 and (run / "videos" / "eval_002.gif").exists()
     assert sorted(p.name for p in (run / "stages").iterdir()) == ["01", "02"]
+
+
+def test_the_video_of_a_mixed_evaluation_is_of_its_last_variant(walled):
+    """A mixed curriculum is judged on its last stage: its video must show that stage, not the first."""
+    from agents import loop
+
+    still = lambda obs: jnp.zeros((obs.shape[0], walled.action_size))  # noqa: E731
+    _, (variant, done) = loop.evaluate_policy(walled, still, jax.random.PRNGKey(0), 6, lambda s: s.info["variant"])
+    assert np.all(np.asarray(variant) == 2) and done.shape == (walled.episode_length,)
