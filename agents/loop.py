@@ -43,7 +43,8 @@ def evaluate_policy(env, act: Callable, key: jax.Array, n_envs: int, film: Calla
     per episode; closest_distance: the mean over episodes of the smallest distance between the
     goal and what is compared with it (the state at `env.goal_indices`), over the states
     observed before the episode ended, a sign of progress long before the first success;
-    episode_return; and `term_<name>`: each reward term's mean per live step.
+    episode_length: steps before the episode ended, short where the agent falls (leaves its
+    healthy band) early; episode_return; and `term_<name>`: each reward term's mean per live step.
     An environment of several variants (`env.variant_count > 1`) is evaluated on each in turn,
     and also reports `variant_KK_success_any`, `variant_KK_time_at_goal` and
     `variant_KK_closest_distance` (KK from 01).
@@ -84,7 +85,7 @@ def evaluate_policy(env, act: Callable, key: jax.Array, n_envs: int, film: Calla
     succeeded = jnp.any(out["success"] > 0, axis=0)
     at_goal = jnp.sum(out["success"], axis=0)
     metrics = {"success_any": jnp.mean(succeeded), "time_at_goal": jnp.mean(at_goal),
-               "closest_distance": jnp.mean(closest),
+               "closest_distance": jnp.mean(closest), "episode_length": live_steps / n_envs,
                "episode_return": jnp.mean(jnp.sum(out["reward"], axis=0)),
                **{f"term_{name}": jnp.sum(out[name]) / live_steps for name in terms}}
     if count > 1:
