@@ -4,6 +4,8 @@
 carries its own random key in `info["rng"]`; when an episode ends (the agent
 falls or time runs out) `step` returns a fresh episode drawn from that key, so
 auto-reset never replays an earlier start. `done` still reads 1 on that step.
+A physics state that has diverged also ends its episode, as a fall, so that one
+blown-up simulation never reaches a learner's batch.
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ from fieldgen.compile.task import Transition, task_fns
 from fieldgen.schema import geometry
 
 with contextlib.redirect_stdout(io.StringIO()):  # mjx (also via brax) prints about its optional warp backend
+    import mujoco
     from brax.envs.base import State
     from mujoco import mjx
 
@@ -106,6 +109,12 @@ class Variant:
             z = data.qpos[self.layout.agent_qpos[2]]
             fell = (z < lo) | (z > hi)
         return steps >= self.episode_length, fell
+
+
+def diverged(data: mjx.Data) -> jax.Array:
+    """Whether the simulation has blown up: a position or velocity that is not finite or beyond
+    mujoco's own bound (mjMAXVAL), where mujoco (not MJX) would warn and reset the data."""
+    return ~(jnp.all(jnp.abs(data.qpos) < mujoco.mjMAXVAL) & jnp.all(jnp.abs(data.qvel) < mujoco.mjMAXVAL))
 
 
 class FieldEnv:
@@ -214,6 +223,9 @@ class FieldEnv:
         steps = state.info["steps"] + 1
         metrics, reward, (truncated, fell) = self._each(
             variant, lambda v: (*v.score(t, self.terms), v.ended(data, steps)))
+        broken = diverged(data)
+        metrics, reward = jax.tree.map(lambda x: jnp.where(broken, jnp.zeros_like(x), x), (metrics, reward))
+        fell = fell | broken
         done = truncated | fell
         info = dict(state.info, steps=steps, truncation=(truncated & ~fell).astype(jnp.float32))
         obs = self._obs(data, goal)

@@ -107,6 +107,26 @@ def test_truncation_and_done_flags(env_cache):
     assert flags == [(0, 0), (0, 0), (1, 1), (0, 0), (0, 0), (1, 1)]
 
 
+def test_a_diverged_simulation_ends_its_episode_as_a_fall(write_spec):
+    """A NaN or huge velocity (a blown-up MJX step) must not stay in the batch: the episode ends on that
+    step with no reward, counted as a fall (not a truncation), and the next episode starts sound."""
+    import fieldgen
+
+    env = fieldgen.make(write_spec("extends: point_nav\nname: point_nav_dense\ntask:\n  reward:\n"
+                                   "    - {term: success}\n    - {term: agent_progress, weight: 0.1}\n"))
+    step = jax.jit(env.step)
+    for bad in (jnp.nan, jnp.inf, 2e10):
+        state = env.reset(jax.random.PRNGKey(0))
+        state = state.replace(pipeline_state=state.pipeline_state.replace(qvel=jnp.full(2, bad)))
+        nxt = step(state, jnp.zeros(2))
+        assert float(nxt.done) == 1.0 and float(nxt.info["truncation"]) == 0.0
+        assert float(nxt.reward) == 0.0 and all(float(v) == 0.0 for v in nxt.metrics.values())
+        assert np.all(np.isfinite(np.asarray(nxt.obs))) and np.all(np.abs(np.asarray(nxt.pipeline_state.qvel)) < 1e3)
+        assert int(nxt.info["episode"]) == 1
+    sound = step(env.reset(jax.random.PRNGKey(0)), jnp.ones(2))
+    assert float(sound.done) == 0.0 and np.isfinite(float(sound.reward))
+
+
 def test_mjx_matches_mujoco_c_on_point_soccer(env_cache):
     """Float32 MJX against float64 MuJoCo C: 50 control steps within 1 cm."""
     ours, reference = compare_backends(env_cache("point_soccer", auto_reset=False), steps=50)
