@@ -306,13 +306,16 @@ def bench(
 
 
 def _train(run, videos: bool) -> None:
-    """Train a run; Ctrl-C exits with 130 and a failed write says what to do (runner.train says how to go on)."""
-    from fieldgen import runner
+    """Train a run; Ctrl-C exits with 130, and a failed write or a diverged run says what to do (runner.train
+    says how to go on)."""
+    from fieldgen import runner, training
 
     try:
         runner.train(run, out, videos)
     except KeyboardInterrupt:
         raise typer.Exit(130) from None
+    except training.RunError as exc:  # training diverged
+        _fail(str(exc))
     except OSError as exc:  # every file of a run is replaced atomically, so the last good ones remain
         _fail(f"could not write {exc.filename or run.folder}: {exc.strerror or exc}; the files already there are "
               f"intact: free some space (or fix the folder's permissions) and continue with "

@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import json
+import math
 import time
 from pathlib import Path
 
@@ -163,6 +164,7 @@ def train(run: Run, console: Console, videos: bool = True) -> None:
                               recorder.episode(frames), console)
 
         def progress(index, rows):
+            stop_if_diverged(run, index, rows)
             memory = training.peak_memory_mb()
             for row in rows:
                 row["wall_seconds"] = time.perf_counter() - started
@@ -189,6 +191,20 @@ def train(run: Run, console: Console, videos: bool = True) -> None:
                           f"{'Continue' if saved else 'Start again'} with: fieldgen train --resume {run.folder}")
             raise
     summary(run, console)
+
+
+def stop_if_diverged(run: Run, index: int, rows: list[dict]) -> None:
+    """Stop a run whose metrics are no longer finite, before its metrics or checkpoint are written:
+    weights that are NaN never recover, and the checkpoint already on disk is still a sound one."""
+    for row in rows:
+        bad = sorted(k for k, v in row.items() if isinstance(v, float) and not math.isfinite(v))
+        if bad:
+            kept = f"evaluation {index - 1}'s checkpoint and metrics" if index > 0 else "no checkpoint"
+            raise training.RunError(
+                f"training diverged: after {row['env_steps']:,} env steps (evaluation {index}) seed {row['seed']}'s "
+                f"{', '.join(bad)} {'is' if len(bad) == 1 else 'are'} not finite. Nothing of that evaluation was "
+                f"written; {run.folder} keeps {kept}. Train again with smaller learning rates (--set) "
+                f"or another --seed")
 
 
 class TrainingProgress(Progress):

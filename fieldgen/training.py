@@ -31,7 +31,8 @@ VIDEOS = "videos"
 
 
 class RunError(Exception):
-    """Bad training input, found before anything compiles."""
+    """A run that cannot start or go on: bad training input, found before anything compiles, or training
+    that diverged."""
 
 
 def algorithm(algo: str):

@@ -94,6 +94,30 @@ def test_a_full_disk_is_a_clear_error(tmp_path, monkeypatch):
     assert unwrapped(f"continue with fieldgen train --resume {run}") in unwrapped(result.output)
 
 
+def test_a_diverged_run_stops_before_writing_its_evaluation(tmp_path, monkeypatch):
+    """NaN losses stop the run with one paragraph, and neither they nor the NaN weights reach the disk."""
+    run = tmp_path / "point_nav-crl-0"
+
+    def diverging(algos, seeds, num_evals, promotion, progress, on_eval, *args, **kwargs):
+        row = {"eval": 0, "seed": 0, "env_steps": 0, "success_any": 0.0, "time_at_goal": 0.0, "episode_return": 0.0}
+        progress(0, [row])
+        on_eval("sound state", 0, 0, None)
+        progress(1, [dict(row, eval=1, env_steps=992, critic_loss=float("nan"), actor_loss=float("inf"))])
+        on_eval("NaN state", 1, 0, None)
+
+    written = []
+    monkeypatch.setattr(loop, "run_staged", diverging)
+    monkeypatch.setattr(checkpoint, "pieces", lambda state: written.append(state) or [b"x"])
+    result = runner.invoke(app, ["train", "point_nav", "--steps", "1900", "--envs", "8", "--out", str(tmp_path),
+                                 "--no-videos", *TINY])
+    assert result.exit_code == 1 and "Traceback" not in result.output
+    assert unwrapped(f"training diverged: after 992 env steps (evaluation 1) seed 0's actor_loss, critic_loss are "
+                     f"not finite. Nothing of that evaluation was written; {run} keeps evaluation 0's checkpoint") \
+        in unwrapped(result.output)
+    assert written == ["sound state"]
+    assert [json.loads(line)["eval"] for line in (run / "metrics.jsonl").read_text().splitlines()] == [0]
+
+
 def test_checkpoint_errors_are_clear(tmp_path, env_cache):
     env = env_cache("point_nav")
     template = jax.eval_shape(crl.make_train(tiny_config(), env).start, jax.random.PRNGKey(0))
