@@ -456,12 +456,13 @@ def evaluate(
     judged = jax.vmap(functools.partial(loop.evaluate, algo, film=film), in_axes=(0, None))
     result, frames = jax.device_get(jax.jit(judged)(run.state, key))
     steps = int(jax.device_get(run.state.env_steps)[0])
-    table = Table("seed", "success_any", "time_at_goal", "closest", "return",
+    table = Table("seed", "success_any", "time_at_goal", "closest", "length", "return",
                   title=f"{run_dir} at {steps:,} env steps, {episodes} episodes per seed")
     for i, s in enumerate(run.seeds):
         table.add_row(str(s), f"{result['success_any'][i]:.3f}",
                       f"{result['time_at_goal'][i]:.1f} of {run.env.episode_length} steps",
-                      f"{result['closest_distance'][i]:.2f}", f"{result['episode_return'][i]:.2f}")
+                      f"{result['closest_distance'][i]:.2f}", f"{result['episode_length'][i]:.0f}",
+                      f"{result['episode_return'][i]:.2f}")
     out.print(table)
     if video:  # the first seed's first evaluation episode
         recorder = training.EpisodeRecorder(run.env, camera)
