@@ -57,6 +57,11 @@ def _spec_path(ref: str) -> Path:
     return path
 
 
+def _field_source(ref: str) -> Path:
+    """A build folder as it is; else a YAML file or bundled field name."""
+    return Path(ref) if Path(ref).is_dir() else _spec_path(ref)
+
+
 @app.command()
 def validate(specs: Annotated[list[str], typer.Argument(help="YAML files or bundled field names")]) -> None:
     """Check field specs and report every problem with file:line:column and key path.
@@ -295,7 +300,7 @@ def bench(
     from fieldgen.throughput import measure
 
     try:
-        env = fieldgen.make(spec if Path(spec).is_dir() else _spec_path(spec))
+        env = fieldgen.make(_field_source(spec))
     except (SpecError, ArtifactError) as exc:
         _fail(str(exc))
     table = Table("envs", "steps/s", "seconds per rollout", title=f"{env.spec.name}, {steps}-step rollouts")
@@ -362,7 +367,7 @@ def train(
                 _fail(f"--seeds {seeds}: train at least one seed")
             algo_config = training.make_config(algo, config, sets or [], total_steps=steps, num_envs=envs,
                                                seed=seed)
-            source = Path(spec) if Path(spec).is_dir() else _spec_path(spec)
+            source = _field_source(spec)
             run = runner.new_run(source, algo, list(range(seed, seed + seeds)), algo_config, runs, mixed)
     except (SpecError, training.RunError) as exc:
         _fail(str(exc))
@@ -401,7 +406,7 @@ def compare(
 
     if seeds < 1:
         _fail(f"--seeds {seeds}: compare at least one seed")
-    source = Path(spec) if Path(spec).is_dir() else _spec_path(spec)
+    source = _field_source(spec)
     names = [a.strip() for a in algos.split(",") if a.strip()]
     try:
         folder, todo = comparing.runs(source, names, list(range(seeds)), runs, config, sets or [],
@@ -428,8 +433,12 @@ def evaluate(
     video: Annotated[bool, typer.Option(help="write eval.gif of one episode of the run's first seed")] = True,
     camera: Annotated[str, typer.Option(help="video camera: follow or top")] = "follow",
     seed: Annotated[int, typer.Option(help="evaluation seed")] = 0,
+    field: Annotated[Optional[str], typer.Option(
+        help="judge the policy on this field instead (YAML file, bundled name or build folder) with the "
+             "run's observations and actions; the video is eval_<field>.gif")] = None,
 ) -> None:
-    """Evaluate a run's last checkpoint (on a curriculum's last stage): success rate, time at goal, return, video.
+    """Evaluate a run's last checkpoint (on a curriculum's last stage, or --field): success rate, time at goal,
+    return, video.
 
     Example: fieldgen eval runs/point_nav-crl-0 --episodes 256
     """
@@ -446,6 +455,8 @@ def evaluate(
         _fail(f"unknown camera '{camera}'; choose one of: {', '.join(CAMERAS)}")
     try:
         run = runner.open_run(run_dir)
+        if field is not None:
+            run = runner.on_field(run, _field_source(field))
     except (SpecError, training.RunError) as exc:
         _fail(str(exc))
     if run.state is None:
@@ -457,7 +468,7 @@ def evaluate(
     result, frames = jax.device_get(jax.jit(judged)(run.state, key))
     steps = int(jax.device_get(run.state.env_steps)[0])
     table = Table("seed", "success_any", "time_at_goal", "closest", "length", "return",
-                  title=f"{run_dir} at {steps:,} env steps, {episodes} episodes per seed")
+                  title=f"{run_dir} at {steps:,} env steps on {run.env.spec.name}, {episodes} episodes per seed")
     for i, s in enumerate(run.seeds):
         table.add_row(str(s), f"{result['success_any'][i]:.3f}",
                       f"{result['time_at_goal'][i]:.1f} of {run.env.episode_length} steps",
@@ -466,14 +477,17 @@ def evaluate(
     out.print(table)
     if video:  # the first seed's first evaluation episode
         recorder = training.EpisodeRecorder(run.env, camera)
-        drawn = recorder.save(run_dir, run_dir / "eval", recorder.episode(loop.seed_slice(frames, 0)), err)
+        name = "eval" if field is None else f"eval_{run.env.spec.name}"
+        drawn = recorder.save(run_dir, run_dir / name, recorder.episode(loop.seed_slice(frames, 0)), err)
         if drawn is not None:
-            out.print(f"video: {run_dir / 'eval.gif'} ({drawn} frames, {camera} camera)")
+            out.print(f"video: {run_dir / (name + '.gif')} ({drawn} frames, {camera} camera)")
 
 
 @app.command()
 def videos(
     run_dir: Annotated[Path, typer.Argument(help="a run folder written by fieldgen train")],
+    field: Annotated[Optional[str], typer.Option(
+        help="the field that `fieldgen eval --field` played eval_<field>.npz on")] = None,
 ) -> None:
     """Draw the episodes a run kept where nothing could render (videos/eval_NNN.npz, eval.npz) as GIFs beside them.
 
@@ -490,9 +504,11 @@ def videos(
 
     try:
         run = runner.open_run(run_dir, load_state=False)
+        if field is not None:
+            run.envs.append(runner.on_field(run, _field_source(field)).env)
     except (SpecError, training.RunError) as exc:
         _fail(str(exc))
-    kept = sorted((run_dir / training.VIDEOS).glob("eval_*.npz")) + sorted(run_dir.glob("eval.npz"))
+    kept = sorted((run_dir / training.VIDEOS).glob("eval_*.npz")) + sorted(run_dir.glob("eval*.npz"))
     if not kept:
         _fail(f"nothing to draw: {run_dir / training.VIDEOS} holds no eval_NNN.npz and {run_dir} no eval.npz "
               "(training and fieldgen eval keep them only where they could not render)")
@@ -502,20 +518,21 @@ def videos(
         gif = path.with_suffix(".gif")
         try:
             with np.load(path) as episode:
-                field, camera, episode = str(episode["field"]), str(episode["camera"]), dict(episode)
+                played, camera, episode = str(episode["field"]), str(episode["camera"]), dict(episode)
         except (OSError, ValueError, KeyError) as exc:
             _fail(f"{path} is not an episode kept by fieldgen train ({exc}); delete it or train again")
-        if field not in models:
-            _fail(f"{path} records field '{field}', which is not one of this run's fields ({', '.join(models)})")
+        if played not in models:
+            _fail(f"{path} records field '{played}', which is not one of this run's fields ({', '.join(models)}); "
+                  f"name it: fieldgen videos {run_dir} --field {played}")
         if gif.exists():
-            table.add_row(path.name, field, "", f"{gif.name} (already drawn)")
+            table.add_row(path.name, played, "", f"{gif.name} (already drawn)")
             continue
         try:
-            data, frames = training.draw_episode(models[field], episode, camera)
+            data, frames = training.draw_episode(models[played], episode, camera)
         except RenderError as exc:
             _fail(str(exc))
         write_atomic(gif, data)
-        table.add_row(path.name, field, str(frames), gif.name)
+        table.add_row(path.name, played, str(frames), gif.name)
     out.print(table)
 
 

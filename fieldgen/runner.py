@@ -138,6 +138,21 @@ def open_run(folder: Path, load_state: bool = True) -> Run:
     return run
 
 
+def on_field(run: Run, source: Path) -> Run:
+    """The run with its policy judged on another field (a YAML file or build folder) that observes and
+    acts alike: whether what it learnt carries over, e.g. from an easier variant to the field it stands for."""
+    try:
+        env = fieldgen.make(source)
+    except ArtifactError as exc:
+        raise training.RunError(f"{source}: {exc}") from None
+    if env.layout.to_json() != run.env.layout.to_json() or env.action_size != run.env.action_size:
+        raise training.RunError(
+            f"{source} observes or acts differently from {run.env.spec.name}, which {run.folder} was trained on "
+            f"(observation {env.observation_size} against {run.env.observation_size} values, actions "
+            f"{env.action_size} against {run.env.action_size}); a policy moves only between fields of one layout")
+    return dataclasses.replace(run, envs=[env], mixed=False, stage=0)
+
+
 def train(run: Run, console: Console, videos: bool = True) -> None:
     """Train until the run's last evaluation; Ctrl-C leaves the last checkpoint intact."""
     config, env = run.config, run.env

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import re
+from pathlib import Path
 
 import jax
 import numpy as np
@@ -166,10 +167,29 @@ def test_cli_run_folder_and_resume_of_a_finished_run(tmp_path, monkeypatch):
     assert blind.exit_code == 0 and "Traceback" not in blind.output, blind.output
     assert "cannot render here (no OpenGL here)" in blind.output and "success_any" in blind.output
     assert (run / "eval.npz").exists() and not (run / "eval.gif").exists()
+    far = str(Path(__file__).parents[1] / "bench" / "fields" / "point_nav_far.yaml")
+    elsewhere = runner.invoke(app, ["eval", str(run), "--episodes", "8", "--field", far])
+    assert elsewhere.exit_code == 0, elsewhere.output
+    assert "onpoint_nav_far," in unwrapped(elsewhere.output) and re.search(r"│ 300 +│", elsewhere.output)
+    assert (run / "eval_point_nav_far.npz").exists()
+    unlike = runner.invoke(app, ["eval", str(run), "--episodes", "8", "--field", "point_soccer"])
+    assert unlike.exit_code == 1 and "observesoractsdifferentlyfrompoint_nav" in unwrapped(unlike.output)
     monkeypatch.undo()
-    drawn = runner.invoke(app, ["videos", str(run)])
+    unnamed = runner.invoke(app, ["videos", str(run)])
+    assert unnamed.exit_code == 1 and "--fieldpoint_nav_far" in unwrapped(unnamed.output), unnamed.output
+    drawn = runner.invoke(app, ["videos", str(run), "--field", far])
     assert drawn.exit_code == 0 and "eval.npz" in drawn.output, drawn.output
     assert iio.imread(run / "eval.gif", index=None).shape[0] == 100
+    assert iio.imread(run / "eval_point_nav_far.gif", index=None).shape[0] == 300
+
+
+@pytest.mark.parametrize("path", sorted((Path(__file__).parents[1] / "configs").glob("*.yaml")), ids=lambda p: p.name)
+def test_bundled_config_files_hold_only_known_keys(path):
+    import yaml
+
+    sections = list(yaml.safe_load(path.read_text()))
+    for algo in sections:
+        make_config(algo, path, others=tuple(s for s in sections if s != algo))
 
 
 @pytest.mark.parametrize("args,phrase", [
