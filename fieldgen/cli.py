@@ -523,7 +523,7 @@ def videos(
             _fail(f"{path} is not an episode kept by fieldgen train ({exc}); delete it or train again")
         if played not in models:
             _fail(f"{path} records field '{played}', which is not one of this run's fields ({', '.join(models)}); "
-                  f"name it: fieldgen videos {run_dir} --field {played}")
+                  f"pass its YAML file, bundled name or build folder: fieldgen videos {run_dir} --field SPEC")
         if gif.exists():
             table.add_row(path.name, played, "", f"{gif.name} (already drawn)")
             continue

@@ -176,7 +176,8 @@ def test_cli_run_folder_and_resume_of_a_finished_run(tmp_path, monkeypatch):
     assert unlike.exit_code == 1 and "observesoractsdifferentlyfrompoint_nav" in unwrapped(unlike.output)
     monkeypatch.undo()
     unnamed = runner.invoke(app, ["videos", str(run)])
-    assert unnamed.exit_code == 1 and "--fieldpoint_nav_far" in unwrapped(unnamed.output), unnamed.output
+    assert unnamed.exit_code == 1 and "recordsfield'point_nav_far'" in unwrapped(unnamed.output), unnamed.output
+    assert "--fieldSPEC" in unwrapped(unnamed.output)
     drawn = runner.invoke(app, ["videos", str(run), "--field", far])
     assert drawn.exit_code == 0 and "eval.npz" in drawn.output, drawn.output
     assert iio.imread(run / "eval.gif", index=None).shape[0] == 100
