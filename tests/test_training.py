@@ -167,21 +167,22 @@ def test_cli_run_folder_and_resume_of_a_finished_run(tmp_path, monkeypatch):
     assert blind.exit_code == 0 and "Traceback" not in blind.output, blind.output
     assert "cannot render here (no OpenGL here)" in blind.output and "success_any" in blind.output
     assert (run / "eval.npz").exists() and not (run / "eval.gif").exists()
-    far = str(Path(__file__).parents[1] / "bench" / "fields" / "point_nav_far.yaml")
-    elsewhere = runner.invoke(app, ["eval", str(run), "--episodes", "8", "--field", far])
+    short = tmp_path / "point_nav_short.yaml"
+    short.write_text("extends: point_nav\nname: point_nav_short\nepisode: {length: 40}\n")
+    elsewhere = runner.invoke(app, ["eval", str(run), "--episodes", "8", "--field", str(short)])
     assert elsewhere.exit_code == 0, elsewhere.output
-    assert "onpoint_nav_far," in unwrapped(elsewhere.output) and re.search(r"│ 300 +│", elsewhere.output)
-    assert (run / "eval_point_nav_far.npz").exists()
+    assert "onpoint_nav_short," in unwrapped(elsewhere.output) and re.search(r"│ 40 +│", elsewhere.output)
+    assert (run / "eval_point_nav_short.npz").exists()
     unlike = runner.invoke(app, ["eval", str(run), "--episodes", "8", "--field", "point_soccer"])
     assert unlike.exit_code == 1 and "observesoractsdifferentlyfrompoint_nav" in unwrapped(unlike.output)
     monkeypatch.undo()
     unnamed = runner.invoke(app, ["videos", str(run)])
-    assert unnamed.exit_code == 1 and "recordsfield'point_nav_far'" in unwrapped(unnamed.output), unnamed.output
+    assert unnamed.exit_code == 1 and "recordsfield'point_nav_short'" in unwrapped(unnamed.output), unnamed.output
     assert "--fieldSPEC" in unwrapped(unnamed.output)
-    drawn = runner.invoke(app, ["videos", str(run), "--field", far])
+    drawn = runner.invoke(app, ["videos", str(run), "--field", str(short)])
     assert drawn.exit_code == 0 and "eval.npz" in drawn.output, drawn.output
     assert iio.imread(run / "eval.gif", index=None).shape[0] == 100
-    assert iio.imread(run / "eval_point_nav_far.gif", index=None).shape[0] == 300
+    assert iio.imread(run / "eval_point_nav_short.gif", index=None).shape[0] == 40
 
 
 @pytest.mark.parametrize("path", sorted((Path(__file__).parents[1] / "configs").glob("*.yaml")), ids=lambda p: p.name)
