@@ -47,6 +47,7 @@ class CRLConfig:
     hidden: tuple[int, ...] = (256, 256)
     repr_dim: int = 64
     layer_norm: bool = False
+    skip_every: int = 0  # residual blocks of this many hidden layers after the first (agents.networks.MLP); 0: none
     energy: str = "norm"
     contrastive_loss: str = "fwd_infonce"
     logsumexp_penalty: float = 0.1
@@ -85,7 +86,7 @@ def make_train(config: CRLConfig, env, team: Team | None = None) -> Algorithm:
     seen, own, goal_size = team.observed.shape[1], team.actions.shape[1], len(env.goal_indices)
     # one batched network call evaluates the actor and both encoders together
     nets = Stacked(c.hidden, (seen + goal_size, seen + own, goal_size), (2 * own, c.repr_dim, c.repr_dim),
-                   c.layer_norm, team.size, shared)
+                   c.layer_norm, team.size, shared, c.skip_every)
     tx = adam_by_group(jnp.array([c.actor_lr, c.critic_lr, c.critic_lr]), c.critic_lr, c.alpha_lr)
     target_entropy = c.target_entropy_per_action * own
     energies = jax.vmap(functools.partial(energy, c.energy))

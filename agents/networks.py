@@ -12,7 +12,12 @@ LOG_STD_MIN, LOG_STD_MAX = -5.0, 2.0
 
 
 class MLP(nn.Module):
-    """Swish hidden layers, optional layer norm, linear output.
+    """Hidden layers of Dense -> (LayerNorm) -> swish, then a linear output.
+
+    With `skip_every` k > 0 the hidden layers after the first form residual blocks of k
+    layers, each adding its input to its output (x + block(x)): the networks that let
+    contrastive RL use depth on long-horizon ant tasks (scaled CRL). Their widths must
+    then all be the first layer's.
 
     Weights start uniform with variance init_scale / fan_in: 1/3 is the CRL reference's
     choice (PyTorch's default), 1 is LeCun's."""
@@ -21,16 +26,37 @@ class MLP(nn.Module):
     out: int
     layer_norm: bool = False
     init_scale: float = 1 / 3
+    skip_every: int = 0
 
     @nn.compact
     def __call__(self, x: jax.Array) -> jax.Array:
         init = nn.initializers.variance_scaling(self.init_scale, "fan_in", "uniform")
-        for width in self.hidden:
+
+        def layer(x, width):
             x = nn.Dense(width, kernel_init=init)(x)
-            if self.layer_norm:
-                x = nn.LayerNorm()(x)
-            x = nn.swish(x)
+            return nn.swish(nn.LayerNorm()(x) if self.layer_norm else x)
+
+        if not self.skip_every:
+            for width in self.hidden:
+                x = layer(x, width)
+        else:
+            x = layer(x, self.hidden[0])
+            blocks = residual_blocks(self.hidden, self.skip_every)
+            for block in blocks:
+                y = x
+                for width in block:
+                    y = layer(y, width)
+                x = x + y
         return nn.Dense(self.out, kernel_init=init)(x)
+
+
+def residual_blocks(hidden: Sequence[int], skip_every: int) -> list[Sequence[int]]:
+    """The widths of each residual block: the hidden layers after the first, `skip_every` at a time."""
+    rest = list(hidden[1:])
+    if len(rest) % skip_every or any(w != hidden[0] for w in rest):
+        raise ValueError(f"residual blocks of {skip_every} layers need 1 + a multiple of {skip_every} hidden layers "
+                         f"of one width, not {list(hidden)}")
+    return [rest[i:i + skip_every] for i in range(0, len(rest), skip_every)]
 
 
 class Actor(nn.Module):
@@ -79,9 +105,10 @@ class Stacked:
     it would alone (its own fan-in), so the stacking changes no result."""
 
     def __init__(self, hidden: Sequence[int], inputs: Sequence[int], outputs: Sequence[int],
-                 layer_norm: bool, agents: int, shared: bool = False):
-        self.members = [PerAgent(MLP(hidden, out, layer_norm), agents, shared) for out in outputs]
-        self.joint = PerAgent(MLP(hidden, max(outputs), layer_norm), agents, shared)
+                 layer_norm: bool, agents: int, shared: bool = False, skip_every: int = 0):
+        self.members = [PerAgent(MLP(hidden, out, layer_norm, skip_every=skip_every), agents, shared)
+                        for out in outputs]
+        self.joint = PerAgent(MLP(hidden, max(outputs), layer_norm, skip_every=skip_every), agents, shared)
         self.inputs, self.outputs = tuple(inputs), tuple(outputs)
 
     def init(self, keys: Sequence[jax.Array]) -> dict:

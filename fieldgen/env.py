@@ -22,7 +22,7 @@ import numpy as np
 
 from fieldgen.compile.artifact import Artifact
 from fieldgen.compile.layout import observation_layout
-from fieldgen.compile.task import Transition, task_fns
+from fieldgen.compile.task import Transition, fall_fn, task_fns
 from fieldgen.schema import geometry
 
 with contextlib.redirect_stdout(io.StringIO()):  # mjx (also via brax) prints about its optional warp backend
@@ -52,6 +52,7 @@ class Variant:
     def __init__(self, spec, mj_model, layout, episode_length: int | None = None):
         self.spec = spec
         self.task = task_fns(spec)
+        self.fell = fall_fn(spec)
         self.episode_length = episode_length or spec.episode.length
         self.home_qpos = jnp.asarray(mj_model.key("home").qpos)
         self.data0 = mjx.make_data(mj_model).replace(qpos=self.home_qpos)
@@ -104,10 +105,9 @@ class Variant:
     def ended(self, data: mjx.Data, steps: jax.Array) -> tuple[jax.Array, jax.Array]:
         """(time ran out, the agent fell)."""
         fell = jnp.zeros((), bool)
-        if self.is_ant and self.spec.episode.terminate_unhealthy:
-            lo, hi = self.spec.agent.healthy_z
-            z = data.qpos[self.layout.agent_qpos[2]]
-            fell = (z < lo) | (z > hi)
+        if self.fell is not None:
+            torso = data.qpos[jnp.asarray(self.layout.agent_qpos[:7])]
+            fell = self.fell(torso[:3], torso[3:7])
         return steps >= self.episode_length, fell
 
 

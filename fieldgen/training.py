@@ -168,6 +168,13 @@ def _check_crl(config, env, per_iter: int) -> None:
         raise RunError(f"unknown energy '{config.energy}'; choose one of {', '.join(ENERGIES)}")
     if config.contrastive_loss not in LOSSES:
         raise RunError(f"unknown contrastive_loss '{config.contrastive_loss}'; choose one of {', '.join(LOSSES)}")
+    if config.skip_every:
+        from agents.networks import residual_blocks
+
+        try:
+            residual_blocks(config.hidden, config.skip_every)
+        except ValueError as exc:
+            raise RunError(f"crl.skip_every: {exc}") from None
 
 
 def _check_off_policy(config, env, per_iter: int) -> None:

@@ -182,3 +182,48 @@ def test_decorative_walls_let_the_ball_through(write_spec):
     spec = write_spec("extends: point_soccer\nname: ghost\nwalls: {solid: false}\nepisode: {length: 200}\n")
     env = fieldgen.make(spec, auto_reset=False)
     assert push_ball(env, [12.0, 0.0])[:, 0].max() > 3.5
+
+
+FALL_RULES = {"flipped": {"kind": "flipped"}, "height_band": {"kind": "height_band", "band": [0.2, 1.0]},
+              "never": {"kind": "never"}}
+UPSIDE_DOWN = (0.0, 1.0, 0.0, 0.0)  # half a turn about x
+TILTED_60 = (float(np.cos(np.pi / 6)), float(np.sin(np.pi / 6)), 0.0, 0.0)  # 60 degrees about x
+POSES = {"upright and high": (1.6, (1.0, 0.0, 0.0, 0.0)), "upright and low": (0.15, (1.0, 0.0, 0.0, 0.0)),
+         "upside down": (0.3, UPSIDE_DOWN), "tilted 60 degrees": (0.5, TILTED_60)}
+FELL = {"flipped": {"upside down"}, "height_band": {"upright and high", "upright and low"}, "never": set()}
+
+
+@pytest.mark.parametrize("rule", FALL_RULES)
+def test_fall_rules_on_hand_set_torso_poses(env_cache, rule):
+    """Each rule judges a torso set by hand: `flipped` only once it is turned over, however high or low
+    a hop lands it; `height_band` (the study's) whenever it leaves the band; `never` not at all.
+    The environment reads the pose from the simulation's own torso position and quaternion."""
+    from fieldgen.env import Variant
+
+    env = env_cache("ant_nav")
+    spec = env.spec.model_copy(update={"episode": env.spec.episode.model_validate(
+        {**env.spec.episode.model_dump(), "fall": FALL_RULES[rule]})})
+    variant = Variant(spec, env.mj_model, env.layout)
+    data = env.reset(jax.random.PRNGKey(0)).pipeline_state
+    fell = set()
+    for name, (z, quat) in POSES.items():
+        qpos = data.qpos.at[2].set(z).at[3:7].set(jnp.asarray(quat))
+        time_up, fallen = variant.ended(data.replace(qpos=qpos), jnp.asarray(1))
+        assert not bool(time_up)
+        if bool(fallen):
+            fell.add(name)
+    assert fell == FELL[rule]
+
+
+def test_a_flipped_rule_with_a_smaller_tilt_ends_sooner():
+    from fieldgen.compile.task import up_axis_z
+
+    assert float(up_axis_z(jnp.asarray(TILTED_60))) == pytest.approx(0.5, abs=1e-6)
+    assert float(up_axis_z(jnp.asarray(UPSIDE_DOWN))) == pytest.approx(-1.0)
+    spec = load_spec(bundled_fields()["ant_nav"])
+    from fieldgen.compile.task import fall_fn
+
+    tilted = spec.model_copy(update={"episode": spec.episode.model_validate(
+        {**spec.episode.model_dump(), "fall": {"kind": "flipped", "tilt_deg": 45}})})
+    assert bool(fall_fn(tilted)(jnp.asarray([0.0, 0.0, 0.5]), jnp.asarray(TILTED_60)))
+    assert not bool(fall_fn(spec)(jnp.asarray([0.0, 0.0, 0.5]), jnp.asarray(TILTED_60)))

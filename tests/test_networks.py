@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
+import flax.linen as nn
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from agents.networks import MLP, PerAgent, Stacked
+from agents.networks import MLP, PerAgent, Stacked, residual_blocks
 
 INPUTS, OUTPUTS = (5, 7, 2), (6, 4, 4)
 
@@ -42,3 +43,42 @@ def test_stacked_networks_equal_the_networks_alone(agents, shared):
             assert not got[padding].any()  # padded weights: zero gradient
     stacked_on = (3,) if shared else (3, agents)  # the networks, then the agents unless they share one
     assert all(leaf.shape[:len(stacked_on)] == stacked_on for leaf in jax.tree.leaves(params))
+
+
+def test_residual_network_shapes_skips_and_layer_norms():
+    """Hidden layers after the first form blocks of `skip_every`, each with a layer norm per layer;
+    a block whose weights are all zero passes its input through unchanged."""
+    net = MLP((8, 8, 8, 8, 8), 3, layer_norm=True, skip_every=2)
+    params = net.init(jax.random.PRNGKey(0), jnp.zeros((1, 5)))["params"]
+    dense = sorted(k for k in params if k.startswith("Dense"))
+    norms = sorted(k for k in params if k.startswith("LayerNorm"))
+    assert len(dense) == 6 and len(norms) == 5  # 5 hidden layers and the output; a norm per hidden layer
+    assert params["Dense_0"]["kernel"].shape == (5, 8) and params["Dense_5"]["kernel"].shape == (8, 3)
+    x = jax.random.normal(jax.random.PRNGKey(1), (4, 5))
+    # zero both blocks: the output layer then sees the first hidden layer's output itself
+    zeroed = {k: (jax.tree.map(jnp.zeros_like, v) if k not in ("Dense_0", "LayerNorm_0", "Dense_5") else v)
+              for k, v in params.items()}
+    first = jax.nn.swish(nn.LayerNorm().apply({"params": params["LayerNorm_0"]},
+                                              x @ params["Dense_0"]["kernel"] + params["Dense_0"]["bias"]))
+    want = first @ params["Dense_5"]["kernel"] + params["Dense_5"]["bias"]
+    np.testing.assert_allclose(net.apply({"params": zeroed}, x), want, rtol=1e-5, atol=1e-6)
+    # with its weights, a block changes what passes through
+    assert not np.allclose(net.apply({"params": params}, x), want, atol=1e-3)
+
+
+def test_residual_blocks_need_one_width_and_whole_blocks():
+    assert [list(b) for b in residual_blocks((4, 4, 4, 4, 4), 2)] == [[4, 4], [4, 4]]
+    for hidden in ((4, 4, 4, 4), (4, 8, 8)):
+        with pytest.raises(ValueError, match="residual blocks of 2 layers"):
+            residual_blocks(hidden, 2)
+
+
+def test_stacked_residual_networks_equal_the_networks_alone():
+    stack = Stacked((16,) * 5, INPUTS, OUTPUTS, layer_norm=True, agents=1, shared=True, skip_every=4)
+    keys = jax.random.split(jax.random.PRNGKey(0), 3)
+    params = stack.init(keys)
+    xs = [jax.random.normal(jax.random.PRNGKey(i + 1), (1, 9, n)) for i, n in enumerate(INPUTS)]
+    for k, (out, key, n) in enumerate(zip(stack.apply(params, xs), keys, INPUTS)):
+        alone = MLP((16,) * 5, OUTPUTS[k], layer_norm=True, skip_every=4)
+        np.testing.assert_allclose(out[0], alone.apply(alone.init(key, jnp.zeros((1, n))), xs[k][0]),
+                                   rtol=1e-5, atol=1e-6)

@@ -112,8 +112,18 @@ def reach_height(spec: FieldSpec) -> float:
     if spec.ball.enabled and spec.ball.joint == "free":
         return math.inf
     ball_top = 2 * spec.ball.radius if spec.ball.enabled else 0.0
-    agent_top = spec.agent.healthy_z[1] + 0.25 if spec.agent.kind == "ant" else 2 * POINT_RADIUS
+    agent_top = ant_reach(spec) if spec.agent.kind == "ant" else 2 * POINT_RADIUS
     return max(ball_top, agent_top)
+
+
+ANT_TORSO_RADIUS = 0.25
+ANT_HOP_HEIGHT = 1.5  # torso centre; a hop under MJX rises past 1.0 where no height band ends it
+
+
+def ant_reach(spec: FieldSpec) -> float:
+    """The top of the ant's torso at the highest it can be while its episode goes on."""
+    fall = spec.episode.fall
+    return (fall.band[1] if fall.kind == "height_band" else ANT_HOP_HEIGHT) + ANT_TORSO_RADIUS
 
 
 def inner_bounds(spec: FieldSpec) -> tuple[float, float, float, float]:

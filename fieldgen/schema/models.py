@@ -131,7 +131,6 @@ class AgentSection(Section):
     kind: Literal["ant", "point"] = Field("ant", description="ant: the 8-motor quadruped; point: a fast planar disc")
     start: tuple[float, float] = Field((0.0, 0.0), description="start position (x, y) of the agent")
     reset_noise: ResetNoise = Field(default_factory=ResetNoise, description="randomness added at every reset")
-    healthy_z: Span = Field((0.2, 1.0), description="torso height band; leaving it ends the episode (ant only)")
     gear: float | None = Field(None, gt=0, le=10000, description="motor gear; default 150 for ant, 10 for point")
 
 
@@ -210,11 +209,31 @@ class TaskSection(Section):
     )
 
 
+class FallFlipped(Section):
+    kind: Literal["flipped"] = Field(description="the ant has fallen once its torso turns over (MuJoCo Playground's quadrupeds)")
+    tilt_deg: float = Field(90.0, gt=0, le=180, description="fallen once the torso's up axis tilts more than this "
+                            "from vertical; 90: it points below the horizon")
+
+
+class FallHeightBand(Section):
+    kind: Literal["height_band"] = Field(description="the ant has fallen once its torso leaves a height band "
+                                         "(the soccer study's and the CRL reference's ant, tuned on brax's spring physics)")
+    band: Span = Field((0.2, 1.0), description="torso heights (z of its centre) that count as standing")
+
+
+class FallNever(Section):
+    kind: Literal["never"] = Field(description="episodes end only when time runs out (OGBench's ant soccer)")
+
+
+Fall = Annotated[Union[FallFlipped, FallHeightBand, FallNever], Field(discriminator="kind")]
+
+
 class EpisodeSection(Section):
     length: int = Field(1001, ge=1, le=1_000_000, description="control steps per episode")
     control_dt: float = Field(0.05, gt=0, le=10, description="seconds per control step")
     physics_dt: float = Field(0.01, gt=0, le=1, description="seconds per physics step")
-    terminate_unhealthy: bool = Field(True, description="end the episode when the agent leaves agent.healthy_z")
+    fall: Fall = Field(default_factory=lambda: FallFlipped(kind="flipped"),
+                       description="when the ant has fallen, which ends its episode early; a point agent never falls")
 
     @property
     def substeps(self) -> int:
