@@ -22,12 +22,12 @@ import jax
 import jax.numpy as jnp
 import optax
 
-from agents import buffer as replay
-from agents.contrastive import energy, infonce, logsumexp_penalty, paired_energy, weighted_mean
-from agents.loop import Algorithm
-from agents.networks import Stacked, gaussian_head, sample_tanh_gaussian
-from agents.optim import adam_by_group
-from agents.team import Team, whole
+from . import buffer as replay
+from .contrastive import energy, infonce, logsumexp_penalty, paired_energy, weighted_mean
+from .loop import Algorithm
+from .networks import Stacked, gaussian_head, sample_tanh_gaussian
+from .optim import adam_by_group
+from .team import Team, whole
 
 
 @dataclasses.dataclass(frozen=True)

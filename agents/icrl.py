@@ -11,9 +11,9 @@ from __future__ import annotations
 
 import dataclasses
 
-from agents import crl
-from agents.loop import Algorithm
-from agents.team import split
+from . import crl
+from .loop import Algorithm
+from .team import split
 
 
 @dataclasses.dataclass(frozen=True)

@@ -22,8 +22,8 @@ import jax
 import jax.numpy as jnp
 import optax
 
-from agents.loop import Algorithm
-from agents.networks import MLP, tanh_log_slope
+from .loop import Algorithm
+from .networks import MLP, tanh_log_slope
 
 
 SPREADS = ("global", "state")

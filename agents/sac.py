@@ -22,10 +22,10 @@ import jax
 import jax.numpy as jnp
 import optax
 
-from agents import buffer as replay
-from agents.contrastive import weighted_mean
-from agents.loop import Algorithm
-from agents.networks import MLP, Actor, sample_tanh_gaussian
+from . import buffer as replay
+from .contrastive import weighted_mean
+from .loop import Algorithm
+from .networks import MLP, Actor, sample_tanh_gaussian
 
 
 @dataclasses.dataclass(frozen=True)

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import dataclasses
 
-from agents import sac
-from agents.loop import Algorithm
+from . import sac
+from .loop import Algorithm
 
 
 @dataclasses.dataclass(frozen=True)

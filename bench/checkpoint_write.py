@@ -29,7 +29,7 @@ def measure(way: str, megabytes: int, out: Path) -> dict:
     import numpy as np
     from flax import serialization
 
-    from agents import checkpoint
+    from fieldgen.agents import checkpoint
     from fieldgen.compile.artifact import write_atomic
 
     rows = megabytes * 2**20 // (4 * 1024)

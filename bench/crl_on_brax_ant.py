@@ -19,7 +19,7 @@ import jax
 import jax.numpy as jnp
 from brax import envs
 
-from agents import crl, loop
+from fieldgen.agents import crl, loop
 from fieldgen.throughput import append_jsonl
 
 

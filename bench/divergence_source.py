@@ -19,7 +19,7 @@ import jax
 import jax.numpy as jnp
 
 import fieldgen
-from agents import crl
+from fieldgen.agents import crl
 from fieldgen.throughput import append_jsonl
 
 

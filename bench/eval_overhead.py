@@ -23,7 +23,7 @@ import jax
 import numpy as np
 
 import fieldgen
-from agents import checkpoint, loop
+from fieldgen.agents import checkpoint, loop
 from fieldgen import training
 from fieldgen.compile.artifact import write_atomic
 from fieldgen.throughput import append_jsonl, run_arguments

@@ -27,7 +27,7 @@ import jax
 import jax.numpy as jnp
 
 import fieldgen
-from agents import buffer, sharding
+from fieldgen.agents import buffer, sharding
 from fieldgen.throughput import append_jsonl, measure
 from fieldgen.training import algorithm, make_config, peak_memory_mb
 

@@ -447,7 +447,7 @@ def evaluate(
 
     import jax
 
-    from agents import loop
+    from fieldgen.agents import loop
     from fieldgen import runner, training
     from fieldgen.render import CAMERAS
 

@@ -17,7 +17,7 @@ from rich.console import Console
 from rich.table import Table
 
 import fieldgen
-from agents import sharding
+from fieldgen.agents import sharding
 from fieldgen import runner, training
 from fieldgen.compile.artifact import write_atomic
 

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import yaml
 
-from agents.loop import Promotion
+from fieldgen.agents.loop import Promotion
 from fieldgen.schema import FieldSpec, SpecError, load_spec
 
 INDEX = "curriculum.yaml"

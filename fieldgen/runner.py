@@ -18,7 +18,7 @@ from rich.table import Column, Table
 from rich.text import Text
 
 import fieldgen
-from agents import checkpoint, loop, sharding
+from fieldgen.agents import checkpoint, loop, sharding
 from fieldgen import background, curriculum, training
 from fieldgen.compile.artifact import ArtifactError, write_artifact, write_atomic
 from fieldgen.compile.variants import VariantError, compile_variants

@@ -41,7 +41,7 @@ def algorithm(algo: str):
         near = difflib.get_close_matches(algo, list(ALGOS), n=1)
         hint = f"; did you mean '{near[0]}'?" if near else ""
         raise RunError(f"unknown algorithm '{algo}'{hint} Available: {', '.join(ALGOS)}.")
-    return importlib.import_module(f"agents.{algo}")
+    return importlib.import_module(f"fieldgen.agents.{algo}")
 
 
 def config_class(algo: str):
@@ -100,9 +100,9 @@ def _cast(cls, key: str, value, where: str):
 def check_config(config, env, devices: int = 1, seeds: int = 1) -> None:
     """Problems a run would hit after compiling, reported before. `seeds` trained at once on `devices`
     local devices split by seed when they can, and otherwise split each seed's environments."""
-    from agents.crl import CRLConfig
-    from agents.sac import OffPolicyConfig
-    from agents.sharding import by_seed
+    from fieldgen.agents.crl import CRLConfig
+    from fieldgen.agents.sac import OffPolicyConfig
+    from fieldgen.agents.sharding import by_seed
 
     if config.num_envs % devices and not by_seed(seeds, devices):
         raise RunError(f"num_envs {config.num_envs} does not split evenly over the {devices} local devices; "
@@ -126,7 +126,7 @@ def _check_ppo(config, per_iter: int) -> None:
                        f"{per_iter:,}-step iterations need at least {need:,}")
     if config.reward not in ("dense", "sparse"):
         raise RunError(f"unknown reward '{config.reward}'; choose dense (the field's terms) or sparse (its success)")
-    from agents.ppo import SPREADS
+    from fieldgen.agents.ppo import SPREADS
 
     if config.spread not in SPREADS:
         raise RunError(f"unknown ppo.spread '{config.spread}'; choose global (one learned log-std per action) "
@@ -136,7 +136,7 @@ def _check_ppo(config, per_iter: int) -> None:
 def _check_replay(config, env, per_iter: int, algo: str) -> None:
     """What every trainer with a replay buffer needs: steps to prefill it and train, room for an episode,
     a batch's worth of transitions in the windows it samples."""
-    from agents.buffer import gradient_steps, iterations
+    from fieldgen.agents.buffer import gradient_steps, iterations
 
     prefill_iters, per_eval = iterations(config)
     prefill = prefill_iters * per_iter
@@ -155,8 +155,8 @@ def _check_replay(config, env, per_iter: int, algo: str) -> None:
 
 
 def _check_crl(config, env, per_iter: int) -> None:
-    from agents.contrastive import ENERGIES, LOSSES
-    from agents.team import split
+    from fieldgen.agents.contrastive import ENERGIES, LOSSES
+    from fieldgen.agents.team import split
 
     _check_replay(config, env, per_iter, "icrl" if hasattr(config, "agents") else "crl")
     if hasattr(config, "agents"):
@@ -169,7 +169,7 @@ def _check_crl(config, env, per_iter: int) -> None:
     if config.contrastive_loss not in LOSSES:
         raise RunError(f"unknown contrastive_loss '{config.contrastive_loss}'; choose one of {', '.join(LOSSES)}")
     if config.skip_every:
-        from agents.networks import residual_blocks
+        from fieldgen.agents.networks import residual_blocks
 
         try:
             residual_blocks(config.hidden, config.skip_every)

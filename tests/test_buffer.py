@@ -6,7 +6,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from agents import buffer
+from fieldgen.agents import buffer
 
 
 def filled(episodes: list[int], num_envs: int = 1, capacity: int = 16):

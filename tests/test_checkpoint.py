@@ -6,7 +6,7 @@ import jax
 import numpy as np
 from flax import serialization
 
-from agents import checkpoint
+from fieldgen.agents import checkpoint
 from fieldgen.compile.artifact import write_atomic
 
 

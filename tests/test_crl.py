@@ -6,8 +6,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from agents.contrastive import ENERGIES, diagonal, energy, infonce, logsumexp_penalty, paired_energy
-from agents.optim import adam_by_group
+from fieldgen.agents.contrastive import ENERGIES, diagonal, energy, infonce, logsumexp_penalty, paired_energy
+from fieldgen.agents.optim import adam_by_group
 
 PHI = jnp.array([[0.0, 0.0], [1.0, 0.0]])
 PSI = jnp.array([[0.0, 1.0], [1.0, 1.0]])
@@ -91,8 +91,8 @@ def test_diagonal_and_its_gradient():
 @pytest.mark.slow
 def test_crl_learns_point_nav(env_cache):
     """From an untrained policy to reaching a random target 3 away in at least 80% of episodes, in 40k steps."""
-    from agents.crl import CRLConfig, make_train
-    from agents.loop import run
+    from fieldgen.agents.crl import CRLConfig, make_train
+    from fieldgen.agents.loop import run
 
     config = CRLConfig(total_steps=40_000, num_envs=16, unroll_length=25, batch_size=64, windows=64, min_replay_rows=100,
                        max_replay_rows=2000, hidden=(64, 64), repr_dim=16, num_evals=3, eval_envs=32)

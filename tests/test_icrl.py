@@ -11,7 +11,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from agents import crl, icrl, loop, ppo, sac, team
+from fieldgen.agents import crl, icrl, loop, ppo, sac, team
 
 LEGS = ("front_left", "front_right", "back_left", "back_right")
 

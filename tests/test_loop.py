@@ -12,7 +12,7 @@ import jax
 import numpy as np
 import pytest
 
-from agents import crl, loop, ppo
+from fieldgen.agents import crl, loop, ppo
 
 
 def tiny_crl():
@@ -57,7 +57,7 @@ TWO_DEVICES = """
 import json
 import jax
 import fieldgen
-from agents import crl, loop
+from fieldgen.agents import crl, loop
 assert len(jax.local_devices()) == 2
 config = crl.CRLConfig(total_steps=1900, num_envs=8, unroll_length=10, batch_size=32, min_replay_rows=100,
                        max_replay_rows=400, hidden=(32, 32), repr_dim=8, num_evals=2, eval_envs=8)

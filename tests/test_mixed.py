@@ -126,7 +126,7 @@ def test_mixed_training_reports_every_stage_and_resumes(tmp_path):
 
 def test_the_video_of_a_mixed_evaluation_is_of_its_last_variant(walled):
     """A mixed curriculum is judged on its last stage: its video must show that stage, not the first."""
-    from agents import loop
+    from fieldgen.agents import loop
 
     still = lambda obs: jnp.zeros((obs.shape[0], walled.action_size))  # noqa: E731
     _, (variant, done) = loop.evaluate_policy(walled, still, jax.random.PRNGKey(0), 6, lambda s: s.info["variant"])

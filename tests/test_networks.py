@@ -8,7 +8,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from agents.networks import MLP, PerAgent, Stacked, residual_blocks
+from fieldgen.agents.networks import MLP, PerAgent, Stacked, residual_blocks
 
 INPUTS, OUTPUTS = (5, 7, 2), (6, 4, 4)
 

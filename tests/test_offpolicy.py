@@ -5,7 +5,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 import pytest
 
-from agents import loop, sac
+from fieldgen.agents import loop, sac
 
 
 def test_goal_reached_is_the_fields_success_on_any_goal(env_cache):

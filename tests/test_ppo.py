@@ -7,7 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from agents import loop, ppo
+from fieldgen.agents import loop, ppo
 
 
 def tiny(**kw):

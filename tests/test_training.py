@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from agents import checkpoint, crl, loop
+from fieldgen.agents import checkpoint, crl, loop
 from fieldgen.cli import app
 from fieldgen.training import RunError, make_config
 

@@ -9,6 +9,7 @@ base file that set it.
 from __future__ import annotations
 
 import difflib
+from importlib import resources
 import re
 import types
 import typing
@@ -21,12 +22,13 @@ from fieldgen.schema.errors import Problem, SpecError
 from fieldgen.schema.models import FieldSpec
 from fieldgen.schema.source import Source, read_yaml
 
-BUNDLED_DIR = Path(__file__).resolve().parents[2] / "fields"
 
 
 def bundled_fields() -> dict[str, Path]:
-    """Bundled field names -> their YAML files."""
-    return {p.stem: p for p in sorted(BUNDLED_DIR.glob("*.yaml"))}
+    """Bundled field names -> their YAML files: the package data `fieldgen.fields`, which is the
+    repository's fields/ folder in a checkout and a folder of the installed package otherwise."""
+    folder = Path(str(resources.files("fieldgen.fields")))
+    return {p.stem: p for p in sorted(folder.glob("*.yaml"))}
 
 
 def resolve_spec_path(ref: str, relative_to: Path | None = None) -> Path:
