@@ -30,7 +30,7 @@ def measure(way: str, megabytes: int, out: Path) -> dict:
     from flax import serialization
 
     from fieldgen.agents import checkpoint
-    from fieldgen.compile.artifact import write_atomic
+    from fieldgen.files import write_atomic
 
     rows = megabytes * 2**20 // (4 * 1024)
     state = {"buffer": np.random.default_rng(0).random((rows, 1024), dtype=np.float32), "step": np.int32(1)}

@@ -25,7 +25,7 @@ import numpy as np
 import fieldgen
 from fieldgen.agents import checkpoint, loop
 from fieldgen import training
-from fieldgen.compile.artifact import write_atomic
+from fieldgen.files import write_atomic
 from fieldgen.throughput import append_jsonl, run_arguments
 
 PARTS = ("evaluation", "state_to_host", "write_checkpoint", "draw_gif")

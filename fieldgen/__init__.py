@@ -23,7 +23,7 @@ def headless_gl(find_library=ctypes.util.find_library) -> str:
 if "MUJOCO_GL" not in os.environ:
     os.environ["MUJOCO_GL"] = headless_gl()
 
-__version__ = "0.1.0"
+from fieldgen.version import VERSION as __version__  # noqa: E402
 
 
 def __getattr__(name):

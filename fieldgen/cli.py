@@ -171,7 +171,8 @@ def render(
 
     Example: fieldgen render fields/soccer_v2.yaml -o v2.png --camera follow
     """
-    from fieldgen.compile.artifact import ArtifactError, compile_spec, load_artifact, write_atomic
+    from fieldgen.compile.artifact import ArtifactError, compile_spec, load_artifact
+    from fieldgen.files import write_atomic
     from fieldgen.render import CAMERAS, RenderError, png_bytes, preview, render_pose
 
     from fieldgen import curriculum
@@ -499,7 +500,7 @@ def videos(
     import numpy as np
 
     from fieldgen import runner, training
-    from fieldgen.compile.artifact import write_atomic
+    from fieldgen.files import write_atomic
     from fieldgen.render import RenderError
 
     try:

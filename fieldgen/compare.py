@@ -19,7 +19,7 @@ from rich.table import Table
 import fieldgen
 from fieldgen.agents import sharding
 from fieldgen import runner, training
-from fieldgen.compile.artifact import write_atomic
+from fieldgen.files import write_atomic
 
 PLOT, TABLE = "compare.png", "compare.json"
 

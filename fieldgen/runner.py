@@ -20,7 +20,8 @@ from rich.text import Text
 import fieldgen
 from fieldgen.agents import checkpoint, loop, sharding
 from fieldgen import background, curriculum, training
-from fieldgen.compile.artifact import ArtifactError, write_artifact, write_atomic
+from fieldgen.compile.artifact import ArtifactError, write_artifact
+from fieldgen.files import write_atomic
 from fieldgen.compile.variants import VariantError, compile_variants
 
 FIELD, STAGES = "field", "stages"  # the run's own copies of its built fields: resuming needs no compiler

@@ -22,7 +22,7 @@ import jax
 import numpy as np
 import yaml
 
-from fieldgen.compile.artifact import write_atomic
+from fieldgen.files import write_atomic
 
 ALGOS = {"crl": "CRLConfig", "icrl": "ICRLConfig", "ppo": "PPOConfig", "sac": "SACConfig",
          "td3": "TD3Config"}  # agents.<name> module -> its config class

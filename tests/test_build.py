@@ -12,7 +12,7 @@ import pytest
 from fieldgen.compile.artifact import ArtifactError, compile_spec, load_artifact
 from fieldgen.compile.build import build
 from fieldgen.compile.contacts import candidate_pairs
-from fieldgen.env import mjx
+from mujoco import mjx
 from fieldgen.schema import bundled_fields, load_spec
 
 FIELDS = sorted(bundled_fields())

@@ -7,7 +7,7 @@ import numpy as np
 from flax import serialization
 
 from fieldgen.agents import checkpoint
-from fieldgen.compile.artifact import write_atomic
+from fieldgen.files import write_atomic
 
 
 def test_a_large_leaf_goes_in_row_blocks_and_comes_back_whole(tmp_path, monkeypatch):

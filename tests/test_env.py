@@ -198,7 +198,7 @@ def test_fall_rules_on_hand_set_torso_poses(env_cache, rule):
     """Each rule judges a torso set by hand: `flipped` only once it is turned over, however high or low
     a hop lands it; `height_band` (the study's) whenever it leaves the band; `never` not at all.
     The environment reads the pose from the simulation's own torso position and quaternion."""
-    from fieldgen.env import Variant
+    from fieldgen.env.variant import Variant
 
     env = env_cache("ant_nav")
     spec = env.spec.model_copy(update={"episode": env.spec.episode.model_validate(
@@ -216,12 +216,12 @@ def test_fall_rules_on_hand_set_torso_poses(env_cache, rule):
 
 
 def test_a_flipped_rule_with_a_smaller_tilt_ends_sooner():
-    from fieldgen.compile.task import up_axis_z
+    from fieldgen.env.falls import up_axis_z
 
     assert float(up_axis_z(jnp.asarray(TILTED_60))) == pytest.approx(0.5, abs=1e-6)
     assert float(up_axis_z(jnp.asarray(UPSIDE_DOWN))) == pytest.approx(-1.0)
     spec = load_spec(bundled_fields()["ant_nav"])
-    from fieldgen.compile.task import fall_fn
+    from fieldgen.env.falls import fall_fn
 
     tilted = spec.model_copy(update={"episode": spec.episode.model_validate(
         {**spec.episode.model_dump(), "fall": {"kind": "flipped", "tilt_deg": 45}})})

@@ -13,7 +13,8 @@ from typer.testing import CliRunner
 from fieldgen import curriculum
 from fieldgen.cli import app
 from fieldgen.compile.variants import PARK_DEPTH, VariantError, compile_variants
-from fieldgen.env import FieldEnv, sampling_weights
+from fieldgen.curriculum.weights import sampling_weights
+from fieldgen.env import FieldEnv
 from fieldgen.schema import bundled_fields
 
 runner = CliRunner()
@@ -44,6 +45,19 @@ def test_variants_share_one_structure_with_absent_walls_parked(walled):
     assert abs(models[0].geom("wall_left").pos[0]) == pytest.approx(3.0)
     assert abs(models[1].geom("wall_left").pos[0]) == pytest.approx(2.0)
 
+
+
+def test_goal_reached_judges_by_each_variants_own_rule(tmp_path):
+    """Hindsight scores a state as `step` does: by the variant's own success radius and ball."""
+    specs = variants(tmp_path, "point_soccer", [{"task.success": {"kind": "ball_near_target", "radius": 0.5}},
+                                               {"task.success": {"kind": "ball_near_target", "radius": 1.5}}])
+    env = FieldEnv(compile_variants(specs), auto_reset=False)
+    state = env.reset_variant(jax.random.PRNGKey(0), 0).obs[:env.state_dim]
+    ball = np.asarray(state[np.asarray(env.goal_indices)])
+    goal = jnp.asarray(ball + np.array([1.0, 0.0]))  # a metre from the ball
+    assert float(env.goal_reached(state, goal, 0)) == 0.0
+    assert float(env.goal_reached(state, goal, 1)) == 1.0
+    assert float(env.goal_reached(state, goal)) == 1.0  # the last variant's rule by default
 
 def test_each_environment_pushes_its_ball_into_its_own_walls(walled):
     """One vmapped step over three geometries: a ball kicked sideways stops at its own wall, or runs on."""

@@ -7,7 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from fieldgen.compile.task import MIN_SCALE_DISTANCE, Transition, task_fns
+from fieldgen.env.task import MIN_SCALE_DISTANCE, Transition, task_fns
 from fieldgen.schema import bundled_fields, load_spec
 
 DT = 0.05

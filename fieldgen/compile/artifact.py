@@ -10,15 +10,13 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
-import tempfile
-from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
 import mujoco
 
-from fieldgen import __version__
+from fieldgen.files import write_atomic
+from fieldgen.version import VERSION
 from fieldgen.compile.contacts import candidate_pairs
 from fieldgen.compile.layout import Layout, observation_layout
 from fieldgen.schema.models import FieldSpec
@@ -60,7 +58,7 @@ class Artifact:
         layout: Layout = observation_layout(self.spec, model)
         pairs = candidate_pairs(model)
         return {
-            "fieldgen_version": __version__,
+            "fieldgen_version": VERSION,
             "artifact_format": ARTIFACT_FORMAT,
             "compiler_digest": COMPILER_DIGEST,
             "hash": self.hash,
@@ -121,22 +119,3 @@ def load_artifact(out_dir: str | Path) -> Artifact:
         raise ArtifactError(f"{out_dir} has artifact format {meta.get('artifact_format')}, "
                             f"this fieldgen reads format {ARTIFACT_FORMAT}; rebuild the field")
     return Artifact(FieldSpec.model_validate(meta["spec"]), xml, meta["hash"])
-
-
-def write_atomic(path: Path, data: bytes | Iterable[bytes]) -> None:
-    """Write to a temporary file beside `path`, then rename it over `path`. `data` may come in pieces,
-    written as they are made (a checkpoint larger than one should hold in memory twice)."""
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    umask = os.umask(0)
-    os.umask(umask)
-    try:
-        os.fchmod(fd, 0o666 & ~umask)  # mkstemp's 0600 would hide builds from other users
-        with os.fdopen(fd, "wb") as f:
-            for piece in [data] if isinstance(data, bytes) else data:
-                f.write(piece)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise

@@ -8,7 +8,6 @@ weights it with a positive number. The reward is sum(weight * term).
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Callable
 
@@ -114,25 +113,6 @@ def ball_in_goal_fn(spec: FieldSpec) -> Callable[[Transition], jax.Array]:
         return ((b[0] >= x0) & (b[0] <= x1) & (b[1] >= y0) & (b[1] <= y1) & (b[2] <= top)).astype(jnp.float32)
 
     return inside
-
-
-def fall_fn(spec: FieldSpec) -> Callable[[jax.Array, jax.Array], jax.Array] | None:
-    """The spec's fall rule as fell(torso position (3,), torso quaternion (w, x, y, z)) -> bool,
-    or None where nothing can fall (a point agent, or `never`)."""
-    fall = spec.episode.fall
-    if spec.agent.kind != "ant" or fall.kind == "never":
-        return None
-    if fall.kind == "height_band":
-        lo, hi = fall.band
-        return lambda pos, quat: (pos[2] < lo) | (pos[2] > hi)
-    min_up = math.cos(math.radians(fall.tilt_deg))
-    return lambda pos, quat: up_axis_z(quat) < min_up
-
-
-def up_axis_z(quat: jax.Array) -> jax.Array:
-    """The world z of a body's own z axis (1 upright, -1 upside down), from its unit quaternion."""
-    _, x, y, _ = quat
-    return 1.0 - 2.0 * (x * x + y * y)
 
 
 @dataclass(frozen=True)

@@ -10,105 +10,27 @@ blown-up simulation never reaches a learner's batch.
 
 from __future__ import annotations
 
-import contextlib
-import dataclasses
-import io
-from pathlib import Path
 from typing import Sequence
 
 import jax
 import jax.numpy as jnp
+import mujoco
 import numpy as np
+from brax.envs.base import State
+from mujoco import mjx
 
 from fieldgen.compile.artifact import Artifact
 from fieldgen.compile.layout import observation_layout
-from fieldgen.compile.task import Transition, fall_fn, task_fns
+from fieldgen.curriculum.weights import sampling_weights
+from fieldgen.env.batch import batched_model, check_compatible
+from fieldgen.env.task import Transition
+from fieldgen.env.variant import Variant
 from fieldgen.schema import geometry
-
-with contextlib.redirect_stdout(io.StringIO()):  # mjx (also via brax) prints about its optional warp backend
-    import mujoco
-    from brax.envs.base import State
-    from mujoco import mjx
 
 
 # mjx.Data fields that carry state from step to step; everything else is recomputed by the next
 # mjx.step, so an auto-reset only needs to swap these.
 _STATE_FIELDS = ("time", "qpos", "qvel", "act", "ctrl", "mocap_pos", "mocap_quat", "qacc_warmstart")
-
-
-WEIGHT_FLOOR = 0.1  # every variant keeps at least this share of the weight mass (before normalising)
-
-
-def sampling_weights(success: jax.Array) -> jax.Array:
-    """How often to start each variant, from its success rate p: most where p(1-p) is largest
-    (the variants being learnt now), a floor for the solved and the not yet reachable."""
-    score = WEIGHT_FLOOR + 4.0 * success * (1.0 - success)
-    return score / jnp.sum(score)
-
-
-class Variant:
-    """One field's episode rules: how episodes start, how a step scores, when an episode ends."""
-
-    def __init__(self, spec, mj_model, layout, episode_length: int | None = None):
-        self.spec = spec
-        self.task = task_fns(spec)
-        self.fell = fall_fn(spec)
-        self.episode_length = episode_length or spec.episode.length
-        self.home_qpos = jnp.asarray(mj_model.key("home").qpos)
-        self.data0 = mjx.make_data(mj_model).replace(qpos=self.home_qpos)
-        self.layout = layout
-        self.is_ant = spec.agent.kind == "ant"
-
-    def fresh_episode(self, key: jax.Array):
-        """Agent pose noise, target and ball spawn: new draws from `key`."""
-        k_q, k_v, k_target, k_ball = jax.random.split(key, 4)
-        noise, layout = self.spec.agent.reset_noise, self.layout
-        agent_noise = jax.random.uniform(k_q, (len(layout.agent_qpos),), minval=-noise.qpos, maxval=noise.qpos)
-        if self.is_ant:
-            agent_noise = agent_noise.at[3:7].set(0.0)  # keep the torso quaternion a unit quaternion
-        qpos = self.home_qpos.at[jnp.asarray(layout.agent_qpos)].add(agent_noise)
-        qvel = jnp.zeros(self.data0.qvel.shape).at[jnp.asarray(layout.agent_qvel)].set(
-            noise.qvel * jax.random.normal(k_v, (len(layout.agent_qvel),)))
-        target = self._sample_target(k_target)
-        if self.spec.ball.enabled:
-            qpos = qpos.at[jnp.asarray(layout.ball_qpos[:2])].set(self._sample_ball(k_ball, target))
-        data = self.data0.replace(qpos=qpos, qvel=qvel, mocap_pos=self.data0.mocap_pos.at[0, :2].set(target))
-        return data, target
-
-    def _sample_target(self, key: jax.Array) -> jax.Array:
-        fixed = self.spec.target_fixed()
-        if fixed is not None:
-            return jnp.asarray(fixed, jnp.float32)
-        t = self.spec.task.target
-        k_r, k_a = jax.random.split(key)
-        radius = jax.random.uniform(k_r, minval=t.radius[0], maxval=t.radius[1])
-        angle = jnp.deg2rad(jax.random.uniform(k_a, minval=t.angle_deg[0], maxval=t.angle_deg[1]))
-        return jnp.asarray(self.spec.agent.start) + radius * jnp.stack([jnp.cos(angle), jnp.sin(angle)])
-
-    def _sample_ball(self, key: jax.Array, target: jax.Array) -> jax.Array:
-        s = self.spec.ball.spawn
-        if s.mode == "region":
-            lo = jnp.array([s.x[0], s.y[0]])
-            hi = jnp.array([s.x[1], s.y[1]])
-            return jax.random.uniform(key, (2,), minval=lo, maxval=hi)
-        start = jnp.asarray(self.spec.agent.start)
-        jitter = jax.random.uniform(key, (2,), minval=-s.jitter, maxval=s.jitter)
-        return start + s.fraction * (target - start) + jitter
-
-    def score(self, t: Transition, names: tuple[str, ...]) -> tuple[dict, jax.Array]:
-        """(metrics, reward) of one step; terms this field does not use read 0."""
-        metrics = {"success": self.task.success(t)}
-        metrics.update({name: self.task.terms[name](t) if name in self.task.terms else jnp.zeros(())
-                        for name in names})
-        return metrics, self.task.reward(metrics)
-
-    def ended(self, data: mjx.Data, steps: jax.Array) -> tuple[jax.Array, jax.Array]:
-        """(time ran out, the agent fell)."""
-        fell = jnp.zeros((), bool)
-        if self.fell is not None:
-            torso = data.qpos[jnp.asarray(self.layout.agent_qpos[:7])]
-            fell = self.fell(torso[:3], torso[3:7])
-        return steps >= self.episode_length, fell
 
 
 def diverged(data: mjx.Data) -> jax.Array:
@@ -135,9 +57,9 @@ class FieldEnv:
         self.mj_model = models[-1]
         self.layout = observation_layout(spec, self.mj_model)
         self.variants = [Variant(a.spec, m, self.layout, episode_length) for a, m in zip(artifacts, models)]
-        _check_compatible(self.variants, models, self.layout)
+        check_compatible(self.variants, models, self.layout)
         self.task = self.variants[-1].task
-        self.sys, self._varying = _batched_model(models, [a.spec.name for a in artifacts])
+        self.sys, self._varying = batched_model(models, [a.spec.name for a in artifacts])
         self.episode_length = max(v.episode_length for v in self.variants)
         self._ball_radii = jnp.asarray([v.spec.ball.radius for v in self.variants])
         self.auto_reset = auto_reset
@@ -244,16 +166,19 @@ class FieldEnv:
                         episode=state.info["episode"] + done.astype(jnp.int32))
         return State(data, obs, reward, done.astype(jnp.float32), metrics, info)
 
-    def goal_reached(self, state: jax.Array, goal: jax.Array) -> jax.Array:
+    def goal_reached(self, state: jax.Array, goal: jax.Array, variant=None) -> jax.Array:
         """The field's success predicate (0/1) of an observation's state part and any goal: what
-        hindsight relabelling scores a stored state against a goal taken from its future."""
+        hindsight relabelling scores a stored state against a goal taken from its future. Judged by
+        `variant`'s own rule and ball, as `step` judges it; by default the last variant's, the one a
+        mixed environment is judged on."""
+        variant = jnp.asarray(self.variant_count - 1 if variant is None else variant, jnp.int32)
         agent = state[:3] if self._is_ant else jnp.append(state[:2], self._agent_z)
         ball = jnp.zeros(3)
         if self.spec.ball.enabled:
             start, stop = self.layout.slices["ball_pos"]
-            ball = state[start:stop] if stop - start == 3 else jnp.append(state[start:stop], self._ball_radii[-1])
+            ball = state[start:stop] if stop - start == 3 else jnp.append(state[start:stop], self._ball_radii[variant])
         t = Transition(ball, ball, agent, agent, goal, jnp.zeros(self.action_size), self.dt)
-        return self.task.success(t)
+        return self._each(variant, lambda v: v.task.success(t))
 
     # -- views -------------------------------------------------------------
 
@@ -275,84 +200,3 @@ class FieldEnv:
         return p if self._is_ant else jnp.append(p, self._agent_z)
 
 
-def _check_compatible(variants: list[Variant], models, layout) -> None:
-    """Variants batched together must share the observation layout, the control period and the structure."""
-    first = variants[0].spec
-    for v, model in zip(variants[1:], models[1:]):
-        if observation_layout(v.spec, model).to_json() != layout.to_json():
-            raise ValueError(f"{v.spec.name} and {first.name} observe different things; "
-                             "variants trained in one batch need one observation layout")
-        e, f = v.spec.episode, first.episode
-        if (e.control_dt, e.substeps) != (f.control_dt, f.substeps):
-            raise ValueError(f"{v.spec.name} steps {e.substeps} x {e.physics_dt} s and {first.name} "
-                             f"{f.substeps} x {f.physics_dt} s; variants trained in one batch need one control period")
-        if v.spec.sim.precision != first.sim.precision:
-            raise ValueError(f"{v.spec.name} and {first.name} differ in sim.precision")
-
-
-# Static (non-array) model fields that differ between variants but that stepping never reads:
-# keyframes (each variant's home pose is read from its own MjModel) and height-field bounds.
-_UNREAD_STATIC = {"key_time", "key_qpos", "key_qvel", "key_act", "key_mpos", "key_mquat", "key_ctrl",
-                  "geom_rbound_hfield"}
-
-
-def _batched_model(models, names: list[str]) -> tuple[object, frozenset[int]]:
-    """One mjx.Model whose leaves that differ between the variants are stacked on a leading axis,
-    and the indices of those leaves."""
-    systems = [mjx.put_model(m) for m in models]
-    first = systems[0]
-    systems = [first] + [_static_like(first, s, f"{n} and {names[0]}") for s, n in zip(systems[1:], names[1:])]
-    columns = zip(*(jax.tree.leaves(s) for s in systems))
-    leaves, varying = [], set()
-    for i, column in enumerate(columns):
-        if all(np.array_equal(np.asarray(column[0]), np.asarray(c)) for c in column[1:]):
-            leaves.append(column[0])
-        else:
-            leaves.append(jnp.stack(column))
-            varying.add(i)
-    return jax.tree.structure(systems[0]).unflatten(leaves), frozenset(varying)
-
-
-def _static_like(first, other, which: str):
-    """`other` with the unread static fields of `first`; any other static difference is an error."""
-    changes = {}
-    for field in dataclasses.fields(other):
-        a, b = getattr(first, field.name), getattr(other, field.name)
-        if dataclasses.is_dataclass(b) and not isinstance(b, type):
-            b = _static_like(a, b, which)
-        elif isinstance(b, jax.Array) or _same(a, b):
-            continue
-        elif field.name not in _UNREAD_STATIC:
-            raise ValueError(f"{which} differ in the model's structure ({field.name}); variants trained in one "
-                             "batch must share bodies, joints, geoms and contact settings (build them with "
-                             "fieldgen.compile.variants.compile_variants)")
-        else:
-            b = a
-        changes[field.name] = b
-    return other.replace(**changes) if changes else other
-
-
-def _same(a, b) -> bool:
-    try:
-        return bool(np.array_equal(np.asarray(a), np.asarray(b)))
-    except (TypeError, ValueError):
-        return a == b
-
-
-def make(source, backend: str = "mjx", **kwargs) -> FieldEnv:
-    """An environment from a FieldSpec, a YAML path, a bundled name or a build directory.
-
-    Building from a spec needs dm_control; a build directory needs only mujoco.
-    Keyword arguments (episode_length, auto_reset) go to FieldEnv.
-    """
-    from fieldgen.compile.artifact import compile_spec, load_artifact
-    from fieldgen.schema import FieldSpec, load_spec, resolve_spec_path
-
-    if backend != "mjx":
-        raise ValueError(f"unknown backend {backend!r}; fieldgen environments run on 'mjx'")
-    if isinstance(source, FieldSpec):
-        return FieldEnv(compile_spec(source), **kwargs)
-    path = Path(source) if isinstance(source, Path) else resolve_spec_path(str(source))
-    if path.is_dir():
-        return FieldEnv(load_artifact(path), **kwargs)
-    return FieldEnv(compile_spec(load_spec(path)), **kwargs)

@@ -1,0 +1,163 @@
+"""A curriculum on disk: stage files (each `extends: <base>` plus only the keys that differ from
+it, with a comment saying where it came from) and `curriculum.yaml`, which lists the stages in
+order with the rule for moving on; written whole or not at all, read back checked."""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import shutil
+import tempfile
+from pathlib import Path
+
+import yaml
+
+from fieldgen.agents.loop import Promotion
+from fieldgen.schema import FieldSpec, SpecError, load_spec
+
+INDEX = "curriculum.yaml"
+
+
+class CurriculumError(Exception):
+    """A curriculum that cannot be generated or read; the message says which stage and why."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Stage:
+    name: str
+    file: str  # relative to the curriculum folder
+    changes: dict  # nested keys -> values, relative to the base spec
+    origin: str  # one line: how this variant was made
+
+
+@dataclasses.dataclass(frozen=True)
+class Curriculum:
+    folder: Path
+    kind: str  # interpolation | grid | list
+    base: str  # as written in each stage's `extends:`
+    stages: list[Stage]
+    promotion: Promotion
+
+    def spec_paths(self) -> list[Path]:
+        return [self.folder / s.file for s in self.stages]
+
+    def specs(self) -> list[FieldSpec]:
+        return [load_spec(p) for p in self.spec_paths()]
+
+
+def write(folder: Path, base_ref: str, base: Path, kind: str, variants: list[tuple[dict, str]],
+          promotion: Promotion, force: bool = False) -> Curriculum:
+    """Validate every variant, then write the folder at once (nothing is written if one fails)."""
+    if folder.exists() and not force:
+        raise CurriculumError(f"{folder} exists; pass --force to replace it")
+    if not 0.0 < promotion.threshold <= 1.0 or promotion.window < 1:
+        raise CurriculumError(f"promotion threshold must be in (0, 1] and window >= 1, got {promotion}")
+    prefix = _slug(folder.name)
+    bundled = "/" not in base_ref and not base_ref.endswith((".yaml", ".yml"))
+    # stage files sit in `folder`; the staging folder beside it has the same parent, so the path holds for both
+    extends = base_ref if bundled else os.path.relpath(base.resolve(), folder.resolve())
+    stages = [Stage(f"{prefix}_s{i + 1:02d}", f"stage_{i + 1:02d}.yaml", changes, origin)
+              for i, (changes, origin) in enumerate(variants)]
+    folder.parent.mkdir(parents=True, exist_ok=True)
+    staging = Path(tempfile.mkdtemp(prefix=f".{folder.name}.", dir=folder.parent))
+    try:
+        for stage in stages:
+            (staging / stage.file).write_text(_stage_text(stage, extends))
+        curriculum = Curriculum(staging, kind, extends, stages, promotion)
+        (staging / INDEX).write_text(_index_text(curriculum))
+        _validate_all(curriculum)
+        if folder.exists():
+            shutil.rmtree(folder)
+        os.replace(staging, folder)
+    finally:
+        if staging.exists():
+            shutil.rmtree(staging)
+    return dataclasses.replace(curriculum, folder=folder)
+
+
+# -- reading -------------------------------------------------------------------------------------
+
+def load(folder: Path) -> Curriculum:
+    """A curriculum folder, checked: every listed stage exists, validates and has the base's layout."""
+    index = folder / INDEX
+    try:
+        raw = yaml.safe_load(index.read_text())
+    except FileNotFoundError:
+        raise CurriculumError(f"{folder} is not a curriculum: {INDEX} is missing "
+                              "(make one with `fieldgen curriculum`)") from None
+    except yaml.YAMLError as exc:
+        raise CurriculumError(f"{index} is not valid YAML: {exc}") from None
+    if not isinstance(raw, dict) or not isinstance(raw.get("stages"), list) or not raw["stages"]:
+        raise CurriculumError(f"{index}: expected a mapping with a non-empty 'stages:' list")
+    try:
+        promotion = Promotion(**(raw.get("promotion") or {}))
+    except TypeError as exc:
+        raise CurriculumError(f"{index}: promotion: {exc}; keys are threshold and window") from None
+    stages = []
+    for i, entry in enumerate(raw["stages"], 1):
+        if not isinstance(entry, dict) or not {"name", "file"} <= set(entry):
+            raise CurriculumError(f"{index}: stages[{i}] needs 'name' and 'file'")
+        if not (folder / entry["file"]).exists():
+            raise CurriculumError(f"{index}: stage {i} ('{entry['name']}') lists {entry['file']}, which is missing")
+        stages.append(Stage(entry["name"], entry["file"], {}, entry.get("origin", "")))
+    listed = {s.file for s in stages}
+    stray = sorted(p.name for p in folder.glob("stage_*.yaml") if p.name not in listed)
+    if stray:
+        raise CurriculumError(f"{index} does not list {', '.join(stray)}; add them to 'stages:' or delete them")
+    if len(listed) != len(stages) or len({s.name for s in stages}) != len(stages):
+        raise CurriculumError(f"{index}: a stage file or name appears twice")
+    curriculum = Curriculum(folder, raw.get("kind", "list"), raw.get("base", ""), stages, promotion)
+    _validate_all(curriculum)
+    return curriculum
+
+
+def is_curriculum(path: Path) -> bool:
+    return path.is_dir() and (path / INDEX).exists()
+
+
+# -- helpers -------------------------------------------------------------------------------------
+
+def _validate_all(curriculum: Curriculum) -> None:
+    """Every stage loads, its name is the one listed, and every stage has the first one's observation layout."""
+    layouts = {}
+    for i, (stage, path) in enumerate(zip(curriculum.stages, curriculum.spec_paths()), 1):
+        try:
+            spec = load_spec(path)
+        except SpecError as exc:
+            raise CurriculumError(f"stage {i} ({stage.file}) is not a valid field: {exc}") from None
+        if spec.name != stage.name:
+            raise CurriculumError(f"stage {i} ({stage.file}) is named '{spec.name}' but {INDEX} lists "
+                                  f"'{stage.name}'")
+        layouts[i] = layout_key(spec)
+    first = layouts[1]
+    for i, key in layouts.items():
+        if key != first:
+            raise CurriculumError(f"stage {i} ({curriculum.stages[i - 1].file}) observes {key}, stage 1 observes "
+                                  f"{first}: every stage of a curriculum needs the same observation layout")
+
+
+def layout_key(spec: FieldSpec) -> str:
+    """What fixes the observation layout: the agent, whether there is a ball and how it moves, the extras."""
+    ball = f"{spec.ball.joint} ball" if spec.ball.enabled else "no ball"
+    extra = ", ball velocity" if spec.observation.ball_velocity else ""
+    return f"{spec.agent.kind} agent, {ball}{extra}"
+
+
+def _slug(name: str) -> str:
+    slug = "".join(c if c.isalnum() else "_" for c in name.lower()).strip("_") or "curriculum"
+    return slug[:56]
+
+
+def _stage_text(stage: Stage, extends: str) -> str:
+    body = {"extends": extends, "name": stage.name, **stage.changes}
+    head = f"# {stage.origin}\n# Written by `fieldgen curriculum`; only the keys that differ from the base.\n"
+    return head + yaml.safe_dump(body, sort_keys=False, default_flow_style=None)
+
+
+def _index_text(c: Curriculum) -> str:
+    body = {"kind": c.kind, "base": c.base,
+            "promotion": dataclasses.asdict(c.promotion),
+            "stages": [{"name": s.name, "file": s.file, "origin": s.origin} for s in c.stages]}
+    head = ("# Stages in training order. A run moves from one stage to the next once success_any, averaged over\n"
+            "# the last `window` evaluations, reaches `threshold`. Written by `fieldgen curriculum`.\n")
+    return head + yaml.safe_dump(body, sort_keys=False)

@@ -1,0 +1,199 @@
+"""Field variants generated from specs: interpolation between two specs (numbers linearly or
+geometrically, booleans and choices switching at a stated stage), a grid over named keys, and
+explicit lists. Each variant is the keys that differ from the base, with where it came from."""
+
+from __future__ import annotations
+
+import difflib
+import itertools
+from pathlib import Path
+
+import yaml
+
+from fieldgen.curriculum.folder import CurriculumError, layout_key
+from fieldgen.schema import FieldSpec, SpecError, load_spec
+
+IGNORED = ("name", "description", "extends")  # never interpolated
+
+
+def interpolate(base: Path, target: Path, stages: int, geometric: tuple[str, ...] = (),
+                switch_at: int | None = None) -> list[tuple[dict, str]]:
+    """`stages` variants from base (first) to target (last): (changes, origin) each.
+
+    Numbers (and equal-length lists of numbers) move linearly, or geometrically for the
+    dotted keys in `geometric`; everything else (booleans, choices, keys only one spec
+    has) switches to the target's value at stage `switch_at` (1-based; default: halfway).
+    """
+    if stages < 2:
+        raise CurriculumError(f"--stages {stages}: an interpolation needs at least 2 stages (the two ends)")
+    spec_a, spec_b = _spec(base), _spec(target)
+    _check_compatible(base, spec_a, target, spec_b)
+    a, b = spec_a.model_dump(mode="json"), spec_b.model_dump(mode="json")
+    switch = switch_at if switch_at is not None else stages // 2 + 1
+    if not 1 <= switch <= stages:
+        raise CurriculumError(f"--switch-at {switch_at}: choose a stage from 1 to {stages}")
+    known = set(_leaf_keys(a)) | set(_leaf_keys(b))
+    for key in geometric:
+        if key not in known:
+            raise CurriculumError(f"--geometric {key}: no such key{_did_you_mean(key, known)}")
+    out = []
+    for k in range(stages):
+        t = k / (stages - 1)
+        variant = _blend(a, b, t, k + 1 >= switch, geometric, ())
+        out.append((_diff(a, variant), f"stage {k + 1} of {stages}, t = {t:.3f}, from {base} to {target} "
+                                       f"(switches at stage {switch})"))
+    return out
+
+
+def grid(base: Path, axes: dict[str, list]) -> list[tuple[dict, str]]:
+    """Every combination of the axes' values over the base spec, first axis slowest."""
+    a = _resolved(base)
+    for key, values in axes.items():
+        _check_key(key, a)
+        if not values:
+            raise CurriculumError(f"--vary {key}: the list of values is empty")
+    out = []
+    for combo in itertools.product(*axes.values()):
+        assignment = dict(zip(axes, combo))
+        out.append((_nest(assignment), "grid point " + ", ".join(f"{k}={v}" for k, v in assignment.items())))
+    return out
+
+
+def explicit(base: Path, variants: list[dict[str, object]]) -> list[tuple[dict, str]]:
+    """One variant per assignment dict, in the order given."""
+    a = _resolved(base)
+    for assignment in variants:
+        for key in assignment:
+            _check_key(key, a)
+    return [(_nest(v), "listed: " + ", ".join(f"{k}={x}" for k, x in v.items())) for v in variants]
+
+
+def _check_compatible(a_path: Path, sa: FieldSpec, b_path: Path, sb: FieldSpec) -> None:
+    if sa.agent.kind != sb.agent.kind:
+        raise CurriculumError(f"{a_path} drives the {sa.agent.kind} agent and {b_path} the {sb.agent.kind}: "
+                              "a curriculum keeps one agent (the policy's actions and observations depend on it)")
+    if layout_key(sa) != layout_key(sb):
+        raise CurriculumError(f"{a_path} observes {layout_key(sa)} but {b_path} observes {layout_key(sb)}: "
+                              "a curriculum needs one observation layout")
+
+
+def _resolved(path: Path) -> dict:
+    return _spec(path).model_dump(mode="json")
+
+
+def _spec(path: Path) -> FieldSpec:
+    try:
+        return load_spec(path)
+    except SpecError as exc:
+        raise CurriculumError(f"{path} is not a valid field: {exc}") from None
+
+
+def _leaf_keys(tree: dict, prefix: str = "") -> list[str]:
+    keys = []
+    for k, v in tree.items():
+        dotted = f"{prefix}.{k}" if prefix else k
+        keys.append(dotted)
+        if isinstance(v, dict):
+            keys.extend(_leaf_keys(v, dotted))
+    return keys
+
+
+def _check_key(dotted: str, resolved: dict) -> None:
+    known = _leaf_keys(resolved)
+    if dotted in known:
+        return
+    if dotted.split(".")[0] in IGNORED:
+        raise CurriculumError(f"'{dotted}' names the variant, it cannot be varied")
+    raise CurriculumError(f"unknown key '{dotted}'{_did_you_mean(dotted, known)}")
+
+
+def _did_you_mean(key: str, known) -> str:
+    near = difflib.get_close_matches(key, sorted(known), n=1)
+    return f"; did you mean '{near[0]}'?" if near else ""
+
+
+def _nest(assignment: dict[str, object]) -> dict:
+    out: dict = {}
+    for dotted, value in assignment.items():
+        node = out
+        *parents, last = dotted.split(".")
+        for p in parents:
+            node = node.setdefault(p, {})
+        node[last] = value
+    return out
+
+
+def _is_number(x) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool)
+
+
+def _blend(a, b, t: float, switched: bool, geometric: tuple[str, ...], path: tuple):
+    key = ".".join(path)
+    if a == b or key in IGNORED:
+        return a
+    if isinstance(a, dict) and isinstance(b, dict):
+        out = {}
+        for k in list(a) + [k for k in b if k not in a]:
+            if k in a and k in b:
+                out[k] = _blend(a[k], b[k], t, switched, geometric, path + (k,))
+            elif (k in b) == switched:  # only in b and switched in, or only in a and not yet switched out
+                out[k] = b[k] if k in b else a[k]
+        return out
+    if _is_number(a) and _is_number(b):
+        return _mix(a, b, t, key in geometric, key)
+    if isinstance(a, list) and isinstance(b, list) and len(a) == len(b) and all(map(_is_number, a + b)):
+        return [_mix(x, y, t, key in geometric, key) for x, y in zip(a, b)]
+    return b if switched else a
+
+
+def _mix(a, b, t: float, geometric: bool, key: str):
+    if geometric:
+        if a <= 0 or b <= 0:
+            raise CurriculumError(f"--geometric {key}: both ends must be positive, got {a} and {b}")
+        value = a * (b / a) ** t
+    else:
+        value = a + (b - a) * t
+    if isinstance(a, int) and isinstance(b, int):
+        return int(round(value))
+    return float(f"{value:.6g}") if t not in (0.0, 1.0) else (a if t == 0.0 else b)
+
+
+def _diff(base: dict, variant: dict) -> dict:
+    """The keys of variant that differ from base; a key the variant lacks becomes null (deleted)."""
+    out = {}
+    for k in list(variant) + [k for k in base if k not in variant]:
+        if k in IGNORED:
+            continue
+        if k not in variant:
+            out[k] = None
+        elif k not in base:
+            out[k] = variant[k]
+        elif isinstance(variant[k], dict) and isinstance(base[k], dict):
+            sub = _diff(base[k], variant[k])
+            if sub:
+                out[k] = sub
+        elif variant[k] != base[k]:
+            out[k] = variant[k]
+    return out
+
+
+def parse_assignments(items: list[str], where: str) -> dict[str, object]:
+    """'key=value' strings (values read as YAML) -> {key: value}."""
+    out = {}
+    for item in items:
+        key, sep, raw = item.partition("=")
+        if not sep or not key:
+            raise CurriculumError(f"{where} '{item}': write KEY=VALUE, e.g. goal.distance=12")
+        out[key.strip()] = yaml.safe_load(raw)
+    return out
+
+
+def parse_axis(item: str) -> tuple[str, list]:
+    """'goal.distance=8,12,16' -> ('goal.distance', [8, 12, 16])."""
+    key, sep, raw = item.partition("=")
+    if not sep or not key:
+        raise CurriculumError(f"--vary '{item}': write KEY=V1,V2,..., e.g. goal.distance=8,12,16")
+    values = [yaml.safe_load(v) for v in raw.split(",") if v.strip()]
+    if not values:
+        raise CurriculumError(f"--vary {key}: the list of values is empty")
+    return key.strip(), values

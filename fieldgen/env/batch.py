@@ -1,0 +1,77 @@
+"""Several variants of a field as one batched MJX model: what must agree between them, and the
+model whose leaves that differ are stacked on a leading variant axis."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from mujoco import mjx
+
+from fieldgen.compile.layout import observation_layout
+
+def check_compatible(variants: list[Variant], models, layout) -> None:
+    """Variants batched together must share the observation layout, the control period and the structure."""
+    first = variants[0].spec
+    for v, model in zip(variants[1:], models[1:]):
+        if observation_layout(v.spec, model).to_json() != layout.to_json():
+            raise ValueError(f"{v.spec.name} and {first.name} observe different things; "
+                             "variants trained in one batch need one observation layout")
+        e, f = v.spec.episode, first.episode
+        if (e.control_dt, e.substeps) != (f.control_dt, f.substeps):
+            raise ValueError(f"{v.spec.name} steps {e.substeps} x {e.physics_dt} s and {first.name} "
+                             f"{f.substeps} x {f.physics_dt} s; variants trained in one batch need one control period")
+        if v.spec.sim.precision != first.sim.precision:
+            raise ValueError(f"{v.spec.name} and {first.name} differ in sim.precision")
+
+
+# Static (non-array) model fields that differ between variants but that stepping never reads:
+# keyframes (each variant's home pose is read from its own MjModel) and height-field bounds.
+_UNREAD_STATIC = {"key_time", "key_qpos", "key_qvel", "key_act", "key_mpos", "key_mquat", "key_ctrl",
+                  "geom_rbound_hfield"}
+
+
+def batched_model(models, names: list[str]) -> tuple[object, frozenset[int]]:
+    """One mjx.Model whose leaves that differ between the variants are stacked on a leading axis,
+    and the indices of those leaves."""
+    systems = [mjx.put_model(m) for m in models]
+    first = systems[0]
+    systems = [first] + [_static_like(first, s, f"{n} and {names[0]}") for s, n in zip(systems[1:], names[1:])]
+    columns = zip(*(jax.tree.leaves(s) for s in systems))
+    leaves, varying = [], set()
+    for i, column in enumerate(columns):
+        if all(np.array_equal(np.asarray(column[0]), np.asarray(c)) for c in column[1:]):
+            leaves.append(column[0])
+        else:
+            leaves.append(jnp.stack(column))
+            varying.add(i)
+    return jax.tree.structure(systems[0]).unflatten(leaves), frozenset(varying)
+
+
+def _static_like(first, other, which: str):
+    """`other` with the unread static fields of `first`; any other static difference is an error."""
+    changes = {}
+    for field in dataclasses.fields(other):
+        a, b = getattr(first, field.name), getattr(other, field.name)
+        if dataclasses.is_dataclass(b) and not isinstance(b, type):
+            b = _static_like(a, b, which)
+        elif isinstance(b, jax.Array) or _same(a, b):
+            continue
+        elif field.name not in _UNREAD_STATIC:
+            raise ValueError(f"{which} differ in the model's structure ({field.name}); variants trained in one "
+                             "batch must share bodies, joints, geoms and contact settings (build them with "
+                             "fieldgen.compile.variants.compile_variants)")
+        else:
+            b = a
+        changes[field.name] = b
+    return other.replace(**changes) if changes else other
+
+
+def _same(a, b) -> bool:
+    try:
+        return bool(np.array_equal(np.asarray(a), np.asarray(b)))
+    except (TypeError, ValueError):
+        return a == b

@@ -1,0 +1,35 @@
+"""Fall rules, generated from the spec: when an ant has fallen, which ends its episode early.
+
+`flipped` (the default) ends it once the torso turns over, as MuJoCo Playground's
+quadrupeds do; `height_band` is the soccer study's and the CRL reference's rule, a
+torso height band tuned on brax's spring physics, where under MJX a hop that rises
+past it counts as a fall; `never` leaves episodes to run out of time.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Callable
+
+import jax
+
+from fieldgen.schema.models import FieldSpec
+
+
+def fall_fn(spec: FieldSpec) -> Callable[[jax.Array, jax.Array], jax.Array] | None:
+    """The spec's fall rule as fell(torso position (3,), torso quaternion (w, x, y, z)) -> bool,
+    or None where nothing can fall (a point agent, or `never`)."""
+    fall = spec.episode.fall
+    if spec.agent.kind != "ant" or fall.kind == "never":
+        return None
+    if fall.kind == "height_band":
+        lo, hi = fall.band
+        return lambda pos, quat: (pos[2] < lo) | (pos[2] > hi)
+    min_up = math.cos(math.radians(fall.tilt_deg))
+    return lambda pos, quat: up_axis_z(quat) < min_up
+
+
+def up_axis_z(quat: jax.Array) -> jax.Array:
+    """The world z of a body's own z axis (1 upright, -1 upside down), from its unit quaternion."""
+    _, x, y, _ = quat
+    return 1.0 - 2.0 * (x * x + y * y)
