@@ -113,3 +113,26 @@ def test_staged_training_reaches_the_last_stage_of_a_point_curriculum(tmp_path):
     assert "reached stage 3 of 3" in " ".join(result.output.split())
     done = runner.invoke(app, ["train", "--resume", str(run)])
     assert done.exit_code == 0 and "already complete" in done.output
+
+
+def test_start_states_move_the_kickoff_back_to_the_base_and_every_stage_builds(tmp_path):
+    """Stage 1 spawns the ball `near` from the goal with the agent moved as far; the last stage is the base."""
+    variants = curriculum.start_states(FIELDS["soccer_v1"], 3.0, 3)
+    c = curriculum.write(tmp_path / "kickoff", "soccer_v1", FIELDS["soccer_v1"], "start_states", variants,
+                         curriculum.Promotion())
+    specs = c.specs()
+    base = load_spec(FIELDS["soccer_v1"])
+    first = specs[0]
+    assert first.ball.spawn.y == (7.0, 7.0) and first.ball.spawn.x == base.ball.spawn.x  # 3 from the goal at y 10
+    assert first.agent.start == (0.0, 4.0)  # moved by as much as the ball
+    assert specs[1].ball.spawn.y == (5.0, 5.0) and specs[1].agent.start == (0.0, 2.0)
+    assert resolved(c.spec_paths()[-1]) == resolved(FIELDS["soccer_v1"])
+    for spec in specs:
+        compile_spec(spec)
+
+
+def test_start_states_need_a_fixed_target_and_a_reachable_distance():
+    with pytest.raises(curriculum.CurriculumError, match="fixed target"):
+        curriculum.start_states(FIELDS["ant_nav"], 3.0, 3)
+    with pytest.raises(curriculum.CurriculumError, match="between 0 and 7.00"):
+        curriculum.start_states(FIELDS["soccer_v1"], 8.0, 3)

@@ -1,6 +1,7 @@
 """Field variants generated from specs: interpolation between two specs (numbers linearly or
-geometrically, booleans and choices switching at a stated stage), a grid over named keys, and
-explicit lists. Each variant is the keys that differ from the base, with where it came from."""
+geometrically, booleans and choices switching at a stated stage), a grid over named keys,
+explicit lists, and start states that move the kick-off from near the target back to the
+base's own. Each variant is the keys that differ from the base, with where it came from."""
 
 from __future__ import annotations
 
@@ -66,6 +67,41 @@ def explicit(base: Path, variants: list[dict[str, object]]) -> list[tuple[dict, 
         for key in assignment:
             _check_key(key, a)
     return [(_nest(v), "listed: " + ", ".join(f"{k}={x}" for k, x in v.items())) for v in variants]
+
+
+def start_states(base: Path, near: float, stages: int) -> list[tuple[dict, str]]:
+    """`stages` variants of one field that differ only in where an episode starts: the first puts the
+    ball's spawn centre `near` from the target, the agent's start moved by as much, and each later
+    stage moves both back along the line to the target, the last being the base's own kick-off."""
+    if stages < 2:
+        raise CurriculumError(f"--stages {stages}: a start-state curriculum needs at least 2 stages")
+    spec = _spec(base)
+    target = spec.target_fixed()
+    if not spec.ball.enabled or spec.ball.spawn.mode != "region" or target is None:
+        raise CurriculumError(f"{base}: a start-state curriculum moves a ball spawned in a region towards a fixed "
+                              "target (a goal or point target)")
+    spawn = spec.ball.spawn
+    centre = ((spawn.x[0] + spawn.x[1]) / 2, (spawn.y[0] + spawn.y[1]) / 2)
+    to_target = (target[0] - centre[0], target[1] - centre[1])
+    distance = (to_target[0] ** 2 + to_target[1] ** 2) ** 0.5
+    if not 0 < near < distance:
+        raise CurriculumError(f"--near {near:g}: choose a distance between 0 and {distance:.2f}, the distance from "
+                              f"the ball's spawn centre to the target in {base}")
+    out = []
+    for k in range(stages):
+        t = k / (stages - 1)
+        moved = (1 - near / distance) * (1 - t)
+        dx, dy = (_rounded(moved * to_target[0]), _rounded(moved * to_target[1]))
+        changes = {} if moved == 0 else {
+            "ball": {"spawn": {"x": [_rounded(v + dx) for v in spawn.x], "y": [_rounded(v + dy) for v in spawn.y]}},
+            "agent": {"start": [_rounded(spec.agent.start[0] + dx), _rounded(spec.agent.start[1] + dy)]}}
+        out.append((changes, f"stage {k + 1} of {stages}: kick-off moved {moved * distance:.2f} toward the target, "
+                             f"the ball's spawn centre {distance - moved * distance:.2f} from it"))
+    return out
+
+
+def _rounded(x: float) -> float:
+    return float(f"{x:.6g}")
 
 
 def _check_compatible(a_path: Path, sa: FieldSpec, b_path: Path, sb: FieldSpec) -> None:
