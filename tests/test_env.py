@@ -208,7 +208,7 @@ def test_fall_rules_on_hand_set_torso_poses(env_cache, rule):
     fell = set()
     for name, (z, quat) in POSES.items():
         qpos = data.qpos.at[2].set(z).at[3:7].set(jnp.asarray(quat))
-        time_up, fallen = variant.ended(data.replace(qpos=qpos), jnp.asarray(1))
+        time_up, fallen, _ = variant.ended(data.replace(qpos=qpos), jnp.asarray(1), jnp.asarray(0))
         assert not bool(time_up)
         if bool(fallen):
             fell.add(name)
@@ -225,5 +225,22 @@ def test_a_flipped_rule_with_a_smaller_tilt_ends_sooner():
 
     tilted = spec.model_copy(update={"episode": spec.episode.model_validate(
         {**spec.episode.model_dump(), "fall": {"kind": "flipped", "tilt_deg": 45}})})
-    assert bool(fall_fn(tilted)(jnp.asarray([0.0, 0.0, 0.5]), jnp.asarray(TILTED_60)))
-    assert not bool(fall_fn(spec)(jnp.asarray([0.0, 0.0, 0.5]), jnp.asarray(TILTED_60)))
+    assert bool(fall_fn(tilted)[0](jnp.asarray([0.0, 0.0, 0.5]), jnp.asarray(TILTED_60)))
+    assert not bool(fall_fn(spec)[0](jnp.asarray([0.0, 0.0, 0.5]), jnp.asarray(TILTED_60)))
+
+
+def test_a_flipped_ant_with_grace_falls_only_once_it_stays_over(env_cache):
+    """With grace_steps 2 an ant may lie turned over for two steps and right itself; the third ends it."""
+    from fieldgen.env.variant import Variant
+
+    env = env_cache("ant_nav")
+    spec = env.spec.model_copy(update={"episode": env.spec.episode.model_validate(
+        {**env.spec.episode.model_dump(), "fall": {"kind": "flipped", "grace_steps": 2}})})
+    variant = Variant(spec, env.mj_model, env.layout)
+    data = env.reset(jax.random.PRNGKey(0)).pipeline_state
+    over = data.replace(qpos=data.qpos.at[3:7].set(jnp.asarray(UPSIDE_DOWN)))
+    down, fell = jnp.asarray(0), []
+    for pose in (over, over, data, over, over, over):
+        _, fallen, down = variant.ended(pose, jnp.asarray(1), down)
+        fell.append(bool(fallen))
+    assert fell == [False, False, False, False, False, True]

@@ -16,17 +16,18 @@ import jax
 from fieldgen.schema.models import FieldSpec
 
 
-def fall_fn(spec: FieldSpec) -> Callable[[jax.Array, jax.Array], jax.Array] | None:
-    """The spec's fall rule as fell(torso position (3,), torso quaternion (w, x, y, z)) -> bool,
-    or None where nothing can fall (a point agent, or `never`)."""
+def fall_fn(spec: FieldSpec) -> tuple[Callable[[jax.Array, jax.Array], jax.Array], int] | None:
+    """The spec's fall rule as (down(torso position (3,), torso quaternion (w, x, y, z)) -> bool, grace):
+    the ant has fallen once it has been down for more than `grace` control steps in a row. None where
+    nothing can fall (a point agent, or `never`)."""
     fall = spec.episode.fall
     if spec.agent.kind != "ant" or fall.kind == "never":
         return None
     if fall.kind == "height_band":
         lo, hi = fall.band
-        return lambda pos, quat: (pos[2] < lo) | (pos[2] > hi)
+        return (lambda pos, quat: (pos[2] < lo) | (pos[2] > hi)), 0
     min_up = math.cos(math.radians(fall.tilt_deg))
-    return lambda pos, quat: up_axis_z(quat) < min_up
+    return (lambda pos, quat: up_axis_z(quat) < min_up), fall.grace_steps
 
 
 def up_axis_z(quat: jax.Array) -> jax.Array:

@@ -122,7 +122,8 @@ class FieldEnv:
         variant = jnp.asarray(variant, jnp.int32)
         data, goal = self._each(variant, lambda v: v.fresh_episode(episode_key))
         zero = jnp.zeros(())
-        info = {"rng": rng, "goal": goal, "steps": jnp.zeros((), jnp.int32), "truncation": zero,
+        info = {"rng": rng, "goal": goal, "steps": jnp.zeros((), jnp.int32), "down_steps": jnp.zeros((), jnp.int32),
+                "truncation": zero,
                 "episode": jnp.zeros((), jnp.int32)}
         if self.mixed:
             n = len(self.variants)
@@ -143,13 +144,13 @@ class FieldEnv:
         t = Transition(self._ball_pos(before, variant), self._ball_pos(data, variant), self._agent_pos(before),
                        self._agent_pos(data), goal, action, self.dt)
         steps = state.info["steps"] + 1
-        metrics, reward, (truncated, fell) = self._each(
-            variant, lambda v: (*v.score(t, self.terms), v.ended(data, steps)))
+        metrics, reward, (truncated, fell, down) = self._each(
+            variant, lambda v: (*v.score(t, self.terms), v.ended(data, steps, state.info["down_steps"])))
         broken = diverged(data)
         metrics, reward = jax.tree.map(lambda x: jnp.where(broken, jnp.zeros_like(x), x), (metrics, reward))
         fell = fell | broken
         done = truncated | fell
-        info = dict(state.info, steps=steps, truncation=(truncated & ~fell).astype(jnp.float32))
+        info = dict(state.info, steps=steps, down_steps=down, truncation=(truncated & ~fell).astype(jnp.float32))
         obs = self._obs(data, goal)
         if self.auto_reset:
             rng, key = jax.random.split(state.info["rng"])
@@ -162,7 +163,7 @@ class FieldEnv:
             data = data.replace(**{f: jnp.where(done, getattr(fresh, f), getattr(data, f)) for f in _STATE_FIELDS})
             goal = jnp.where(done, fresh_goal, goal)
             obs = jnp.where(done, self._obs(fresh, fresh_goal), obs)
-            info.update(rng=rng, goal=goal, steps=jnp.where(done, 0, steps),
+            info.update(rng=rng, goal=goal, steps=jnp.where(done, 0, steps), down_steps=jnp.where(done, 0, down),
                         episode=state.info["episode"] + done.astype(jnp.int32))
         return State(data, obs, reward, done.astype(jnp.float32), metrics, info)
 

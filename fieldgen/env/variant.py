@@ -66,10 +66,12 @@ class Variant:
                         for name in names})
         return metrics, self.task.reward(metrics)
 
-    def ended(self, data: mjx.Data, steps: jax.Array) -> tuple[jax.Array, jax.Array]:
-        """(time ran out, the agent fell)."""
-        fell = jnp.zeros((), bool)
-        if self.fell is not None:
-            torso = data.qpos[jnp.asarray(self.layout.agent_qpos[:7])]
-            fell = self.fell(torso[:3], torso[3:7])
-        return steps >= self.episode_length, fell
+    def ended(self, data: mjx.Data, steps: jax.Array, down: jax.Array) -> tuple[jax.Array, jax.Array, jax.Array]:
+        """(time ran out, the agent fell, control steps it has now been down in a row), given the steps it
+        had been down before this one."""
+        if self.fell is None:
+            return steps >= self.episode_length, jnp.zeros((), bool), jnp.zeros((), jnp.int32)
+        is_down, grace = self.fell
+        torso = data.qpos[jnp.asarray(self.layout.agent_qpos[:7])]
+        down = jnp.where(is_down(torso[:3], torso[3:7]), down + 1, 0).astype(jnp.int32)
+        return steps >= self.episode_length, down > grace, down

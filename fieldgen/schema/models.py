@@ -211,8 +211,10 @@ class TaskSection(Section):
 
 class FallFlipped(Section):
     kind: Literal["flipped"] = Field(description="the ant has fallen once its torso turns over (MuJoCo Playground's quadrupeds)")
-    tilt_deg: float = Field(90.0, gt=0, le=180, description="fallen once the torso's up axis tilts more than this "
-                            "from vertical; 90: it points below the horizon")
+    tilt_deg: float = Field(90.0, gt=0, le=180, description="turned over once the torso's up axis tilts more than "
+                            "this from vertical; 90: it points below the horizon")
+    grace_steps: int = Field(0, ge=0, le=100_000, description="control steps the ant may stay turned over, "
+                             "free to right itself, before it counts as fallen")
 
 
 class FallHeightBand(Section):
