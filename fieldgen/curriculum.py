@@ -10,7 +10,6 @@ choices switching at a stated stage), a grid over named keys, and explicit lists
 from __future__ import annotations
 
 import dataclasses
-import difflib
 import itertools
 import os
 import shutil
@@ -21,6 +20,7 @@ import yaml
 
 from fieldgen.agents.loop import Promotion
 from fieldgen.schema import FieldSpec, SpecError, load_spec
+from fieldgen.suggest import did_you_mean
 
 INDEX = "curriculum.yaml"
 IGNORED = ("name", "description", "extends")  # never interpolated
@@ -74,7 +74,7 @@ def interpolate(base: Path, target: Path, stages: int, geometric: tuple[str, ...
     known = set(_leaf_keys(a)) | set(_leaf_keys(b))
     for key in geometric:
         if key not in known:
-            raise CurriculumError(f"--geometric {key}: no such key{_did_you_mean(key, known)}")
+            raise CurriculumError(f"--geometric {key}: no such key{did_you_mean(key, known)}")
     out = []
     for k in range(stages):
         t = k / (stages - 1)
@@ -241,12 +241,7 @@ def _check_key(dotted: str, resolved: dict) -> None:
         return
     if dotted.split(".")[0] in IGNORED:
         raise CurriculumError(f"'{dotted}' names the variant, it cannot be varied")
-    raise CurriculumError(f"unknown key '{dotted}'{_did_you_mean(dotted, known)}")
-
-
-def _did_you_mean(key: str, known) -> str:
-    near = difflib.get_close_matches(key, sorted(known), n=1)
-    return f"; did you mean '{near[0]}'?" if near else ""
+    raise CurriculumError(f"unknown key '{dotted}'{did_you_mean(dotted, known)}")
 
 
 def _nest(assignment: dict[str, object]) -> dict:
