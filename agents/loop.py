@@ -145,28 +145,21 @@ def run(algo: Algorithm, seeds: Sequence[int], num_evals: int,
     Returns (state, rows).
     """
     staged_resume = None if resume is None else (*resume, 0)
-    return run_staged([algo], seeds, num_evals, Promotion(), progress,
+    return run_staged([algo], seeds, num_evals, lambda history, stage: False, progress,
                       lambda state, index, stage, episode: on_eval(state, index), staged_resume)
 
 
-@dataclasses.dataclass(frozen=True)
-class Promotion:
-    """Move to the next stage once success_any, averaged over seeds and the last `window`
-    evaluations on the current stage, reaches `threshold`."""
-
-    threshold: float = 0.5
-    window: int = 2
-
-
-def run_staged(algos: Sequence[Algorithm], seeds: Sequence[int], num_evals: int, promotion: Promotion,
+def run_staged(algos: Sequence[Algorithm], seeds: Sequence[int], num_evals: int,
+               promote: Callable[[list[dict], int], bool],
                progress: Callable[[int, list[dict]], None] = lambda index, rows: None,
                on_eval: Callable = lambda state, index, stage, episode: None, resume: tuple | None = None,
                film: Callable | None = None):
     """`run` through a sequence of environments (a curriculum's stages) that share one observation layout.
 
-    Training starts on stage 0; after each evaluation that meets the promotion rule it moves
-    on, keeping everything it learned (networks, optimizers, replay buffer, normalizer) and
-    starting fresh episodes of the next stage. With several stages every row also holds
+    Training starts on stage 0; after each evaluation for which `promote(history, stage)` (every row
+    so far, and the current stage) is true it moves on, keeping everything it learned (networks,
+    optimizers, replay buffer, normalizer) and starting fresh episodes of the next stage. The rule is
+    the caller's (a curriculum states it). With several stages every row also holds
     `stage` and `last_stage_success_any` (the same policy evaluated on the last stage), and
     a promoting row `promoted_to`. `on_eval(state, index, stage, episode)` gets the stage the next
     chunk trains on and, with `film`, the first seed's episode filmed by the evaluation just done
@@ -231,7 +224,7 @@ def run_staged(algos: Sequence[Algorithm], seeds: Sequence[int], num_evals: int,
             rows.append(row)
         previous = steps
         history.extend(rows)
-        if staged and stage < last and index > 0 and _promote(history, stage, promotion):
+        if staged and stage < last and index > 0 and promote(history, stage):
             stage += 1
             state = jax.device_put(_with_env(algos[stage], state, index), programs(stage)[0])
             for row in rows:
@@ -239,15 +232,6 @@ def run_staged(algos: Sequence[Algorithm], seeds: Sequence[int], num_evals: int,
         progress(index, rows)
         on_eval(state, index, stage, episode)
     return state, history
-
-
-def _promote(history: list[dict], stage: int, promotion: Promotion) -> bool:
-    """Whether the last `window` evaluations on `stage` (mean over seeds) reach the threshold."""
-    evals = sorted({r["eval"] for r in history if r.get("stage") == stage and r["eval"] > 0})[-promotion.window:]
-    if len(evals) < promotion.window:
-        return False
-    scores = [r["success_any"] for r in history if r.get("stage") == stage and r["eval"] in evals]
-    return sum(scores) / len(scores) >= promotion.threshold
 
 
 def _with_env(algo: Algorithm, state, index: int):

@@ -71,7 +71,7 @@ def main() -> None:
 
     mark["t"] = time.perf_counter()
     try:
-        loop.run_staged([algo], [config.seed], config.num_evals, loop.Promotion(), progress, on_eval,
+        loop.run_staged([algo], [config.seed], config.num_evals, lambda history, stage: False, progress, on_eval,
                         film=training.EpisodeRecorder.film)
     finally:
         written.unlink(missing_ok=True)

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import yaml
 
-from fieldgen.agents.loop import Promotion
+from fieldgen.promotion import Promotion
 from fieldgen.schema import FieldSpec, SpecError, load_spec
 from fieldgen.suggest import did_you_mean
 

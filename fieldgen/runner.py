@@ -22,6 +22,7 @@ from fieldgen.agents import checkpoint, loop, sharding
 from fieldgen import background, curriculum, training
 from fieldgen.compile.artifact import ArtifactError, write_artifact, write_atomic
 from fieldgen.compile.variants import VariantError, compile_variants
+from fieldgen.promotion import Promotion
 
 FIELD, STAGES = "field", "stages"  # the run's own copies of its built fields: resuming needs no compiler
 
@@ -34,7 +35,7 @@ class Run:
     config: object
     seeds: list[int]
     rows: list[dict]
-    promotion: loop.Promotion = loop.Promotion()
+    promotion: Promotion = Promotion()
     state: object = None  # the checkpointed training state of a resumed run
     stage: int = 0  # the stage the next chunk trains on
     mixed: bool = False  # a curriculum trained all at once: every environment carries its own stage
@@ -71,7 +72,7 @@ def run_name(field: str, algo: str, seeds: list[int]) -> str:
 def new_run(source: Path, algo: str, seeds: list[int], config, out: Path, mixed: bool = False) -> Run:
     """A run folder for a field (a YAML file or a build folder) or a curriculum folder (staged, or mixed:
     every stage in one batch, built to one structure)."""
-    promotion, name = loop.Promotion(), None
+    promotion, name = Promotion(), None
     if curriculum.is_curriculum(source):
         try:
             c = curriculum.load(source)
@@ -121,7 +122,7 @@ def open_run(folder: Path, load_state: bool = True) -> Run:
                                                      for k, v in record["config"].items()})
     seeds = record.get("seeds", [config.seed])
     rows = training.read_metrics(folder)
-    run = Run(folder, record["algo"], envs, config, seeds, rows, loop.Promotion(**record.get("promotion", {})),
+    run = Run(folder, record["algo"], envs, config, seeds, rows, Promotion(**record.get("promotion", {})),
               mixed=record.get("mixed", False))
     if not load_state or not (folder / training.CHECKPOINT).exists() and not rows:
         return run  # only reported on, or set up by `fieldgen train --prepare` and never started
@@ -193,7 +194,7 @@ def train(run: Run, console: Console, videos: bool = True) -> None:
 
         resume = (run.state, run.rows[-1]["eval"], run.stage) if run.state is not None else None
         try:
-            loop.run_staged(algos, run.seeds, config.num_evals, run.promotion, progress, on_eval, resume,
+            loop.run_staged(algos, run.seeds, config.num_evals, run.promotion.ready, progress, on_eval, resume,
                             film=training.EpisodeRecorder.film if videos else None)
             done = run.rows[-1]["env_steps"]  # whole iterations can stop short of --steps
             bar.update(task, total=done, rate=_rate(run.rows, done))
