@@ -6,7 +6,7 @@ is a tanh-Gaussian that maximises the energy towards its goal, with an entropy
 coefficient tuned to a target entropy. Defaults follow the reference
 implementation (JaxGCRL) so results compare.
 
-`make_train(config, env, team)` returns the run as pure functions (agents.loop.Algorithm).
+`make_train(config, env, team)` returns the run as pure functions (agents.loop.Trainer).
 With a team of several agents (agents.team, used by agents.icrl) every network, loss
 and entropy coefficient gains a leading agent axis and is vmapped over it; the default
 team is one agent that sees and drives everything.
@@ -24,7 +24,7 @@ import optax
 
 from . import buffer as replay
 from .contrastive import energy, infonce, logsumexp_penalty, paired_energy, weighted_mean
-from .loop import Algorithm
+from .loop import Trainer
 from .networks import Stacked, gaussian_head, sample_tanh_gaussian
 from .optim import adam_by_group
 from .team import Team, whole
@@ -70,7 +70,7 @@ class TrainState:
     grad_steps: jax.Array
 
 
-def make_train(config: CRLConfig, env, team: Team | None = None) -> Algorithm:
+def make_train(config: CRLConfig, env, team: Team | None = None) -> Trainer:
     """CRL for one agent that sees and drives everything, or for a team of independent agents (ICRL):
     each with its own actor, critic and entropy coefficient, all vmapped over a leading agent axis."""
     c = config
@@ -213,4 +213,4 @@ def make_train(config: CRLConfig, env, team: Team | None = None) -> Algorithm:
     def act(ts: TrainState, obs: jax.Array) -> jax.Array:
         return policy(nets.member(ts.nets, 0), obs)
 
-    return Algorithm(config, env, start, chunk, act, {"env_state": 0, "buffer": 1})
+    return Trainer(config, env, start, chunk, act, {"env_state": 0, "buffer": 1})

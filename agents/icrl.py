@@ -12,7 +12,7 @@ from __future__ import annotations
 import dataclasses
 
 from . import crl
-from .loop import Algorithm
+from .loop import Trainer
 from .team import split
 
 
@@ -22,5 +22,5 @@ class ICRLConfig(crl.CRLConfig):
     share_parameters: bool = False  # one actor and one critic applied by every agent
 
 
-def make_train(config: ICRLConfig, env) -> Algorithm:
+def make_train(config: ICRLConfig, env) -> Trainer:
     return crl.make_train(config, env, split(env, config.agents))

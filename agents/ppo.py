@@ -22,7 +22,7 @@ import jax
 import jax.numpy as jnp
 import optax
 
-from .loop import Algorithm
+from .loop import Trainer
 from .networks import MLP, tanh_log_slope
 
 
@@ -83,7 +83,7 @@ class TrainState:
     env_steps: jax.Array
 
 
-def make_train(config: PPOConfig, env) -> Algorithm:
+def make_train(config: PPOConfig, env) -> Trainer:
     c = config
     iters_per_eval = c.total_steps // (c.num_envs * c.unroll_length) // c.num_evals
     if iters_per_eval < 1:
@@ -198,4 +198,4 @@ def make_train(config: PPOConfig, env) -> Algorithm:
         ts, metrics = jax.lax.scan(lambda t, _: iteration(t), ts, None, length=iters_per_eval)
         return ts, jax.tree.map(jnp.mean, metrics)
 
-    return Algorithm(config, env, init, chunk, act, {"env_state": 0})
+    return Trainer(config, env, init, chunk, act, {"env_state": 0})

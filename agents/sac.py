@@ -24,7 +24,7 @@ import optax
 
 from . import buffer as replay
 from .contrastive import weighted_mean
-from .loop import Algorithm
+from .loop import Trainer
 from .networks import MLP, Actor, sample_tanh_gaussian
 
 
@@ -78,7 +78,7 @@ class TrainState:
     target_critic: dict
 
 
-def make_train(config: OffPolicyConfig, env, deterministic: bool = False) -> Algorithm:
+def make_train(config: OffPolicyConfig, env, deterministic: bool = False) -> Trainer:
     """SAC, or with `deterministic` TD3 (config: agents.td3.TD3Config)."""
     c = config
     prefill_iters, iters_per_eval = replay.iterations(config)
@@ -224,4 +224,4 @@ def make_train(config: OffPolicyConfig, env, deterministic: bool = False) -> Alg
     def act(ts: TrainState, obs: jax.Array) -> jax.Array:
         return jnp.tanh(actor.apply(ts.actor, obs)[0])
 
-    return Algorithm(config, env, start, chunk, act, {"env_state": 0, "buffer": 1})
+    return Trainer(config, env, start, chunk, act, {"env_state": 0, "buffer": 1})

@@ -6,7 +6,7 @@ from __future__ import annotations
 import dataclasses
 
 from . import sac
-from .loop import Algorithm
+from .loop import Trainer
 
 
 @dataclasses.dataclass(frozen=True)
@@ -17,5 +17,5 @@ class TD3Config(sac.OffPolicyConfig):
     policy_delay: int = 2
 
 
-def make_train(config: TD3Config, env) -> Algorithm:
+def make_train(config: TD3Config, env) -> Trainer:
     return sac.make_train(config, env, deterministic=True)

@@ -40,7 +40,7 @@ def main() -> None:
 
     env = fieldgen.make(args.field)
     config = training.make_config(args.algo, total_steps=args.steps, num_envs=args.envs, num_evals=args.evals)
-    algo = training.algorithm(args.algo).make_train(config, env)
+    trainer = training.algorithm(args.algo).make_train(config, env)
     recorder = training.EpisodeRecorder(env)
     times: list[dict] = []
     mark = {"t": 0.0}
@@ -71,7 +71,7 @@ def main() -> None:
 
     mark["t"] = time.perf_counter()
     try:
-        loop.run_staged([algo], [config.seed], config.num_evals, lambda history, stage: False, progress, on_eval,
+        loop.run_staged([trainer], [config.seed], config.num_evals, lambda history, stage: False, progress, on_eval,
                         film=training.EpisodeRecorder.film)
     finally:
         written.unlink(missing_ok=True)

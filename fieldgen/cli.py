@@ -461,10 +461,10 @@ def evaluate(
         _fail(str(exc))
     if run.state is None:
         _fail(f"{run_dir} has not started training yet; start it with: fieldgen train --resume {run_dir}")
-    algo = dataclasses.replace(run, config=dataclasses.replace(run.config, eval_envs=episodes)).judge()
+    trainer = dataclasses.replace(run, config=dataclasses.replace(run.config, eval_envs=episodes)).judge()
     key = jax.random.PRNGKey(seed)
     film = training.EpisodeRecorder.film if video else None
-    judged = jax.vmap(functools.partial(loop.evaluate, algo, film=film), in_axes=(0, None))
+    judged = jax.vmap(functools.partial(loop.evaluate, trainer, film=film), in_axes=(0, None))
     result, frames = jax.device_get(jax.jit(judged)(run.state, key))
     steps = int(jax.device_get(run.state.env_steps)[0])
     table = Table("seed", "success_any", "time_at_goal", "closest", "length", "return",

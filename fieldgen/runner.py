@@ -50,17 +50,17 @@ class Run:
         return self.envs[-1]
 
     @functools.cached_property
-    def algorithms(self) -> list[loop.Algorithm]:
-        """What trains: one algorithm per stage, or for a mixed run one on all stages batched together."""
+    def trainers(self) -> list[loop.Trainer]:
+        """What trains: one trainer per stage, or for a mixed run one on all stages batched together."""
         module = training.algorithm(self.algo)
         if self.mixed:
             return [module.make_train(self.config, fieldgen.FieldEnv([e.artifact for e in self.envs]))]
         return [module.make_train(self.config, env) for env in self.envs]
 
-    def judge(self) -> loop.Algorithm:
-        """The algorithm evaluated on the field the run is judged on."""
+    def judge(self) -> loop.Trainer:
+        """The trainer evaluated on the field the run is judged on."""
         if not self.mixed:
-            return self.algorithms[-1]
+            return self.trainers[-1]
         return training.algorithm(self.algo).make_train(self.config, self.env)
 
 
@@ -129,7 +129,7 @@ def open_run(folder: Path, load_state: bool = True) -> Run:
     if rows and not run.mixed:
         run.stage = rows[-1].get("promoted_to", rows[-1].get("stage", 0))
     keys = jnp.stack([jax.random.PRNGKey(s) for s in seeds])
-    template = jax.eval_shape(jax.vmap(run.algorithms[run.stage].start), keys)
+    template = jax.eval_shape(jax.vmap(run.trainers[run.stage].start), keys)
     try:
         run.state = checkpoint.load(folder / training.CHECKPOINT, template)
     except checkpoint.CheckpointError as exc:
@@ -160,7 +160,7 @@ def train(run: Run, console: Console, videos: bool = True) -> None:
     if run.state is not None and run.finished:
         console.print(f"{run.folder} is already complete ({run.rows[-1]['env_steps']:,} env steps)")
         return
-    algos = run.algorithms
+    trainers = run.trainers
     recorders: dict[int, training.EpisodeRecorder] = {}
     started = time.perf_counter() - (run.rows[-1].get("wall_seconds", 0.0) if run.rows else 0.0)  # over resumes
     with TrainingProgress(console) as bar, background.Writer() as writer:
@@ -194,7 +194,7 @@ def train(run: Run, console: Console, videos: bool = True) -> None:
 
         resume = (run.state, run.rows[-1]["eval"], run.stage) if run.state is not None else None
         try:
-            loop.run_staged(algos, run.seeds, config.num_evals, run.promotion.ready, progress, on_eval, resume,
+            loop.run_staged(trainers, run.seeds, config.num_evals, run.promotion.ready, progress, on_eval, resume,
                             film=training.EpisodeRecorder.film if videos else None)
             done = run.rows[-1]["env_steps"]  # whole iterations can stop short of --steps
             bar.update(task, total=done, rate=_rate(run.rows, done))
