@@ -15,47 +15,16 @@ delayed actor updates.
 
 from __future__ import annotations
 
-import dataclasses
-
 import flax.struct
 import jax
 import jax.numpy as jnp
 import optax
 
 from . import buffer as replay
+from .config import OffPolicyConfig, SACConfig
 from .contrastive import weighted_mean
 from .loop import Trainer
 from .networks import MLP, Actor, sample_tanh_gaussian
-
-
-@dataclasses.dataclass(frozen=True)
-class OffPolicyConfig:
-    total_steps: int = 10_000_000
-    num_envs: int = 1024
-    unroll_length: int = 62  # env steps per environment between updates
-    batch_size: int = 256
-    windows: int = 0  # episode-long trajectory windows sampled per iteration, as CRL samples them; 0: one per
-    # environment. Each sampled transition is used once: windows x episode_length / batch_size gradient steps
-    min_replay_rows: int = 1000
-    max_replay_rows: int = 10000
-    discount: float = 0.99
-    actor_lr: float = 3e-4
-    critic_lr: float = 3e-4
-    tau: float = 0.005  # Polyak step of the target networks
-    hidden: tuple[int, ...] = (256, 256)
-    layer_norm: bool = False
-    reward: str = "dense"  # dense: the field's weighted terms; sparse: its success metric
-    reward_scale: float = 1.0
-    her: float = 0.0  # share of goals relabelled from the episode's future (needs reward: sparse)
-    num_evals: int = 10
-    eval_envs: int = 128
-    seed: int = 0
-
-
-@dataclasses.dataclass(frozen=True)
-class SACConfig(OffPolicyConfig):
-    alpha_lr: float = 3e-4
-    target_entropy_per_action: float = -1.0
 
 
 @flax.struct.dataclass

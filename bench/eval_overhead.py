@@ -23,7 +23,7 @@ import jax
 import numpy as np
 
 import fieldgen
-from fieldgen.agents import checkpoint, loop
+from fieldgen.agents import checkpoint, loop, registry
 from fieldgen import training
 from fieldgen.compile.artifact import write_atomic
 from fieldgen.throughput import append_jsonl, run_arguments
@@ -39,8 +39,9 @@ def main() -> None:
     written = args.out / f".eval_overhead_{os.getpid()}.msgpack"
 
     env = fieldgen.make(args.field)
-    config = training.make_config(args.algo, total_steps=args.steps, num_envs=args.envs, num_evals=args.evals)
-    trainer = training.algorithm(args.algo).make_train(config, env)
+    entry = registry.trainer(args.algo)
+    config = entry.config.layered(total_steps=args.steps, num_envs=args.envs, num_evals=args.evals)
+    trainer = entry.make_train(config, env)
     recorder = training.EpisodeRecorder(env)
     times: list[dict] = []
     mark = {"t": 0.0}

@@ -19,7 +19,6 @@ one device and then on two, and the second is also printed as a ratio to the fir
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import time
 from pathlib import Path
 
@@ -27,9 +26,10 @@ import jax
 import jax.numpy as jnp
 
 import fieldgen
-from fieldgen.agents import buffer, sharding
+from fieldgen.agents import buffer, registry, sharding
+from fieldgen.agents.config import ReplayConfig
 from fieldgen.throughput import append_jsonl, measure
-from fieldgen.training import algorithm, make_config, peak_memory_mb
+from fieldgen.training import peak_memory_mb
 
 
 def config_for(entry: str, num_envs: int, iterations: int, sets: list[str]):
@@ -37,9 +37,9 @@ def config_for(entry: str, num_envs: int, iterations: int, sets: list[str]):
     (the work between two evaluations) is `iterations` training iterations."""
     algo, *own = entry.split(":")
     sets = [s for s in sets if s.startswith(f"{algo}.")] + [f"{algo}.{item}" for item in own]
-    c = make_config(algo, sets=sets, num_envs=num_envs, num_evals=1)
-    prefill = buffer.iterations(c)[0] if hasattr(c, "min_replay_rows") else 0
-    return dataclasses.replace(c, total_steps=(prefill + iterations) * num_envs * c.unroll_length)
+    c = registry.trainer(algo).config.layered(sets=sets, num_envs=num_envs, num_evals=1)
+    prefill = buffer.iterations(c)[0] if isinstance(c, ReplayConfig) else 0
+    return c.model_copy(update={"total_steps": (prefill + iterations) * num_envs * c.unroll_length})
 
 
 def time_chunk(trainer, seeds: int, devices: int | None = None) -> float:
@@ -80,7 +80,7 @@ def main() -> None:
             first = {}  # the first algorithm's figure by device count
             for name in algos:
                 config = config_for(name, n, args.iterations, args.set)
-                trainer = algorithm(name.partition(":")[0]).make_train(config, env)
+                trainer = registry.trainer(name.partition(":")[0]).make_train(config, env)
                 per_iter = n * config.unroll_length
                 alone = None
                 for devices in counts:

@@ -18,7 +18,7 @@ from rich.table import Column, Table
 from rich.text import Text
 
 import fieldgen
-from fieldgen.agents import checkpoint, loop, sharding
+from fieldgen.agents import checkpoint, loop, registry, sharding
 from fieldgen import background, curriculum, training
 from fieldgen.compile.artifact import ArtifactError, write_artifact, write_atomic
 from fieldgen.compile.variants import VariantError, compile_variants
@@ -52,16 +52,16 @@ class Run:
     @functools.cached_property
     def trainers(self) -> list[loop.Trainer]:
         """What trains: one trainer per stage, or for a mixed run one on all stages batched together."""
-        module = training.algorithm(self.algo)
+        make_train = registry.trainer(self.algo).make_train
         if self.mixed:
-            return [module.make_train(self.config, fieldgen.FieldEnv([e.artifact for e in self.envs]))]
-        return [module.make_train(self.config, env) for env in self.envs]
+            return [make_train(self.config, fieldgen.FieldEnv([e.artifact for e in self.envs]))]
+        return [make_train(self.config, env) for env in self.envs]
 
     def judge(self) -> loop.Trainer:
         """The trainer evaluated on the field the run is judged on."""
         if not self.mixed:
             return self.trainers[-1]
-        return training.algorithm(self.algo).make_train(self.config, self.env)
+        return registry.trainer(self.algo).make_train(self.config, self.env)
 
 
 def run_name(field: str, algo: str, seeds: list[int]) -> str:
@@ -96,7 +96,7 @@ def new_run(source: Path, algo: str, seeds: list[int], config, out: Path, mixed:
         raise training.RunError(f"{folder} already holds a run; continue it with --resume {folder}, "
                                 "or pick another --seed or --out")
     for env in envs:
-        training.check_config(config, env, sharding.device_count(), len(seeds))
+        config.validate_env(env, sharding.device_count(), len(seeds))
     folder.mkdir(parents=True, exist_ok=True)
     dirs = [FIELD] if len(envs) == 1 else [f"{STAGES}/{k + 1:02d}" for k in range(len(envs))]
     for env, sub in zip(envs, dirs):
@@ -118,8 +118,7 @@ def open_run(folder: Path, load_state: bool = True) -> Run:
             raise training.RunError(f"{folder / sub}: {exc}") from None
     if any(record["observation"] != env.layout.to_json() for env in envs):
         raise training.RunError(f"{folder} was trained on a different observation layout than its fields give now")
-    config = training.make_config(record["algo"], **{k: tuple(v) if isinstance(v, list) else v
-                                                     for k, v in record["config"].items()})
+    config = registry.trainer(record["algo"]).config.layered(**record["config"])
     seeds = record.get("seeds", [config.seed])
     rows = training.read_metrics(folder)
     run = Run(folder, record["algo"], envs, config, seeds, rows, Promotion(**record.get("promotion", {})),
