@@ -236,6 +236,13 @@ def test_config_file_and_precedence(tmp_path):
         crl.CRLConfig.layered(file)
 
 
+def test_a_config_comes_back_from_its_run_json_record():
+    """run.json keeps the config as JSON (tuples become lists); read back, it is the same hashable value."""
+    config = tiny_config(hidden=(32, 16), layer_norm=True)
+    again = crl.CRLConfig.layered(**json.loads(json.dumps(config.model_dump())))
+    assert again == config and hash(again) == hash(config) and again.hidden == (32, 16)
+
+
 def test_a_machine_that_cannot_render_keeps_episodes_for_fieldgen_videos(tmp_path, monkeypatch):
     import imageio.v3 as iio
     import jax.numpy as jnp
