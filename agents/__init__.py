@@ -6,5 +6,6 @@ The contract (README, "Make your own field"): brax-style `reset(rng)` and
 and `action_names` (trainers that split a body among agents pick by name);
 `goal_reached(state, goal)` (the success predicate, for hindsight relabelling);
 `State.metrics` holds `success` and every reward term. Nothing here imports fieldgen's
-internals, and fieldgen/compile never imports this package.
+internals (fieldgen.suggest, the wording of a did-you-mean hint, aside), and fieldgen/compile
+never imports this package.
 """

@@ -6,7 +6,7 @@ is a tanh-Gaussian that maximises the energy towards its goal, with an entropy
 coefficient tuned to a target entropy. Defaults follow the reference
 implementation (JaxGCRL) so results compare.
 
-`make_train(config, env, team)` returns the run as pure functions (agents.loop.Algorithm).
+`make_train(config, env, team)` returns the run as pure functions (agents.loop.Trainer).
 With a team of several agents (agents.team, used by agents.icrl) every network, loss
 and entropy coefficient gains a leading agent axis and is vmapped over it; the default
 team is one agent that sees and drives everything.
@@ -14,7 +14,6 @@ team is one agent that sees and drives everything.
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 
 import flax.struct
@@ -23,38 +22,12 @@ import jax.numpy as jnp
 import optax
 
 from . import buffer as replay
+from .config import CRLConfig
 from .contrastive import energy, infonce, logsumexp_penalty, paired_energy, weighted_mean
-from .loop import Algorithm
+from .loop import Trainer
 from .networks import Stacked, gaussian_head, sample_tanh_gaussian
 from .optim import adam_by_group
 from .team import Team, whole
-
-
-@dataclasses.dataclass(frozen=True)
-class CRLConfig:
-    total_steps: int = 10_000_000
-    num_envs: int = 1024
-    unroll_length: int = 62  # env steps per environment between updates
-    batch_size: int = 256  # transitions per gradient step
-    windows: int = 0  # episode-long trajectory windows sampled per iteration; 0: one per environment
-    # (the reference), so an iteration makes windows x episode_length / batch_size gradient steps
-    min_replay_rows: int = 1000  # time rows collected before updates start
-    max_replay_rows: int = 10000
-    discount: float = 0.99
-    actor_lr: float = 3e-4
-    critic_lr: float = 3e-4
-    alpha_lr: float = 3e-4
-    hidden: tuple[int, ...] = (256, 256)
-    repr_dim: int = 64
-    layer_norm: bool = False
-    skip_every: int = 0  # residual blocks of this many hidden layers after the first (agents.networks.MLP); 0: none
-    energy: str = "norm"
-    contrastive_loss: str = "fwd_infonce"
-    logsumexp_penalty: float = 0.1
-    target_entropy_per_action: float = -0.5
-    num_evals: int = 10
-    eval_envs: int = 128
-    seed: int = 0
 
 
 @flax.struct.dataclass
@@ -70,9 +43,10 @@ class TrainState:
     grad_steps: jax.Array
 
 
-def make_train(config: CRLConfig, env, team: Team | None = None) -> Algorithm:
+def make_train(config: CRLConfig, env, team: Team | None = None, shared: bool = False) -> Trainer:
     """CRL for one agent that sees and drives everything, or for a team of independent agents (ICRL):
-    each with its own actor, critic and entropy coefficient, all vmapped over a leading agent axis."""
+    each with its own actor, critic and entropy coefficient, all vmapped over a leading agent axis
+    (with `shared`, one actor and one critic that every agent applies)."""
     c = config
     team = team or whole(env)
     prefill_iters, iters_per_eval = replay.iterations(config)
@@ -82,7 +56,6 @@ def make_train(config: CRLConfig, env, team: Team | None = None) -> Algorithm:
     goal_indices = jnp.asarray(env.goal_indices)
     window = env.episode_length
     windows, updates = replay.gradient_steps(config, window)
-    shared = getattr(c, "share_parameters", False)
     seen, own, goal_size = team.observed.shape[1], team.actions.shape[1], len(env.goal_indices)
     # one batched network call evaluates the actor and both encoders together
     nets = Stacked(c.hidden, (seen + goal_size, seen + own, goal_size), (2 * own, c.repr_dim, c.repr_dim),
@@ -213,4 +186,4 @@ def make_train(config: CRLConfig, env, team: Team | None = None) -> Algorithm:
     def act(ts: TrainState, obs: jax.Array) -> jax.Array:
         return policy(nets.member(ts.nets, 0), obs)
 
-    return Algorithm(config, env, start, chunk, act, {"env_state": 0, "buffer": 1})
+    return Trainer(config, env, start, chunk, act, {"env_state": 0, "buffer": 1})

@@ -9,18 +9,11 @@ network call rather than a loop; success is the environment's own metric, as for
 
 from __future__ import annotations
 
-import dataclasses
-
 from . import crl
-from .loop import Algorithm
+from .config import ICRLConfig
+from .loop import Trainer
 from .team import split
 
 
-@dataclasses.dataclass(frozen=True)
-class ICRLConfig(crl.CRLConfig):
-    agents: str = "leg"  # leg: one agent per leg (the study's code); joint: one per actuated joint (its text)
-    share_parameters: bool = False  # one actor and one critic applied by every agent
-
-
-def make_train(config: ICRLConfig, env) -> Algorithm:
-    return crl.make_train(config, env, split(env, config.agents))
+def make_train(config: ICRLConfig, env) -> Trainer:
+    return crl.make_train(config, env, split(env, config.agents), config.share_parameters)

@@ -1,7 +1,7 @@
-"""What every trainer shares: the shape of an algorithm, evaluating a policy, and running
-several seeds at once (vmap) over every local device (jax.sharding) between evaluations.
+"""What every trainer shares: its shape, evaluating a policy, and running several seeds at
+once (vmap) over every local device (jax.sharding) between evaluations.
 
-An algorithm is the pure functions of `Algorithm`. `pure_train(algo)` strings them
+A trainer is the pure functions of `Trainer`. `pure_train(trainer)` strings them
 into one `train(key)` that can be jitted and vmapped over seeds; `run` does the same
 work one evaluation at a time, so a caller can checkpoint, log and resume between them.
 """
@@ -22,7 +22,7 @@ EVAL_STREAM = 0x5EED  # evaluation keys: fold_in(fold_in(seed key, EVAL_STREAM),
 
 
 @dataclasses.dataclass(frozen=True)
-class Algorithm:
+class Trainer:
     """One run of one algorithm on one environment, as pure functions of a training state."""
 
     config: object
@@ -31,7 +31,7 @@ class Algorithm:
     chunk: Callable  # state -> (state, mean training metrics): the iterations between two evaluations
     act: Callable  # (state, obs [batch, observation_size]) -> deterministic actions [batch, action_size]
     env_axes: dict  # state field -> the axis of its leaves that runs over environments (sharded)
-    # jitted programs by seed count, kept here so that later runs of this algorithm in the same
+    # jitted programs by seed count, kept here so that later runs of this trainer in the same
     # process (a resume, an evaluation) reuse them instead of compiling again
     compiled: dict = dataclasses.field(default_factory=dict, init=False, compare=False, repr=False)
 
@@ -98,17 +98,17 @@ def evaluate_policy(env, act: Callable, key: jax.Array, n_envs: int, film: Calla
     return metrics, frames
 
 
-def evaluate(algo: Algorithm, state, key: jax.Array, film: Callable | None = None) -> tuple[dict, object]:
+def evaluate(trainer: Trainer, state, key: jax.Array, film: Callable | None = None) -> tuple[dict, object]:
     """Every algorithm is judged here, by the environment's own success metric (`evaluate_policy`)."""
-    return evaluate_policy(algo.env, functools.partial(algo.act, state), key, algo.config.eval_envs, film)
+    return evaluate_policy(trainer.env, functools.partial(trainer.act, state), key, trainer.config.eval_envs, film)
 
 
-def adapt(algo: Algorithm, state, metrics: dict) -> tuple[object, dict]:
+def adapt(trainer: Trainer, state, metrics: dict) -> tuple[object, dict]:
     """Let an environment of several variants re-weight them from an evaluation's metrics
     (`env.adapt(env_state, metrics) -> (env_state, report)`); others pass through."""
-    if getattr(algo.env, "variant_count", 1) < 2:
+    if getattr(trainer.env, "variant_count", 1) < 2:
         return state, {}
-    env_state, report = algo.env.adapt(state.env_state, metrics)
+    env_state, report = trainer.env.adapt(state.env_state, metrics)
     return state.replace(env_state=env_state), report
 
 
@@ -116,28 +116,28 @@ def eval_key(seed_key: jax.Array, index) -> jax.Array:
     return jax.random.fold_in(jax.random.fold_in(seed_key, EVAL_STREAM), index)
 
 
-def pure_train(algo: Algorithm, num_evals: int) -> Callable:
+def pure_train(trainer: Trainer, num_evals: int) -> Callable:
     """train(key) -> (final state, metrics stacked over the num_evals evaluations); jit- and vmap-able."""
 
     def train(key):
         def interval(state, index):
-            state, metrics = algo.chunk(state)
-            metrics.update(evaluate(algo, state, eval_key(key, index))[0])
-            state, report = adapt(algo, state, metrics)
+            state, metrics = trainer.chunk(state)
+            metrics.update(evaluate(trainer, state, eval_key(key, index))[0])
+            state, report = adapt(trainer, state, metrics)
             return state, {**metrics, **report}
 
-        return jax.lax.scan(interval, algo.start(key), jnp.arange(1, num_evals + 1))
+        return jax.lax.scan(interval, trainer.start(key), jnp.arange(1, num_evals + 1))
 
     return train
 
 
-def run(algo: Algorithm, seeds: Sequence[int], num_evals: int,
+def run(trainer: Trainer, seeds: Sequence[int], num_evals: int,
         progress: Callable[[int, list[dict]], None] = lambda index, rows: None,
         on_eval: Callable = lambda state, index: None, resume: tuple | None = None):
     """Train every seed at once (vmapped), evaluating untrained (index 0) and after each of num_evals chunks.
 
     With several local devices, seeds that fill them evenly are split among them (each device
-    trains its own); otherwise the environments (and whatever else `algo.env_axes` names)
+    trains its own); otherwise the environments (and whatever else `trainer.env_axes` names)
     are sharded across them, and gradients of the losses, means over the sharded batch, are
     averaged across devices by the compiler (agents.sharding). `progress(index, rows)` gets
     one row per seed; `on_eval(state, index)` runs after every evaluation (checkpoints);
@@ -145,28 +145,21 @@ def run(algo: Algorithm, seeds: Sequence[int], num_evals: int,
     Returns (state, rows).
     """
     staged_resume = None if resume is None else (*resume, 0)
-    return run_staged([algo], seeds, num_evals, Promotion(), progress,
+    return run_staged([trainer], seeds, num_evals, lambda history, stage: False, progress,
                       lambda state, index, stage, episode: on_eval(state, index), staged_resume)
 
 
-@dataclasses.dataclass(frozen=True)
-class Promotion:
-    """Move to the next stage once success_any, averaged over seeds and the last `window`
-    evaluations on the current stage, reaches `threshold`."""
-
-    threshold: float = 0.5
-    window: int = 2
-
-
-def run_staged(algos: Sequence[Algorithm], seeds: Sequence[int], num_evals: int, promotion: Promotion,
+def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int,
+               promote: Callable[[list[dict], int], bool],
                progress: Callable[[int, list[dict]], None] = lambda index, rows: None,
                on_eval: Callable = lambda state, index, stage, episode: None, resume: tuple | None = None,
                film: Callable | None = None):
     """`run` through a sequence of environments (a curriculum's stages) that share one observation layout.
 
-    Training starts on stage 0; after each evaluation that meets the promotion rule it moves
-    on, keeping everything it learned (networks, optimizers, replay buffer, normalizer) and
-    starting fresh episodes of the next stage. With several stages every row also holds
+    Training starts on stage 0; after each evaluation for which `promote(history, stage)` (every row
+    so far, and the current stage) is true it moves on, keeping everything it learned (networks,
+    optimizers, replay buffer, normalizer) and starting fresh episodes of the next stage. The rule is
+    the caller's (a curriculum states it). With several stages every row also holds
     `stage` and `last_stage_success_any` (the same policy evaluated on the last stage), and
     a promoting row `promoted_to`. `on_eval(state, index, stage, episode)` gets the stage the next
     chunk trains on and, with `film`, the first seed's episode filmed by the evaluation just done
@@ -174,22 +167,22 @@ def run_staged(algos: Sequence[Algorithm], seeds: Sequence[int], num_evals: int,
     `resume=(state, index, stage)` continues from there.
     """
     keys = jnp.stack([jax.random.PRNGKey(s) for s in seeds])
-    staged, last = len(algos) > 1, len(algos) - 1
+    staged, last = len(trainers) > 1, len(trainers) - 1
 
     def programs(k: int):
         """(placement, start, chunk, evaluate, adapt) of stage k, compiled on first use. Evaluation reads only
         the policy, so it takes a state of any stage (the last stage is judged while training earlier ones)."""
-        algo = algos[k]
-        if (len(seeds), film) not in algo.compiled:
-            shapes = jax.eval_shape(jax.vmap(algo.start), keys)
-            placement = sharding.training_shardings(shapes, sharding.local_mesh(), algo.env_axes)
-            algo.compiled[len(seeds), film] = (
-                placement, jax.jit(jax.vmap(algo.start), out_shardings=placement),
-                jax.jit(jax.vmap(algo.chunk), in_shardings=(placement,), out_shardings=(placement, None)),
-                jax.jit(jax.vmap(functools.partial(evaluate, algo, film=film))),
-                jax.jit(jax.vmap(functools.partial(adapt, algo)), in_shardings=(placement, None),
+        trainer = trainers[k]
+        if (len(seeds), film) not in trainer.compiled:
+            shapes = jax.eval_shape(jax.vmap(trainer.start), keys)
+            placement = sharding.training_shardings(shapes, sharding.local_mesh(), trainer.env_axes)
+            trainer.compiled[len(seeds), film] = (
+                placement, jax.jit(jax.vmap(trainer.start), out_shardings=placement),
+                jax.jit(jax.vmap(trainer.chunk), in_shardings=(placement,), out_shardings=(placement, None)),
+                jax.jit(jax.vmap(functools.partial(evaluate, trainer, film=film))),
+                jax.jit(jax.vmap(functools.partial(adapt, trainer)), in_shardings=(placement, None),
                         out_shardings=(placement, None)))
-        return algo.compiled[len(seeds), film]
+        return trainer.compiled[len(seeds), film]
 
     def judge(k: int, state, index: int) -> tuple[dict, object]:
         """Metrics per seed, and the first seed's episode filmed on stage k (None without `film`)."""
@@ -212,7 +205,7 @@ def run_staged(algos: Sequence[Algorithm], seeds: Sequence[int], num_evals: int,
         seconds = time.perf_counter() - began
         judged, episode = judge(stage, state, index)
         metrics.update(judged)
-        count = getattr(algos[stage].env, "variant_count", 1)
+        count = getattr(trainers[stage].env, "variant_count", 1)
         if count > 1:  # a mixed run: judged on its last variant, and re-weighted
             metrics["last_stage_success_any"] = metrics[f"variant_{count:02d}_success_any"]
             state, report = programs(stage)[4](state, metrics)
@@ -231,9 +224,9 @@ def run_staged(algos: Sequence[Algorithm], seeds: Sequence[int], num_evals: int,
             rows.append(row)
         previous = steps
         history.extend(rows)
-        if staged and stage < last and index > 0 and _promote(history, stage, promotion):
+        if staged and stage < last and index > 0 and promote(history, stage):
             stage += 1
-            state = jax.device_put(_with_env(algos[stage], state, index), programs(stage)[0])
+            state = jax.device_put(_with_env(trainers[stage], state, index), programs(stage)[0])
             for row in rows:
                 row["promoted_to"] = stage
         progress(index, rows)
@@ -241,23 +234,14 @@ def run_staged(algos: Sequence[Algorithm], seeds: Sequence[int], num_evals: int,
     return state, history
 
 
-def _promote(history: list[dict], stage: int, promotion: Promotion) -> bool:
-    """Whether the last `window` evaluations on `stage` (mean over seeds) reach the threshold."""
-    evals = sorted({r["eval"] for r in history if r.get("stage") == stage and r["eval"] > 0})[-promotion.window:]
-    if len(evals) < promotion.window:
-        return False
-    scores = [r["success_any"] for r in history if r.get("stage") == stage and r["eval"] in evals]
-    return sum(scores) / len(scores) >= promotion.threshold
-
-
-def _with_env(algo: Algorithm, state, index: int):
-    """The vmapped state with fresh episodes of `algo`'s environment in every slot (the next stage's field).
+def _with_env(trainer: Trainer, state, index: int):
+    """The vmapped state with fresh episodes of `trainer`'s environment in every slot (the next stage's field).
 
     Episode counters carry on, so hindsight goals never join an old-stage episode to a new one."""
 
     def one(ts):
         key = jax.random.fold_in(ts.key, index)
-        fresh = jax.vmap(algo.env.reset)(jax.random.split(key, algo.config.num_envs))
+        fresh = jax.vmap(trainer.env.reset)(jax.random.split(key, trainer.config.num_envs))
         info = dict(fresh.info, episode=ts.env_state.info["episode"] + 1)
         return ts.replace(env_state=fresh.replace(info=info))
 

@@ -15,41 +15,14 @@ observation, which auto-reset replaces).
 
 from __future__ import annotations
 
-import dataclasses
-
 import flax.struct
 import jax
 import jax.numpy as jnp
 import optax
 
-from .loop import Algorithm
+from .config import PPOConfig
+from .loop import Trainer
 from .networks import MLP, tanh_log_slope
-
-
-SPREADS = ("global", "state")
-
-
-@dataclasses.dataclass(frozen=True)
-class PPOConfig:
-    total_steps: int = 50_000_000
-    num_envs: int = 2048
-    unroll_length: int = 20
-    num_minibatches: int = 32
-    update_epochs: int = 4
-    learning_rate: float = 3e-4
-    discount: float = 0.97
-    gae_lambda: float = 0.95
-    clip: float = 0.3
-    entropy_coef: float = 1e-2
-    value_coef: float = 0.5
-    max_grad_norm: float = 1.0
-    hidden: tuple[int, ...] = (256, 256)
-    spread: str = "state"  # state: the policy network's softplus head (brax's); global: one learned log-std per action
-    reward: str = "dense"  # dense: the field's weighted terms; sparse: its success metric
-    normalize_observations: bool = True
-    num_evals: int = 10
-    eval_envs: int = 128
-    seed: int = 0
 
 
 @flax.struct.dataclass
@@ -83,7 +56,7 @@ class TrainState:
     env_steps: jax.Array
 
 
-def make_train(config: PPOConfig, env) -> Algorithm:
+def make_train(config: PPOConfig, env) -> Trainer:
     c = config
     iters_per_eval = c.total_steps // (c.num_envs * c.unroll_length) // c.num_evals
     if iters_per_eval < 1:
@@ -198,4 +171,4 @@ def make_train(config: PPOConfig, env) -> Algorithm:
         ts, metrics = jax.lax.scan(lambda t, _: iteration(t), ts, None, length=iters_per_eval)
         return ts, jax.tree.map(jnp.mean, metrics)
 
-    return Algorithm(config, env, init, chunk, act, {"env_state": 0})
+    return Trainer(config, env, init, chunk, act, {"env_state": 0})

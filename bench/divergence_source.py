@@ -37,9 +37,9 @@ def main() -> None:
     parser.add_argument("--json", type=Path)
     args = parser.parse_args()
     config = crl.CRLConfig(total_steps=args.steps, num_envs=args.envs, windows=args.windows, num_evals=args.chunks)
-    algo = crl.make_train(config, fieldgen.make(args.field))
-    chunk = jax.jit(algo.chunk)
-    state = jax.jit(algo.start)(jax.random.PRNGKey(0))
+    trainer = crl.make_train(config, fieldgen.make(args.field))
+    chunk = jax.jit(trainer.chunk)
+    state = jax.jit(trainer.start)(jax.random.PRNGKey(0))
     began = time.perf_counter()
     for index in range(args.chunks):
         state, metrics = chunk(state)

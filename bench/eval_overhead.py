@@ -23,7 +23,7 @@ import jax
 import numpy as np
 
 import fieldgen
-from fieldgen.agents import checkpoint, loop
+from fieldgen.agents import checkpoint, loop, registry
 from fieldgen import training
 from fieldgen.files import write_atomic
 from fieldgen.throughput import append_jsonl, run_arguments
@@ -39,8 +39,9 @@ def main() -> None:
     written = args.out / f".eval_overhead_{os.getpid()}.msgpack"
 
     env = fieldgen.make(args.field)
-    config = training.make_config(args.algo, total_steps=args.steps, num_envs=args.envs, num_evals=args.evals)
-    algo = training.algorithm(args.algo).make_train(config, env)
+    entry = registry.trainer(args.algo)
+    config = entry.config.layered(total_steps=args.steps, num_envs=args.envs, num_evals=args.evals)
+    trainer = entry.make_train(config, env)
     recorder = training.EpisodeRecorder(env)
     times: list[dict] = []
     mark = {"t": 0.0}
@@ -71,7 +72,7 @@ def main() -> None:
 
     mark["t"] = time.perf_counter()
     try:
-        loop.run_staged([algo], [config.seed], config.num_evals, loop.Promotion(), progress, on_eval,
+        loop.run_staged([trainer], [config.seed], config.num_evals, lambda history, stage: False, progress, on_eval,
                         film=training.EpisodeRecorder.film)
     finally:
         written.unlink(missing_ok=True)

@@ -19,7 +19,6 @@ one device and then on two, and the second is also printed as a ratio to the fir
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import time
 from pathlib import Path
 
@@ -27,9 +26,10 @@ import jax
 import jax.numpy as jnp
 
 import fieldgen
-from fieldgen.agents import buffer, sharding
+from fieldgen.agents import buffer, registry, sharding
+from fieldgen.agents.config import ReplayConfig
 from fieldgen.throughput import append_jsonl, measure
-from fieldgen.training import algorithm, make_config, peak_memory_mb
+from fieldgen.training import peak_memory_mb
 
 
 def config_for(entry: str, num_envs: int, iterations: int, sets: list[str]):
@@ -37,20 +37,20 @@ def config_for(entry: str, num_envs: int, iterations: int, sets: list[str]):
     (the work between two evaluations) is `iterations` training iterations."""
     algo, *own = entry.split(":")
     sets = [s for s in sets if s.startswith(f"{algo}.")] + [f"{algo}.{item}" for item in own]
-    c = make_config(algo, sets=sets, num_envs=num_envs, num_evals=1)
-    prefill = buffer.iterations(c)[0] if hasattr(c, "min_replay_rows") else 0
-    return dataclasses.replace(c, total_steps=(prefill + iterations) * num_envs * c.unroll_length)
+    c = registry.trainer(algo).config.layered(sets=sets, num_envs=num_envs, num_evals=1)
+    prefill = buffer.iterations(c)[0] if isinstance(c, ReplayConfig) else 0
+    return c.model_copy(update={"total_steps": (prefill + iterations) * num_envs * c.unroll_length})
 
 
-def time_chunk(algo, seeds: int, devices: int | None = None) -> float:
+def time_chunk(trainer, seeds: int, devices: int | None = None) -> float:
     """Seconds for one chunk of `seeds` vmapped seeds placed on the first `devices` local devices (all by
     default) as training places them, timed after two warm-up calls (the first, and the first fed its
     own output, can both compile)."""
     keys = jnp.stack([jax.random.PRNGKey(s) for s in range(seeds)])
-    shapes = jax.eval_shape(jax.vmap(algo.start), keys)
-    placement = sharding.training_shardings(shapes, sharding.local_mesh(devices), algo.env_axes)
-    chunk = jax.jit(jax.vmap(algo.chunk), in_shardings=(placement,), out_shardings=(placement, None))
-    state = jax.block_until_ready(jax.jit(jax.vmap(algo.start), out_shardings=placement)(keys))
+    shapes = jax.eval_shape(jax.vmap(trainer.start), keys)
+    placement = sharding.training_shardings(shapes, sharding.local_mesh(devices), trainer.env_axes)
+    chunk = jax.jit(jax.vmap(trainer.chunk), in_shardings=(placement,), out_shardings=(placement, None))
+    state = jax.block_until_ready(jax.jit(jax.vmap(trainer.start), out_shardings=placement)(keys))
     for _ in range(2):
         state, _ = jax.block_until_ready(chunk(state))
     t0 = time.perf_counter()
@@ -80,11 +80,11 @@ def main() -> None:
             first = {}  # the first algorithm's figure by device count
             for name in algos:
                 config = config_for(name, n, args.iterations, args.set)
-                algo = algorithm(name.partition(":")[0]).make_train(config, env)
+                trainer = registry.trainer(name.partition(":")[0]).make_train(config, env)
                 per_iter = n * config.unroll_length
                 alone = None
                 for devices in counts:
-                    seconds = time_chunk(algo, args.seeds, devices)
+                    seconds = time_chunk(trainer, args.seeds, devices)
                     sps = args.seeds * args.iterations * per_iter / seconds
                     memory = peak_memory_mb()
                     first.setdefault(devices, sps)

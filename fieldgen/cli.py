@@ -357,6 +357,8 @@ def train(
     Example: fieldgen train point_nav --algo crl --steps 40000 --envs 16 --set 'crl.hidden=[64,64]'
     """
     from fieldgen import runner, training
+    from fieldgen.agents import registry
+    from fieldgen.agents.config import ConfigError
 
     try:
         if resume is not None:
@@ -366,11 +368,11 @@ def train(
                 _fail("name a field to train on, or --resume a run folder")
             if seeds < 1:
                 _fail(f"--seeds {seeds}: train at least one seed")
-            algo_config = training.make_config(algo, config, sets or [], total_steps=steps, num_envs=envs,
-                                               seed=seed)
+            algo_config = registry.trainer(algo).config.layered(config, sets or [], total_steps=steps,
+                                                                num_envs=envs, seed=seed)
             source = _field_source(spec)
             run = runner.new_run(source, algo, list(range(seed, seed + seeds)), algo_config, runs, mixed)
-    except (SpecError, training.RunError) as exc:
+    except (SpecError, ConfigError, training.RunError) as exc:
         _fail(str(exc))
     if prepare:
         out.print(f"prepared {run.folder}; start it with: fieldgen train --resume {run.folder}")
@@ -404,6 +406,7 @@ def compare(
     """
     from fieldgen import compare as comparing
     from fieldgen import training
+    from fieldgen.agents.config import ConfigError
 
     if seeds < 1:
         _fail(f"--seeds {seeds}: compare at least one seed")
@@ -412,7 +415,7 @@ def compare(
     try:
         folder, todo = comparing.runs(source, names, list(range(seeds)), runs, config, sets or [],
                                       total_steps=steps, num_envs=envs)
-    except (SpecError, training.RunError) as exc:
+    except (SpecError, ConfigError, training.RunError) as exc:
         _fail(str(exc))
     if prepare:
         out.print(f"prepared {len(todo)} runs in {folder}; train each with fieldgen train --resume RUN, "
@@ -449,6 +452,7 @@ def evaluate(
     import jax
 
     from fieldgen.agents import loop
+    from fieldgen.agents.config import ConfigError
     from fieldgen import runner, training
     from fieldgen.render import CAMERAS
 
@@ -458,14 +462,14 @@ def evaluate(
         run = runner.open_run(run_dir)
         if field is not None:
             run = runner.on_field(run, _field_source(field))
-    except (SpecError, training.RunError) as exc:
+    except (SpecError, ConfigError, training.RunError) as exc:
         _fail(str(exc))
     if run.state is None:
         _fail(f"{run_dir} has not started training yet; start it with: fieldgen train --resume {run_dir}")
-    algo = dataclasses.replace(run, config=dataclasses.replace(run.config, eval_envs=episodes)).judge()
+    trainer = dataclasses.replace(run, config=run.config.model_copy(update={"eval_envs": episodes})).judge()
     key = jax.random.PRNGKey(seed)
     film = training.EpisodeRecorder.film if video else None
-    judged = jax.vmap(functools.partial(loop.evaluate, algo, film=film), in_axes=(0, None))
+    judged = jax.vmap(functools.partial(loop.evaluate, trainer, film=film), in_axes=(0, None))
     result, frames = jax.device_get(jax.jit(judged)(run.state, key))
     steps = int(jax.device_get(run.state.env_steps)[0])
     table = Table("seed", "success_any", "time_at_goal", "closest", "length", "return",
@@ -500,6 +504,7 @@ def videos(
     import numpy as np
 
     from fieldgen import runner, training
+    from fieldgen.agents.config import ConfigError
     from fieldgen.files import write_atomic
     from fieldgen.render import RenderError
 
@@ -507,7 +512,7 @@ def videos(
         run = runner.open_run(run_dir, load_state=False)
         if field is not None:
             run.envs.append(runner.on_field(run, _field_source(field)).env)
-    except (SpecError, training.RunError) as exc:
+    except (SpecError, ConfigError, training.RunError) as exc:
         _fail(str(exc))
     kept = sorted((run_dir / training.VIDEOS).glob("eval_*.npz")) + sorted(run_dir.glob("eval*.npz"))
     if not kept:

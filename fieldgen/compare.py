@@ -8,7 +8,6 @@ comparison resumes where it stopped, a run prepared here can train elsewhere
 
 from __future__ import annotations
 
-import dataclasses
 import json
 from pathlib import Path
 
@@ -17,7 +16,7 @@ from rich.console import Console
 from rich.table import Table
 
 import fieldgen
-from fieldgen.agents import sharding
+from fieldgen.agents import registry, sharding
 from fieldgen import runner, training
 from fieldgen.files import write_atomic
 
@@ -28,23 +27,22 @@ def runs(source: Path, algos: list[str], seeds: list[int], folder: Path | None, 
          sets: list[str], **fixed) -> tuple[Path, list[runner.Run]]:
     """(the comparison's folder, default runs/compare-<field>; a run per algorithm in it: an existing one,
     checked to have the same settings, or a new one). Every config is checked before anything is written."""
-    for algo in algos:
-        training.algorithm(algo)
+    entries = {algo: registry.trainer(algo) for algo in algos}
     if len(set(algos)) != len(algos):
         raise training.RunError(f"--algos lists an algorithm twice: {','.join(algos)}")
     env = fieldgen.make(source)
     folder = folder or Path("runs") / f"compare-{env.spec.name}"
     configs = {}
-    for algo in algos:
-        others = tuple(a for a in training.ALGOS if a != algo)
-        configs[algo] = training.make_config(algo, config_file, sets, others=others, **fixed)
-        training.check_config(configs[algo], env, sharding.device_count(), len(seeds))
+    for algo, entry in entries.items():
+        others = tuple(a for a in registry.TRAINERS if a != algo)
+        configs[algo] = entry.config.layered(config_file, sets, others, **fixed)
+        configs[algo].validate_env(env, sharding.device_count(), len(seeds))
     result = []
     for algo in algos:
         existing = folder / runner.run_name(env.spec.name, algo, seeds)
         if (existing / training.RUN).exists():
             run = runner.open_run(existing, load_state=False)  # a finished run needs no checkpoint to be reported
-            if dataclasses.asdict(run.config) != dataclasses.asdict(configs[algo]) or run.seeds != seeds:
+            if run.config.model_dump() != configs[algo].model_dump() or run.seeds != seeds:
                 raise training.RunError(f"{existing} holds a {algo} run with other settings (config or seeds); "
                                         "compare into another --out, or delete it")
             if not run.finished:

@@ -18,11 +18,12 @@ from rich.table import Column, Table
 from rich.text import Text
 
 import fieldgen
-from fieldgen.agents import checkpoint, loop, sharding
+from fieldgen.agents import checkpoint, loop, registry, sharding
 from fieldgen import background, curriculum, training
 from fieldgen.compile.artifact import ArtifactError, write_artifact
 from fieldgen.files import write_atomic
 from fieldgen.compile.variants import VariantError, compile_variants
+from fieldgen.curriculum.promotion import Promotion
 
 FIELD, STAGES = "field", "stages"  # the run's own copies of its built fields: resuming needs no compiler
 
@@ -35,7 +36,7 @@ class Run:
     config: object
     seeds: list[int]
     rows: list[dict]
-    promotion: loop.Promotion = loop.Promotion()
+    promotion: Promotion = Promotion()
     state: object = None  # the checkpointed training state of a resumed run
     stage: int = 0  # the stage the next chunk trains on
     mixed: bool = False  # a curriculum trained all at once: every environment carries its own stage
@@ -50,18 +51,18 @@ class Run:
         return self.envs[-1]
 
     @functools.cached_property
-    def algorithms(self) -> list[loop.Algorithm]:
-        """What trains: one algorithm per stage, or for a mixed run one on all stages batched together."""
-        module = training.algorithm(self.algo)
+    def trainers(self) -> list[loop.Trainer]:
+        """What trains: one trainer per stage, or for a mixed run one on all stages batched together."""
+        make_train = registry.trainer(self.algo).make_train
         if self.mixed:
-            return [module.make_train(self.config, fieldgen.FieldEnv([e.artifact for e in self.envs]))]
-        return [module.make_train(self.config, env) for env in self.envs]
+            return [make_train(self.config, fieldgen.FieldEnv([e.artifact for e in self.envs]))]
+        return [make_train(self.config, env) for env in self.envs]
 
-    def judge(self) -> loop.Algorithm:
-        """The algorithm evaluated on the field the run is judged on."""
+    def judge(self) -> loop.Trainer:
+        """The trainer evaluated on the field the run is judged on."""
         if not self.mixed:
-            return self.algorithms[-1]
-        return training.algorithm(self.algo).make_train(self.config, self.env)
+            return self.trainers[-1]
+        return registry.trainer(self.algo).make_train(self.config, self.env)
 
 
 def run_name(field: str, algo: str, seeds: list[int]) -> str:
@@ -72,7 +73,7 @@ def run_name(field: str, algo: str, seeds: list[int]) -> str:
 def new_run(source: Path, algo: str, seeds: list[int], config, out: Path, mixed: bool = False) -> Run:
     """A run folder for a field (a YAML file or a build folder) or a curriculum folder (staged, or mixed:
     every stage in one batch, built to one structure)."""
-    promotion, name = loop.Promotion(), None
+    promotion, name = Promotion(), None
     if curriculum.is_curriculum(source):
         try:
             c = curriculum.load(source)
@@ -96,7 +97,7 @@ def new_run(source: Path, algo: str, seeds: list[int], config, out: Path, mixed:
         raise training.RunError(f"{folder} already holds a run; continue it with --resume {folder}, "
                                 "or pick another --seed or --out")
     for env in envs:
-        training.check_config(config, env, sharding.device_count(), len(seeds))
+        config.validate_env(env, sharding.device_count(), len(seeds))
     folder.mkdir(parents=True, exist_ok=True)
     dirs = [FIELD] if len(envs) == 1 else [f"{STAGES}/{k + 1:02d}" for k in range(len(envs))]
     for env, sub in zip(envs, dirs):
@@ -118,18 +119,17 @@ def open_run(folder: Path, load_state: bool = True) -> Run:
             raise training.RunError(f"{folder / sub}: {exc}") from None
     if any(record["observation"] != env.layout.to_json() for env in envs):
         raise training.RunError(f"{folder} was trained on a different observation layout than its fields give now")
-    config = training.make_config(record["algo"], **{k: tuple(v) if isinstance(v, list) else v
-                                                     for k, v in record["config"].items()})
+    config = registry.trainer(record["algo"]).config.layered(**record["config"])
     seeds = record.get("seeds", [config.seed])
     rows = training.read_metrics(folder)
-    run = Run(folder, record["algo"], envs, config, seeds, rows, loop.Promotion(**record.get("promotion", {})),
+    run = Run(folder, record["algo"], envs, config, seeds, rows, Promotion(**record.get("promotion", {})),
               mixed=record.get("mixed", False))
     if not load_state or not (folder / training.CHECKPOINT).exists() and not rows:
         return run  # only reported on, or set up by `fieldgen train --prepare` and never started
     if rows and not run.mixed:
         run.stage = rows[-1].get("promoted_to", rows[-1].get("stage", 0))
     keys = jnp.stack([jax.random.PRNGKey(s) for s in seeds])
-    template = jax.eval_shape(jax.vmap(run.algorithms[run.stage].start), keys)
+    template = jax.eval_shape(jax.vmap(run.trainers[run.stage].start), keys)
     try:
         run.state = checkpoint.load(folder / training.CHECKPOINT, template)
     except checkpoint.CheckpointError as exc:
@@ -160,7 +160,7 @@ def train(run: Run, console: Console, videos: bool = True) -> None:
     if run.state is not None and run.finished:
         console.print(f"{run.folder} is already complete ({run.rows[-1]['env_steps']:,} env steps)")
         return
-    algos = run.algorithms
+    trainers = run.trainers
     recorders: dict[int, training.EpisodeRecorder] = {}
     started = time.perf_counter() - (run.rows[-1].get("wall_seconds", 0.0) if run.rows else 0.0)  # over resumes
     with TrainingProgress(console) as bar, background.Writer() as writer:
@@ -194,7 +194,7 @@ def train(run: Run, console: Console, videos: bool = True) -> None:
 
         resume = (run.state, run.rows[-1]["eval"], run.stage) if run.state is not None else None
         try:
-            loop.run_staged(algos, run.seeds, config.num_evals, run.promotion, progress, on_eval, resume,
+            loop.run_staged(trainers, run.seeds, config.num_evals, run.promotion.ready, progress, on_eval, resume,
                             film=training.EpisodeRecorder.film if videos else None)
             done = run.rows[-1]["env_steps"]  # whole iterations can stop short of --steps
             bar.update(task, total=done, rate=_rate(run.rows, done))

@@ -10,22 +10,15 @@ and `videos/eval_NNN.gif` (the policy after each evaluation).
 from __future__ import annotations
 
 import csv
-import dataclasses
-import difflib
-import importlib
 import io
 import json
-import typing
 from pathlib import Path
 
 import jax
 import numpy as np
-import yaml
 
 from fieldgen.files import write_atomic
 
-ALGOS = {"crl": "CRLConfig", "icrl": "ICRLConfig", "ppo": "PPOConfig", "sac": "SACConfig",
-         "td3": "TD3Config"}  # agents.<name> module -> its config class
 RUN, METRICS, CSV, CHECKPOINT, PLOT = "run.json", "metrics.jsonl", "metrics.csv", "checkpoint.msgpack", "success.png"
 VIDEOS = "videos"
 
@@ -35,170 +28,11 @@ class RunError(Exception):
     that diverged."""
 
 
-def algorithm(algo: str):
-    """The agents module of an algorithm: make_train(config, env) and train(...)."""
-    if algo not in ALGOS:
-        near = difflib.get_close_matches(algo, list(ALGOS), n=1)
-        hint = f"; did you mean '{near[0]}'?" if near else ""
-        raise RunError(f"unknown algorithm '{algo}'{hint} Available: {', '.join(ALGOS)}.")
-    return importlib.import_module(f"fieldgen.agents.{algo}")
-
-
-def config_class(algo: str):
-    return getattr(algorithm(algo), ALGOS[algo])
-
-
-def make_config(algo: str, file: Path | None = None, sets: list[str] = (), others: tuple[str, ...] = (),
-                **fixed):
-    """Defaults < config file ({algo: {key: value}}) < --set algo.key=value < explicit options.
-
-    Sections and --set items of the algorithms in `others` (those compared beside this one) are skipped."""
-    cls = config_class(algo)
-    values: dict = {}
-    if file is not None:
-        try:
-            loaded = yaml.safe_load(file.read_text()) or {}
-        except (OSError, yaml.YAMLError) as exc:
-            raise RunError(f"cannot read config file {file}: {exc}") from None
-        if not isinstance(loaded, dict) or set(loaded) - {algo, *others}:
-            sections = ", ".join(f"'{a}:'" for a in (algo, *others))
-            what = f"sections {sections}" if others else f"one section, {sections},"
-            raise RunError(f"{file}: a config file is a mapping with {what} of config keys")
-        for key, value in (loaded.get(algo) or {}).items():
-            values[key] = _cast(cls, key, value, f"{file}: {algo}.{key}")
-    for item in sets:
-        name, sep, raw = item.partition("=")
-        section, dot, key = name.partition(".")
-        if section in others:
-            continue
-        if not sep or not dot or section != algo:
-            raise RunError(f"--set {item!r}: write {algo}.KEY=VALUE, e.g. {algo}.repr_dim=128")
-        values[key] = _cast(cls, key, yaml.safe_load(raw), f"--set {item}")
-    values.update({k: v for k, v in fixed.items() if v is not None})
-    return cls(**values)
-
-
-def _cast(cls, key: str, value, where: str):
-    fields = {f.name: f for f in dataclasses.fields(cls)}
-    if key not in fields:
-        near = difflib.get_close_matches(key, list(fields), n=1)
-        hint = f"; did you mean '{near[0]}'?" if near else ""
-        raise RunError(f"{where}: unknown config key '{key}'{hint} Keys: {', '.join(fields)}.")
-    kind = typing.get_type_hints(cls)[key]
-    try:
-        if kind is bool:
-            if not isinstance(value, bool):
-                raise ValueError
-            return value
-        if typing.get_origin(kind) is tuple:
-            return tuple(int(v) for v in (value if isinstance(value, (list, tuple)) else [value]))
-        return kind(value)
-    except (TypeError, ValueError):
-        raise RunError(f"{where}: '{value}' is not a valid {getattr(kind, '__name__', kind)}") from None
-
-
-def check_config(config, env, devices: int = 1, seeds: int = 1) -> None:
-    """Problems a run would hit after compiling, reported before. `seeds` trained at once on `devices`
-    local devices split by seed when they can, and otherwise split each seed's environments."""
-    from fieldgen.agents.crl import CRLConfig
-    from fieldgen.agents.sac import OffPolicyConfig
-    from fieldgen.agents.sharding import by_seed
-
-    if config.num_envs % devices and not by_seed(seeds, devices):
-        raise RunError(f"num_envs {config.num_envs} does not split evenly over the {devices} local devices; "
-                       f"use a multiple of {devices}, or train a multiple of {devices} seeds at once")
-    per_iter = config.num_envs * config.unroll_length
-    if isinstance(config, CRLConfig):
-        _check_crl(config, env, per_iter)
-    elif isinstance(config, OffPolicyConfig):
-        _check_off_policy(config, env, per_iter)
-    else:
-        _check_ppo(config, per_iter)
-
-
-def _check_ppo(config, per_iter: int) -> None:
-    if per_iter % config.num_minibatches:
-        raise RunError(f"num_envs x unroll_length = {per_iter:,} does not divide into {config.num_minibatches} "
-                       "minibatches; change num_envs, unroll_length or num_minibatches")
-    need = config.num_evals * per_iter
-    if config.total_steps < need:
-        raise RunError(f"--steps {config.total_steps:,} is too few: {config.num_evals} evaluations of "
-                       f"{per_iter:,}-step iterations need at least {need:,}")
-    if config.reward not in ("dense", "sparse"):
-        raise RunError(f"unknown reward '{config.reward}'; choose dense (the field's terms) or sparse (its success)")
-    from fieldgen.agents.ppo import SPREADS
-
-    if config.spread not in SPREADS:
-        raise RunError(f"unknown ppo.spread '{config.spread}'; choose global (one learned log-std per action) "
-                       "or state (the policy network's own spread for each state)")
-
-
-def _check_replay(config, env, per_iter: int, algo: str) -> None:
-    """What every trainer with a replay buffer needs: steps to prefill it and train, room for an episode,
-    a batch's worth of transitions in the windows it samples."""
-    from fieldgen.agents.buffer import gradient_steps, iterations
-
-    prefill_iters, per_eval = iterations(config)
-    prefill = prefill_iters * per_iter
-    need = prefill + config.num_evals * per_iter
-    if per_eval < 1:
-        raise RunError(f"--steps {config.total_steps:,} is too few: {config.num_envs} envs x unroll "
-                       f"{config.unroll_length} need {prefill:,} steps to prefill the buffer and "
-                       f"{config.num_evals} more iterations; use at least {need:,}")
-    if config.max_replay_rows < max(config.min_replay_rows, env.episode_length):
-        raise RunError(f"max_replay_rows {config.max_replay_rows} must hold min_replay_rows "
-                       f"({config.min_replay_rows}) and one episode ({env.episode_length} steps)")
-    windows, updates = gradient_steps(config, env.episode_length)
-    if updates < 1:
-        raise RunError(f"{windows} windows of {env.episode_length} steps hold fewer transitions than one batch "
-                       f"({config.batch_size}); raise {algo}.windows or lower {algo}.batch_size")
-
-
-def _check_crl(config, env, per_iter: int) -> None:
-    from fieldgen.agents.contrastive import ENERGIES, LOSSES
-    from fieldgen.agents.team import split
-
-    _check_replay(config, env, per_iter, "icrl" if hasattr(config, "agents") else "crl")
-    if hasattr(config, "agents"):
-        try:
-            split(env, config.agents)
-        except ValueError as exc:
-            raise RunError(f"icrl.agents: {exc}") from None
-    if config.energy not in ENERGIES:
-        raise RunError(f"unknown energy '{config.energy}'; choose one of {', '.join(ENERGIES)}")
-    if config.contrastive_loss not in LOSSES:
-        raise RunError(f"unknown contrastive_loss '{config.contrastive_loss}'; choose one of {', '.join(LOSSES)}")
-    if config.skip_every:
-        from fieldgen.agents.networks import residual_blocks
-
-        try:
-            residual_blocks(config.hidden, config.skip_every)
-        except ValueError as exc:
-            raise RunError(f"crl.skip_every: {exc}") from None
-
-
-def _check_off_policy(config, env, per_iter: int) -> None:
-    algo = "sac" if hasattr(config, "alpha_lr") else "td3"
-    _check_replay(config, env, per_iter, algo)
-    if config.reward not in ("dense", "sparse"):
-        raise RunError(f"unknown reward '{config.reward}'; choose dense (the field's terms) or sparse (its success)")
-    if not 0 <= config.her <= 1:
-        raise RunError(f"{algo}.her {config.her} is a share of relabelled goals: between 0 and 1")
-    if config.her and config.reward != "sparse":
-        raise RunError(f"{algo}.her relabels goals and rescores them by the field's success; set {algo}.reward=sparse")
-    kind = env.spec.task.success.kind
-    if config.her and kind == "ball_in_goal":
-        raise RunError(f"{algo}.her needs a success that depends on the goal; {env.spec.name}'s is {kind} "
-                       "(the goal box, wherever the goal is); use ball_near_target or agent_near_target")
-    if getattr(config, "policy_delay", 1) < 1:
-        raise RunError(f"td3.policy_delay must be at least 1, not {config.policy_delay}")
-
-
 def write_run(run_dir: Path, field: dict, algo: str, config, layout: dict, seeds: list[int], extra: dict) -> None:
     """run.json: the resolved field spec (a curriculum's last stage), the algorithm, its full config,
     the observation layout, the seeds, and `extra` (where the run keeps its fields, the promotion rule)."""
     run_dir.mkdir(parents=True, exist_ok=True)
-    record = {"field": field, "algo": algo, "config": dataclasses.asdict(config), "observation": layout,
+    record = {"field": field, "algo": algo, "config": config.model_dump(), "observation": layout,
               "seeds": seeds, **extra}
     write_atomic(run_dir / RUN, (json.dumps(record, indent=1) + "\n").encode())
 

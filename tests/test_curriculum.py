@@ -88,6 +88,16 @@ def test_folders_edited_into_an_inconsistent_state_are_refused(tmp_path):
     assert built.exit_code == 1 and "lists stage_02.yaml, which is missing" in " ".join(built.output.split())
 
 
+def test_promotion_averages_the_last_window_of_evaluations_on_the_current_stage():
+    rule = curriculum.Promotion(threshold=0.5, window=2)
+    history = [{"eval": 0, "stage": 0, "success_any": 1.0}, {"eval": 1, "stage": 0, "success_any": 0.6}]
+    assert not rule.ready(history, 0)  # one evaluation after training; the untrained one does not count
+    history += [{"eval": 2, "stage": 0, "success_any": s} for s in (0.5, 0.7)]  # two seeds
+    assert rule.ready(history, 0) and not rule.ready(history, 1)  # (0.6 + 0.5 + 0.7) / 3 on stage 0
+    history += [{"eval": 3, "stage": 0, "success_any": s} for s in (0.1, 0.2)]
+    assert not rule.ready(history, 0)  # evaluations 2 and 3 only: 0.375
+
+
 @pytest.mark.slow
 def test_staged_training_reaches_the_last_stage_of_a_point_curriculum(tmp_path):
     """Targets 1, 2 then 3 away: promoted twice, and the last stage solved, within 48k env steps."""

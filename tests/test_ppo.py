@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from fieldgen.agents import loop, ppo
+from fieldgen.agents.config import SPREADS
 
 
 def tiny(**kw):
@@ -25,7 +26,7 @@ def test_normalizer_matches_numpy():
     np.testing.assert_allclose(n.m2 / n.count, both.var(0), rtol=1e-4)
 
 
-@pytest.mark.parametrize("spread", ppo.SPREADS)
+@pytest.mark.parametrize("spread", SPREADS)
 def test_resume_reproduces_the_uninterrupted_run(env_cache, spread):
     algo = ppo.make_train(tiny(spread=spread), env_cache("point_nav"))
     full, _ = loop.run(algo, [0], 2)

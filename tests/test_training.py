@@ -12,8 +12,9 @@ import pytest
 from typer.testing import CliRunner
 
 from fieldgen.agents import checkpoint, crl, loop
+from fieldgen.agents.config import ConfigError
+from fieldgen.agents.registry import trainer
 from fieldgen.cli import app
-from fieldgen.training import RunError, make_config
 
 runner = CliRunner()
 TINY = ["--set", "crl.hidden=[32,32]", "--set", "crl.repr_dim=8", "--set", "crl.batch_size=32",
@@ -191,7 +192,7 @@ def test_bundled_config_files_hold_only_known_keys(path):
 
     sections = list(yaml.safe_load(path.read_text()))
     for algo in sections:
-        make_config(algo, path, others=tuple(s for s in sections if s != algo))
+        trainer(algo).config.layered(path, others=tuple(s for s in sections if s != algo))
 
 
 @pytest.mark.parametrize("args,phrase", [
@@ -199,6 +200,7 @@ def test_bundled_config_files_hold_only_known_keys(path):
     (["--set", "crl.repr_dimm=3"], "unknown config key 'repr_dimm'; did you mean 'repr_dim'?"),
     (["--set", "repr_dim=3"], "write crl.KEY=VALUE"),
     (["--set", "crl.layer_norm=maybe"], "is not a valid bool"),
+    (["--set", "crl.batch_size=true"], "'True' is not a valid int"),
     (["--steps", "100"], "--steps 100 is too few"),
     (["--set", "crl.energy=cos"], "unknown energy 'cos'"),
     (["--algo", "ppo", "--set", "ppo.num_minibatches=3", "--set", "ppo.unroll_length=10"], "does not divide"),
@@ -216,24 +218,29 @@ def test_bad_training_input_is_reported_before_compiling(tmp_path, args, phrase)
 
 
 def test_envs_must_split_over_the_devices_unless_the_seeds_do(env_cache):
-    from fieldgen.training import check_config
-
     env, config = env_cache("point_nav"), tiny_config(num_envs=9, batch_size=9, total_steps=20000)
-    check_config(config, env, devices=2, seeds=2)  # a seed per device: each keeps all 9 environments
-    check_config(config, env, devices=2, seeds=4)
+    config.validate_env(env, devices=2, seeds=2)  # a seed per device: each keeps all 9 environments
+    config.validate_env(env, devices=2, seeds=4)
     for seeds in (1, 3):
-        with pytest.raises(RunError, match="num_envs 9 does not split evenly over the 2 local devices"):
-            check_config(config, env, devices=2, seeds=seeds)
+        with pytest.raises(ConfigError, match="num_envs 9 does not split evenly over the 2 local devices"):
+            config.validate_env(env, devices=2, seeds=seeds)
 
 
 def test_config_file_and_precedence(tmp_path):
     file = tmp_path / "c.yaml"
     file.write_text("crl: {repr_dim: 32, batch_size: 128}\n")
-    config = make_config("crl", file, ["crl.repr_dim=16"], num_envs=4)
+    config = crl.CRLConfig.layered(file, ["crl.repr_dim=16"], num_envs=4)
     assert (config.repr_dim, config.batch_size, config.num_envs) == (16, 128, 4)
     file.write_text("ppo: {}\n")
-    with pytest.raises(RunError, match="one section, 'crl:'"):
-        make_config("crl", file)
+    with pytest.raises(ConfigError, match="one section, 'crl:'"):
+        crl.CRLConfig.layered(file)
+
+
+def test_a_config_comes_back_from_its_run_json_record():
+    """run.json keeps the config as JSON (tuples become lists); read back, it is the same hashable value."""
+    config = tiny_config(hidden=(32, 16), layer_norm=True)
+    again = crl.CRLConfig.layered(**json.loads(json.dumps(config.model_dump())))
+    assert again == config and hash(again) == hash(config) and again.hidden == (32, 16)
 
 
 def test_a_machine_that_cannot_render_keeps_episodes_for_fieldgen_videos(tmp_path, monkeypatch):

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import yaml
 
-from fieldgen.agents.loop import Promotion
+from fieldgen.curriculum.promotion import Promotion
 from fieldgen.schema import FieldSpec, SpecError, load_spec
 
 INDEX = "curriculum.yaml"

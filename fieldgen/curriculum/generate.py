@@ -5,7 +5,6 @@ base's own. Each variant is the keys that differ from the base, with where it ca
 
 from __future__ import annotations
 
-import difflib
 import itertools
 from pathlib import Path
 
@@ -13,6 +12,7 @@ import yaml
 
 from fieldgen.curriculum.folder import CurriculumError, layout_key
 from fieldgen.schema import FieldSpec, SpecError, load_spec
+from fieldgen.suggest import did_you_mean
 
 IGNORED = ("name", "description", "extends")  # never interpolated
 
@@ -36,7 +36,7 @@ def interpolate(base: Path, target: Path, stages: int, geometric: tuple[str, ...
     known = set(_leaf_keys(a)) | set(_leaf_keys(b))
     for key in geometric:
         if key not in known:
-            raise CurriculumError(f"--geometric {key}: no such key{_did_you_mean(key, known)}")
+            raise CurriculumError(f"--geometric {key}: no such key{did_you_mean(key, sorted(known))}")
     out = []
     for k in range(stages):
         t = k / (stages - 1)
@@ -140,12 +140,7 @@ def _check_key(dotted: str, resolved: dict) -> None:
         return
     if dotted.split(".")[0] in IGNORED:
         raise CurriculumError(f"'{dotted}' names the variant, it cannot be varied")
-    raise CurriculumError(f"unknown key '{dotted}'{_did_you_mean(dotted, known)}")
-
-
-def _did_you_mean(key: str, known) -> str:
-    near = difflib.get_close_matches(key, sorted(known), n=1)
-    return f"; did you mean '{near[0]}'?" if near else ""
+    raise CurriculumError(f"unknown key '{dotted}'{did_you_mean(dotted, sorted(known))}")
 
 
 def _nest(assignment: dict[str, object]) -> dict:

@@ -8,7 +8,6 @@ base file that set it.
 
 from __future__ import annotations
 
-import difflib
 from importlib import resources
 import re
 import types
@@ -21,6 +20,7 @@ from fieldgen.schema.checks import physics_problems
 from fieldgen.schema.errors import Problem, SpecError
 from fieldgen.schema.models import FieldSpec
 from fieldgen.schema.source import Source, read_yaml
+from fieldgen.suggest import did_you_mean
 
 
 
@@ -73,8 +73,7 @@ def _load_merged(path: Path, chain: tuple[Path, ...]) -> Source:
     parent_path = resolve_spec_path(parent_ref, relative_to=path)
     if not parent_path.exists():
         names = ", ".join(bundled_fields())
-        near = difflib.get_close_matches(parent_ref, list(bundled_fields()), n=1)
-        hint = f"; did you mean '{near[0]}'?" if near else ""
+        hint = did_you_mean(parent_ref, bundled_fields())
         raise SpecError(
             [source.problem(("extends",), f"'{parent_ref}' is neither a bundled field ({names}) nor a file{hint}")]
         )
@@ -125,16 +124,14 @@ def _problem_from(source: Source, err: dict) -> Problem:
     if kind == "extra_forbidden":
         key = parts[-1]
         allowed = _allowed_keys(err["loc"][:-1])
-        near = difflib.get_close_matches(str(key), allowed, n=1, cutoff=0.6)
-        msg = f"unknown key '{key}'" + (f"; did you mean '{near[0]}'?" if near else "")
+        msg = f"unknown key '{key}'{did_you_mean(str(key), allowed)}"
         if allowed:
             msg += f" Allowed keys here: {', '.join(allowed)}."
     elif kind == "missing":
         msg = f"the key '{parts[-1]}' is required" if parts else msg
     elif kind == "literal_error" and isinstance(err.get("input"), str):
         expected = re.findall(r"'([^']*)'", err.get("ctx", {}).get("expected", ""))
-        near = difflib.get_close_matches(err["input"], expected, n=1)
-        msg = f"{msg} (got {err['input']!r}" + (f"; did you mean '{near[0]}'?)" if near else ")")
+        msg = f"{msg} (got {err['input']!r}{did_you_mean(err['input'], expected)})"
     else:
         if msg.startswith("Value error, "):
             msg = msg[len("Value error, ") :]

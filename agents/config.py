@@ -1,0 +1,293 @@
+"""Every trainer's settings, one validated model per algorithm, and what each checks before a run.
+
+A config is layered (`RunConfig.layered`): defaults < a config file ({algo: {key: value}}) <
+`--set algo.key=value` < explicit options, each value checked by pydantic as it comes in, so
+that a bad one is reported where it was written. `validate_env` holds what only the
+environment can tell (its episode length, its actuators, its success), so that a run fails
+in a sentence before it compiles rather than in a traceback after. Configs are frozen, hence
+hashable: trainers close over them inside jitted code.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import typing
+from pathlib import Path
+from typing import Annotated, ClassVar, Literal, Sequence
+
+import yaml
+from pydantic import BaseModel, BeforeValidator, ConfigDict, StrictBool, ValidationError
+
+from ..suggest import did_you_mean
+from .buffer import gradient_steps, iterations
+from .contrastive import ENERGIES, LOSSES
+from .networks import residual_blocks
+from .sharding import by_seed
+from .team import GROUPINGS, split
+
+REWARDS = ("dense", "sparse")
+SPREADS = ("global", "state")
+
+
+class ConfigError(Exception):
+    """Training settings that cannot work: an unknown key or value, or one the environment rules out."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Unknown:
+    """How a choice reports a value outside it: `message` with the value in place of {}."""
+
+    message: str
+
+
+def _number(value):
+    """YAML's true and false are not numbers here, as numbers are not booleans (StrictBool)."""
+    if isinstance(value, bool):
+        raise ValueError("a boolean is not a number")
+    return value
+
+
+def _listed(value):
+    """`hidden: 64` is one layer of 64."""
+    return value if isinstance(value, (list, tuple)) else [value]
+
+
+Int = Annotated[int, BeforeValidator(_number)]
+Float = Annotated[float, BeforeValidator(_number)]
+Hidden = Annotated[tuple[Int, ...], BeforeValidator(_listed)]
+Reward = Annotated[Literal[REWARDS], Unknown(
+    "unknown reward '{}'; choose dense (the field's terms) or sparse (its success)")]
+Spread = Annotated[Literal[SPREADS], Unknown(
+    "unknown ppo.spread '{}'; choose global (one learned log-std per action) "
+    "or state (the policy network's own spread for each state)")]
+Energy = Annotated[Literal[ENERGIES], Unknown(f"unknown energy '{{}}'; choose one of {', '.join(ENERGIES)}")]
+Loss = Annotated[Literal[LOSSES], Unknown(f"unknown contrastive_loss '{{}}'; choose one of {', '.join(LOSSES)}")]
+Grouping = Annotated[Literal[GROUPINGS], Unknown(
+    f"icrl.agents: unknown grouping '{{}}'; choose one of {', '.join(GROUPINGS)}")]
+
+
+class RunConfig(BaseModel):
+    """What every trainer is told: how long and how wide to train, how often to judge, its seed."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+    algo: ClassVar[str]  # the trainer's name: its section of a config file and its --set prefix
+
+    total_steps: Int = 10_000_000
+    num_envs: Int = 1024
+    unroll_length: Int = 62  # env steps per environment between updates
+    num_evals: Int = 10
+    eval_envs: Int = 128
+    seed: Int = 0
+
+    @classmethod
+    def layered(cls, file: Path | None = None, sets: Sequence[str] = (), others: tuple[str, ...] = (),
+                **options) -> RunConfig:
+        """Defaults < config file ({algo: {key: value}}) < --set algo.key=value < options (None: not given).
+
+        Sections and --set items of the algorithms in `others` (those compared beside this one) are skipped."""
+        values = {key: cls._checked(key, value, f"{file}: {cls.algo}.{key}")
+                  for key, value in cls._section(file, others).items()}
+        for item in sets:
+            name, sep, raw = item.partition("=")
+            section, dot, key = name.partition(".")
+            if section in others:
+                continue
+            if not sep or not dot or section != cls.algo:
+                raise ConfigError(f"--set {item!r}: write {cls.algo}.KEY=VALUE, e.g. {cls.algo}.repr_dim=128")
+            try:
+                value = yaml.safe_load(raw)
+            except yaml.YAMLError:
+                raise ConfigError(f"--set {item}: '{raw}' is not a YAML value") from None
+            values[key] = cls._checked(key, value, f"--set {item}")
+        values.update({key: cls._checked(key, value, key) for key, value in options.items() if value is not None})
+        return cls(**values)
+
+    @classmethod
+    def _section(cls, file: Path | None, others: tuple[str, ...]) -> dict:
+        """This algorithm's keys in a config file; a file with any other section is refused."""
+        if file is None:
+            return {}
+        try:
+            loaded = yaml.safe_load(file.read_text()) or {}
+        except (OSError, yaml.YAMLError) as exc:
+            raise ConfigError(f"cannot read config file {file}: {exc}") from None
+        section = (loaded.get(cls.algo) or {}) if isinstance(loaded, dict) else None
+        if not isinstance(section, dict) or set(loaded) - {cls.algo, *others}:
+            sections = ", ".join(f"'{a}:'" for a in (cls.algo, *others))
+            what = f"sections {sections}" if others else f"one section, {sections},"
+            raise ConfigError(f"{file}: a config file is a mapping with {what} of config keys")
+        return section
+
+    @classmethod
+    def _checked(cls, key: str, value, where: str):
+        """`value` as the field `key` holds it; a ConfigError that says `where` it came from if it cannot be."""
+        fields = cls.model_fields
+        if key not in fields:
+            raise ConfigError(f"{where}: unknown config key '{key}'{did_you_mean(key, fields)} "
+                              f"Keys: {', '.join(fields)}.")
+        try:
+            return getattr(cls.model_validate({key: value}), key)
+        except ValidationError as exc:
+            if exc.errors()[0]["type"] == "literal_error":
+                unknown = next(m for m in fields[key].metadata if isinstance(m, Unknown))
+                raise ConfigError(unknown.message.format(value)) from None
+            kind = typing.get_origin(fields[key].annotation) or fields[key].annotation
+            raise ConfigError(f"{where}: '{value}' is not a valid {kind.__name__}") from None
+
+    def validate_env(self, env, devices: int = 1, seeds: int = 1) -> None:
+        """Problems a run would hit after compiling, reported before. `seeds` trained at once on `devices`
+        local devices split by seed when they can, and otherwise split each seed's environments."""
+        if self.num_envs % devices and not by_seed(seeds, devices):
+            raise ConfigError(f"num_envs {self.num_envs} does not split evenly over the {devices} local devices; "
+                              f"use a multiple of {devices}, or train a multiple of {devices} seeds at once")
+
+    @property
+    def per_iteration(self) -> int:
+        """Env steps of one training iteration, over all environments."""
+        return self.num_envs * self.unroll_length
+
+
+class PPOConfig(RunConfig):
+    algo: ClassVar[str] = "ppo"
+
+    total_steps: Int = 50_000_000
+    num_envs: Int = 2048
+    unroll_length: Int = 20
+    num_minibatches: Int = 32
+    update_epochs: Int = 4
+    learning_rate: Float = 3e-4
+    discount: Float = 0.97
+    gae_lambda: Float = 0.95
+    clip: Float = 0.3
+    entropy_coef: Float = 1e-2
+    value_coef: Float = 0.5
+    max_grad_norm: Float = 1.0
+    hidden: Hidden = (256, 256)
+    # state: the policy network's softplus head (brax's); global: one learned log-std per action
+    spread: Spread = "state"
+    reward: Reward = "dense"  # dense: the field's weighted terms; sparse: its success metric
+    normalize_observations: StrictBool = True
+
+    def validate_env(self, env, devices: int = 1, seeds: int = 1) -> None:
+        super().validate_env(env, devices, seeds)
+        per_iter = self.per_iteration
+        if per_iter % self.num_minibatches:
+            raise ConfigError(f"num_envs x unroll_length = {per_iter:,} does not divide into {self.num_minibatches} "
+                              "minibatches; change num_envs, unroll_length or num_minibatches")
+        need = self.num_evals * per_iter
+        if self.total_steps < need:
+            raise ConfigError(f"--steps {self.total_steps:,} is too few: {self.num_evals} evaluations of "
+                              f"{per_iter:,}-step iterations need at least {need:,}")
+
+
+class ReplayConfig(RunConfig):
+    """What every trainer with a replay buffer of episode-long windows shares (CRL, SAC, TD3)."""
+
+    batch_size: Int = 256  # transitions per gradient step
+    windows: Int = 0  # episode-long trajectory windows sampled per iteration; 0: one per environment
+    # (the reference), so an iteration makes windows x episode_length / batch_size gradient steps
+    min_replay_rows: Int = 1000  # time rows collected before updates start
+    max_replay_rows: Int = 10000
+    discount: Float = 0.99
+    actor_lr: Float = 3e-4
+    critic_lr: Float = 3e-4
+    hidden: Hidden = (256, 256)
+    layer_norm: StrictBool = False
+
+    def validate_env(self, env, devices: int = 1, seeds: int = 1) -> None:
+        """Also: steps to prefill the buffer and train, room for an episode, a batch's worth of
+        transitions in the windows it samples."""
+        super().validate_env(env, devices, seeds)
+        prefill_iters, per_eval = iterations(self)
+        prefill = prefill_iters * self.per_iteration
+        need = prefill + self.num_evals * self.per_iteration
+        if per_eval < 1:
+            raise ConfigError(f"--steps {self.total_steps:,} is too few: {self.num_envs} envs x unroll "
+                              f"{self.unroll_length} need {prefill:,} steps to prefill the buffer and "
+                              f"{self.num_evals} more iterations; use at least {need:,}")
+        if self.max_replay_rows < max(self.min_replay_rows, env.episode_length):
+            raise ConfigError(f"max_replay_rows {self.max_replay_rows} must hold min_replay_rows "
+                              f"({self.min_replay_rows}) and one episode ({env.episode_length} steps)")
+        windows, updates = gradient_steps(self, env.episode_length)
+        if updates < 1:
+            raise ConfigError(f"{windows} windows of {env.episode_length} steps hold fewer transitions than one "
+                              f"batch ({self.batch_size}); raise {self.algo}.windows or lower {self.algo}.batch_size")
+
+
+class CRLConfig(ReplayConfig):
+    algo: ClassVar[str] = "crl"
+
+    alpha_lr: Float = 3e-4
+    repr_dim: Int = 64
+    skip_every: Int = 0  # residual blocks of this many hidden layers after the first (agents.networks.MLP); 0: none
+    energy: Energy = "norm"
+    contrastive_loss: Loss = "fwd_infonce"
+    logsumexp_penalty: Float = 0.1
+    target_entropy_per_action: Float = -0.5
+
+    def validate_env(self, env, devices: int = 1, seeds: int = 1) -> None:
+        super().validate_env(env, devices, seeds)
+        if self.skip_every:
+            try:
+                residual_blocks(self.hidden, self.skip_every)
+            except ValueError as exc:
+                raise ConfigError(f"{self.algo}.skip_every: {exc}") from None
+
+
+class ICRLConfig(CRLConfig):
+    algo: ClassVar[str] = "icrl"
+
+    # leg: one agent per leg (the study's code); joint: one per actuated joint (its text)
+    agents: Grouping = "leg"
+    share_parameters: StrictBool = False  # one actor and one critic applied by every agent
+
+    def validate_env(self, env, devices: int = 1, seeds: int = 1) -> None:
+        super().validate_env(env, devices, seeds)
+        try:
+            split(env, self.agents)
+        except ValueError as exc:
+            raise ConfigError(f"icrl.agents: {exc}") from None
+
+
+class OffPolicyConfig(ReplayConfig):
+    """SAC's and TD3's: twin critics with target networks, on the dense reward or the success, with
+    hindsight relabelling."""
+
+    tau: Float = 0.005  # Polyak step of the target networks
+    reward: Reward = "dense"  # dense: the field's weighted terms; sparse: its success metric
+    reward_scale: Float = 1.0
+    her: Float = 0.0  # share of goals relabelled from the episode's future (needs reward: sparse)
+
+    def validate_env(self, env, devices: int = 1, seeds: int = 1) -> None:
+        super().validate_env(env, devices, seeds)
+        algo = self.algo
+        if not 0 <= self.her <= 1:
+            raise ConfigError(f"{algo}.her {self.her} is a share of relabelled goals: between 0 and 1")
+        if self.her and self.reward != "sparse":
+            raise ConfigError(f"{algo}.her relabels goals and rescores them by the field's success; "
+                              f"set {algo}.reward=sparse")
+        if self.her and env.spec.task.success.kind == "ball_in_goal":  # a fieldgen field's own spec
+            raise ConfigError(f"{algo}.her needs a success that depends on the goal; {env.spec.name}'s is "
+                              "ball_in_goal (the goal box, wherever the goal is); use ball_near_target or "
+                              "agent_near_target")
+
+
+class SACConfig(OffPolicyConfig):
+    algo: ClassVar[str] = "sac"
+
+    alpha_lr: Float = 3e-4
+    target_entropy_per_action: Float = -1.0
+
+
+class TD3Config(OffPolicyConfig):
+    algo: ClassVar[str] = "td3"
+
+    exploration_noise: Float = 0.1  # std of the Gaussian added to actions while collecting
+    policy_noise: Float = 0.2  # std of the smoothing noise on target actions
+    noise_clip: Float = 0.5
+    policy_delay: Int = 2  # critic steps per actor step (and target update)
+
+    def validate_env(self, env, devices: int = 1, seeds: int = 1) -> None:
+        super().validate_env(env, devices, seeds)
+        if self.policy_delay < 1:
+            raise ConfigError(f"td3.policy_delay must be at least 1, not {self.policy_delay}")

@@ -1,0 +1,25 @@
+"""When a staged run moves on: the rule a curriculum states, applied to the run's history.
+
+The trainers only ask "move on now?" (agents.loop.run_staged's `promote`); the rule is the
+curriculum's, written in its curriculum.yaml and kept in the run's run.json."""
+
+from __future__ import annotations
+
+import dataclasses
+
+
+@dataclasses.dataclass(frozen=True)
+class Promotion:
+    """Move to the next stage once success_any, averaged over seeds and the last `window`
+    evaluations on the current stage, reaches `threshold`."""
+
+    threshold: float = 0.5
+    window: int = 2
+
+    def ready(self, history: list[dict], stage: int) -> bool:
+        """Whether the last `window` evaluations on `stage` (mean over seeds) reach the threshold."""
+        evals = sorted({r["eval"] for r in history if r.get("stage") == stage and r["eval"] > 0})[-self.window:]
+        if len(evals) < self.window:
+            return False
+        scores = [r["success_any"] for r in history if r.get("stage") == stage and r["eval"] in evals]
+        return sum(scores) / len(scores) >= self.threshold
