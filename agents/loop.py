@@ -13,6 +13,7 @@ import functools
 import time
 from typing import Callable, Sequence
 
+import flax.struct
 import jax
 import jax.numpy as jnp
 
@@ -46,8 +47,7 @@ def evaluate_policy(env, act: Callable, key: jax.Array, n_envs: int, film: Calla
     episode_length: steps before the episode ended, short where the agent falls (leaves its
     healthy band) early; episode_return; and `term_<name>`: each reward term's mean per live step.
     An environment of several variants (`env.variant_count > 1`) is evaluated on each in turn,
-    and also reports `variant_KK_success_any`, `variant_KK_time_at_goal` and
-    `variant_KK_closest_distance` (KK from 01).
+    and also reports each variant's own under `variants` (a `VariantResults`).
 
     With `film` (a batch of environment states -> arrays with a leading environment axis), also
     one episode as a video needs it, for free: `film` of the state before each step and that
@@ -89,13 +89,25 @@ def evaluate_policy(env, act: Callable, key: jax.Array, n_envs: int, film: Calla
                "episode_return": jnp.mean(jnp.sum(out["reward"], axis=0)),
                **{f"term_{name}": jnp.sum(out[name]) / live_steps for name in terms}}
     if count > 1:
-        variant = env_state.info["variant"]
-        for k in range(count):
-            mine = (variant == k) / jnp.sum(variant == k)
-            metrics[f"variant_{k + 1:02d}_success_any"] = jnp.sum(succeeded * mine)
-            metrics[f"variant_{k + 1:02d}_time_at_goal"] = jnp.sum(at_goal * mine)
-            metrics[f"variant_{k + 1:02d}_closest_distance"] = jnp.sum(closest * mine)
+        share = jax.nn.one_hot(env_state.info["variant"], count)  # [envs, variants]
+        share = share / jnp.sum(share, axis=0)
+        metrics["variants"] = VariantResults(succeeded @ share, at_goal @ share, closest @ share, jnp.zeros(count))
     return metrics, frames
+
+
+@flax.struct.dataclass
+class VariantResults:
+    """An evaluation's results on each variant of a mixed environment, indexed by variant (the last is the
+    field the run is judged on), and the sampling weight each variant gets next."""
+
+    success_any: jax.Array
+    time_at_goal: jax.Array
+    closest_distance: jax.Array
+    weight: jax.Array
+
+    def per_seed(self, i: int) -> dict[str, list[float]]:
+        """Seed i's results (of a batch vmapped over seeds), as a row of metrics.jsonl keeps them."""
+        return {f.name: [float(x) for x in getattr(self, f.name)[i]] for f in dataclasses.fields(self)}
 
 
 def evaluate(trainer: Trainer, state, key: jax.Array, film: Callable | None = None) -> tuple[dict, object]:
@@ -104,12 +116,13 @@ def evaluate(trainer: Trainer, state, key: jax.Array, film: Callable | None = No
 
 
 def adapt(trainer: Trainer, state, metrics: dict) -> tuple[object, dict]:
-    """Let an environment of several variants re-weight them from an evaluation's metrics
-    (`env.adapt(env_state, metrics) -> (env_state, report)`); others pass through."""
-    if getattr(trainer.env, "variant_count", 1) < 2:
-        return state, {}
-    env_state, report = trainer.env.adapt(state.env_state, metrics)
-    return state.replace(env_state=env_state), report
+    """Let an environment of several variants re-weight them from an evaluation's results on each
+    (`env.adapt(env_state, success_any per variant) -> (env_state, weights)`), recording the weights in
+    `metrics["variants"]`; others pass through."""
+    if "variants" not in metrics:
+        return state, metrics
+    env_state, weights = trainer.env.adapt(state.env_state, metrics["variants"].success_any)
+    return state.replace(env_state=env_state), {**metrics, "variants": metrics["variants"].replace(weight=weights)}
 
 
 def eval_key(seed_key: jax.Array, index) -> jax.Array:
@@ -123,8 +136,7 @@ def pure_train(trainer: Trainer, num_evals: int) -> Callable:
         def interval(state, index):
             state, metrics = trainer.chunk(state)
             metrics.update(evaluate(trainer, state, eval_key(key, index))[0])
-            state, report = adapt(trainer, state, metrics)
-            return state, {**metrics, **report}
+            return adapt(trainer, state, metrics)
 
         return jax.lax.scan(interval, trainer.start(key), jnp.arange(1, num_evals + 1))
 
@@ -207,9 +219,9 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
         metrics.update(judged)
         count = getattr(trainers[stage].env, "variant_count", 1)
         if count > 1:  # a mixed run: judged on its last variant, and re-weighted
-            metrics["last_stage_success_any"] = metrics[f"variant_{count:02d}_success_any"]
-            state, report = programs(stage)[4](state, metrics)
-            metrics.update(jax.device_get(report))
+            state, metrics = programs(stage)[4](state, metrics)
+            metrics = jax.device_get(metrics)
+            metrics["last_stage_success_any"] = metrics["variants"].success_any[:, -1]
         if staged and stage != last:
             metrics["last_stage_success_any"] = judge(last, state, index)[0]["success_any"]
         elif staged:
@@ -218,7 +230,9 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
         rows = []
         for i, seed in enumerate(seeds):
             row = {"eval": index, "seed": seed, "env_steps": steps, **({"stage": stage} if staged else {}),
-                   **{k: float(v[i]) for k, v in metrics.items()}}
+                   **{k: float(v[i]) for k, v in metrics.items() if k != "variants"}}
+            if "variants" in metrics:
+                row["variants"] = metrics["variants"].per_seed(i)
             if index > 0:
                 row["steps_per_second"] = (steps - previous) / seconds
             rows.append(row)

@@ -21,11 +21,14 @@ from fieldgen.training import save_figure
 def last_field(rows: list[dict]) -> tuple[list, list, list, list]:
     """(steps, success on the last field, steps judged there for time at goal, time at goal)."""
     last = max((r.get("stage", 0) for r in rows), default=0)
-    variants = sorted(k for k in rows[0] if k.startswith("variant_") and k.endswith("_time_at_goal"))
+    # results recorded before a mixed run's per-variant results became one record name them variant_KK_...
+    legacy = sorted(k for k in rows[0] if k.startswith("variant_") and k.endswith("_time_at_goal"))
     steps = [r["env_steps"] for r in rows]
     success = [r.get("last_stage_success_any", r["success_any"]) for r in rows]
-    if variants:
-        judged = [(r["env_steps"], r[variants[-1]]) for r in rows]
+    if "variants" in rows[0]:
+        judged = [(r["env_steps"], r["variants"]["time_at_goal"][-1]) for r in rows]
+    elif legacy:
+        judged = [(r["env_steps"], r[legacy[-1]]) for r in rows]
     else:
         judged = [(r["env_steps"], r["time_at_goal"]) for r in rows if r.get("stage", 0) == last]
     return steps, success, [s for s, _ in judged], [t for _, t in judged]

@@ -265,7 +265,7 @@ def _duration(seconds: float) -> str:
 def _stats(rows: list[dict]) -> str:
     mean = lambda key: sum(r[key] for r in rows) / len(rows)  # noqa: E731
     text = f"success {mean('success_any'):.2f}  at goal {mean('time_at_goal'):.1f}"
-    if "variant_01_success_any" in rows[0]:
+    if "variants" in rows[0]:
         text += f"  last stage {mean('last_stage_success_any'):.2f}"
     if "stage" in rows[0]:
         text = f"stage {rows[0].get('promoted_to', rows[0]['stage']) + 1}  " + text
@@ -295,10 +295,9 @@ def summary(run: Run, console: Console) -> None:
             console.print(f"promoted to stage {row['promoted_to'] + 1} ({name}) at {row['env_steps']:,} env steps")
     if run.mixed:
         last = run.rows[-1]
-        stages = sorted(k for k in last if k.startswith("variant_") and k.endswith("_success_any"))
+        variants = last["variants"]
         console.print("success_any per stage at the end: " + ", ".join(
-            f"{i}. {last[k]:.2f} (weight {last.get(k.replace('success_any', 'weight'), 0):.2f})"
-            for i, k in enumerate(stages, 1)))
+            f"{i}. {p:.2f} (weight {w:.2f})" for i, (p, w) in enumerate(zip(variants["success_any"], variants["weight"]), 1)))
         console.print(f"success_any on the last stage ({run.env.spec.name}): {last['last_stage_success_any']:.2f}")
     elif len(run.envs) > 1:
         last = run.rows[-1]

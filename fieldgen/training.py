@@ -56,12 +56,21 @@ def read_metrics(run_dir: Path) -> list[dict]:
 def write_metrics(run_dir: Path, rows: list[dict]) -> None:
     """metrics.jsonl and metrics.csv with every evaluation so far; both replaced atomically."""
     write_atomic(run_dir / METRICS, "".join(json.dumps(r) + "\n" for r in rows).encode())
-    names = list(dict.fromkeys(k for r in rows for k in r))
+    flat = [_flat(r) for r in rows]
+    names = list(dict.fromkeys(k for r in flat for k in r))
     text = io.StringIO()
     writer = csv.DictWriter(text, fieldnames=names)
     writer.writeheader()
-    writer.writerows(rows)
+    writer.writerows(flat)
     write_atomic(run_dir / CSV, text.getvalue().encode())
+
+
+def _flat(row: dict) -> dict:
+    """A row as one CSV line: a mixed run's per-variant lists become variants.<metric>.<stage from 1>."""
+    out = {k: v for k, v in row.items() if k != "variants"}
+    for metric, values in row.get("variants", {}).items():
+        out.update({f"variants.{metric}.{k}": v for k, v in enumerate(values, 1)})
+    return out
 
 
 # metric -> (axis label, panel title, y limits or None); a panel is drawn where the rows have the metric
@@ -81,7 +90,7 @@ def plot_success(run_dir: Path, rows: list[dict], title: str) -> None:
     metrics = [m for m in PANELS if any(m in r for r in rows)]
     fig, axes = plt.subplots(1, len(metrics), figsize=(5 * len(metrics), 3.6))
     panels = dict(zip(metrics, axes))
-    (_plot_variants if "variant_01_success_any" in rows[0] else _plot_groups)(panels, rows)
+    (_plot_variants if "variants" in rows[0] else _plot_groups)(panels, rows)
     for metric, ax in panels.items():
         label, name, limits = PANELS[metric]
         ax.set(xlabel="env steps", ylabel=label, title=name, ylim=limits)
@@ -125,15 +134,14 @@ def _plot_groups(panels: dict, rows: list[dict]) -> None:
 
 def _plot_variants(panels: dict, rows: list[dict]) -> None:
     """A mixed run: one line per stage (mean over seeds), the last stage in black."""
-    names = sorted(k.removesuffix("_success_any") for k in rows[0] if k.startswith("variant_") and
-                   k.endswith("_success_any"))
-    for i, name in enumerate(names, 1):
-        style = {"color": "black", "lw": 2} if i == len(names) else {}
+    count = len(rows[0]["variants"]["success_any"])
+    steps = sorted({r["env_steps"] for r in rows})
+    for k in range(count):
+        last = k == count - 1
+        style = {"color": "black", "lw": 2} if last else {}
         for metric, ax in panels.items():
-            key = f"{name}_{metric}"
-            steps = sorted({r["env_steps"] for r in rows if key in r})
-            values = [np.mean([r[key] for r in rows if r["env_steps"] == s and key in r]) for s in steps]
-            ax.plot(steps, values, marker="o", label=f"stage {i}" + (" (last)" if i == len(names) else ""), **style)
+            values = [np.mean([r["variants"][metric][k] for r in rows if r["env_steps"] == s]) for s in steps]
+            ax.plot(steps, values, marker="o", label=f"stage {k + 1}" + (" (last)" if last else ""), **style)
 
 
 def peak_memory_mb() -> float | None:

@@ -129,9 +129,12 @@ def test_mixed_training_reports_every_stage_and_resumes(tmp_path):
     rows = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
     assert [r["eval"] for r in rows] == [0, 1, 2]
     for row in rows:
-        assert row["last_stage_success_any"] == row["variant_02_success_any"]
-        assert row["variant_01_weight"] + row["variant_02_weight"] == pytest.approx(1.0, abs=1e-5)
-        assert row["success_any"] == pytest.approx((row["variant_01_success_any"] + row["variant_02_success_any"]) / 2)
+        variants = row["variants"]
+        assert row["last_stage_success_any"] == variants["success_any"][1]
+        assert len(variants["weight"]) == 2 and sum(variants["weight"]) == pytest.approx(1.0, abs=1e-5)
+        assert row["success_any"] == pytest.approx(sum(variants["success_any"]) / 2)
+    header = (run / "metrics.csv").read_text().splitlines()[0].split(",")
+    assert {"variants.success_any.1", "variants.success_any.2", "variants.weight.2"} <= set(header)
     text = " ".join(result.output.split())
     assert "success_any per stage at the end: 1." in text and "success_any on the last stage (ring_s02)" in text
     assert (run / "success.png").stat().st_size > 0 and (run / "videos" / "eval_002.gif").exists()

@@ -88,13 +88,12 @@ class FieldEnv:
     def mixed(self) -> bool:
         return len(self.variants) > 1
 
-    def adapt(self, env_state: State, metrics: dict) -> tuple[State, dict]:
+    def adapt(self, env_state: State, success: jax.Array) -> tuple[State, jax.Array]:
         """New variant weights for the episodes to come (envs batched on axis 0), from an evaluation's
-        `variant_KK_success_any`: `sampling_weights`. Returns the state and `variant_KK_weight`."""
-        success = jnp.stack([metrics[f"variant_{k + 1:02d}_success_any"] for k in range(self.variant_count)])
+        success_any on each variant: `sampling_weights`. Returns the state and the weights."""
         weights = sampling_weights(success)
         info = dict(env_state.info, variant_weights=jnp.broadcast_to(weights, env_state.info["variant_weights"].shape))
-        return env_state.replace(info=info), {f"variant_{k + 1:02d}_weight": w for k, w in enumerate(weights)}
+        return env_state.replace(info=info), weights
 
     def _each(self, variant: jax.Array, fn):
         """fn(the variant's rules), for a traced variant index (every branch runs under vmap: all are cheap)."""
