@@ -18,7 +18,7 @@ import sys
 import time
 from pathlib import Path
 
-from fieldgen.throughput import append_jsonl
+from fieldgen.env.throughput import append_jsonl
 
 WAYS = ("whole", "pieces")
 

@@ -15,7 +15,7 @@ import argparse
 import json
 from pathlib import Path
 
-from fieldgen.training import save_figure
+from fieldgen.run.plots import save_figure
 
 
 def last_field(rows: list[dict]) -> tuple[list, list, list, list]:

@@ -20,7 +20,7 @@ from pathlib import Path
 import jax
 
 import fieldgen
-from fieldgen.throughput import append_jsonl, measure
+from fieldgen.env.throughput import append_jsonl, measure
 
 
 def brax_ant():

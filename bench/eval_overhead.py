@@ -24,9 +24,9 @@ import numpy as np
 
 import fieldgen
 from fieldgen.agents import checkpoint, loop, registry
-from fieldgen import training
+from fieldgen.run import videos
 from fieldgen.files import write_atomic
-from fieldgen.throughput import append_jsonl, run_arguments
+from fieldgen.env.throughput import append_jsonl, run_arguments
 
 PARTS = ("evaluation", "state_to_host", "write_checkpoint", "draw_gif")
 
@@ -42,7 +42,7 @@ def main() -> None:
     entry = registry.trainer(args.algo)
     config = entry.config.layered(total_steps=args.steps, num_envs=args.envs, num_evals=args.evals)
     trainer = entry.make_train(config, env)
-    recorder = training.EpisodeRecorder(env)
+    recorder = videos.EpisodeRecorder(env)
     times: list[dict] = []
     mark = {"t": 0.0}
 
@@ -65,7 +65,7 @@ def main() -> None:
         snapshot = timed("state_to_host", lambda: jax.device_get(state))
         timed("write_checkpoint", lambda: write_atomic(written, checkpoint.pieces(snapshot)))
         try:
-            timed("draw_gif", lambda: training.draw_episode(env.mj_model, recorder.episode(filmed[1]), recorder.camera))
+            timed("draw_gif", lambda: videos.draw_episode(env.mj_model, recorder.episode(filmed[1]), recorder.camera))
         except Exception:  # noqa: BLE001 - a machine without OpenGL: the GIF is drawn elsewhere
             timing["draw_gif"] = float("nan")
         mark["t"] = time.perf_counter()
@@ -73,7 +73,7 @@ def main() -> None:
     mark["t"] = time.perf_counter()
     try:
         loop.run_staged([trainer], [config.seed], config.num_evals, lambda history, stage: False, progress, on_eval,
-                        film=training.EpisodeRecorder.film)
+                        film=videos.EpisodeRecorder.film)
     finally:
         written.unlink(missing_ok=True)
     timed_rows = times[2:] if len(times) > 2 else times[1:]

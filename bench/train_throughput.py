@@ -1,7 +1,7 @@
 """End-to-end training throughput (env steps per second, updates included) on built fields.
 
 The reference, measured in the same run, is the same environment stepped alone
-with random actions at the same batch size (fieldgen.throughput): the ratio is
+with random actions at the same batch size (fieldgen.env.throughput): the ratio is
 the share of time left to simulation once training runs beside it. Each figure
 times one jitted chunk of training iterations after a warm-up call, its state
 spread over the devices as `fieldgen train` spreads it (agents.sharding): by seed
@@ -28,8 +28,8 @@ import jax.numpy as jnp
 import fieldgen
 from fieldgen.agents import buffer, registry, sharding
 from fieldgen.agents.config import ReplayConfig
-from fieldgen.throughput import append_jsonl, measure
-from fieldgen.training import peak_memory_mb
+from fieldgen.env.throughput import append_jsonl, measure
+from fieldgen.run.train import peak_memory_mb
 
 
 def config_for(entry: str, num_envs: int, iterations: int, sets: list[str]):

@@ -21,8 +21,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from fieldgen import training
-from fieldgen.throughput import append_jsonl, run_arguments
+from fieldgen.run import record
+from fieldgen.env.throughput import append_jsonl, run_arguments
 
 
 def run_once(root: Path, args) -> dict:
@@ -36,8 +36,8 @@ def run_once(root: Path, args) -> dict:
         subprocess.run(command, env=env, check=True, stdout=subprocess.DEVNULL)
         total = time.perf_counter() - started
         run = next(Path(out).iterdir())  # the one run folder
-        rows = training.read_metrics(run)
-        checkpoint = (run / training.CHECKPOINT).stat().st_size
+        rows = record.read_metrics(run)
+        checkpoint = (run / record.CHECKPOINT).stat().st_size
     timed = [r for r in rows if r["eval"] >= 1]
     first, last = timed[0], timed[-1]
     end_to_end = (last["env_steps"] - first["env_steps"]) / (last["wall_seconds"] - first["wall_seconds"])

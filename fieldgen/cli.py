@@ -298,7 +298,7 @@ def bench(
     """
     import fieldgen
     from fieldgen.compile.artifact import ArtifactError
-    from fieldgen.throughput import measure
+    from fieldgen.env.throughput import measure
 
     try:
         env = fieldgen.make(_field_source(spec))
@@ -312,15 +312,16 @@ def bench(
 
 
 def _train(run, videos: bool) -> None:
-    """Train a run; Ctrl-C exits with 130, and a failed write or a diverged run says what to do (runner.train
+    """Train a run; Ctrl-C exits with 130, and a failed write or a diverged run says what to do (training.train
     says how to go on)."""
-    from fieldgen import runner, training
+    from fieldgen.run import record
+    from fieldgen.run.train import train as train_run
 
     try:
-        runner.train(run, out, videos)
+        train_run(run, out, videos)
     except KeyboardInterrupt:
         raise typer.Exit(130) from None
-    except training.RunError as exc:  # training diverged
+    except record.RunError as exc:  # training diverged
         _fail(str(exc))
     except OSError as exc:  # every file of a run is replaced atomically, so the last good ones remain
         _fail(f"could not write {exc.filename or run.folder}: {exc.strerror or exc}; the files already there are "
@@ -356,13 +357,13 @@ def train(
 
     Example: fieldgen train point_nav --algo crl --steps 40000 --envs 16 --set 'crl.hidden=[64,64]'
     """
-    from fieldgen import runner, training
     from fieldgen.agents import registry
+    from fieldgen.run import record, session
     from fieldgen.agents.config import ConfigError
 
     try:
         if resume is not None:
-            run = runner.open_run(resume)
+            run = session.open_run(resume)
         else:
             if spec is None:
                 _fail("name a field to train on, or --resume a run folder")
@@ -371,8 +372,8 @@ def train(
             algo_config = registry.trainer(algo).config.layered(config, sets or [], total_steps=steps,
                                                                 num_envs=envs, seed=seed)
             source = _field_source(spec)
-            run = runner.new_run(source, algo, list(range(seed, seed + seeds)), algo_config, runs, mixed)
-    except (SpecError, ConfigError, training.RunError) as exc:
+            run = session.new_run(source, algo, list(range(seed, seed + seeds)), algo_config, runs, mixed)
+    except (SpecError, ConfigError, record.RunError) as exc:
         _fail(str(exc))
     if prepare:
         out.print(f"prepared {run.folder}; start it with: fieldgen train --resume {run.folder}")
@@ -404,9 +405,9 @@ def compare(
 
     Example: fieldgen compare point_nav --algos crl,icrl,sac --steps 40000 --envs 16 --seeds 2
     """
-    from fieldgen import compare as comparing
-    from fieldgen import training
     from fieldgen.agents.config import ConfigError
+    from fieldgen.run import compare as comparing
+    from fieldgen.run import record
 
     if seeds < 1:
         _fail(f"--seeds {seeds}: compare at least one seed")
@@ -415,7 +416,7 @@ def compare(
     try:
         folder, todo = comparing.runs(source, names, list(range(seeds)), runs, config, sets or [],
                                       total_steps=steps, num_envs=envs)
-    except (SpecError, ConfigError, training.RunError) as exc:
+    except (SpecError, ConfigError, record.RunError) as exc:
         _fail(str(exc))
     if prepare:
         out.print(f"prepared {len(todo)} runs in {folder}; train each with fieldgen train --resume RUN, "
@@ -446,32 +447,25 @@ def evaluate(
 
     Example: fieldgen eval runs/point_nav-crl-0 --episodes 256
     """
-    import dataclasses
-    import functools
-
-    import jax
-
-    from fieldgen.agents import loop
     from fieldgen.agents.config import ConfigError
-    from fieldgen import runner, training
     from fieldgen.render import CAMERAS
+    from fieldgen.run import record, session
+    from fieldgen.run.evaluate import evaluate as judge
+    from fieldgen.run.evaluate import video_path
+    from fieldgen.run.videos import EpisodeRecorder
 
     if camera not in CAMERAS:
         _fail(f"unknown camera '{camera}'; choose one of: {', '.join(CAMERAS)}")
     try:
-        run = runner.open_run(run_dir)
+        run = session.open_run(run_dir)
         if field is not None:
-            run = runner.on_field(run, _field_source(field))
-    except (SpecError, ConfigError, training.RunError) as exc:
+            run = session.on_field(run, _field_source(field))
+    except (SpecError, ConfigError, record.RunError) as exc:
         _fail(str(exc))
     if run.state is None:
         _fail(f"{run_dir} has not started training yet; start it with: fieldgen train --resume {run_dir}")
-    trainer = dataclasses.replace(run, config=run.config.model_copy(update={"eval_envs": episodes})).judge()
-    key = jax.random.PRNGKey(seed)
-    film = training.EpisodeRecorder.film if video else None
-    judged = jax.vmap(functools.partial(loop.evaluate, trainer, film=film), in_axes=(0, None))
-    result, frames = jax.device_get(jax.jit(judged)(run.state, key))
-    steps = int(jax.device_get(run.state.env_steps)[0])
+    evaluation = judge(run, episodes, seed, video)
+    result, steps = evaluation.metrics, evaluation.env_steps
     table = Table("seed", "success_any", "time_at_goal", "closest", "length", "return",
                   title=f"{run_dir} at {steps:,} env steps on {run.env.spec.name}, {episodes} episodes per seed")
     for i, s in enumerate(run.seeds):
@@ -481,11 +475,10 @@ def evaluate(
                       f"{result['episode_return'][i]:.2f}")
     out.print(table)
     if video:  # the first seed's first evaluation episode
-        recorder = training.EpisodeRecorder(run.env, camera)
-        name = "eval" if field is None else f"eval_{run.env.spec.name}"
-        drawn = recorder.save(run_dir, run_dir / name, recorder.episode(loop.seed_slice(frames, 0)), err)
+        name = video_path(run, run_dir, field is not None)
+        drawn = EpisodeRecorder(run.env, camera).save(run_dir, name, evaluation.episode, err)
         if drawn is not None:
-            out.print(f"video: {run_dir / (name + '.gif')} ({drawn} frames, {camera} camera)")
+            out.print(f"video: {name.with_suffix('.gif')} ({drawn} frames, {camera} camera)")
 
 
 @app.command()
@@ -501,44 +494,31 @@ def videos(
 
     Example: fieldgen videos runs/soccer_v1-crl-0
     """
-    import numpy as np
-
-    from fieldgen import runner, training
     from fieldgen.agents.config import ConfigError
-    from fieldgen.files import write_atomic
     from fieldgen.render import RenderError
+    from fieldgen.run import record, session
+    from fieldgen.run.videos import draw_kept, kept_episodes
 
     try:
-        run = runner.open_run(run_dir, load_state=False)
+        run = session.open_run(run_dir, load_state=False)
         if field is not None:
-            run.envs.append(runner.on_field(run, _field_source(field)).env)
-    except (SpecError, ConfigError, training.RunError) as exc:
+            run.envs.append(session.on_field(run, _field_source(field)).env)
+    except (SpecError, ConfigError, record.RunError) as exc:
         _fail(str(exc))
-    kept = sorted((run_dir / training.VIDEOS).glob("eval_*.npz")) + sorted(run_dir.glob("eval*.npz"))
+    kept = kept_episodes(run_dir)
     if not kept:
-        _fail(f"nothing to draw: {run_dir / training.VIDEOS} holds no eval_NNN.npz and {run_dir} no eval.npz "
+        _fail(f"nothing to draw: {run_dir / record.VIDEOS} holds no eval_NNN.npz and {run_dir} no eval.npz "
               "(training and fieldgen eval keep them only where they could not render)")
     models = {env.spec.name: env.mj_model for env in run.envs}
     table = Table("episode", "field", "frames", "video", title=f"{run_dir}: kept episodes")
     for path in kept:
-        gif = path.with_suffix(".gif")
         try:
-            with np.load(path) as episode:
-                played, camera, episode = str(episode["field"]), str(episode["camera"]), dict(episode)
-        except (OSError, ValueError, KeyError) as exc:
-            _fail(f"{path} is not an episode kept by fieldgen train ({exc}); delete it or train again")
-        if played not in models:
-            _fail(f"{path} records field '{played}', which is not one of this run's fields ({', '.join(models)}); "
-                  f"pass its YAML file, bundled name or build folder: fieldgen videos {run_dir} --field SPEC")
-        if gif.exists():
-            table.add_row(path.name, played, "", f"{gif.name} (already drawn)")
-            continue
-        try:
-            data, frames = training.draw_episode(models[played], episode, camera)
-        except RenderError as exc:
+            played, frames = draw_kept(path, models)
+        except (RenderError, record.RunError) as exc:
             _fail(str(exc))
-        write_atomic(gif, data)
-        table.add_row(path.name, played, str(frames), gif.name)
+        gif = path.with_suffix(".gif").name
+        table.add_row(path.name, played, "" if frames is None else str(frames),
+                      f"{gif} (already drawn)" if frames is None else gif)
     out.print(table)
 
 

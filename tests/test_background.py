@@ -7,7 +7,7 @@ import time
 
 import pytest
 
-from fieldgen.background import Writer
+from fieldgen.run.background import Writer
 
 
 def test_jobs_run_in_order_off_the_calling_thread():

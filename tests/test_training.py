@@ -248,7 +248,8 @@ def test_a_machine_that_cannot_render_keeps_episodes_for_fieldgen_videos(tmp_pat
     import jax.numpy as jnp
     from rich.console import Console
 
-    from fieldgen import render, runner as runs, training
+    from fieldgen import render
+    from fieldgen.run import record, session, videos
 
     prepared = runner.invoke(app, ["train", "point_nav", "--envs", "8", "--steps", "1900", "--prepare",
                                    "--out", str(tmp_path), *TINY])
@@ -257,17 +258,17 @@ def test_a_machine_that_cannot_render_keeps_episodes_for_fieldgen_videos(tmp_pat
     nothing = runner.invoke(app, ["videos", str(run_dir)])
     assert nothing.exit_code == 1 and "holds no eval_NNN.npz" in nothing.output
 
-    env = runs.open_run(run_dir, load_state=False).env
-    recorder = training.EpisodeRecorder(env)
+    env = session.open_run(run_dir, load_state=False).env
+    recorder = videos.EpisodeRecorder(env)
     hold = lambda obs: jnp.full((obs.shape[0], env.action_size), 0.5)  # noqa: E731
 
     monkeypatch.setattr(render, "render_rollout", no_opengl)
     console = Console(record=True, width=200)
     for index in (0, 1):
-        _, filmed = loop.evaluate_policy(env, hold, jax.random.PRNGKey(index), 2, training.EpisodeRecorder.film)
-        recorder.save(run_dir, training.video_name(run_dir, index), recorder.episode(filmed), console)
-    videos = run_dir / training.VIDEOS
-    assert sorted(p.name for p in videos.iterdir()) == ["eval_000.npz", "eval_001.npz"]
+        _, filmed = loop.evaluate_policy(env, hold, jax.random.PRNGKey(index), 2, videos.EpisodeRecorder.film)
+        recorder.save(run_dir, videos.video_name(run_dir, index), recorder.episode(filmed), console)
+    kept = run_dir / record.VIDEOS
+    assert sorted(p.name for p in kept.iterdir()) == ["eval_000.npz", "eval_001.npz"]
     assert console.export_text().count("cannot render here (no OpenGL here)") == 1
     monkeypatch.undo()
 
@@ -285,7 +286,7 @@ def test_a_machine_that_cannot_render_keeps_episodes_for_fieldgen_videos(tmp_pat
 
 
 def test_progress_tells_the_time_left_from_the_last_two_evaluations():
-    from fieldgen.runner import _rate
+    from fieldgen.run.progress import rate as _rate
 
     rows = [{"seed": 0, "env_steps": 0, "wall_seconds": 5.0},
             {"seed": 0, "env_steps": 1_000_000, "wall_seconds": 65.0, "steps_per_second": 25_000.0},

@@ -4,6 +4,7 @@ model whose leaves that differ are stacked on a leading variant axis."""
 from __future__ import annotations
 
 import dataclasses
+from typing import TYPE_CHECKING
 
 import jax
 import jax.numpy as jnp
@@ -12,6 +13,9 @@ import numpy as np
 from mujoco import mjx
 
 from fieldgen.compile.layout import observation_layout
+
+if TYPE_CHECKING:
+    from fieldgen.env.variant import Variant
 
 def check_compatible(variants: list[Variant], models, layout) -> None:
     """Variants batched together must share the observation layout, the control period and the structure."""

@@ -17,19 +17,19 @@ from rich.table import Table
 
 import fieldgen
 from fieldgen.agents import registry, sharding
-from fieldgen import runner, training
 from fieldgen.files import write_atomic
+from fieldgen.run import plots, record, session
 
 PLOT, TABLE = "compare.png", "compare.json"
 
 
 def runs(source: Path, algos: list[str], seeds: list[int], folder: Path | None, config_file: Path | None,
-         sets: list[str], **fixed) -> tuple[Path, list[runner.Run]]:
+         sets: list[str], **fixed) -> tuple[Path, list[session.Run]]:
     """(the comparison's folder, default runs/compare-<field>; a run per algorithm in it: an existing one,
     checked to have the same settings, or a new one). Every config is checked before anything is written."""
     entries = {algo: registry.trainer(algo) for algo in algos}
     if len(set(algos)) != len(algos):
-        raise training.RunError(f"--algos lists an algorithm twice: {','.join(algos)}")
+        raise record.RunError(f"--algos lists an algorithm twice: {','.join(algos)}")
     env = fieldgen.make(source)
     folder = folder or Path("runs") / f"compare-{env.spec.name}"
     configs = {}
@@ -39,21 +39,21 @@ def runs(source: Path, algos: list[str], seeds: list[int], folder: Path | None, 
         configs[algo].validate_env(env, sharding.device_count(), len(seeds))
     result = []
     for algo in algos:
-        existing = folder / runner.run_name(env.spec.name, algo, seeds)
-        if (existing / training.RUN).exists():
-            run = runner.open_run(existing, load_state=False)  # a finished run needs no checkpoint to be reported
+        existing = folder / session.run_name(env.spec.name, algo, seeds)
+        if (existing / record.RUN).exists():
+            run = session.open_run(existing, load_state=False)  # a finished run needs no checkpoint to be reported
             if run.config.model_dump() != configs[algo].model_dump() or run.seeds != seeds:
-                raise training.RunError(f"{existing} holds a {algo} run with other settings (config or seeds); "
+                raise record.RunError(f"{existing} holds a {algo} run with other settings (config or seeds); "
                                         "compare into another --out, or delete it")
             if not run.finished:
-                run = runner.open_run(existing)
+                run = session.open_run(existing)
         else:
-            run = runner.new_run(source, algo, seeds, configs[algo], folder)
+            run = session.new_run(source, algo, seeds, configs[algo], folder)
         result.append(run)
     return folder, result
 
 
-def curves(run: runner.Run) -> dict:
+def curves(run: session.Run) -> dict:
     """Per evaluation: env steps, wall seconds, and success_any / time_at_goal / closest_distance over the
     seeds (closest_distance NaN in rows written before it was logged)."""
     evals = sorted({r["eval"] for r in run.rows})
@@ -67,7 +67,7 @@ def curves(run: runner.Run) -> dict:
     return out
 
 
-def summary(runs_: list[runner.Run]) -> list[dict]:
+def summary(runs_: list[session.Run]) -> list[dict]:
     """One row per algorithm: the last evaluation (mean and spread over seeds), the best one, the speed
     (the median over chunks, as the first one also compiles)."""
     table = []
@@ -89,7 +89,7 @@ def _finite(x: float) -> float | None:
     return None if np.isnan(x) else float(x)
 
 
-def plot(runs_: list[runner.Run], path: Path, title: str) -> None:
+def plot(runs_: list[session.Run], path: Path, title: str) -> None:
     """success_any against env steps and against wall-clock seconds, time at goal and the closest approach
     to the goal against env steps: the mean over seeds, with the seeds' range shaded."""
     import matplotlib
@@ -111,10 +111,10 @@ def plot(runs_: list[runner.Run], path: Path, title: str) -> None:
                 title="against time")
     axes[2].set(xlabel="env steps", ylabel="steps at goal per episode", title="time at goal")
     axes[3].set(xlabel="env steps", ylabel="distance", title="closest approach to the goal")
-    training.save_figure(fig, axes, title, path)
+    plots.save_figure(fig, axes, title, path)
 
 
-def report(runs_: list[runner.Run], folder: Path, console: Console) -> None:
+def report(runs_: list[session.Run], folder: Path, console: Console) -> None:
     """compare.png, compare.json and the table in the terminal."""
     field = runs_[0].env.spec.name
     rows, seeds = summary(runs_), len(runs_[0].seeds)

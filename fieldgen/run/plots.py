@@ -1,0 +1,83 @@
+"""success.png: a run's success, time at goal and closest approach against env steps, and the figure
+conventions every fieldgen plot shares."""
+
+from __future__ import annotations
+
+import io
+from pathlib import Path
+
+import numpy as np
+
+from fieldgen.files import write_atomic
+from fieldgen.run.record import PLOT
+
+
+# metric -> (axis label, panel title, y limits or None); a panel is drawn where the rows have the metric
+PANELS = {"success_any": ("success_any", "episodes with a success", (-0.02, 1.02)),
+          "time_at_goal": ("steps at goal per episode", "time at goal", None),
+          "closest_distance": ("distance", "closest approach to the goal", None)}
+
+
+def plot_success(run_dir: Path, rows: list[dict], title: str) -> None:
+    """success_any, time_at_goal and closest_distance against env steps: one line per seed; for a
+    staged curriculum one colour per stage and a line for the last stage; for a mixed one a line per stage."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    metrics = [m for m in PANELS if any(m in r for r in rows)]
+    fig, axes = plt.subplots(1, len(metrics), figsize=(5 * len(metrics), 3.6))
+    panels = dict(zip(metrics, axes))
+    (_plot_variants if "variants" in rows[0] else _plot_groups)(panels, rows)
+    for metric, ax in panels.items():
+        label, name, limits = PANELS[metric]
+        ax.set(xlabel="env steps", ylabel=label, title=name, ylim=limits)
+    save_figure(fig, axes, title, run_dir / PLOT)
+
+
+def save_figure(fig, axes, title: str, path: Path) -> None:
+    """Grids, legends where there are labels, the title; then the PNG, written atomically."""
+    import matplotlib.pyplot as plt
+
+    for ax in axes:
+        ax.grid(alpha=0.3)
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(fontsize=8)
+    fig.suptitle(title)
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=100)
+    plt.close(fig)
+    write_atomic(path, buf.getvalue())
+
+
+def _series(rows: list[dict], metric: str) -> tuple[list, list]:
+    """(env steps, values) of the rows that have the metric (a run resumed from older code may lack it)."""
+    have = [r for r in rows if metric in r]
+    return [r["env_steps"] for r in have], [r[metric] for r in have]
+
+
+def _plot_groups(panels: dict, rows: list[dict]) -> None:
+    """A line per seed, or the points of each stage of a staged run and its last stage's line."""
+    staged = "stage" in rows[0]
+    groups = list(dict.fromkeys(r["stage"] if staged else r.get("seed", 0) for r in rows))
+    for group in groups:
+        mine = [r for r in rows if (r["stage"] if staged else r.get("seed", 0)) == group]
+        label = f"stage {group + 1}" if staged else (f"seed {group}" if len(groups) > 1 else None)
+        for metric, ax in panels.items():
+            ax.plot(*_series(mine, metric), marker="o", ls="" if staged else "-", label=label)
+    if staged:
+        panels["success_any"].plot(*_series(rows, "last_stage_success_any"), color="black", label="last stage")
+
+
+def _plot_variants(panels: dict, rows: list[dict]) -> None:
+    """A mixed run: one line per stage (mean over seeds), the last stage in black."""
+    count = len(rows[0]["variants"]["success_any"])
+    steps = sorted({r["env_steps"] for r in rows})
+    for k in range(count):
+        last = k == count - 1
+        style = {"color": "black", "lw": 2} if last else {}
+        for metric, ax in panels.items():
+            values = [np.mean([r["variants"][metric][k] for r in rows if r["env_steps"] == s]) for s in steps]
+            ax.plot(steps, values, marker="o", label=f"stage {k + 1}" + (" (last)" if last else ""), **style)

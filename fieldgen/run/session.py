@@ -1,0 +1,151 @@
+"""A training run's folder as an object: a new run set up (its fields built and copied in, its config
+checked before anything compiles), an existing one opened with its last checkpoint, or a run's policy
+put on another field of the same layout."""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import json
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+
+import fieldgen
+from fieldgen import curriculum
+from fieldgen.agents import checkpoint, loop, registry, sharding
+from fieldgen.compile.artifact import ArtifactError, write_artifact
+from fieldgen.compile.variants import VariantError, compile_variants
+from fieldgen.curriculum.promotion import Promotion
+from fieldgen.run import record
+
+FIELD, STAGES = "field", "stages"  # the run's own copies of its built fields: resuming needs no compiler
+
+
+@dataclasses.dataclass
+class Run:
+    folder: Path
+    algo: str
+    envs: list  # one per stage; a plain run has one
+    config: object
+    seeds: list[int]
+    rows: list[dict]
+    promotion: Promotion = Promotion()
+    state: object = None  # the checkpointed training state of a resumed run
+    stage: int = 0  # the stage the next chunk trains on
+    mixed: bool = False  # a curriculum trained all at once: every environment carries its own stage
+
+    @property
+    def finished(self) -> bool:
+        return bool(self.rows) and self.rows[-1]["eval"] >= self.config.num_evals
+
+    @property
+    def env(self):
+        """The field a run is judged on: its only one, or a curriculum's last stage."""
+        return self.envs[-1]
+
+    @functools.cached_property
+    def trainers(self) -> list[loop.Trainer]:
+        """What trains: one trainer per stage, or for a mixed run one on all stages batched together."""
+        make_train = registry.trainer(self.algo).make_train
+        if self.mixed:
+            return [make_train(self.config, fieldgen.FieldEnv([e.artifact for e in self.envs]))]
+        return [make_train(self.config, env) for env in self.envs]
+
+    def judge(self) -> loop.Trainer:
+        """The trainer evaluated on the field the run is judged on."""
+        if not self.mixed:
+            return self.trainers[-1]
+        return registry.trainer(self.algo).make_train(self.config, self.env)
+
+
+def run_name(field: str, algo: str, seeds: list[int]) -> str:
+    suffix = str(seeds[0]) if len(seeds) == 1 else f"{seeds[0]}to{seeds[-1]}"
+    return f"{field}-{algo}-{suffix}"
+
+
+def new_run(source: Path, algo: str, seeds: list[int], config, out: Path, mixed: bool = False) -> Run:
+    """A run folder for a field (a YAML file or a build folder) or a curriculum folder (staged, or mixed:
+    every stage in one batch, built to one structure)."""
+    promotion, name = Promotion(), None
+    if curriculum.is_curriculum(source):
+        try:
+            c = curriculum.load(source)
+            specs = c.specs()
+            if mixed:
+                envs = [fieldgen.FieldEnv(a) for a in compile_variants(specs)]
+            else:
+                envs = [fieldgen.make(s) for s in specs]
+        except (curriculum.CurriculumError, VariantError) as exc:
+            raise record.RunError(str(exc)) from None
+        promotion, name = c.promotion, source.name + ("-mixed" if mixed else "")
+        layouts = {json.dumps(e.layout.to_json()) for e in envs}
+        if len(layouts) > 1:
+            raise record.RunError(f"{source}: the stages' observation layouts differ; a policy cannot move between them")
+    else:
+        if mixed:
+            raise record.RunError(f"{source} is a single field; --mixed trains the stages of a curriculum folder")
+        envs = [fieldgen.make(source)]
+    folder = out / run_name(name or envs[0].spec.name, algo, seeds)
+    if (folder / record.RUN).exists():
+        raise record.RunError(f"{folder} already holds a run; continue it with --resume {folder}, "
+                                "or pick another --seed or --out")
+    for env in envs:
+        config.validate_env(env, sharding.device_count(), len(seeds))
+    folder.mkdir(parents=True, exist_ok=True)
+    dirs = [FIELD] if len(envs) == 1 else [f"{STAGES}/{k + 1:02d}" for k in range(len(envs))]
+    for env, sub in zip(envs, dirs):
+        write_artifact(env.artifact, folder / sub)
+    record.write_run(folder, envs[-1].spec.model_dump(mode="json"), algo, config, envs[0].layout.to_json(), seeds,
+                       {"fields": dirs, "promotion": dataclasses.asdict(promotion), "mixed": mixed})
+    return Run(folder, algo, envs, config, seeds, [], promotion, mixed=mixed)
+
+
+def open_run(folder: Path, load_state: bool = True) -> Run:
+    """A run folder with its fields loaded from the run's own copies and (with load_state) its last
+    checkpoint; without, the run's record and metrics alone, enough to report on a finished run."""
+    saved = record.read_run(folder)
+    envs = []
+    for sub in saved.get("fields", [FIELD]):
+        try:
+            envs.append(fieldgen.make(folder / sub))
+        except ArtifactError as exc:
+            raise record.RunError(f"{folder / sub}: {exc}") from None
+    if any(saved["observation"] != env.layout.to_json() for env in envs):
+        raise record.RunError(f"{folder} was trained on a different observation layout than its fields give now")
+    config = registry.trainer(saved["algo"]).config.layered(**saved["config"])
+    seeds = saved.get("seeds", [config.seed])
+    rows = record.read_metrics(folder)
+    run = Run(folder, saved["algo"], envs, config, seeds, rows, Promotion(**saved.get("promotion", {})),
+              mixed=saved.get("mixed", False))
+    if not load_state or not (folder / record.CHECKPOINT).exists() and not rows:
+        return run  # only reported on, or set up by `fieldgen train --prepare` and never started
+    if rows and not run.mixed:
+        run.stage = rows[-1].get("promoted_to", rows[-1].get("stage", 0))
+    keys = jnp.stack([jax.random.PRNGKey(s) for s in seeds])
+    template = jax.eval_shape(jax.vmap(run.trainers[run.stage].start), keys)
+    try:
+        run.state = checkpoint.load(folder / record.CHECKPOINT, template)
+    except checkpoint.CheckpointError as exc:
+        raise record.RunError(str(exc)) from None
+    done = int(jax.device_get(run.state.env_steps)[0])
+    run.rows = [r for r in run.rows if r["env_steps"] <= done]
+    return run
+
+
+def on_field(run: Run, source: Path) -> Run:
+    """The run with its policy judged on another field (a YAML file or build folder) that observes and
+    acts alike: whether what it learnt carries over, e.g. from an easier variant to the field it stands for."""
+    try:
+        env = fieldgen.make(source)
+    except ArtifactError as exc:
+        raise record.RunError(f"{source}: {exc}") from None
+    if env.layout.to_json() != run.env.layout.to_json() or env.action_size != run.env.action_size:
+        raise record.RunError(
+            f"{source} observes or acts differently from {run.env.spec.name}, which {run.folder} was trained on "
+            f"(observation {env.observation_size} against {run.env.observation_size} values, actions "
+            f"{env.action_size} against {run.env.action_size}); a policy moves only between fields of one layout")
+    return dataclasses.replace(run, envs=[env], mixed=False, stage=0)
+
+

@@ -1,0 +1,94 @@
+"""Training a run in its folder: the chunks between evaluations, and after each a checkpoint, the
+metrics, the plot and a video, written beside training; a run whose numbers stop being finite stops."""
+
+from __future__ import annotations
+
+import math
+import time
+
+import jax
+from rich.console import Console
+
+from fieldgen.agents import checkpoint, loop
+from fieldgen.files import write_atomic
+from fieldgen.run import background, record
+from fieldgen.run.plots import plot_success
+from fieldgen.run.progress import TrainingProgress, rate, stats, summary
+from fieldgen.run.session import Run
+from fieldgen.run.videos import EpisodeRecorder, video_name
+
+
+def train(run: Run, console: Console, videos: bool = True) -> None:
+    """Train until the run's last evaluation; Ctrl-C leaves the last checkpoint intact."""
+    config, env = run.config, run.env
+    if run.state is not None and run.finished:
+        console.print(f"{run.folder} is already complete ({run.rows[-1]['env_steps']:,} env steps)")
+        return
+    trainers = run.trainers
+    recorders: dict[int, EpisodeRecorder] = {}
+    started = time.perf_counter() - (run.rows[-1].get("wall_seconds", 0.0) if run.rows else 0.0)  # over resumes
+    with TrainingProgress(console) as bar, background.Writer() as writer:
+        first = run.rows[-1]["env_steps"] if run.rows else 0
+        task = bar.add_task(env.spec.name, total=config.total_steps, completed=first, rate="compiling...", stats="")
+
+        def on_eval(state, index, stage, filmed):
+            writer.wait()  # one snapshot at a time in host memory; a failed write stops training here
+            snapshot = jax.device_get(state)
+            writer.submit(write_atomic, run.folder / record.CHECKPOINT, checkpoint.pieces(snapshot))
+            if filmed is not None:  # the episode just evaluated (a mixed run films its last stage)
+                filmed_stage, frames = filmed
+                if filmed_stage not in recorders:
+                    recorders[filmed_stage] = EpisodeRecorder(run.envs[-1 if run.mixed else filmed_stage])
+                recorder = recorders[filmed_stage]
+                writer.submit(recorder.save, run.folder, video_name(run.folder, index),
+                              recorder.episode(frames), console)
+
+        def progress(index, rows):
+            stop_if_diverged(run, index, rows)
+            memory = peak_memory_mb()
+            for row in rows:
+                row["wall_seconds"] = time.perf_counter() - started
+                if memory is not None:
+                    row["peak_memory_mb"] = memory
+            run.rows.extend(rows)
+            record.write_metrics(run.folder, run.rows)
+            plot_success(run.folder, run.rows, f"{env.spec.name}: {run.algo}")
+            bar.update(task, completed=rows[0]["env_steps"], rate=rate(run.rows, config.total_steps),
+                       stats=stats(rows))
+
+        resume = (run.state, run.rows[-1]["eval"], run.stage) if run.state is not None else None
+        try:
+            loop.run_staged(trainers, run.seeds, config.num_evals, run.promotion.ready, progress, on_eval, resume,
+                            film=EpisodeRecorder.film if videos else None)
+            done = run.rows[-1]["env_steps"]  # whole iterations can stop short of --steps
+            bar.update(task, total=done, rate=rate(run.rows, done))
+        except KeyboardInterrupt:
+            if writer.busy:
+                console.print("finishing the checkpoint being written...")
+            writer.wait()
+            saved = (run.folder / record.CHECKPOINT).exists()
+            console.print(f"interrupted; {'the last checkpoint is intact' if saved else 'no checkpoint yet'}. "
+                          f"{'Continue' if saved else 'Start again'} with: fieldgen train --resume {run.folder}")
+            raise
+    summary(run, console)
+
+
+def stop_if_diverged(run: Run, index: int, rows: list[dict]) -> None:
+    """Stop a run whose metrics are no longer finite, before its metrics or checkpoint are written:
+    weights that are NaN never recover, and the checkpoint already on disk is still a sound one."""
+    for row in rows:
+        bad = sorted(k for k, v in row.items() if isinstance(v, float) and not math.isfinite(v))
+        if bad:
+            kept = f"evaluation {index - 1}'s checkpoint and metrics" if index > 0 else "no checkpoint"
+            raise record.RunError(
+                f"training diverged: after {row['env_steps']:,} env steps (evaluation {index}) seed {row['seed']}'s "
+                f"{', '.join(bad)} {'is' if len(bad) == 1 else 'are'} not finite. Nothing of that evaluation was "
+                f"written; {run.folder} keeps {kept}. Train again with smaller learning rates (--set) "
+                f"or another --seed")
+
+
+def peak_memory_mb() -> float | None:
+    """The largest peak of bytes in use over the local devices, where the backend reports it (GPUs do)."""
+    peaks = [(d.memory_stats() or {}).get("peak_bytes_in_use") for d in jax.local_devices()]
+    peaks = [p for p in peaks if p is not None]
+    return max(peaks) / 2**20 if peaks else None

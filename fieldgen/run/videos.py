@@ -1,0 +1,94 @@
+"""Videos of a run's evaluation episodes: filmed inside the evaluation, drawn by mujoco's renderer,
+or kept as joint positions (.npz) where nothing renders and drawn later."""
+
+from __future__ import annotations
+
+import io
+from pathlib import Path
+
+import jax
+import numpy as np
+
+from fieldgen.files import write_atomic
+from fieldgen.run.record import VIDEOS
+
+
+def video_name(run_dir: Path, index: int) -> Path:
+    """Where the video of evaluation `index` goes, without its suffix: videos/eval_NNN."""
+    (run_dir / VIDEOS).mkdir(exist_ok=True)
+    return run_dir / VIDEOS / f"eval_{index:03d}"
+
+
+class EpisodeRecorder:
+    """Videos of a policy's deterministic episode, filmed by its evaluation (`film`, passed to
+    agents.loop's evaluation) and drawn by mujoco's renderer."""
+
+    def __init__(self, env, camera: str = "follow"):
+        self.env, self.camera, self.broken = env, camera, False
+
+    @staticmethod
+    def film(env_state) -> tuple:
+        """What a frame needs of a batch of environment states: joint positions and mocap bodies (targets)."""
+        return env_state.pipeline_state.qpos, env_state.pipeline_state.mocap_pos
+
+    def episode(self, filmed) -> dict:
+        """An evaluation's filmed episode ((qpos, mocap_pos), done), cut at its end to at most ~300
+        frames: {qpos [T, nq], mocap_pos [T, nmocap, 3], fps}."""
+        (qpos, mocap), done = (jax.tree.map(np.asarray, x) for x in filmed)
+        end = int(np.argmax(done)) + 1 if done.any() else self.env.episode_length
+        stride = max(1, end // 300)
+        return {"qpos": qpos[:end:stride], "mocap_pos": mocap[:end:stride], "fps": 1 / (self.env.dt * stride)}
+
+    def save(self, run_dir: Path, name: Path, episode: dict, console) -> int | None:
+        """name.gif, and its frame count. A machine that cannot render keeps the episode instead (name.npz,
+        drawn later by `fieldgen videos` where a renderer works), with one warning, and returns None."""
+        if not self.broken:
+            try:
+                data, frames = draw_episode(self.env.mj_model, episode, self.camera)
+                write_atomic(name.with_suffix(".gif"), data)
+                return frames
+            except Exception as exc:  # noqa: BLE001 - renderer back ends fail in many ways
+                self.broken = True
+                console.print(f"[yellow]warning:[/] cannot render here ({exc}); keeping episodes as .npz files "
+                              f"where their videos would be: draw them with `fieldgen videos {run_dir}` "
+                              "on a machine that renders")
+        buf = io.BytesIO()
+        np.savez(buf, field=self.env.spec.name, camera=self.camera, **episode)
+        write_atomic(name.with_suffix(".npz"), buf.getvalue())
+        return None
+
+
+def draw_episode(model, episode, camera: str) -> tuple[bytes, int]:
+    """GIF bytes of a recorded episode ({qpos, mocap_pos, fps}) and its frame count."""
+    from fieldgen.render import gif_bytes, render_rollout
+
+    frames = render_rollout(model, episode["qpos"], episode["mocap_pos"], camera)
+    return gif_bytes(frames, fps=float(episode["fps"])), len(frames)
+
+
+def kept_episodes(run_dir: Path) -> list[Path]:
+    """The episodes a run kept where nothing could render: videos/eval_NNN.npz, and eval*.npz of `fieldgen eval`."""
+    return sorted((run_dir / VIDEOS).glob("eval_*.npz")) + sorted(run_dir.glob("eval*.npz"))
+
+
+def draw_kept(path: Path, models: dict) -> tuple[str, int | None]:
+    """Draw a kept episode as the GIF beside it, with the model of the field it records (`models`: field
+    name -> MjModel). Returns (the field, frames drawn), frames None where the GIF was already there."""
+    from fieldgen.run.record import RunError
+
+    try:
+        with np.load(path) as kept:
+            played, camera, episode = str(kept["field"]), str(kept["camera"]), dict(kept)
+    except (OSError, ValueError, KeyError) as exc:
+        raise RunError(f"{path} is not an episode kept by fieldgen train ({exc}); delete it or train again") from None
+    if played not in models:
+        raise RunError(f"{path} records field '{played}', which is not one of this run's fields "
+                       f"({', '.join(models)}); pass its YAML file, bundled name or build folder: "
+                       f"fieldgen videos {path.parent if path.parent.name != VIDEOS else path.parent.parent} "
+                       "--field SPEC")
+    gif = path.with_suffix(".gif")
+    if gif.exists():
+        return played, None
+    data, frames = draw_episode(models[played], episode, camera)
+    write_atomic(gif, data)
+    return played, frames
