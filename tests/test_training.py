@@ -267,20 +267,20 @@ def test_a_machine_that_cannot_render_keeps_episodes_for_fieldgen_videos(tmp_pat
     for index in (0, 1):
         _, filmed = loop.evaluate_policy(env, hold, jax.random.PRNGKey(index), 2, videos.EpisodeRecorder.film)
         recorder.save(run_dir, videos.video_name(run_dir, index), recorder.episode(filmed), console)
-    kept = run_dir / record.VIDEOS
-    assert sorted(p.name for p in kept.iterdir()) == ["eval_000.npz", "eval_001.npz"]
+    folder = run_dir / record.VIDEOS
+    assert sorted(p.name for p in folder.iterdir()) == ["eval_000.npz", "eval_001.npz"]
     assert console.export_text().count("cannot render here (no OpenGL here)") == 1
     monkeypatch.undo()
 
     drawn = runner.invoke(app, ["videos", str(run_dir)])
     assert drawn.exit_code == 0, drawn.output
-    with np.load(videos / "eval_000.npz") as kept:
+    with np.load(folder / "eval_000.npz") as kept:
         frames = len(kept["qpos"])
         assert kept["qpos"][-1, 0] > kept["qpos"][0, 0] + 0.5  # the held action moved the point along +x
-    assert iio.imread(videos / "eval_000.gif", index=None).shape[0] == frames
+    assert iio.imread(folder / "eval_000.gif", index=None).shape[0] == frames
     assert "already drawn" in runner.invoke(app, ["videos", str(run_dir)]).output
-    (videos / "eval_001.gif").unlink()
-    (videos / "eval_001.npz").write_bytes(b"truncated")
+    (folder / "eval_001.gif").unlink()
+    (folder / "eval_001.npz").write_bytes(b"truncated")
     broken = runner.invoke(app, ["videos", str(run_dir)])
     assert broken.exit_code == 1 and "eval_001.npz is not an episode kept by fieldgen train" in broken.output
 
