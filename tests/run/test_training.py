@@ -186,7 +186,7 @@ def test_cli_run_folder_and_resume_of_a_finished_run(tmp_path, monkeypatch):
     assert iio.imread(run / "eval_point_nav_short.gif", index=None).shape[0] == 40
 
 
-@pytest.mark.parametrize("path", sorted((Path(__file__).parents[1] / "configs").glob("*.yaml")), ids=lambda p: p.name)
+@pytest.mark.parametrize("path", sorted((Path(__file__).parents[2] / "configs").glob("*.yaml")), ids=lambda p: p.name)
 def test_bundled_config_files_hold_only_known_keys(path):
     import yaml
 

@@ -1,6 +1,6 @@
 """MJX against MuJoCo C on the same start and action sequence.
 
-Run as a script (`python tests/backends.py FIELD STEPS`) it prints the largest
+Run as a script (`python tests/env/backends.py FIELD STEPS`) it prints the largest
 qpos difference, so a test can run it in a float64 JAX process.
 """
 

@@ -81,7 +81,7 @@ def test_two_devices_match_one(seed_one):
     _, one = seed_one
     env = {**os.environ, "XLA_FLAGS": "--xla_force_host_platform_device_count=2", "JAX_PLATFORMS": "cpu"}
     proc = subprocess.run([sys.executable, "-c", TWO_DEVICES], env=env, capture_output=True, text=True,
-                          cwd=Path(__file__).parent.parent, timeout=600)
+                          cwd=Path(__file__).parents[2], timeout=600)
     assert proc.returncode == 0, proc.stderr[-3000:]
     runs = json.loads(proc.stdout.strip().splitlines()[-1])
     for seeds, split_axis, rel in (("1", 2, 2e-3), ("2", 0, 1e-4)):  # buffer columns: [seeds, rows, envs, ...]
