@@ -18,8 +18,14 @@ POINT_RADIUS = 0.25
 
 
 @dataclass(frozen=True)
-class Box:
+class Part:
+    """A named solid or decorative piece of the field."""
+
     name: str
+
+
+@dataclass(frozen=True)
+class Box(Part):
     center: tuple[float, float, float]
     half: tuple[float, float, float]
     solid: bool
@@ -30,8 +36,7 @@ class Box:
 
 
 @dataclass(frozen=True)
-class Capsule:
-    name: str
+class Capsule(Part):
     start: tuple[float, float, float]
     end: tuple[float, float, float]
     radius: float
