@@ -89,13 +89,17 @@ def test_diagonal_and_its_gradient():
 
 
 @pytest.mark.slow
-def test_crl_learns_point_nav(env_cache):
-    """From an untrained policy to reaching a random target 3 away in at least 80% of episodes, in 40k steps."""
+@pytest.mark.parametrize("network", [dict(hidden=(64, 64)),
+                                     dict(hidden=(64, 64, 64), skip_every=2, layer_norm=True)],
+                         ids=["mlp", "residual_layer_norm"])
+def test_crl_learns_point_nav(env_cache, network):
+    """From an untrained policy to reaching a random target 3 away in at least 80% of episodes, in 40k steps,
+    with the plain MLPs and with residual blocks of Dense -> LayerNorm -> swish."""
     from fieldgen.agents.crl import CRLConfig, make_train
     from fieldgen.agents.loop import run
 
     config = CRLConfig(total_steps=40_000, num_envs=16, unroll_length=25, batch_size=64, windows=64, min_replay_rows=100,
-                       max_replay_rows=2000, hidden=(64, 64), repr_dim=16, num_evals=3, eval_envs=32)
+                       max_replay_rows=2000, repr_dim=16, num_evals=3, eval_envs=32, **network)
     _, history = run(make_train(config, env_cache("point_nav")), [0], config.num_evals)
     assert history[0]["success_any"] <= 0.3
     assert history[-1]["success_any"] >= 0.8
