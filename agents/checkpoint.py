@@ -2,12 +2,15 @@
 
 The state's structure comes from a template built the same way as the saved
 run (same config, same environment), so loading checks that every leaf's shape
-and dtype match and says which one does not. Writing the bytes to disk (and
-doing it atomically) is the caller's business.
+and dtype match and says which one does not. The last entry is the SHA-256 of
+every byte before it, so damage on disk or in a copy is found at load, not
+mistaken later for training that diverged. Writing the bytes to disk (and doing
+it atomically) is the caller's business.
 """
 
 from __future__ import annotations
 
+import hashlib
 from pathlib import Path
 from typing import Iterator
 
@@ -17,6 +20,8 @@ import numpy as np
 from flax import serialization
 
 BLOCK_BYTES = 16 * 2**20  # a larger leaf (a replay buffer) is stored as a map of row blocks of about this size
+DIGEST = "sha256"  # the key of the checksum entry, last in the map
+_TRAILER = len(msgpack.packb(DIGEST)) + len(msgpack.packb("0" * 64))  # its bytes at the end of the file
 
 
 class CheckpointError(Exception):
@@ -24,15 +29,24 @@ class CheckpointError(Exception):
 
 
 def pieces(state) -> Iterator[bytes]:
-    """The checkpoint of `state`, a msgpack map from leaf index to leaf, as consecutive pieces of bytes.
+    """The checkpoint of `state`, a msgpack map from leaf index to leaf, as consecutive pieces of bytes,
+    closed by the checksum of all of them.
 
     Each leaf, and each row block of a leaf over BLOCK_BYTES, is serialized by flax on its own. Python's
     lock is then held for one block at a time rather than for the whole state: serializing a gigabyte
     in one call would stall the training thread beside it for seconds. Written one after another,
     the pieces also never hold a second copy of the whole state in memory."""
+    digest = hashlib.sha256()
+    for piece in _leaf_pieces(state):
+        digest.update(piece)
+        yield piece
+    yield msgpack.packb(DIGEST) + msgpack.packb(digest.hexdigest())
+
+
+def _leaf_pieces(state) -> Iterator[bytes]:
     leaves = [np.asarray(x) for x in jax.tree.leaves(jax.device_get(state))]
     packer = msgpack.Packer()
-    yield packer.pack_map_header(len(leaves))
+    yield packer.pack_map_header(len(leaves) + 1)
     for i, leaf in enumerate(leaves):
         yield packer.pack(str(i))
         if leaf.nbytes <= BLOCK_BYTES or leaf.ndim == 0:
@@ -56,12 +70,19 @@ def load(path: Path, template):
         blob = path.read_bytes()
     except FileNotFoundError:
         raise CheckpointError(f"no checkpoint at {path}") from None
+    except OSError as exc:
+        raise CheckpointError(f"cannot read the checkpoint {path}: {exc.strerror}") from None
+    corrupt = (f"checkpoint corrupt: {path} was damaged after it was written (on disk or in a copy); "
+               "restore it from a copy, or start the run again in a new folder")
     try:
         saved = serialization.msgpack_restore(blob)
-        leaves = [_joined(saved[str(i)]) for i in range(len(saved))]
-    except Exception as exc:  # msgpack raises many types on damaged input
-        raise CheckpointError(f"{path} is not a readable checkpoint ({type(exc).__name__}); "
-                              "it may be truncated or corrupt") from None
+        if DIGEST in saved and saved[DIGEST] != hashlib.sha256(blob[:-_TRAILER]).hexdigest():
+            raise CheckpointError(corrupt)
+        leaves = [_joined(saved[str(i)]) for i in range(len(saved) - (DIGEST in saved))]
+    except CheckpointError:
+        raise
+    except Exception:  # msgpack raises many types on damaged input
+        raise CheckpointError(f"{corrupt}; it may also be truncated") from None
     expected, treedef = jax.tree.flatten(template)
     if len(leaves) != len(expected):
         raise CheckpointError(f"{path} holds {len(leaves)} arrays but this run has {len(expected)}: "

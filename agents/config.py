@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Annotated, ClassVar, Literal, Sequence
 
 import yaml
-from pydantic import BaseModel, BeforeValidator, ConfigDict, StrictBool, ValidationError
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, StrictBool, ValidationError
 
 from ..suggest import did_you_mean
 from .buffer import gradient_steps, iterations
@@ -53,8 +53,14 @@ def _listed(value):
 
 
 Int = Annotated[int, BeforeValidator(_number)]
-Float = Annotated[float, BeforeValidator(_number)]
-Hidden = Annotated[tuple[Int, ...], BeforeValidator(_listed)]
+Count = Annotated[Int, Field(gt=0)]  # how many of something: at least one
+Float = Annotated[float, BeforeValidator(_number), Field(allow_inf_nan=False)]
+Rate = Annotated[Float, Field(gt=0)]  # a learning rate, a step size, a scale
+Share = Annotated[Float, Field(ge=0, le=1)]
+Discount = Annotated[Float, Field(gt=0, lt=1)]
+Hidden = Annotated[tuple[Count, ...], BeforeValidator(_listed), Field(min_length=1)]
+BOUNDS = {"greater_than": ("greater than", "gt"), "greater_than_equal": ("at least", "ge"),
+          "less_than": ("less than", "lt"), "less_than_equal": ("at most", "le")}
 Reward = Annotated[Literal[REWARDS], Unknown(
     "unknown reward '{}'; choose dense (the field's terms) or sparse (its success)")]
 Spread = Annotated[Literal[SPREADS], Unknown(
@@ -66,18 +72,31 @@ Grouping = Annotated[Literal[GROUPINGS], Unknown(
     f"icrl.agents: unknown grouping '{{}}'; choose one of {', '.join(GROUPINGS)}")]
 
 
+def _allowed(error: dict, field) -> str:
+    """What a config value must be, in words, from pydantic's first complaint about it."""
+    if error["type"] in BOUNDS:
+        phrase, key = BOUNDS[error["type"]]
+        return f"must be {phrase} {error['ctx'][key]}"
+    if error["type"] == "finite_number":
+        return "must be a finite number"
+    kind = typing.get_origin(field.annotation) or field.annotation
+    words = {int: "a whole number", float: "a number", bool: "true or false",
+             tuple: "a list of layer widths, whole numbers above 0"}
+    return f"must be {words.get(kind, kind.__name__)}"
+
+
 class RunConfig(BaseModel):
     """What every trainer is told: how long and how wide to train, how often to judge, its seed."""
 
     model_config = ConfigDict(frozen=True, extra="forbid")
     algo: ClassVar[str]  # the trainer's name: its section of a config file and its --set prefix
 
-    total_steps: Int = 10_000_000
-    num_envs: Int = 1024
-    unroll_length: Int = 62  # env steps per environment between updates
-    num_evals: Int = 10
-    eval_envs: Int = 128
-    seed: Int = 0
+    total_steps: Count = 10_000_000
+    num_envs: Count = 1024
+    unroll_length: Count = 62  # env steps per environment between updates
+    num_evals: Count = 10
+    eval_envs: Count = 128
+    seed: Annotated[Int, Field(ge=0)] = 0
 
     @classmethod
     def layered(cls, file: Path | None = None, sets: Sequence[str] = (), others: tuple[str, ...] = (),
@@ -131,8 +150,8 @@ class RunConfig(BaseModel):
             if exc.errors()[0]["type"] == "literal_error":
                 unknown = next(m for m in fields[key].metadata if isinstance(m, Unknown))
                 raise ConfigError(unknown.message.format(value)) from None
-            kind = typing.get_origin(fields[key].annotation) or fields[key].annotation
-            raise ConfigError(f"{where}: '{value}' is not a valid {kind.__name__}") from None
+            raise ConfigError(f"{where}: {cls.algo}.{key} {_allowed(exc.errors()[0], fields[key])}, "
+                              f"not {value!r}") from None
 
     def validate_env(self, env, devices: int = 1, seeds: int = 1) -> None:
         """Problems a run would hit after compiling, reported before. `seeds` trained at once on `devices`
@@ -150,18 +169,18 @@ class RunConfig(BaseModel):
 class PPOConfig(RunConfig):
     algo: ClassVar[str] = "ppo"
 
-    total_steps: Int = 50_000_000
-    num_envs: Int = 2048
-    unroll_length: Int = 20
-    num_minibatches: Int = 32
-    update_epochs: Int = 4
-    learning_rate: Float = 3e-4
-    discount: Float = 0.97
-    gae_lambda: Float = 0.95
-    clip: Float = 0.3
-    entropy_coef: Float = 1e-2
-    value_coef: Float = 0.5
-    max_grad_norm: Float = 1.0
+    total_steps: Count = 50_000_000
+    num_envs: Count = 2048
+    unroll_length: Count = 20
+    num_minibatches: Count = 32
+    update_epochs: Count = 4
+    learning_rate: Rate = 3e-4
+    discount: Discount = 0.97
+    gae_lambda: Share = 0.95
+    clip: Rate = 0.3
+    entropy_coef: Annotated[Float, Field(ge=0)] = 1e-2
+    value_coef: Rate = 0.5
+    max_grad_norm: Rate = 1.0
     hidden: Hidden = (256, 256)
     # state: the policy network's softplus head (brax's); global: one learned log-std per action
     spread: Spread = "state"
@@ -183,14 +202,14 @@ class PPOConfig(RunConfig):
 class ReplayConfig(RunConfig):
     """What every trainer with a replay buffer of episode-long windows shares (CRL, SAC, TD3)."""
 
-    batch_size: Int = 256  # transitions per gradient step
-    windows: Int = 0  # episode-long trajectory windows sampled per iteration; 0: one per environment
+    batch_size: Count = 256  # transitions per gradient step
+    windows: Annotated[Int, Field(ge=0)] = 0  # episode-long trajectory windows sampled per iteration; 0: one per environment
     # (the reference), so an iteration makes windows x episode_length / batch_size gradient steps
-    min_replay_rows: Int = 1000  # time rows collected before updates start
-    max_replay_rows: Int = 10000
-    discount: Float = 0.99
-    actor_lr: Float = 3e-4
-    critic_lr: Float = 3e-4
+    min_replay_rows: Count = 1000  # time rows collected before updates start
+    max_replay_rows: Count = 10000
+    discount: Discount = 0.99
+    actor_lr: Rate = 3e-4
+    critic_lr: Rate = 3e-4
     hidden: Hidden = (256, 256)
     layer_norm: StrictBool = False
 
@@ -217,12 +236,12 @@ class ReplayConfig(RunConfig):
 class CRLConfig(ReplayConfig):
     algo: ClassVar[str] = "crl"
 
-    alpha_lr: Float = 3e-4
-    repr_dim: Int = 64
-    skip_every: Int = 0  # residual blocks of this many hidden layers after the first (agents.networks.MLP); 0: none
+    alpha_lr: Rate = 3e-4
+    repr_dim: Count = 64
+    skip_every: Annotated[Int, Field(ge=0)] = 0  # residual blocks of this many hidden layers after the first (agents.networks.MLP); 0: none
     energy: Energy = "norm"
     contrastive_loss: Loss = "fwd_infonce"
-    logsumexp_penalty: Float = 0.1
+    logsumexp_penalty: Annotated[Float, Field(ge=0)] = 0.1
     target_entropy_per_action: Float = -0.5
 
     def validate_env(self, env, devices: int = 1, seeds: int = 1) -> None:
@@ -253,16 +272,14 @@ class OffPolicyConfig(ReplayConfig):
     """SAC's and TD3's: twin critics with target networks, on the dense reward or the success, with
     hindsight relabelling."""
 
-    tau: Float = 0.005  # Polyak step of the target networks
+    tau: Annotated[Float, Field(gt=0, le=1)] = 0.005  # Polyak step of the target networks
     reward: Reward = "dense"  # dense: the field's weighted terms; sparse: its success metric
-    reward_scale: Float = 1.0
-    her: Float = 0.0  # share of goals relabelled from the episode's future (needs reward: sparse)
+    reward_scale: Rate = 1.0
+    her: Share = 0.0  # share of goals relabelled from the episode's future (needs reward: sparse)
 
     def validate_env(self, env, devices: int = 1, seeds: int = 1) -> None:
         super().validate_env(env, devices, seeds)
         algo = self.algo
-        if not 0 <= self.her <= 1:
-            raise ConfigError(f"{algo}.her {self.her} is a share of relabelled goals: between 0 and 1")
         if self.her and self.reward != "sparse":
             raise ConfigError(f"{algo}.her relabels goals and rescores them by the field's success; "
                               f"set {algo}.reward=sparse")
@@ -275,19 +292,14 @@ class OffPolicyConfig(ReplayConfig):
 class SACConfig(OffPolicyConfig):
     algo: ClassVar[str] = "sac"
 
-    alpha_lr: Float = 3e-4
+    alpha_lr: Rate = 3e-4
     target_entropy_per_action: Float = -1.0
 
 
 class TD3Config(OffPolicyConfig):
     algo: ClassVar[str] = "td3"
 
-    exploration_noise: Float = 0.1  # std of the Gaussian added to actions while collecting
-    policy_noise: Float = 0.2  # std of the smoothing noise on target actions
-    noise_clip: Float = 0.5
-    policy_delay: Int = 2  # critic steps per actor step (and target update)
-
-    def validate_env(self, env, devices: int = 1, seeds: int = 1) -> None:
-        super().validate_env(env, devices, seeds)
-        if self.policy_delay < 1:
-            raise ConfigError(f"td3.policy_delay must be at least 1, not {self.policy_delay}")
+    exploration_noise: Annotated[Float, Field(ge=0)] = 0.1  # std of the Gaussian added to actions while collecting
+    policy_noise: Annotated[Float, Field(ge=0)] = 0.2  # std of the smoothing noise on target actions
+    noise_clip: Annotated[Float, Field(ge=0)] = 0.5
+    policy_delay: Count = 2  # critic steps per actor step (and target update)

@@ -110,6 +110,9 @@ def build(
             continue
         except RenderError as exc:
             _fail(f"{exc}; or build without preview.png: fieldgen build {' '.join(specs)} --no-preview")
+        except OSError as exc:
+            _fail(f"{exc}; any earlier build there is unchanged: free some space, fix the folder's permissions "
+                  "or choose another --out")
         _report(result)
     if failed:
         raise typer.Exit(1)

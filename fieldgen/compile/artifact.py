@@ -1,9 +1,10 @@
 """The built artifact: scene.xml + field.json (+ preview.png) in build/<name>/.
 
 Loading an artifact needs mujoco and pydantic only, never dm_control, so a
-machine without dm_control can run fields built elsewhere. Files are written
-to a temporary name and renamed into place; field.json goes last and carries
-the input hash, so a half-written build is never mistaken for a cache hit.
+machine without dm_control can run fields built elsewhere. A build is written
+as a whole folder and swapped in (fieldgen.files.replace_folder), and field.json
+carries the input hash and the digest of the scene.xml beside it, so neither an
+interrupted build nor a scene from another spec is ever taken for a cache hit.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ from pathlib import Path
 
 import mujoco
 
-from fieldgen.files import write_atomic
+from fieldgen.files import replace_folder, write_atomic
 from fieldgen.version import VERSION
 from fieldgen.compile.contacts import candidate_pairs
 from fieldgen.compile.layout import Layout, observation_layout
@@ -62,6 +63,7 @@ class Artifact:
             "artifact_format": ARTIFACT_FORMAT,
             "compiler_digest": COMPILER_DIGEST,
             "hash": self.hash,
+            "scene_sha256": scene_digest(self.xml),
             "name": self.spec.name,
             "observation": layout.to_json(),
             "state_dim": layout.state_dim,
@@ -89,20 +91,30 @@ def compile_spec(spec: FieldSpec) -> Artifact:
     return Artifact(spec, build_scene(spec).to_xml_string(), spec_hash(spec))
 
 
+def scene_digest(xml: str) -> str:
+    return hashlib.sha256(xml.encode()).hexdigest()
+
+
 def is_current(out_dir: Path, digest: str) -> bool:
+    """Whether out_dir holds the build of inputs hashing to `digest`, its scene.xml the one field.json names."""
     try:
         meta = json.loads((out_dir / META).read_text())
+        xml = (out_dir / SCENE).read_text()
     except (OSError, ValueError):
         return False
-    return meta.get("hash") == digest and (out_dir / SCENE).is_file()
+    return isinstance(meta, dict) and meta.get("hash") == digest and meta.get("scene_sha256") == scene_digest(xml)
 
 
 def write_artifact(artifact: Artifact, out_dir: Path, preview: bytes | None = None) -> None:
-    out_dir.mkdir(parents=True, exist_ok=True)
-    write_atomic(out_dir / SCENE, artifact.xml.encode())
-    if preview is not None:
-        write_atomic(out_dir / PREVIEW, preview)
-    write_atomic(out_dir / META, (json.dumps(artifact.metadata(), indent=1) + "\n").encode())
+    """out_dir made anew with the artifact's files, in one swap (a failed write keeps the old build)."""
+
+    def fill(folder: Path) -> None:
+        write_atomic(folder / SCENE, artifact.xml.encode())
+        if preview is not None:
+            write_atomic(folder / PREVIEW, preview)
+        write_atomic(folder / META, (json.dumps(artifact.metadata(), indent=1) + "\n").encode())
+
+    replace_folder(out_dir, fill)
 
 
 def load_artifact(out_dir: str | Path) -> Artifact:
@@ -115,7 +127,13 @@ def load_artifact(out_dir: str | Path) -> Artifact:
                             "run `fieldgen build` on its spec") from None
     except ValueError as exc:
         raise ArtifactError(f"{out_dir / META} is not valid JSON ({exc}); rebuild the field") from None
-    if meta.get("artifact_format") != ARTIFACT_FORMAT:
-        raise ArtifactError(f"{out_dir} has artifact format {meta.get('artifact_format')}, "
+    except OSError as exc:
+        raise ArtifactError(f"{out_dir} cannot be read as a built field ({exc}); rebuild it with `fieldgen build`") from None
+    if not isinstance(meta, dict) or meta.get("artifact_format") != ARTIFACT_FORMAT:
+        found = meta.get("artifact_format") if isinstance(meta, dict) else None
+        raise ArtifactError(f"{out_dir} has artifact format {found}, "
                             f"this fieldgen reads format {ARTIFACT_FORMAT}; rebuild the field")
+    if "scene_sha256" in meta and meta["scene_sha256"] != scene_digest(xml):
+        raise ArtifactError(f"{out_dir / SCENE} is not the scene {out_dir / META} describes (an interrupted or "
+                            "mixed-up build); rebuild the field with `fieldgen build --force`")
     return Artifact(FieldSpec.model_validate(meta["spec"]), xml, meta["hash"])

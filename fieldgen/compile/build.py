@@ -7,6 +7,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from fieldgen.compile.artifact import Artifact, compile_spec, is_current, load_artifact, spec_hash, write_artifact
+from fieldgen.files import remove_leftovers
 from fieldgen.schema import load_spec
 
 DEFAULT_OUT = Path("build")
@@ -24,6 +25,8 @@ def build(spec_path: str | Path, out_root: Path = DEFAULT_OUT, preview: bool = T
     start = time.perf_counter()
     spec = load_spec(spec_path)
     out_dir = out_root / spec.name
+    if out_root.is_dir():
+        remove_leftovers(out_root, spec.name)  # of a build of this field that was killed midway
     if not force and is_current(out_dir, spec_hash(spec)):
         return BuildResult(out_dir, load_artifact(out_dir), True, time.perf_counter() - start)
     artifact = compile_spec(spec)

@@ -33,20 +33,46 @@ def write_run(run_dir: Path, field: dict, algo: str, config, layout: dict, seeds
     write_atomic(run_dir / RUN, (json.dumps(record, indent=1) + "\n").encode())
 
 
+REQUIRED = ("algo", "config", "observation")  # what run.json must hold to reopen a run
+
+
 def read_run(run_dir: Path) -> dict:
+    if not run_dir.is_dir():
+        what = "a file" if run_dir.exists() else "missing"
+        raise RunError(f"{run_dir} is {what}, not a run folder; --resume takes the folder fieldgen train wrote "
+                       "(runs/<field>-<algo>-<seed>)")
     try:
-        return json.loads((run_dir / RUN).read_text())
+        record = json.loads((run_dir / RUN).read_text())
     except FileNotFoundError:
         raise RunError(f"{run_dir} is not a training run: {RUN} is missing") from None
-    except ValueError as exc:
-        raise RunError(f"{run_dir / RUN} is not valid JSON ({exc})") from None
+    except (OSError, ValueError) as exc:
+        raise RunError(f"{run_dir / RUN} cannot be read as a run record ({exc})") from None
+    missing = [k for k in REQUIRED if not isinstance(record, dict) or k not in record]
+    if missing or not isinstance(record["config"], dict):
+        raise RunError(f"{run_dir / RUN} is not a run record: it lacks {', '.join(missing) or 'a config mapping'} "
+                       "(edited or damaged); start the run again in a new folder")
+    return record
 
 
 def read_metrics(run_dir: Path) -> list[dict]:
+    """The evaluation rows; a torn last line (a write cut short by a kill) is dropped, since the run
+    resumes from its checkpoint, which never comes after the last whole row."""
     path = run_dir / METRICS
     if not path.exists():
         return []
-    return [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
+    lines = [line for line in path.read_text().splitlines() if line.strip()]
+    rows = []
+    for n, line in enumerate(lines, 1):
+        try:
+            row = json.loads(line)
+        except ValueError:
+            if n == len(lines):
+                break
+            raise RunError(f"{path}:{n} is not a metrics row; the file was edited or damaged") from None
+        if not isinstance(row, dict) or not {"eval", "env_steps"} <= row.keys():
+            raise RunError(f"{path}:{n} is not a metrics row; the file was edited or damaged")
+        rows.append(row)
+    return rows
 
 
 def write_metrics(run_dir: Path, rows: list[dict]) -> None:

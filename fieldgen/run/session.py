@@ -15,9 +15,11 @@ import jax.numpy as jnp
 import fieldgen
 from fieldgen import curriculum
 from fieldgen.agents import checkpoint, loop, registry, sharding
+from fieldgen.agents.config import ConfigError
 from fieldgen.compile.artifact import ArtifactError, write_artifact
 from fieldgen.compile.variants import VariantError, compile_variants
 from fieldgen.curriculum.promotion import Promotion
+from fieldgen.files import remove_leftovers
 from fieldgen.run import record
 
 FIELD, STAGES = "field", "stages"  # the run's own copies of its built fields: resuming needs no compiler
@@ -88,17 +90,26 @@ def new_run(source: Path, algo: str, seeds: list[int], config, out: Path, mixed:
             raise record.RunError(f"{source} is a single field; --mixed trains the stages of a curriculum folder")
         envs = [fieldgen.make(source)]
     folder = out / run_name(name or envs[0].spec.name, algo, seeds)
-    if (folder / record.RUN).exists():
+    if (folder / record.CHECKPOINT).exists():
         raise record.RunError(f"{folder} already holds a run; continue it with --resume {folder}, "
                                 "or pick another --seed or --out")
     for env in envs:
         config.validate_env(env, sharding.device_count(), len(seeds))
-    folder.mkdir(parents=True, exist_ok=True)
     dirs = [FIELD] if len(envs) == 1 else [f"{STAGES}/{k + 1:02d}" for k in range(len(envs))]
-    for env, sub in zip(envs, dirs):
-        write_artifact(env.artifact, folder / sub)
-    record.write_run(folder, envs[-1].spec.model_dump(mode="json"), algo, config, envs[0].layout.to_json(), seeds,
-                       {"fields": dirs, "promotion": dataclasses.asdict(promotion), "mixed": mixed})
+    try:
+        # a folder without a checkpoint holds no training (prepared, or stopped before its first
+        # checkpoint): it is set up anew
+        folder.mkdir(parents=True, exist_ok=True)
+        remove_leftovers(folder)
+        for stale in (record.METRICS, record.CSV, record.PLOT):
+            (folder / stale).unlink(missing_ok=True)
+        for env, sub in zip(envs, dirs):
+            write_artifact(env.artifact, folder / sub)
+        record.write_run(folder, envs[-1].spec.model_dump(mode="json"), algo, config, envs[0].layout.to_json(),
+                         seeds, {"fields": dirs, "promotion": dataclasses.asdict(promotion), "mixed": mixed})
+    except OSError as exc:
+        raise record.RunError(f"cannot set up the run folder {folder}: {exc.strerror}; free some space, fix the "
+                              "folder's permissions or choose another --out") from None
     return Run(folder, algo, envs, config, seeds, [], promotion, mixed=mixed)
 
 
@@ -106,6 +117,7 @@ def open_run(folder: Path, load_state: bool = True) -> Run:
     """A run folder with its fields loaded from the run's own copies and (with load_state) its last
     checkpoint; without, the run's record and metrics alone, enough to report on a finished run."""
     saved = record.read_run(folder)
+    remove_leftovers(folder)
     envs = []
     for sub in saved.get("fields", [FIELD]):
         try:
@@ -114,13 +126,20 @@ def open_run(folder: Path, load_state: bool = True) -> Run:
             raise record.RunError(f"{folder / sub}: {exc}") from None
     if any(saved["observation"] != env.layout.to_json() for env in envs):
         raise record.RunError(f"{folder} was trained on a different observation layout than its fields give now")
-    config = registry.trainer(saved["algo"]).config.layered(**saved["config"])
+    try:
+        config = registry.trainer(saved["algo"]).config.layered(**saved["config"])
+    except (KeyError, ConfigError) as exc:
+        raise record.RunError(f"{folder / record.RUN} holds no usable config ({exc}); it was edited or damaged, "
+                              "or written by another version of fieldgen") from None
     seeds = saved.get("seeds", [config.seed])
     rows = record.read_metrics(folder)
     run = Run(folder, saved["algo"], envs, config, seeds, rows, Promotion(**saved.get("promotion", {})),
               mixed=saved.get("mixed", False))
-    if not load_state or not (folder / record.CHECKPOINT).exists() and not rows:
-        return run  # only reported on, or set up by `fieldgen train --prepare` and never started
+    if not load_state:
+        return run  # only reported on
+    if not (folder / record.CHECKPOINT).exists():
+        run.rows = []  # prepared, or stopped before its first checkpoint: it starts from the beginning
+        return run
     if rows and not run.mixed:
         run.stage = rows[-1].get("promoted_to", rows[-1].get("stage", 0))
     keys = jnp.stack([jax.random.PRNGKey(s) for s in seeds])

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import jax
 import numpy as np
+import pytest
 from flax import serialization
 
 from fieldgen.agents import checkpoint
@@ -19,7 +20,7 @@ def test_a_large_leaf_goes_in_row_blocks_and_comes_back_whole(tmp_path, monkeypa
     path = tmp_path / "checkpoint.msgpack"
     write_atomic(path, iter(pieces))
     saved = serialization.msgpack_restore(path.read_bytes())  # still flax's msgpack
-    assert sorted(saved) == ["0", "1", "2"] and len(saved["0"]) == 12 and isinstance(saved["1"], np.ndarray)
+    assert sorted(saved) == ["0", "1", "2", checkpoint.DIGEST] and len(saved["0"]) == 12 and isinstance(saved["1"], np.ndarray)
 
     # and a checkpoint written whole, as before row blocks, reads the same
     whole = tmp_path / "whole.msgpack"
@@ -29,3 +30,26 @@ def test_a_large_leaf_goes_in_row_blocks_and_comes_back_whole(tmp_path, monkeypa
         for got, want in zip(jax.tree.leaves(restored), jax.tree.leaves(state)):
             assert got.dtype == want.dtype
             np.testing.assert_array_equal(np.asarray(got), want)
+
+
+def test_flipped_bytes_or_a_folder_are_reported_as_such(tmp_path):
+    """A damaged checkpoint fails its checksum at load ("checkpoint corrupt"), wherever the damage lies;
+    a folder where the checkpoint should be is named, not a traceback."""
+    state = {"weights": np.linspace(0, 1, 4000, dtype=np.float32), "step": np.int32(7)}
+    template = jax.tree.map(lambda x: jax.ShapeDtypeStruct(np.shape(x), np.asarray(x).dtype), state)
+    path = tmp_path / "checkpoint.msgpack"
+    write_atomic(path, checkpoint.pieces(state))
+    good = path.read_bytes()
+    for where in (len(good) // 2, len(good) - 80):  # inside the weights; inside the small last leaf
+        damaged = bytearray(good)
+        damaged[where] ^= 0x10
+        path.write_bytes(bytes(damaged))
+        with pytest.raises(checkpoint.CheckpointError, match="checkpoint corrupt"):
+            checkpoint.load(path, template)
+    path.write_bytes(good[: len(good) // 3])
+    with pytest.raises(checkpoint.CheckpointError, match="checkpoint corrupt: .*truncated"):
+        checkpoint.load(path, template)
+    folder = tmp_path / "a_folder"
+    folder.mkdir()
+    with pytest.raises(checkpoint.CheckpointError, match=f"cannot read the checkpoint {folder}"):
+        checkpoint.load(folder, template)

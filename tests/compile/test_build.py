@@ -77,6 +77,46 @@ def test_incomplete_or_corrupt_artifact_is_a_clear_error(tmp_path):
         load_artifact(result.out_dir)
 
 
+def test_a_build_interrupted_after_its_scene_never_serves_the_wrong_one(tmp_path, write_spec):
+    """The failure a cache that trusts field.json allowed: a rebuild of one field into another's folder
+    stopped after writing its scene.xml. The old field.json then names a scene it does not describe: it
+    is no cache hit, and loading that folder says so. Killed builds' staging folders are cleared."""
+    a = write_spec("extends: point_nav\nname: same_name\n", "a.yaml")
+    b = write_spec("extends: point_nav\nname: same_name\nfield: {length: 30, width: 30}\n", "b.yaml")
+    out = tmp_path / "build"
+    built = build(a, out, preview=False)
+    (built.out_dir / "scene.xml").write_text(compile_spec(load_spec(b)).xml)  # the half-done rebuild
+    with pytest.raises(ArtifactError, match="scene.xml is not the scene .*field.json describes"):
+        load_artifact(built.out_dir)
+    (out / ".same_name.k1ll3d.tmp").mkdir()
+    again = build(a, out, preview=False)
+    assert not again.cache_hit and load_artifact(again.out_dir).xml == compile_spec(load_spec(a)).xml
+    assert sorted(p.name for p in out.iterdir()) == ["same_name"]
+
+
+@pytest.mark.parametrize("error", [(28, "No space left on device"), (13, "Permission denied")])
+def test_a_full_disk_or_a_read_only_folder_keeps_the_old_build(tmp_path, monkeypatch, error):
+    """A build that cannot be written is one sentence naming the folder and why, and the build that was
+    there is untouched (a read-only --out is simulated: the tests may run as root, whom modes do not stop)."""
+    from typer.testing import CliRunner
+
+    from fieldgen import files
+    from fieldgen.cli import app
+
+    built = build("fields/point_nav.yaml", tmp_path, preview=False)
+    before = {p.name: p.read_bytes() for p in built.out_dir.iterdir()}
+
+    def refuse(*args, **kwargs):
+        raise OSError(*error)
+
+    monkeypatch.setattr(files.tempfile, "mkstemp", refuse)
+    result = CliRunner().invoke(app, ["build", "point_nav", "--out", str(tmp_path), "--force", "--no-preview"])
+    assert result.exit_code == 1 and "Traceback" not in result.output
+    assert f"cannotwrite{built.out_dir}:{error[1]}".replace(" ", "") in "".join(result.output.split())
+    assert {p.name: p.read_bytes() for p in built.out_dir.iterdir()} == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["point_nav"]
+
+
 def test_artifact_loads_without_dm_control(tmp_path):
     result = build("fields/point_soccer.yaml", tmp_path, preview=False)
     code = (

@@ -128,7 +128,7 @@ def test_checkpoint_errors_are_clear(tmp_path, env_cache):
         checkpoint.load(tmp_path / "none.msgpack", template)
     bad = tmp_path / "bad.msgpack"
     bad.write_bytes(b"not a checkpoint")
-    with pytest.raises(checkpoint.CheckpointError, match="truncated or corrupt"):
+    with pytest.raises(checkpoint.CheckpointError, match="checkpoint corrupt"):
         checkpoint.load(bad, template)
     other = tmp_path / "other.msgpack"
     other.write_bytes(checkpoint.to_bytes(crl.make_train(tiny_config(repr_dim=4), env).start(jax.random.PRNGKey(0))))
@@ -199,8 +199,16 @@ def test_bundled_config_files_hold_only_known_keys(path):
     (["--algo", "crll"], "unknown algorithm 'crll'; did you mean 'crl'?"),
     (["--set", "crl.repr_dimm=3"], "unknown config key 'repr_dimm'; did you mean 'repr_dim'?"),
     (["--set", "repr_dim=3"], "write crl.KEY=VALUE"),
-    (["--set", "crl.layer_norm=maybe"], "is not a valid bool"),
-    (["--set", "crl.batch_size=true"], "'True' is not a valid int"),
+    (["--set", "crl.layer_norm=maybe"], "crl.layer_norm must be true or false, not 'maybe'"),
+    (["--set", "crl.batch_size=true"], "crl.batch_size must be a whole number, not True"),
+    (["--set", "crl.batch_size=0"], "crl.batch_size must be greater than 0, not 0"),
+    (["--set", "crl.batch_size=-64"], "crl.batch_size must be greater than 0, not -64"),
+    (["--set", "crl.num_evals=0"], "crl.num_evals must be greater than 0, not 0"),
+    (["--set", "crl.eval_envs=0"], "crl.eval_envs must be greater than 0, not 0"),
+    (["--set", "crl.actor_lr=.nan"], "crl.actor_lr must be a finite number, not nan"),
+    (["--set", "crl.critic_lr=-0.001"], "crl.critic_lr must be greater than 0, not -0.001"),
+    (["--set", "crl.discount=1"], "crl.discount must be less than 1, not 1"),
+    (["--set", "crl.hidden=[256,0]"], "crl.hidden must be greater than 0"),
     (["--steps", "100"], "--steps 100 is too few"),
     (["--set", "crl.energy=cos"], "unknown energy 'cos'"),
     (["--algo", "ppo", "--set", "ppo.num_minibatches=3", "--set", "ppo.unroll_length=10"], "does not divide"),
@@ -208,7 +216,7 @@ def test_bundled_config_files_hold_only_known_keys(path):
     (["--algo", "ppo", "--set", "ppo.spread=wide"], "unknown ppo.spread 'wide'; choose global"),
     (["--algo", "sca"], "did you mean 'sac'?"),
     (["--algo", "sac", "--set", "sac.her=0.8"], "set sac.reward=sparse"),
-    (["--algo", "td3", "--set", "td3.her=1.5"], "between 0 and 1"),
+    (["--algo", "td3", "--set", "td3.her=1.5"], "td3.her must be at most 1, not 1.5"),
     (["--algo", "icrl", "--set", "icrl.agents=arm"], "icrl.agents: unknown grouping 'arm'"),
 ])
 def test_bad_training_input_is_reported_before_compiling(tmp_path, args, phrase):

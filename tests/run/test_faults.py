@@ -1,0 +1,168 @@
+"""Runs killed at the worst moments, and damaged run folders: every one goes on, or says exactly why not."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from fieldgen.agents import loop
+from fieldgen.cli import app
+
+runner = CliRunner()
+TINY = ["--steps", "2700", "--envs", "8", "--no-videos", "--set", "crl.hidden=[32,32]", "--set", "crl.repr_dim=8",
+        "--set", "crl.batch_size=32", "--set", "crl.unroll_length=10", "--set", "crl.min_replay_rows=100",
+        "--set", "crl.max_replay_rows=400", "--set", "crl.num_evals=4", "--set", "crl.eval_envs=8"]
+
+# `fieldgen train` that kills itself (SIGKILL, nothing cleaned up) at one moment: "metrics N" once
+# evaluation N's metrics are written and before its checkpoint is, "write N" halfway through writing
+# the N-th checkpoint this process writes; "never" runs to the end.
+KILLED_AT = textwrap.dedent("""
+    import os, signal, sys
+    from fieldgen.agents import checkpoint
+    from fieldgen.cli import app
+    from fieldgen.run import record
+
+    moment, at = sys.argv[1], int(sys.argv[2])
+    written, real_pieces, real_metrics = [0], checkpoint.pieces, record.write_metrics
+
+    def pieces(state):
+        written[0] += 1
+        for k, piece in enumerate(real_pieces(state)):
+            if moment == "write" and written[0] == at and k == 4:
+                os.kill(os.getpid(), signal.SIGKILL)
+            yield piece
+
+    def write_metrics(folder, rows):
+        real_metrics(folder, rows)
+        if moment == "metrics" and rows[-1]["eval"] == at:
+            os.kill(os.getpid(), signal.SIGKILL)
+
+    checkpoint.pieces, record.write_metrics = pieces, write_metrics
+    app(sys.argv[3:])
+""")
+
+
+def train(tmp_path: Path, moment: str, at: int, *args: str) -> subprocess.CompletedProcess:
+    env = dict(os.environ, JAX_PLATFORMS="cpu")
+    if "FIELDGEN_TEST_JAX_CACHE" in os.environ:  # the compiled programs this test session shares
+        env["JAX_COMPILATION_CACHE_DIR"] = os.environ["FIELDGEN_TEST_JAX_CACHE"]
+    return subprocess.run([sys.executable, "-c", KILLED_AT, moment, str(at), "train", *args], cwd=tmp_path, env=env,
+                          capture_output=True, text=True, timeout=600)
+
+
+def rows(run: Path) -> list[dict]:
+    timing = {"wall_seconds", "steps_per_second", "peak_memory_mb"}
+    return [{k: v for k, v in json.loads(line).items() if k not in timing}
+            for line in (run / "metrics.jsonl").read_text().splitlines()]
+
+
+def leftovers(run: Path) -> list[str]:
+    return sorted(p.name for p in run.rglob(".*.tmp"))
+
+
+@pytest.mark.slow
+def test_a_run_killed_at_any_moment_resumes_to_the_uninterrupted_result(tmp_path):
+    """Killed before its first checkpoint, in the middle of writing one, and between the metrics and the
+    checkpoint of one evaluation, the run resumed each time ends with the same bytes as a run never stopped."""
+    whole = train(tmp_path, "never", 0, "point_nav", "--out", "whole", *TINY)
+    assert whole.returncode == 0, whole.stderr[-3000:]
+    run = tmp_path / "killed" / "point_nav-crl-0"
+
+    first = train(tmp_path, "metrics", 0, "point_nav", "--out", "killed", *TINY)
+    assert first.returncode == -signal.SIGKILL
+    assert not (run / "checkpoint.msgpack").exists() and rows(run)[-1]["eval"] == 0
+
+    # the same command again sets the run up anew; it is then killed halfway through its second checkpoint
+    second = train(tmp_path, "write", 2, "point_nav", "--out", "killed", *TINY)
+    assert second.returncode == -signal.SIGKILL, second.stderr[-3000:]
+    assert leftovers(run) == [n for n in leftovers(run) if n.startswith(".checkpoint.msgpack.")] != []
+
+    third = train(tmp_path, "metrics", 3, "--resume", str(run))
+    assert third.returncode == -signal.SIGKILL, third.stderr[-3000:]
+    assert rows(run)[-1]["eval"] == 3
+
+    last = train(tmp_path, "never", 0, "--resume", str(run))
+    assert last.returncode == 0, last.stderr[-3000:]
+    assert leftovers(run) == []
+    reference = tmp_path / "whole" / "point_nav-crl-0"
+    assert (run / "checkpoint.msgpack").read_bytes() == (reference / "checkpoint.msgpack").read_bytes()
+    assert rows(run) == rows(reference)
+
+
+def test_a_run_without_a_checkpoint_starts_again(tmp_path, monkeypatch):
+    """Stopped before its first checkpoint, a run folder holds no training: --resume and a new
+    `fieldgen train` both start it from the beginning, and what killed writes left is cleared."""
+    prepared = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path), "--prepare", *TINY])
+    assert prepared.exit_code == 0, prepared.output
+    run = tmp_path / "point_nav-crl-0"
+    started = []
+    def stop(*args, **kwargs):
+        started.append(args[6])
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(loop, "run_staged", stop)
+    for command in (["train", "--resume", str(run)], ["train", "point_nav", "--out", str(tmp_path), *TINY]):
+        (run / "metrics.jsonl").write_text(json.dumps({"eval": 0, "seed": 0, "env_steps": 800}) + "\n")
+        (run / ".checkpoint.msgpack.x1y2.tmp").write_bytes(b"half a checkpoint")
+        result = runner.invoke(app, command)
+        assert result.exit_code == 130 and "Traceback" not in result.output, result.output
+        assert started[-1] is None  # no resume point: from the beginning
+        assert leftovers(run) == []
+
+
+@pytest.mark.parametrize("damage,phrase", [
+    ("file", "is a file, not a run folder; --resume takes the folder fieldgen train wrote"),
+    ("{}", "run.json is not a run record: it lacks algo, config, observation"),
+    ("[]", "run.json is not a run record: it lacks algo, config, observation"),
+    ('{"algo": "crl", "config": [], "observation": {}}', "run.json is not a run record: it lacks a config mapping"),
+    ("torn", None),
+    ("middle", "metrics.jsonl:1 is not a metrics row"),
+    ("folder", "cannot read the checkpoint"),
+])
+def test_damaged_run_folders_are_clear_errors(tmp_path, damage, phrase):
+    """What a kill, an editor or a copy can leave in a run folder: one sentence, never a traceback; a torn
+    last metrics line (a write cut short) is dropped and the run resumes."""
+    prepared = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path), "--prepare", *TINY])
+    assert prepared.exit_code == 0, prepared.output
+    run = tmp_path / "point_nav-crl-0"
+    target = run
+    row = json.dumps({"eval": 0, "seed": 0, "env_steps": 800})
+    if damage == "file":
+        target = run / "run.json"
+    elif damage in ("torn", "middle"):
+        torn = '{"eval": 1, "se'
+        (run / "metrics.jsonl").write_text(f"{row}\n{torn}\n" if damage == "torn" else f"{torn}\n{row}\n")
+    elif damage == "folder":
+        (run / "checkpoint.msgpack").mkdir()
+    else:
+        (run / "run.json").write_text(damage)
+    if damage == "torn":
+        from fieldgen.run import record
+
+        assert [r["eval"] for r in record.read_metrics(run)] == [0]
+        return
+    result = runner.invoke(app, ["train", "--resume", str(target)])
+    assert result.exit_code == 1 and "Traceback" not in result.output, result.output
+    assert "".join(phrase.split()) in "".join(result.output.split())
+
+
+def test_a_run_folder_that_cannot_be_written_is_one_sentence(tmp_path, monkeypatch):
+    """A read-only --out (simulated: tests may run as root) or a full disk when a run is set up."""
+    from fieldgen import files
+
+    def refuse(*args, **kwargs):
+        raise PermissionError(13, "Permission denied")
+
+    monkeypatch.setattr(files.tempfile, "mkstemp", refuse)
+    result = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path), *TINY])
+    assert result.exit_code == 1 and "Traceback" not in result.output
+    assert "".join(f"cannot set up the run folder {tmp_path / 'point_nav-crl-0'}: Permission denied; free some "
+                   "space, fix the folder's permissions or choose another --out".split()) in "".join(result.output.split())
