@@ -4,6 +4,11 @@
 carries its own random key in `info["rng"]`; when an episode ends (the agent
 falls or time runs out) `step` returns a fresh episode drawn from that key, so
 auto-reset never replays an earlier start. `done` still reads 1 on that step.
+The control steps of an episode are counted in `info["episode_step"]`, clear of
+the `steps` that brax's EpisodeWrapper counts (under it, ending an episode on time
+is left to it, so that its `truncation` is right); under brax's AutoResetWrapper,
+which swaps in the state it keeps in `info["first_pipeline_state"]` and
+`info["first_obs"]`, every step leaves the next fresh episode there.
 A physics state that has diverged also ends its episode, as a fall, so that one
 blown-up simulation never reaches a learner's batch.
 """
@@ -80,6 +85,28 @@ class FieldEnv:
         self._is_ant = spec.agent.kind == "ant"
         self._agent_z = geometry.POINT_RADIUS
 
+    # -- what brax's wrappers and MuJoCo Playground users reach for ----------------
+
+    backend = "mjx"
+
+    @property
+    def unwrapped(self) -> "FieldEnv":
+        return self
+
+    @property
+    def mjx_model(self):
+        """The mjx.Model stepped (leaves that differ between variants stacked on a leading axis)."""
+        return self.sys
+
+    def render(self, trajectory: Sequence[State], camera: str = "follow", height: int = 240,
+               width: int = 320) -> list[np.ndarray]:
+        """RGB frames of a trajectory of unbatched states (fieldgen.render.RenderError where no OpenGL is)."""
+        from fieldgen.render import render_rollout
+
+        qpos = np.stack([np.asarray(s.pipeline_state.qpos) for s in trajectory])
+        mocap = np.stack([np.asarray(s.pipeline_state.mocap_pos) for s in trajectory])
+        return render_rollout(self.mj_model, qpos, mocap, camera, (height, width))
+
     @property
     def variant_count(self) -> int:
         return len(self.variants)
@@ -121,7 +148,8 @@ class FieldEnv:
         variant = jnp.asarray(variant, jnp.int32)
         data, goal = self._each(variant, lambda v: v.fresh_episode(episode_key))
         zero = jnp.zeros(())
-        info = {"rng": rng, "goal": goal, "steps": jnp.zeros((), jnp.int32), "down_steps": jnp.zeros((), jnp.int32),
+        info = {"rng": rng, "goal": goal, "episode_step": jnp.zeros((), jnp.int32),
+                "down_steps": jnp.zeros((), jnp.int32),
                 "truncation": zero,
                 "episode": jnp.zeros((), jnp.int32)}
         if self.mixed:
@@ -139,17 +167,22 @@ class FieldEnv:
         sys = self._model(variant)
         with jax.default_matmul_precision(self.spec.sim.precision):
             data = jax.lax.fori_loop(0, self.n_substeps, lambda _, d: mjx.step(sys, d), before.replace(ctrl=action))
-        goal = state.info["goal"]
+        goal = state.obs[self.state_dim:]  # = info["goal"], and follows a wrapper that swaps observations
         t = Transition(self._ball_pos(before, variant), self._ball_pos(data, variant), self._agent_pos(before),
                        self._agent_pos(data), goal, action, self.dt)
-        steps = state.info["steps"] + 1
+        steps, down_steps = state.info["episode_step"], state.info["down_steps"]
+        if "steps" in state.info:  # brax's EpisodeWrapper counts too, and reads 0 once its wrapper has reset
+            steps, down_steps = (jnp.where(state.info["steps"] == 0, 0, x) for x in (steps, down_steps))
+        steps = steps + 1
         metrics, reward, (truncated, fell, down) = self._each(
-            variant, lambda v: (*v.score(t, self.terms), v.ended(data, steps, state.info["down_steps"])))
+            variant, lambda v: (*v.score(t, self.terms), v.ended(data, steps, down_steps)))
+        if "steps" in state.info:  # brax's EpisodeWrapper ends episodes on time, and says so in its truncation
+            truncated = jnp.zeros_like(truncated)
         broken = diverged(data)
         metrics, reward = jax.tree.map(lambda x: jnp.where(broken, jnp.zeros_like(x), x), (metrics, reward))
         fell = fell | broken
         done = truncated | fell
-        info = dict(state.info, steps=steps, down_steps=down, truncation=(truncated & ~fell).astype(jnp.float32))
+        info = dict(state.info, episode_step=steps, down_steps=down, truncation=(truncated & ~fell).astype(jnp.float32))
         obs = self._obs(data, goal)
         if self.auto_reset:
             rng, key = jax.random.split(state.info["rng"])
@@ -159,11 +192,15 @@ class FieldEnv:
                 variant = jnp.where(done, drawn, variant).astype(jnp.int32)
                 info.update(variant=variant)
             fresh, fresh_goal = self._each(variant, lambda v: v.fresh_episode(key))
+            fresh_obs = self._obs(fresh, fresh_goal)
             data = data.replace(**{f: jnp.where(done, getattr(fresh, f), getattr(data, f)) for f in _STATE_FIELDS})
             goal = jnp.where(done, fresh_goal, goal)
-            obs = jnp.where(done, self._obs(fresh, fresh_goal), obs)
-            info.update(rng=rng, goal=goal, steps=jnp.where(done, 0, steps), down_steps=jnp.where(done, 0, down),
+            obs = jnp.where(done, fresh_obs, obs)
+            info.update(rng=rng, goal=goal, episode_step=jnp.where(done, 0, steps), down_steps=jnp.where(done, 0, down),
                         episode=state.info["episode"] + done.astype(jnp.int32))
+            if "first_obs" in info:  # under brax's AutoResetWrapper: what it swaps in is a fresh episode
+                info.update(first_pipeline_state=data.replace(**{f: getattr(fresh, f) for f in _STATE_FIELDS}),
+                            first_obs=fresh_obs)
         return State(data, obs, reward, done.astype(jnp.float32), metrics, info)
 
     def goal_reached(self, state: jax.Array, goal: jax.Array, variant=None) -> jax.Array:

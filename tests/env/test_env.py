@@ -59,7 +59,7 @@ def test_point_fields_step_under_jit_and_vmap(env_cache, name):
     env = env_cache(name)
     state = rollout(env, n_envs=4, steps=5)
     assert_contract(env, state, 4)
-    assert int(state.info["steps"][0]) == 5
+    assert int(state.info["episode_step"][0]) == 5
 
 
 @pytest.mark.slow
@@ -89,7 +89,7 @@ def test_auto_reset_draws_fresh_episodes(env_cache):
     assert np.all(np.asarray(states.done) == 1.0)
     ball_starts = np.asarray(states.obs[:, slice(*env.layout.slices["ball_pos"])]).round(6)
     assert len({tuple(b) for b in ball_starts}) == 100
-    assert int(last.info["episode"]) == 100 and int(last.info["steps"]) == 0
+    assert int(last.info["episode"]) == 100 and int(last.info["episode_step"]) == 0
 
     nav = env_cache("point_nav", episode_length=1)
     _, states = one_step_episodes(nav, 100, seed=4)
