@@ -284,9 +284,9 @@ def schema() -> None:
 
     Example: fieldgen schema > fieldgen.schema.json
     """
-    from fieldgen.schema import FieldSpec
+    from fieldgen.schema.editor import schema_text
 
-    print(json.dumps(FieldSpec.model_json_schema(), indent=1))
+    print(schema_text(), end="")
 
 
 @app.command()

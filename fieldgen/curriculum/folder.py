@@ -14,6 +14,7 @@ import yaml
 
 from fieldgen.curriculum.promotion import Promotion
 from fieldgen.schema import FieldSpec, SpecError, load_spec
+from fieldgen.schema.editor import SCHEMA_FILE
 
 INDEX = "curriculum.yaml"
 
@@ -56,13 +57,14 @@ def write(folder: Path, base_ref: str, base: Path, kind: str, variants: list[tup
     bundled = "/" not in base_ref and not base_ref.endswith((".yaml", ".yml"))
     # stage files sit in `folder`; the staging folder beside it has the same parent, so the path holds for both
     extends = base_ref if bundled else os.path.relpath(base.resolve(), folder.resolve())
+    schema = os.path.relpath(SCHEMA_FILE, folder.resolve())
     stages = [Stage(f"{prefix}_s{i + 1:02d}", f"stage_{i + 1:02d}.yaml", changes, origin)
               for i, (changes, origin) in enumerate(variants)]
     folder.parent.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=f".{folder.name}.", dir=folder.parent))
     try:
         for stage in stages:
-            (staging / stage.file).write_text(_stage_text(stage, extends))
+            (staging / stage.file).write_text(_stage_text(stage, extends, schema))
         curriculum = Curriculum(staging, kind, extends, stages, promotion)
         (staging / INDEX).write_text(_index_text(curriculum))
         _validate_all(curriculum)
@@ -148,9 +150,11 @@ def _slug(name: str) -> str:
     return slug[:56]
 
 
-def _stage_text(stage: Stage, extends: str) -> str:
+def _stage_text(stage: Stage, extends: str, schema: str) -> str:
+    """A stage's spec, its first line pointing editors at the JSON Schema (fieldgen.schema.editor)."""
     body = {"extends": extends, "name": stage.name, **stage.changes}
-    head = f"# {stage.origin}\n# Written by `fieldgen curriculum`; only the keys that differ from the base.\n"
+    head = (f"# yaml-language-server: $schema={schema}\n# {stage.origin}\n"
+            "# Written by `fieldgen curriculum`; only the keys that differ from the base.\n")
     return head + yaml.safe_dump(body, sort_keys=False, default_flow_style=None)
 
 

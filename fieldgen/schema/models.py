@@ -9,7 +9,8 @@ from __future__ import annotations
 
 from typing import Annotated, Literal, Union
 
-from pydantic import AfterValidator, BaseModel, BeforeValidator, ConfigDict, Discriminator, Field, Tag, model_validator
+from pydantic import (AfterValidator, BaseModel, BeforeValidator, ConfigDict, Discriminator, Field, Tag, WithJsonSchema,
+                      model_validator)
 
 MAX_EXTENT = 500.0  # metres; anything larger is a typo, not a field
 MAX_OBJECT = 50.0  # metres; the largest single body (ball, goal, obstacle)
@@ -38,7 +39,10 @@ Span = Annotated[
     tuple[float, float],
     BeforeValidator(_as_span),
     AfterValidator(_ordered),
-    Field(json_schema_extra={"description": "a number, or [low, high] for a uniform draw"}),
+    WithJsonSchema({"anyOf": [{"type": "number"},
+                              {"type": "array", "prefixItems": [{"type": "number"}, {"type": "number"}],
+                               "minItems": 2, "maxItems": 2}],
+                    "description": "a number, or [low, high] for a uniform draw"}),
 ]
 
 

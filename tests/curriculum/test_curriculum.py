@@ -35,7 +35,9 @@ def test_interpolation_ends_are_the_two_specs_and_every_stage_builds(tmp_path):
     for spec in c.specs():
         assert compile_spec(spec).model().ngeom > 0
     text = paths[1].read_text()
-    assert text.startswith("# stage 2 of 4") and "extends: soccer_v1" in text and "agent:" not in text
+    modeline, origin = text.splitlines()[:2]
+    assert modeline.startswith("# yaml-language-server: $schema=") and origin.startswith("# stage 2 of 4")
+    assert "extends: soccer_v1" in text and "agent:" not in text
     assert curriculum.load(out).stages == [s.__class__(s.name, s.file, {}, s.origin) for s in c.stages]
 
 
