@@ -222,22 +222,31 @@ def make_curriculum(
     switch_at: Annotated[Optional[int], typer.Option(help="stage where booleans and choices switch (default halfway)")] = None,
     vary: Annotated[Optional[list[str]], typer.Option(help="a grid axis: KEY=V1,V2,... (repeat for more axes)")] = None,
     stage: Annotated[Optional[list[str]], typer.Option(help="one listed variant: 'KEY=V KEY=V' (repeat)")] = None,
+    start_near: Annotated[Optional[float], typer.Option(
+        help="a start-state curriculum: the first stage spawns the ball this far from the target, later "
+             "stages move the kick-off back to BASE's (--stages of them)")] = None,
     threshold: Annotated[float, typer.Option(help="success_any that promotes a run to the next stage")] = 0.5,
     window: Annotated[int, typer.Option(help="evaluations averaged for promotion")] = 2,
     force: Annotated[bool, typer.Option(help="replace an existing folder")] = False,
 ) -> None:
-    """Write field variants and a curriculum.yaml: an interpolation (--to), a grid (--vary) or a list (--stage).
+    """Write field variants and a curriculum.yaml: an interpolation (--to), a grid (--vary), a list (--stage)
+    or start states (--start-near).
 
     Example: fieldgen curriculum fields/soccer_v1.yaml --to fields/v2_wide_goalie.yaml --stages 6 -o curricula/v1_to_wide
+    Example: fieldgen curriculum soccer_v2 --start-near 3 --stages 5 -o curricula/v2_start_states
     """
     from fieldgen import curriculum
 
-    kinds = [k for k, given in (("interpolation", to), ("grid", vary), ("list", stage)) if given]
+    kinds = [k for k, given in (("interpolation", to), ("grid", vary), ("list", stage),
+                                ("start_states", start_near is not None)) if given]
     if len(kinds) != 1:
-        _fail("give exactly one of --to FIELD (interpolation), --vary KEY=V1,V2 (grid) or --stage 'KEY=V' (list)")
+        _fail("give exactly one of --to FIELD (interpolation), --vary KEY=V1,V2 (grid), --stage 'KEY=V' (list) "
+              "or --start-near DISTANCE (start states)")
     base_path = _spec_path(base)
     try:
-        if to is not None:
+        if start_near is not None:
+            variants = curriculum.start_states(base_path, start_near, stages)
+        elif to is not None:
             variants = curriculum.interpolate(base_path, _spec_path(to), stages, tuple(geometric or ()), switch_at)
         elif vary:
             variants = curriculum.grid(base_path, dict(curriculum.parse_axis(v) for v in vary))

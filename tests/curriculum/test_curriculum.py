@@ -143,6 +143,15 @@ def test_start_states_move_the_kickoff_back_to_the_base_and_every_stage_builds(t
         compile_spec(spec)
 
 
+def test_the_cli_writes_a_start_state_curriculum(tmp_path):
+    out = tmp_path / "v2_kickoff"
+    result = CliRunner().invoke(app, ["curriculum", "soccer_v2", "--start-near", "3", "--stages", "4", "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    specs = curriculum.load(out).specs()
+    assert [s.ball.spawn.y for s in specs] == [(17.0, 17.0), (13.0, 13.0), (9.0, 9.0), (5.0, 5.0)]
+    assert curriculum.load(out).kind == "start_states"
+
+
 def test_start_states_need_a_fixed_target_and_a_reachable_distance():
     with pytest.raises(curriculum.CurriculumError, match="fixed target"):
         curriculum.start_states(FIELDS["ant_nav"], 3.0, 3)
