@@ -8,6 +8,7 @@ from pathlib import Path
 
 import jax
 import numpy as np
+from rich.text import Text
 
 from fieldgen.files import write_atomic
 from fieldgen.run.record import VIDEOS
@@ -49,9 +50,9 @@ class EpisodeRecorder:
                 return frames
             except Exception as exc:  # noqa: BLE001 - renderer back ends fail in many ways
                 self.broken = True
-                console.print(f"[yellow]warning:[/] cannot render here ({exc}); keeping episodes as .npz files "
-                              f"where their videos would be: draw them with `fieldgen videos {run_dir}` "
-                              "on a machine that renders")
+                console.print(Text.assemble(("warning:", "yellow"), f" cannot render here ({exc}); keeping episodes as "
+                              f".npz files where their videos would be: draw them with `fieldgen videos {run_dir}` "
+                              "on a machine that renders"))
         buf = io.BytesIO()
         np.savez(buf, field=self.env.spec.name, camera=self.camera, **episode)
         write_atomic(name.with_suffix(".npz"), buf.getvalue())

@@ -16,6 +16,7 @@ from fieldgen.schema import geometry
 from fieldgen.schema.models import FieldSpec
 
 GRID = 0.05  # metres per cell of the reachability grid
+MAX_CELLS = 2000  # cells a side at most: a 500 x 500 field is judged on 0.25 m cells
 
 Found = list[tuple[tuple, str]]
 
@@ -32,9 +33,16 @@ def physics_problems(spec: FieldSpec) -> Found:
     return out
 
 
+MAX_SUBSTEPS = 1000  # physics steps per control step
+
+
 def _timing(spec: FieldSpec) -> Found:
     e = spec.episode
     ratio = e.control_dt / e.physics_dt
+    if ratio > MAX_SUBSTEPS:
+        return [(("episode", "physics_dt"), f"{ratio:,.0f} physics steps per control step (control_dt "
+                 f"{e.control_dt:g} / physics_dt {e.physics_dt:g}); at most {MAX_SUBSTEPS}: raise physics_dt "
+                 f"to at least {e.control_dt / MAX_SUBSTEPS:g}")]
     if abs(ratio - round(ratio)) > 1e-6 or round(ratio) < 1:
         return [
             (
@@ -139,28 +147,45 @@ def _ball_spawn(spec: FieldSpec) -> Found:
 
 
 def _goal_reachable(spec: FieldSpec) -> Found:
-    """Flood-fill on-field ball centres from the spawn; some centre inside the goal box must be reached."""
+    """Flood-fill on-field ball centres from the spawn; some centre inside the goal box must be reached.
+
+    The grid has cells of GRID metres, coarser on a field so large that it would need more than
+    MAX_CELLS a side (a gap narrower than a cell may then be judged either way); each solid thing marks
+    only the cells within its reach, so the cost grows with the field's area and the things on it."""
     if not (spec.goal.enabled and spec.ball.enabled and spec.ball.spawn.mode == "region"):
         return []
     r = spec.ball.radius
     hx, hy = spec.field.width / 2, spec.field.length / 2
-    g = spec.goal
     goal = geometry.goal_region(spec)
     gx0, gx1, gy0, gy1 = goal.xy_bounds()
-    xs = np.arange(-hx, hx + GRID, GRID)
-    ys = np.arange(-hy, max(hy, gy1) + GRID, GRID)
-    X, Y = np.meshgrid(xs, ys, indexing="xy")
-    in_goal = (X >= gx0) & (X <= gx1) & (Y >= gy0) & (Y <= gy1)
-    blocked = (Y > hy) & ~in_goal  # the ball stays on the field, or in the goal box behind its end
+    top = max(hy, gy1)
+    step = max(GRID, 2 * hx / MAX_CELLS, (top + hy) / MAX_CELLS)
+    xs = np.arange(-hx, hx + step, step)
+    ys = np.arange(-hy, top + step, step)
+
+    def window(x0, x1, y0, y1):
+        """Index slices of the cells whose centres lie in [x0, x1] x [y0, y1], and their coordinates."""
+        i0, i1 = np.searchsorted(ys, y0), np.searchsorted(ys, y1, side="right")
+        j0, j1 = np.searchsorted(xs, x0), np.searchsorted(xs, x1, side="right")
+        return (slice(i0, i1), slice(j0, j1)), np.meshgrid(xs[j0:j1], ys[i0:i1], indexing="xy")
+
+    in_goal = np.zeros((len(ys), len(xs)), bool)
+    cells, _ = window(gx0, gx1, gy0, gy1)
+    in_goal[cells] = True
+    blocked = (ys > hy)[:, None] & ~in_goal  # the ball stays on the field, or in the goal box behind its end
     for box in geometry.walls(spec) + geometry.obstacles(spec):
         if box.solid:
             bx0, bx1, by0, by1 = box.xy_bounds()
+            cells, (X, Y) = window(bx0 - r, bx1 + r, by0 - r, by1 + r)
             dx = np.maximum(np.maximum(bx0 - X, X - bx1), 0)
             dy = np.maximum(np.maximum(by0 - Y, Y - by1), 0)
-            blocked |= dx * dx + dy * dy < r * r
+            blocked[cells] |= dx * dx + dy * dy < r * r
     for cap in geometry.goal_frame(spec):
         if cap.solid and cap.start[2] == 0.0:  # posts stand on the floor; the crossbar is above the ball
-            blocked |= (X - cap.start[0]) ** 2 + (Y - cap.start[1]) ** 2 < (r + cap.radius) ** 2
+            reach = r + cap.radius
+            cx, cy = cap.start[0], cap.start[1]
+            cells, (X, Y) = window(cx - reach, cx + reach, cy - reach, cy + reach)
+            blocked[cells] |= (X - cx) ** 2 + (Y - cy) ** 2 < reach ** 2
     labels, _ = ndimage.label(~blocked)
     sx = (spec.ball.spawn.x[0] + spec.ball.spawn.x[1]) / 2
     sy = (spec.ball.spawn.y[0] + spec.ball.spawn.y[1]) / 2

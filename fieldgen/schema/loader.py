@@ -9,15 +9,13 @@ base file that set it.
 from __future__ import annotations
 
 from importlib import resources
-import re
-import types
-import typing
 from pathlib import Path
 
-from pydantic import BaseModel, ValidationError
+from pydantic import ValidationError
 
+from fieldgen.schema import messages
 from fieldgen.schema.checks import physics_problems
-from fieldgen.schema.errors import Problem, SpecError
+from fieldgen.schema.errors import SpecError
 from fieldgen.schema.models import FieldSpec
 from fieldgen.schema.source import Source, read_yaml
 from fieldgen.suggest import did_you_mean
@@ -54,12 +52,14 @@ def validate(source: Source) -> FieldSpec:
     try:
         spec = FieldSpec.model_validate(source.data)
     except ValidationError as exc:
-        problems = [_problem_from(source, err) for err in exc.errors()]
-        raise SpecError(list(dict.fromkeys(problems))) from None
+        raise SpecError(messages.problems(source, exc.errors())) from None
     problems = [source.problem(parts, message) for parts, message in physics_problems(spec)]
     if problems:
         raise SpecError(problems)
     return spec
+
+
+MAX_EXTENDS = 16  # files in one `extends` chain
 
 
 def _load_merged(path: Path, chain: tuple[Path, ...]) -> Source:
@@ -68,20 +68,38 @@ def _load_merged(path: Path, chain: tuple[Path, ...]) -> Source:
     parent_ref = source.data.get("extends")
     if parent_ref is None:
         return source
-    if not isinstance(parent_ref, str):
-        raise SpecError([source.problem(("extends",), "'extends' takes a bundled field name or a relative path")])
-    parent_path = resolve_spec_path(parent_ref, relative_to=path)
-    if not parent_path.exists():
-        names = ", ".join(bundled_fields())
-        hint = did_you_mean(parent_ref, bundled_fields())
-        raise SpecError(
-            [source.problem(("extends",), f"'{parent_ref}' is neither a bundled field ({names}) nor a file{hint}")]
-        )
+    parent_path = _extended(source, parent_ref, path)
     if parent_path.resolve() in chain:
         cycle = " -> ".join(str(p) for p in chain + (parent_path.resolve(),))
         raise SpecError([source.problem(("extends",), f"'extends' forms a cycle: {cycle}")])
+    if len(chain) >= MAX_EXTENDS:
+        raise SpecError([source.problem(("extends",), f"the 'extends' chain is longer than {MAX_EXTENDS} files")])
     parent = _load_merged(parent_path, chain)
     return _merge(parent, source)
+
+
+def _extended(source: Source, ref, path: Path) -> Path:
+    """The file `extends: ref` names: a bundled field, or a .yaml file by a path relative to this one.
+    Absolute paths and files of other kinds are refused, so a spec someone shares cannot make fieldgen
+    read a system file (/etc/passwd, /dev/zero) and print what it found there."""
+
+    def refuse(reason: str):
+        rule = f"'extends' takes a bundled field name ({', '.join(bundled_fields())}) or a relative path to a .yaml file"
+        raise SpecError([source.problem(("extends",), f"{reason}; {rule}")])
+
+    if not isinstance(ref, str) or not ref.strip():
+        refuse("it is empty" if isinstance(ref, str) else f"{ref!r} is not a name or a path")
+    looks_like_path = "/" in ref or "\\" in ref or ref.endswith((".yaml", ".yml"))
+    if looks_like_path and (Path(ref).is_absolute() or ref.startswith(("~", "\\"))):
+        refuse(f"'{ref}' is an absolute path")
+    if looks_like_path and not ref.endswith((".yaml", ".yml")):
+        refuse(f"'{ref}' does not end in .yaml")
+    parent = resolve_spec_path(ref, relative_to=path)
+    if not parent.exists():
+        refuse(f"'{ref}' is neither a bundled field nor a file{did_you_mean(ref, bundled_fields())}")
+    if not parent.is_file():
+        refuse(f"'{ref}' is {'a folder' if parent.is_dir() else 'not a regular file'}")
+    return parent
 
 
 def _merge(base: Source, child: Source) -> Source:
@@ -116,82 +134,3 @@ def _replaced(child: dict, parts: tuple) -> bool:
         if not isinstance(node, dict):
             return True
     return False
-
-
-def _problem_from(source: Source, err: dict) -> Problem:
-    parts = _data_path(source.data, err["loc"])
-    kind, msg = err["type"], err["msg"]
-    if kind == "extra_forbidden":
-        key = parts[-1]
-        allowed = _allowed_keys(err["loc"][:-1])
-        msg = f"unknown key '{key}'{did_you_mean(str(key), allowed)}"
-        if allowed:
-            msg += f" Allowed keys here: {', '.join(allowed)}."
-    elif kind == "missing":
-        msg = f"the key '{parts[-1]}' is required" if parts else msg
-    elif kind == "literal_error" and isinstance(err.get("input"), str):
-        expected = re.findall(r"'([^']*)'", err.get("ctx", {}).get("expected", ""))
-        msg = f"{msg} (got {err['input']!r}{did_you_mean(err['input'], expected)})"
-    else:
-        if msg.startswith("Value error, "):
-            msg = msg[len("Value error, ") :]
-        if "input" in err and not isinstance(err["input"], (dict, list)):
-            msg += f" (got {err['input']!r})"
-    return source.problem(parts, msg)
-
-
-def _data_path(data, loc: tuple) -> tuple:
-    """Drop pydantic's union tags from an error location, keeping real keys."""
-    parts: list = []
-    node = data
-    for i, elem in enumerate(loc):
-        if isinstance(node, dict) and elem in node:
-            node = node[elem]
-            parts.append(elem)
-        elif isinstance(node, (list, tuple)) and isinstance(elem, int) and elem < len(node):
-            node = node[elem]
-            parts.append(elem)
-        elif i == len(loc) - 1 and not isinstance(elem, int):
-            parts.append(elem)  # a missing key names where it belongs
-        # anything else is a discriminator tag or a union member name
-    return tuple(parts)
-
-
-def _allowed_keys(loc: tuple) -> list[str]:
-    """The keys the model at this location accepts, for did-you-mean hints."""
-    model: object = FieldSpec
-    for elem in loc:
-        model = _step(model, elem)
-        if model is None:
-            return []
-    model = _unwrap(model)
-    if isinstance(model, type) and issubclass(model, BaseModel):
-        return list(model.model_fields)
-    return []
-
-
-def _unwrap(tp):
-    while typing.get_origin(tp) is typing.Annotated:
-        tp = typing.get_args(tp)[0]
-    return tp
-
-
-def _step(tp, elem):
-    tp = _unwrap(tp)
-    origin = typing.get_origin(tp)
-    if isinstance(tp, type) and issubclass(tp, BaseModel):
-        field = tp.model_fields.get(elem)
-        return field.annotation if field else None
-    if origin in (typing.Union, types.UnionType):
-        for member in typing.get_args(tp):
-            member = _unwrap(member)
-            if isinstance(member, type) and issubclass(member, BaseModel):
-                for f in member.model_fields.values():
-                    if typing.get_origin(f.annotation) is typing.Literal and elem in typing.get_args(f.annotation):
-                        return member
-        return None
-    if origin is dict:
-        return typing.get_args(tp)[1]
-    if origin is list:
-        return typing.get_args(tp)[0]
-    return None

@@ -7,6 +7,8 @@ kilograms, seconds. The kick-off point is the origin and the goal lies along +y.
 
 from __future__ import annotations
 
+import types
+import typing
 from typing import Annotated, Literal, Union
 
 from pydantic import (AfterValidator, BaseModel, BeforeValidator, ConfigDict, Discriminator, Field, Tag, WithJsonSchema,
@@ -14,12 +16,84 @@ from pydantic import (AfterValidator, BaseModel, BeforeValidator, ConfigDict, Di
 
 MAX_EXTENT = 500.0  # metres; anything larger is a typo, not a field
 MAX_OBJECT = 50.0  # metres; the largest single body (ball, goal, obstacle)
+MAX_OBSTACLES = 1000  # a spec of this many validates in half a second; a field needs a few
 
 
 class Section(BaseModel):
-    """Base for every spec section: unknown keys and NaN/inf are errors."""
+    """Base for every spec section: unknown keys and NaN/inf are errors, and a value is taken as written:
+    true is no number, "0.5" is text, and 1 is no boolean (pydantic alone would convert all three)."""
 
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False, validate_default=True)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _as_written(cls, data):
+        """A value not taken as written becomes a NotAsWritten, which every type refuses, so the section's
+        other keys are still checked and the loader reports the reason the NotAsWritten carries."""
+        if not isinstance(data, dict):
+            return data
+        out = dict(data)
+        for key, value in data.items():
+            if key in cls.model_fields:
+                try:
+                    _taken_as_written(value, cls.model_fields[key].annotation)
+                except ValueError as exc:
+                    out[key] = NotAsWritten(str(exc))
+        return out
+
+
+class NotAsWritten:
+    """A value pydantic would convert but the spec's author did not write as its type (true for a number)."""
+
+    def __init__(self, reason: str):
+        self.reason = reason
+
+    def __repr__(self) -> str:
+        return self.reason
+
+
+def _kinds(annotation) -> tuple[set, set]:
+    """(the plain types a field accepts among bool/int/float/str/tuple, the strings its Literals allow)."""
+    types_, words = set(), set()
+    stack = [annotation]
+    while stack:
+        tp = stack.pop()
+        origin = typing.get_origin(tp)
+        if origin is typing.Annotated:
+            stack.append(typing.get_args(tp)[0])
+        elif origin in (typing.Union, types.UnionType):
+            stack.extend(typing.get_args(tp))
+        elif origin is typing.Literal:
+            words.update(a for a in typing.get_args(tp) if isinstance(a, str))
+        elif origin is tuple or tp is tuple:
+            types_.add(tuple)
+        elif tp in (bool, int, float, str):
+            types_.add(tp)
+    return types_, words
+
+
+def _taken_as_written(value, annotation):
+    accepts, words = _kinds(annotation)
+    numeric = bool(accepts & {int, float, tuple})
+    items = value if isinstance(value, list) and tuple in accepts else [value]
+    for item in items:
+        if isinstance(item, bool) and bool not in accepts and numeric:
+            raise ValueError(f"{str(item).lower()} is not a number")
+        if isinstance(item, str) and str not in accepts and item not in words and numeric:
+            choices = f" or one of {', '.join(repr(w) for w in sorted(words))}" if words else ""
+            raise ValueError(f"'{item}' is text, not a number{choices}"
+                             + ("; write it without quotes" if _is_number(item) else ""))
+    if accepts == {bool} and not isinstance(value, bool):
+        raise ValueError(f"{value!r} is not true or false")
+    return value
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
 
 
 def _as_span(value):
@@ -236,8 +310,8 @@ Fall = Annotated[Union[FallFlipped, FallHeightBand, FallNever], Field(discrimina
 
 class EpisodeSection(Section):
     length: int = Field(1001, ge=1, le=1_000_000, description="control steps per episode")
-    control_dt: float = Field(0.05, gt=0, le=10, description="seconds per control step")
-    physics_dt: float = Field(0.01, gt=0, le=1, description="seconds per physics step")
+    control_dt: float = Field(0.05, ge=1e-4, le=10, description="seconds per control step")
+    physics_dt: float = Field(0.01, ge=1e-4, le=1, description="seconds per physics step")
     fall: Fall = Field(default_factory=lambda: FallFlipped(kind="flipped"),
                        description="when the ant has fallen, which ends its episode early; a point agent never falls")
 
@@ -255,7 +329,7 @@ class SimSection(Section):
     agent_contacts: Literal["none", "torso", "torso_and_feet"] = Field(
         "torso", description="which agent geoms collide with walls, obstacles and posts"
     )
-    max_contacts: int | Literal["auto", "all"] = Field(
+    max_contacts: Annotated[int, Field(ge=1, le=10_000)] | Literal["auto", "all"] = Field(
         "auto",
         description="contacts passed to the solver each step, nearest first (MJX max_contact_points); "
         "auto: the agent's resting contacts + 8; all: no limit",
@@ -287,7 +361,8 @@ class FieldSpec(Section):
     goal: GoalSection = Field(default_factory=GoalSection, description="the goal box, posts and crossbar")
     ball: BallSection = Field(default_factory=BallSection, description="the ball")
     agent: AgentSection = Field(default_factory=AgentSection, description="the controlled agent")
-    obstacles: dict[Annotated[str, Field(pattern=r"^[a-z0-9][a-z0-9_]*$", max_length=32)], Obstacle] = Field(default_factory=dict, description="named boxes, e.g. a goalie")
+    obstacles: dict[Annotated[str, Field(pattern=r"^[a-z0-9][a-z0-9_]*$", max_length=32)], Obstacle] = Field(
+        default_factory=dict, max_length=MAX_OBSTACLES, description="named boxes, e.g. a goalie")
     task: TaskSection = Field(default_factory=TaskSection, description="target, success predicate, reward")
     episode: EpisodeSection = Field(default_factory=EpisodeSection, description="timing and termination")
     sim: SimSection = Field(default_factory=SimSection, description="MJX simulation options")

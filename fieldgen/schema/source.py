@@ -3,10 +3,18 @@
 PyYAML's composer keeps marks on every node; we walk the node tree once to
 record where each key path starts and to reject duplicate keys, which plain
 `yaml.safe_load` would silently let the last one win.
+
+Specs travel between people, so reading one is bounded: a regular file of at most
+MAX_BYTES, nesting at most MAX_DEPTH deep, at most MAX_NODES values once aliases
+are expanded (an alias "bomb" is refused before it is built), no character YAML
+refuses, and no key that is not a plain string.
 """
 
 from __future__ import annotations
 
+import re
+import stat
+import unicodedata
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -15,6 +23,10 @@ import yaml
 from fieldgen.schema.errors import Problem, SpecError, format_path
 
 Pos = tuple[Path, int, int]
+MAX_BYTES = 1_000_000  # a spec is a few kilobytes; a megabyte is a mistake or an attack
+MAX_DEPTH = 32  # a spec nests four or five levels
+MAX_NODES = 30_000  # values after expanding aliases; 1,000 obstacles with every key set have about 16,000
+_STR = "tag:yaml.org,2002:str"
 
 
 @dataclass
@@ -38,15 +50,22 @@ class Source:
         return Problem(pos[0], pos[1], pos[2], format_path(parts), message)
 
 
+class SpecLoader(yaml.CSafeLoader if yaml.__with_libyaml__ else yaml.SafeLoader):
+    """YAML as PyYAML's safe loader reads it (through libyaml where PyYAML has it: a 1,000-obstacle spec
+    in a tenth of the time), and floats as YAML 1.2 writes them: `1e-7` and `2e6` are numbers (YAML 1.1
+    wants a dot, `1.0e-7`, and would read them as text)."""
+
+
+SpecLoader.add_implicit_resolver(
+    "tag:yaml.org,2002:float", re.compile(r"^[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"), list("-+0123456789"))
+
+
 def read_yaml(path: Path) -> Source:
+    text = _read_text(path)
+    _refuse_characters(path, text)
+    loader = SpecLoader(text)
     try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise SpecError([Problem(path, None, None, "", "no such file")]) from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise SpecError([Problem(path, None, None, "", f"cannot read the file: {exc}")]) from None
-    loader = yaml.SafeLoader(text)
-    try:
+        _refuse_depth(path, text)
         node = loader.get_single_node()
         if node is None:
             raise SpecError([Problem(path, 1, 1, "", "the file is empty; a field needs at least 'name:'")])
@@ -55,6 +74,7 @@ def read_yaml(path: Path) -> Source:
             raise SpecError([_at(path, node, (), f"the document is {kind}; a field spec is a mapping of sections")])
         problems: list[Problem] = []
         positions: dict[tuple, Pos] = {(): _pos(path, node)}
+        _bounded(path, node)
         _walk(path, node, (), positions, problems)
         if problems:
             raise SpecError(problems)
@@ -69,6 +89,65 @@ def read_yaml(path: Path) -> Source:
     return Source(data, positions)
 
 
+def _read_text(path: Path) -> str:
+    """The file's text, if it is a regular file of at most MAX_BYTES in UTF-8."""
+    try:
+        info = path.stat()
+    except FileNotFoundError:
+        raise SpecError([Problem(path, None, None, "", "no such file")]) from None
+    except OSError as exc:
+        raise SpecError([Problem(path, None, None, "", f"cannot read the file: {exc.strerror}")]) from None
+    if not stat.S_ISREG(info.st_mode):
+        what = "a folder" if stat.S_ISDIR(info.st_mode) else "not a regular file (a device, pipe or socket)"
+        raise SpecError([Problem(path, None, None, "", f"this is {what}; a spec is a YAML file")])
+    if info.st_size > MAX_BYTES:
+        raise SpecError([Problem(path, None, None, "", f"the file has {info.st_size:,} bytes; a spec may have at "
+                                 f"most {MAX_BYTES:,}")])
+    try:
+        with path.open("rb") as f:
+            raw = f.read(MAX_BYTES + 1)
+        return raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = raw[: exc.start].count(b"\n") + 1
+        return _fail(Problem(path, line, None, "", "the file is not UTF-8 text"))
+    except OSError as exc:
+        return _fail(Problem(path, None, None, "", f"cannot read the file: {exc.strerror}"))
+
+
+def _fail(problem: Problem):
+    raise SpecError([problem])
+
+
+def _refuse_characters(path: Path, text: str) -> None:
+    """YAML refuses control characters (NUL, BEL, ESC...): where, and which, in one line."""
+    found = yaml.reader.Reader.NON_PRINTABLE.search(text)
+    if found:
+        before = text[: found.start()]
+        line, col = before.count("\n") + 1, found.start() - (before.rfind("\n") + 1) + 1
+        char = found.group()
+        raise SpecError([Problem(path, line, col, "", f"character U+{ord(char):04X} "
+                                 f"({unicodedata.name(char, 'a control character')}) is not allowed in YAML; "
+                                 "delete it or write it as an escape inside double quotes")])
+
+
+def _refuse_depth(path: Path, text: str) -> None:
+    """Refuse nesting past MAX_DEPTH from the parser's events, before anything is built: PyYAML's
+    composer recurses once a level, and its scanner slows with every bracket left open."""
+    events = SpecLoader(text)
+    depth = 0
+    try:
+        while (event := events.get_event()) is not None and not isinstance(event, yaml.StreamEndEvent):
+            if isinstance(event, yaml.CollectionStartEvent):
+                depth += 1
+                if depth > MAX_DEPTH:
+                    raise SpecError([_at(path, event, (), f"the spec nests deeper than {MAX_DEPTH} levels; "
+                                                          "a field spec needs a few")])
+            elif isinstance(event, yaml.CollectionEndEvent):
+                depth -= 1
+    finally:
+        events.dispose()
+
+
 def _pos(path: Path, node: yaml.Node) -> Pos:
     return (path, node.start_mark.line + 1, node.start_mark.column + 1)
 
@@ -77,14 +156,44 @@ def _at(path: Path, node: yaml.Node, parts: tuple, message: str) -> Problem:
     return Problem(path, node.start_mark.line + 1, node.start_mark.column + 1, format_path(parts), message)
 
 
+def _bounded(path: Path, root: yaml.MappingNode) -> None:
+    """Refuse a document that aliases would expand past MAX_NODES values or MAX_DEPTH levels (an alias
+    "bomb", an alias inside the collection it names), measured on the node graph without expanding it."""
+    sizes: dict[int, int | None] = {}
+
+    def size(node: yaml.Node, depth: int) -> int:
+        if id(node) in sizes and sizes[id(node)] is None:
+            raise SpecError([_at(path, node, (), "an alias refers to the collection it stands in, so the spec "
+                                                 "would nest without end")])
+        if depth > MAX_DEPTH:
+            raise SpecError([_at(path, node, (), f"the spec nests deeper than {MAX_DEPTH} levels once its aliases "
+                                                 "are expanded")])
+        if id(node) not in sizes:
+            sizes[id(node)] = None
+            children = [n for pair in node.value for n in pair] if isinstance(node, yaml.MappingNode) else (
+                node.value if isinstance(node, yaml.SequenceNode) else [])
+            sizes[id(node)] = 1 + sum(size(child, depth + 1) for child in children)
+        return sizes[id(node)]
+
+    if size(root, 0) > MAX_NODES:
+        key, _ = max(root.value, key=lambda pair: sizes[id(pair[1])])
+        raise SpecError([_at(path, key, (key.value,) if isinstance(key.value, str) else (),
+                             f"the spec holds {sizes[id(root)]:,} values, each alias counted as what it "
+                             f"repeats, most of them here; at most {MAX_NODES:,} are allowed (a field needs far fewer)")])
+
+
 def _walk(path: Path, node: yaml.Node, parts: tuple, positions: dict, problems: list) -> None:
+    """Record key positions, refuse duplicate and non-string keys."""
     if isinstance(node, yaml.MappingNode):
         seen: dict = {}
         for key_node, value_node in node.value:
-            key = key_node.value if isinstance(key_node, yaml.ScalarNode) else None
-            if key is None:
-                problems.append(_at(path, key_node, parts, "keys must be plain names"))
+            if not isinstance(key_node, yaml.ScalarNode) or key_node.tag != _STR:
+                shown = key_node.value if isinstance(key_node, yaml.ScalarNode) else "a list or mapping"
+                problems.append(_at(path, key_node, parts, f"keys must be plain names, not {shown!r}"
+                                    if isinstance(shown, str) and shown != "a list or mapping"
+                                    else "keys must be plain names, not a list or mapping"))
                 continue
+            key = key_node.value
             here = parts + (key,)
             if key in seen:
                 first = seen[key]
