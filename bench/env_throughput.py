@@ -7,6 +7,12 @@ of reset + step.
 
     fieldgen build soccer_v2 soccer_v2_seed            # here, with dm_control
     python bench/env_throughput.py --fields soccer_v2,soccer_v2_seed --envs 1024,8192
+
+--backends runs each field on each physics pipeline named (sim.backend; each
+with its own default physics step), building the spec anew for every backend
+but the one it was built for, so it needs dm_control:
+
+    python bench/env_throughput.py --fields ant_nav,soccer_v2 --backends mjx,spring,positional,generalized
 """
 
 from __future__ import annotations
@@ -35,6 +41,16 @@ def contacts_per_step(env) -> int:
     return int(mjx.make_data(env.mj_model)._impl.contact.dist.shape[0])
 
 
+def field_env(folder: Path, name: str, backend: str | None):
+    """The built field, or its spec (a bundled name when the folder is missing) built for another backend."""
+    if folder.is_dir():
+        built = fieldgen.make(folder)
+        if backend in (None, built.spec.sim.backend):
+            return built
+        return fieldgen.make(built.spec, backend=backend)
+    return fieldgen.make(name, backend=backend)
+
+
 def compile_seconds(env, n_envs: int) -> float:
     """Wall time of the first reset + step call at this batch size (compilation dominates)."""
     keys = jax.random.split(jax.random.PRNGKey(0), n_envs)
@@ -51,6 +67,7 @@ def main() -> None:
     parser.add_argument("--fields", default="", help="comma-separated names; default: every built field")
     parser.add_argument("--envs", default="1024,8192,32768", help="comma-separated batch sizes")
     parser.add_argument("--steps", type=int, default=200)
+    parser.add_argument("--backends", default="", help="comma-separated sim.backend names; default: each field's own")
     parser.add_argument("--no-reference", action="store_true", help="skip brax ant")
     parser.add_argument("--json", type=Path, help="append results here, one JSON object per line")
     args = parser.parse_args()
@@ -66,17 +83,22 @@ def main() -> None:
             print(f"{'brax ant':16s} {n:>7d} envs {reference[n]:>12,.0f} steps/s   1.00x")
             append_jsonl(args.json, {"field": "brax_ant", "envs": n, "steps_per_second": reference[n]})
 
+    backends = args.backends.split(",") if args.backends else [None]
     for name in names:
-        env = fieldgen.make(args.build / name)
-        contacts = contacts_per_step(env)
-        compile_s = compile_seconds(env, sizes[0])
-        print(f"{name}: {contacts} contacts per physics step, reset+step compile {compile_s:.1f} s at {sizes[0]} envs")
-        for n in sizes:
-            sps = measure(env, n, args.steps).steps_per_second
-            ratio = sps / reference[n] if n in reference else float("nan")
-            print(f"{name:16s} {n:>7d} envs {sps:>12,.0f} steps/s   {ratio:.2f}x brax ant")
-            append_jsonl(args.json, {"field": name, "envs": n, "steps_per_second": sps, "ratio_to_brax_ant": ratio,
-                                "contacts": contacts, "compile_seconds": compile_s})
+        for backend in backends:
+            env = field_env(args.build / name, name, backend)
+            label = f"{name} ({env.spec.sim.backend})"
+            contacts = contacts_per_step(env)
+            compile_s = compile_seconds(env, sizes[0])
+            print(f"{label}: {contacts} contacts per physics step, {env.n_substeps} physics steps per env step, "
+                  f"reset+step compile {compile_s:.1f} s at {sizes[0]} envs")
+            for n in sizes:
+                sps = measure(env, n, args.steps).steps_per_second
+                ratio = sps / reference[n] if n in reference else float("nan")
+                print(f"{label:30s} {n:>7d} envs {sps:>12,.0f} steps/s   {ratio:.2f}x brax ant")
+                append_jsonl(args.json, {"field": name, "backend": env.spec.sim.backend, "envs": n,
+                                         "steps_per_second": sps, "ratio_to_brax_ant": ratio, "contacts": contacts,
+                                         "physics_steps": env.n_substeps, "compile_seconds": compile_s})
 
 
 

@@ -27,7 +27,7 @@ ARTIFACT_FORMAT = 1
 SCENE, META, PREVIEW = "scene.xml", "field.json", "preview.png"
 # The modules whose code decides the scene: a change to any of them invalidates cached builds.
 _COMPILER_MODULES = ("compile/agents.py", "compile/artifact.py", "compile/contacts.py", "compile/scene.py",
-                     "compile/layout.py", "schema/geometry.py", "schema/models.py")
+                     "compile/layout.py", "compile/pipelines.py", "schema/geometry.py", "schema/models.py")
 
 
 def _compiler_digest() -> str:

@@ -24,12 +24,18 @@ def relation(spec: FieldSpec) -> set[frozenset[str]]:
     """Role pairs that can matter for this field."""
     pairs = {frozenset(p) for p in (("ball", "foot"), ("ball", "torso"), ("foot", "floor"))}
     if spec.ball.enabled:
-        if spec.ball.joint == "free":  # a puck's floor friction is joint frictionloss instead (scene.py)
+        if ball_touches_floor(spec):
             pairs.add(frozenset(("ball", "floor")))
         pairs |= {frozenset(("ball", s)) for s in STATIC}
     agent_parts = {"none": (), "torso": ("torso",), "torso_and_feet": ("torso", "foot")}[spec.sim.agent_contacts]
     pairs |= {frozenset((a, s)) for a in agent_parts for s in STATIC}
     return pairs
+
+
+def ball_touches_floor(spec: FieldSpec) -> bool:
+    """Whether the ball has a floor contact: a free ball does, and so does a puck under brax, whose
+    pipelines ignore joint frictionloss; under MJX a puck's floor friction is frictionloss (scene.py)."""
+    return spec.ball.joint == "free" or spec.sim.backend != "mjx"
 
 
 # The soccer study's XML: geoms default to 0/0, the floor and torso only receive
@@ -62,7 +68,7 @@ def contact_limit(spec: FieldSpec) -> int | None:
     if limit != "auto":
         return limit
     resting = 4 if spec.agent.kind == "ant" else 0
-    resting += 1 if spec.ball.enabled and spec.ball.joint == "free" else 0
+    resting += 1 if spec.ball.enabled and ball_touches_floor(spec) else 0
     return resting + 8
 
 

@@ -13,7 +13,8 @@ import math
 from dm_control import mjcf
 
 from fieldgen.compile.agents import BUILDERS
-from fieldgen.compile.contacts import bits, contact_limit
+from fieldgen.compile.contacts import ball_touches_floor, bits, contact_limit
+from fieldgen.compile.pipelines import brax_parameters
 from fieldgen.schema import geometry
 from fieldgen.schema.models import FieldSpec
 
@@ -70,6 +71,8 @@ def _options(root: mjcf.RootElement, spec: FieldSpec) -> None:
     limit = contact_limit(spec)
     if limit is not None:
         root.custom.add("numeric", name="max_contact_points", data=(limit,))
+    for name, value in brax_parameters(spec).items():
+        root.custom.add("numeric", name=name, data=(value,))
     root.default.geom.condim = 3
     root.default.geom.friction = (1.0, 0.5, 0.5)
     root.default.geom.density = 5.0
@@ -136,8 +139,10 @@ def _ball(root: mjcf.RootElement, spec: FieldSpec) -> tuple[float, ...]:
     else:
         # Slide joints measure from the body's position: keep it at the origin so qpos is world x, y.
         # A puck presses on the floor with its weight alone, so Coulomb floor friction is exactly a
-        # frictionloss of mu*m*g on each slide: no floor contact needed (the study's bits keep one).
-        frictionloss = 0.0 if spec.sim.contacts == "study" else max(b.friction, spec.field.friction) * b.mass * GRAVITY
+        # frictionloss of mu*m*g on each slide: no floor contact needed (the study's bits keep one, and
+        # brax, which ignores frictionloss, gets one).
+        touches = spec.sim.contacts == "study" or ball_touches_floor(spec)
+        frictionloss = 0.0 if touches else max(b.friction, spec.field.friction) * b.mass * GRAVITY
         body = root.worldbody.add("body", name="ball", pos=(0, 0, b.radius))
         for axis, vec in (("x", (1, 0, 0)), ("y", (0, 1, 0))):
             body.add("joint", name=f"ball_{axis}", type="slide", axis=vec, limited=False, armature=0, damping=0,

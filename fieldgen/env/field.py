@@ -146,7 +146,7 @@ class FieldEnv:
     def reset_variant(self, rng: jax.Array, variant) -> State:
         rng, episode_key = jax.random.split(rng)
         variant = jnp.asarray(variant, jnp.int32)
-        data, goal = self._each(variant, lambda v: v.fresh_episode(episode_key))
+        data, goal = self._fresh(variant, episode_key)
         zero = jnp.zeros(())
         info = {"rng": rng, "goal": goal, "episode_step": jnp.zeros((), jnp.int32),
                 "down_steps": jnp.zeros((), jnp.int32),
@@ -166,7 +166,7 @@ class FieldEnv:
         variant = state.info.get("variant", jnp.zeros((), jnp.int32))
         sys = self._model(variant)
         with jax.default_matmul_precision(self.spec.sim.precision):
-            data = jax.lax.fori_loop(0, self.n_substeps, lambda _, d: mjx.step(sys, d), before.replace(ctrl=action))
+            data = self._advance(sys, before, action)
         goal = state.obs[self.state_dim:]  # = info["goal"], and follows a wrapper that swaps observations
         t = Transition(self._ball_pos(before, variant), self._ball_pos(data, variant), self._agent_pos(before),
                        self._agent_pos(data), goal, action, self.dt)
@@ -191,16 +191,15 @@ class FieldEnv:
                 drawn = jax.random.categorical(k_variant, jnp.log(state.info["variant_weights"]))
                 variant = jnp.where(done, drawn, variant).astype(jnp.int32)
                 info.update(variant=variant)
-            fresh, fresh_goal = self._each(variant, lambda v: v.fresh_episode(key))
+            fresh, fresh_goal = self._fresh(variant, key)
             fresh_obs = self._obs(fresh, fresh_goal)
-            data = data.replace(**{f: jnp.where(done, getattr(fresh, f), getattr(data, f)) for f in _STATE_FIELDS})
+            data = self._restart(done, fresh, data)
             goal = jnp.where(done, fresh_goal, goal)
             obs = jnp.where(done, fresh_obs, obs)
             info.update(rng=rng, goal=goal, episode_step=jnp.where(done, 0, steps), down_steps=jnp.where(done, 0, down),
                         episode=state.info["episode"] + done.astype(jnp.int32))
             if "first_obs" in info:  # under brax's AutoResetWrapper: what it swaps in is a fresh episode
-                info.update(first_pipeline_state=data.replace(**{f: getattr(fresh, f) for f in _STATE_FIELDS}),
-                            first_obs=fresh_obs)
+                info.update(first_pipeline_state=self._restart(jnp.ones_like(done), fresh, data), first_obs=fresh_obs)
         return State(data, obs, reward, done.astype(jnp.float32), metrics, info)
 
     def goal_reached(self, state: jax.Array, goal: jax.Array, variant=None) -> jax.Array:
@@ -216,6 +215,20 @@ class FieldEnv:
             ball = state[start:stop] if stop - start == 3 else jnp.append(state[start:stop], self._ball_radii[variant])
         t = Transition(ball, ball, agent, agent, goal, jnp.zeros(self.action_size), self.dt)
         return self._each(variant, lambda v: v.task.success(t))
+
+    # -- physics (brax_pipeline.BraxFieldEnv steps brax's pipelines instead) --
+
+    def _fresh(self, variant: jax.Array, key: jax.Array):
+        """(physics state, goal) of a new episode of `variant`, drawn from `key`."""
+        return self._each(variant, lambda v: v.fresh_episode(key))
+
+    def _advance(self, sys, data: mjx.Data, action: jax.Array) -> mjx.Data:
+        """The physics steps of one control step."""
+        return jax.lax.fori_loop(0, self.n_substeps, lambda _, d: mjx.step(sys, d), data.replace(ctrl=action))
+
+    def _restart(self, done: jax.Array, fresh: mjx.Data, data: mjx.Data) -> mjx.Data:
+        """`fresh` where the episode is done, else `data`."""
+        return data.replace(**{f: jnp.where(done, getattr(fresh, f), getattr(data, f)) for f in _STATE_FIELDS})
 
     # -- views -------------------------------------------------------------
 

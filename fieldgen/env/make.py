@@ -7,20 +7,38 @@ from pathlib import Path
 from fieldgen.env.field import FieldEnv
 
 
-def make(source, backend: str = "mjx", **kwargs) -> FieldEnv:
-    """An environment from a FieldSpec, a YAML path, a bundled name or a build directory.
+def make(source, backend: str | None = None, **kwargs) -> FieldEnv:
+    """An environment from a FieldSpec, a YAML path, a bundled name or a build directory, stepped by
+    the physics its spec names (sim.backend), or by `backend` in its place.
 
-    Building from a spec needs dm_control; a build directory needs only mujoco.
-    Keyword arguments (episode_length, auto_reset) go to FieldEnv.
+    Building from a spec needs dm_control; a build directory needs only mujoco, and runs on the
+    backend it was built for. Keyword arguments (episode_length, auto_reset) go to FieldEnv.
     """
     from fieldgen.compile.artifact import compile_spec, load_artifact
     from fieldgen.schema import FieldSpec, load_spec, resolve_spec_path
 
-    if backend != "mjx":
-        raise ValueError(f"unknown backend {backend!r}; fieldgen environments run on 'mjx'")
     if isinstance(source, FieldSpec):
-        return FieldEnv(compile_spec(source), **kwargs)
+        spec = source if backend is None else load_spec(source, backend)
+        return environment(compile_spec(spec), **kwargs)
     path = Path(source) if isinstance(source, Path) else resolve_spec_path(str(source))
     if path.is_dir():
-        return FieldEnv(load_artifact(path), **kwargs)
-    return FieldEnv(compile_spec(load_spec(path)), **kwargs)
+        artifact = load_artifact(path)
+        if backend not in (None, artifact.spec.sim.backend):
+            raise ValueError(f"{path} was built for sim.backend {artifact.spec.sim.backend}; build its spec with "
+                             f"sim.backend: {backend}, or make the spec itself with backend={backend!r}")
+        return environment(artifact, **kwargs)
+    return environment(compile_spec(load_spec(path, backend)), **kwargs)
+
+
+def environment(artifacts, **kwargs) -> FieldEnv:
+    """The environment of built fields, on the physics their spec names."""
+    from fieldgen.env.brax_pipeline import BraxFieldEnv, check_batchable
+
+    if isinstance(artifacts, (list, tuple)):
+        check_batchable(artifacts)
+        if len(artifacts) > 1:
+            return FieldEnv(artifacts, **kwargs)
+        artifacts = artifacts[0]
+    if artifacts.spec.sim.backend == "mjx":
+        return FieldEnv(artifacts, **kwargs)
+    return BraxFieldEnv(artifacts, **kwargs)

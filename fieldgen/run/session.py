@@ -19,6 +19,8 @@ from fieldgen.agents.config import ConfigError
 from fieldgen.compile.artifact import ArtifactError, write_artifact
 from fieldgen.compile.variants import VariantError, compile_variants
 from fieldgen.curriculum.promotion import Promotion
+from fieldgen.env.brax_pipeline import check_batchable
+from fieldgen.env.make import environment
 from fieldgen.files import remove_leftovers
 from fieldgen.run import record
 
@@ -52,7 +54,7 @@ class Run:
         """What trains: one trainer per stage, or for a mixed run one on all stages batched together."""
         make_train = registry.trainer(self.algo).make_train
         if self.mixed:
-            return [make_train(self.config, fieldgen.FieldEnv([e.artifact for e in self.envs]))]
+            return [make_train(self.config, environment([e.artifact for e in self.envs]))]
         return [make_train(self.config, env) for env in self.envs]
 
     def judge(self) -> loop.Trainer:
@@ -76,10 +78,12 @@ def new_run(source: Path, algo: str, seeds: list[int], config, out: Path, mixed:
             c = curriculum.load(source)
             specs = c.specs()
             if mixed:
-                envs = [fieldgen.FieldEnv(a) for a in compile_variants(specs)]
+                artifacts = compile_variants(specs)
+                check_batchable(artifacts)
+                envs = [environment(a) for a in artifacts]
             else:
                 envs = [fieldgen.make(s) for s in specs]
-        except (curriculum.CurriculumError, VariantError) as exc:
+        except (curriculum.CurriculumError, VariantError, ValueError) as exc:
             raise record.RunError(str(exc)) from None
         promotion, name = c.promotion, source.name + ("-mixed" if mixed else "")
         layouts = {json.dumps(e.layout.to_json()) for e in envs}

@@ -13,6 +13,7 @@ import numpy as np
 from scipy import ndimage
 
 from fieldgen.schema import geometry
+from fieldgen.schema.backends import backend_problems
 from fieldgen.schema.models import FieldSpec
 
 GRID = 0.05  # metres per cell of the reachability grid
@@ -24,6 +25,7 @@ Found = list[tuple[tuple, str]]
 def physics_problems(spec: FieldSpec) -> Found:
     out: Found = []
     out += _timing(spec)
+    out += backend_problems(spec)
     out += _task_needs(spec)
     out += _fits_on_field(spec)
     if spec.ball.enabled and not out:

@@ -42,9 +42,15 @@ def resolve_spec_path(ref: str, relative_to: Path | None = None) -> Path:
     return path
 
 
-def load_spec(path: str | Path) -> FieldSpec:
-    """Load, merge and validate a field spec; raises SpecError listing every problem."""
-    source = _load_merged(Path(path), ())
+def load_spec(path: str | Path | FieldSpec, backend: str | None = None) -> FieldSpec:
+    """Load, merge and validate a field spec; raises SpecError listing every problem. `backend`
+    replaces its sim.backend, with that pipeline's defaults for whatever the spec leaves out."""
+    if isinstance(path, FieldSpec):
+        source = Source(path.model_dump(mode="json", exclude_unset=True))
+    else:
+        source = _load_merged(Path(path), ())
+    if backend is not None:
+        source = _merge(source, Source({"sim": {"backend": backend}}))
     return validate(source)
 
 

@@ -321,6 +321,11 @@ class EpisodeSection(Section):
 
 
 class SimSection(Section):
+    backend: Literal["mjx", "spring", "positional", "generalized"] = Field(
+        "mjx",
+        description="physics pipeline: mjx (MuJoCo MJX), or one of brax's: spring (the CRL reference's ant), "
+        "positional (the soccer study's CRL runs) or generalized; spring and positional step 0.005 s by default",
+    )
     solver: Literal["newton", "cg"] = Field("newton", description="constraint solver")
     iterations: int = Field(1, ge=1, le=100, description="solver iterations")
     ls_iterations: int = Field(4, ge=1, le=100, description="line-search iterations")
@@ -346,6 +351,15 @@ class SimSection(Section):
     )
 
 
+# brax's pipelines as its reference ant sets them: spring and positional step 0.005 s (10 steps per
+# 0.05 s control step), generalized 0.01 s with 4 solver iterations.
+BACKEND_DEFAULTS = {
+    "spring": {("episode", "physics_dt"): 0.005},
+    "positional": {("episode", "physics_dt"): 0.005},
+    "generalized": {("sim", "iterations"): 4},
+}
+
+
 class ObservationSection(Section):
     ball_velocity: bool = Field(False, description="append the ball's velocity to the observation")
 
@@ -365,8 +379,18 @@ class FieldSpec(Section):
         default_factory=dict, max_length=MAX_OBSTACLES, description="named boxes, e.g. a goalie")
     task: TaskSection = Field(default_factory=TaskSection, description="target, success predicate, reward")
     episode: EpisodeSection = Field(default_factory=EpisodeSection, description="timing and termination")
-    sim: SimSection = Field(default_factory=SimSection, description="MJX simulation options")
+    sim: SimSection = Field(default_factory=SimSection, description="physics pipeline and its options")
     observation: ObservationSection = Field(default_factory=ObservationSection, description="observation extras")
+
+    @model_validator(mode="after")
+    def _backend_defaults(self):
+        """The physics step each pipeline was tuned for, where the spec leaves it out."""
+        for (section, key), value in BACKEND_DEFAULTS.get(self.sim.backend, {}).items():
+            part = getattr(self, section)
+            if key not in part.model_fields_set:
+                setattr(part, key, value)
+                part.model_fields_set.discard(key)  # still a default: another backend brings its own
+        return self
 
     def target_fixed(self) -> tuple[float, float] | None:
         """The target point when it does not vary between episodes."""
