@@ -27,6 +27,7 @@ from .contrastive import energy, infonce, logsumexp_penalty, paired_energy, weig
 from .loop import Trainer
 from .networks import Stacked, gaussian_head, sample_tanh_gaussian
 from .optim import adam_by_group
+from .policy import Policy
 from .team import Team, whole
 
 
@@ -186,4 +187,15 @@ def make_train(config: CRLConfig, env, team: Team | None = None, shared: bool = 
     def act(ts: TrainState, obs: jax.Array) -> jax.Array:
         return policy(nets.member(ts.nets, 0), obs)
 
-    return Trainer(config, env, start, chunk, act, {"env_state": 0, "buffer": 1})
+    def export(ts: TrainState) -> Policy:
+        """The actor alone: each agent reads its own entries of the state, then the goal."""
+        actor = nets.alone(ts.nets, 0)
+        per_agent = team.size > 1 and not shared
+        if team.size == 1 and not shared:
+            actor = jax.tree.map(lambda w: w[0], actor)  # the agent axis of one
+        goal = tuple(range(state_dim, state_dim + goal_size))
+        observes = tuple(tuple(o) + goal for o in team.observed.tolist())
+        return Policy(actor, observes, tuple(map(tuple, team.actions.tolist())), tuple(c.hidden), 2 * own,
+                      layer_norm=c.layer_norm, skip_every=c.skip_every, per_agent=per_agent)
+
+    return Trainer(config, env, start, chunk, act, {"env_state": 0, "buffer": 1}, export)

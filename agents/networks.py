@@ -134,6 +134,15 @@ class Stacked:
     def apply_member(self, member: dict, k: int, x: jax.Array) -> jax.Array:
         return self.joint.apply(member, self._widen(x))[..., :self.outputs[k]]
 
+    def alone(self, params: dict, k: int) -> dict:
+        """Network k's weights cut to its own inputs and outputs: what an MLP of its shape holds (per agent,
+        as PerAgent), to be called without the stack."""
+        layers = dict(self.member(params, k)["params"])
+        dense = sorted((n for n in layers if n.startswith("Dense_")), key=lambda n: int(n.split("_")[1]))
+        layers[dense[0]] = dict(layers[dense[0]], kernel=layers[dense[0]]["kernel"][..., :self.inputs[k], :])
+        layers[dense[-1]] = {name: w[..., :self.outputs[k]] for name, w in layers[dense[-1]].items()}
+        return {"params": layers}
+
     def _widen(self, x: jax.Array) -> jax.Array:
         return jnp.pad(x, [(0, 0)] * (x.ndim - 1) + [(0, max(self.inputs) - x.shape[-1])])
 

@@ -27,6 +27,7 @@ from .config import OffPolicyConfig
 from .contrastive import weighted_mean
 from .loop import Trainer
 from .networks import MLP, Actor
+from .policy import Policy
 
 
 @flax.struct.dataclass
@@ -177,4 +178,9 @@ def trainer(nets: ActorCritic, new_state: Callable, explore: Callable, update: C
     def act(ts: TrainState, obs: jax.Array) -> jax.Array:
         return jnp.tanh(nets.actor.apply(ts.actor, obs)[0])
 
-    return Trainer(c, env, start, chunk, act, {"env_state": 0, "buffer": 1})
+    def export(ts: TrainState) -> Policy:
+        """The actor's MLP alone: its first outputs are the mean, its last the log-std."""
+        return Policy.whole(env, {"params": ts.actor["params"]["MLP_0"]}, c.hidden, 2 * action_size,
+                            layer_norm=c.layer_norm)
+
+    return Trainer(c, env, start, chunk, act, {"env_state": 0, "buffer": 1}, export)

@@ -23,6 +23,7 @@ import optax
 from .config import PPOConfig
 from .loop import Trainer
 from .networks import MLP, tanh_log_slope
+from .policy import Policy
 
 
 @flax.struct.dataclass
@@ -39,11 +40,16 @@ class Normalizer:
         delta = mean - self.mean
         return Normalizer(total, self.mean + delta * n / total, self.m2 + var * n + delta**2 * self.count * n / total)
 
+    CLIP = 10.0  # normalised observations are clipped to +-CLIP
+
+    @property
+    def std(self) -> jax.Array:
+        return jnp.sqrt(self.m2 / jnp.maximum(self.count, 1.0) + 1e-6)
+
     def __call__(self, obs: jax.Array, enabled: bool) -> jax.Array:
         if not enabled:
             return obs
-        std = jnp.sqrt(self.m2 / jnp.maximum(self.count, 1.0) + 1e-6)
-        return jnp.clip((obs - self.mean) / std, -10.0, 10.0)
+        return jnp.clip((obs - self.mean) / self.std, -self.CLIP, self.CLIP)
 
 
 @flax.struct.dataclass
@@ -171,4 +177,10 @@ def make_train(config: PPOConfig, env) -> Trainer:
         ts, metrics = jax.lax.scan(lambda t, _: iteration(t), ts, None, length=iters_per_eval)
         return ts, jax.tree.map(jnp.mean, metrics)
 
-    return Trainer(config, env, init, chunk, act, {"env_state": 0})
+    def export(ts: TrainState) -> Policy:
+        """The policy network alone, with the normaliser's statistics; its first outputs are the mean."""
+        norm = ts.normalizer
+        stats = dict(obs_mean=norm.mean, obs_std=norm.std, clip=norm.CLIP) if c.normalize_observations else {}
+        return Policy.whole(env, ts.params["policy"], c.hidden, policy_net.out, **stats)
+
+    return Trainer(config, env, init, chunk, act, {"env_state": 0}, export)

@@ -31,4 +31,8 @@ def __getattr__(name):
         from fieldgen import env
 
         return getattr(env, name)
+    if name == "load_policy":
+        from fieldgen.policy import load_policy
+
+        return load_policy
     raise AttributeError(f"module 'fieldgen' has no attribute {name!r}")

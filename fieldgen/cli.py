@@ -534,5 +534,28 @@ def videos(
     out.print(table)
 
 
+@app.command()
+def export(
+    run_dir: Annotated[Path, typer.Argument(help="a run folder written by fieldgen train")],
+    folder: Annotated[Path, typer.Option("--out", "-o", help="the folder to write the policy to")],
+    seed: Annotated[Optional[int], typer.Option(help="which of the run's seeds (default: its first)")] = None,
+) -> None:
+    """Write a run's policy (policy.json and params.msgpack) for fieldgen.load_policy, which needs no trainer or run.
+
+    Example: fieldgen export runs/point_nav-crl-0 -o policies/point_nav
+    """
+    from fieldgen.agents.config import ConfigError
+    from fieldgen.run import record
+    from fieldgen.run.export import export as write_policy
+
+    try:
+        d = write_policy(run_dir, folder, seed).description
+    except (SpecError, ConfigError, record.RunError) as exc:
+        _fail(str(exc))
+    out.print(f"exported {d.algorithm} seed {d.seed} at {d.env_steps:,} env steps ({d.field}: "
+              f"{len(d.observation_names)} observations -> {len(d.action_names)} actions) to {folder}; "
+              f"load it with fieldgen.load_policy('{folder}')", highlight=False)
+
+
 if __name__ == "__main__":
     app()

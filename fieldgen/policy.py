@@ -1,0 +1,162 @@
+"""An exported policy's folder: `policy.json` says what the network reads, how it is built and what its
+outputs drive; `params.msgpack` holds its weights (flax's msgpack serialization).
+
+`load_policy(folder)` gives a jit-able `act(obs) -> action` from these two files alone: no trainer,
+run folder, field or simulator is needed, so the policy can go wherever JAX and flax run.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Literal
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from flax import serialization
+from pydantic import BaseModel, ConfigDict, ValidationError
+
+from fieldgen.agents.policy import Policy
+from fieldgen.files import replace_folder, write_atomic
+
+DESCRIPTION, PARAMS = "policy.json", "params.msgpack"
+ACTION = "tanh of each agent's first network outputs, one per action it drives, in order"
+
+
+class PolicyError(Exception):
+    """An exported policy folder that cannot be loaded: missing, damaged, or inconsistent."""
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class Network(_Strict):
+    """agents.networks.MLP: Dense -> (LayerNorm) -> swish per hidden layer, residual blocks of `skip_every`
+    layers after the first, then a linear layer of `outputs`."""
+
+    kind: Literal["mlp"] = "mlp"
+    activation: Literal["swish"] = "swish"
+    hidden: list[int]
+    outputs: int
+    layer_norm: bool
+    skip_every: int
+    per_agent: bool  # each agent has its own weights, stacked on a leading axis of params.msgpack
+
+
+class Agent(_Strict):
+    observes: list[str]  # the observation entries its network reads, in order
+    drives: list[str]  # the action each of its first outputs drives
+
+
+class Normalizer(_Strict):
+    """Observations enter the network as clip((obs - mean) / std, -clip, clip)."""
+
+    mean: list[float]
+    std: list[float]
+    clip: float
+
+
+class Description(_Strict):
+    format: Literal["fieldgen-policy"] = "fieldgen-policy"
+    version: Literal[1] = 1
+    algorithm: str
+    field: str
+    seed: int
+    env_steps: int
+    observation_names: list[str]
+    action_names: list[str]
+    network: Network
+    agents: list[Agent]
+    normalizer: Normalizer | None
+    action: Literal[ACTION] = ACTION
+
+
+def describe(policy: Policy, observation_names, action_names, **about) -> Description:
+    """The description of `policy` for an environment's names; `about`: algorithm, field, seed, env_steps."""
+    network = Network(hidden=list(policy.hidden), outputs=policy.outputs, layer_norm=policy.layer_norm,
+                      skip_every=policy.skip_every, per_agent=policy.per_agent)
+    agents = [Agent(observes=[observation_names[i] for i in seen], drives=[action_names[i] for i in driven])
+              for seen, driven in zip(policy.observes, policy.drives)]
+    normalizer = None
+    if policy.obs_mean is not None:
+        normalizer = Normalizer(mean=np.asarray(policy.obs_mean).tolist(), std=np.asarray(policy.obs_std).tolist(),
+                                clip=policy.clip)
+    return Description(observation_names=list(observation_names), action_names=list(action_names), network=network,
+                       agents=agents, normalizer=normalizer, **about)
+
+
+def save_policy(policy: Policy, description: Description, folder: Path) -> None:
+    """Write (or replace whole) an exported policy's folder."""
+    params = serialization.msgpack_serialize(jax.device_get(policy.params))
+
+    def fill(staging: Path) -> None:
+        write_atomic(staging / DESCRIPTION, (description.model_dump_json(indent=1) + "\n").encode())
+        write_atomic(staging / PARAMS, params)
+
+    replace_folder(folder, fill)
+
+
+def load_policy(folder: str | Path) -> jax.tree_util.Partial:
+    """The policy exported to `folder` as `act(obs [..., observation_size]) -> actions [..., action_size]` in
+    [-1, 1], deterministic: jit it, vmap it, call it as it is, or pass it into jitted code (it is a pytree of its
+    weights, so a new policy of the same shape reuses the compiled program)."""
+    folder = Path(folder)
+    description = read_description(folder)
+    try:
+        params = serialization.msgpack_restore((folder / PARAMS).read_bytes())
+    except OSError as exc:
+        raise PolicyError(f"cannot read {folder / PARAMS}: {exc.strerror}") from None
+    except Exception:  # msgpack raises many types on damaged input
+        raise PolicyError(f"{folder / PARAMS} is damaged (not flax msgpack); export the policy again") from None
+    policy = _policy(description, jax.tree.map(jnp.asarray, params))
+    _check_shapes(policy, folder / PARAMS)
+    return jax.tree_util.Partial(Policy.__call__, policy)
+
+
+def read_description(folder: Path) -> Description:
+    path = folder / DESCRIPTION
+    if not folder.is_dir():
+        raise PolicyError(f"{folder} is not a folder; export a run's policy there with: fieldgen export RUN -o {folder}")
+    try:
+        return Description.model_validate_json(path.read_bytes())
+    except OSError as exc:
+        raise PolicyError(f"cannot read {path}: {exc.strerror}; is {folder} a folder written by fieldgen export?") \
+            from None
+    except ValidationError as exc:
+        problem = exc.errors()[0]
+        where = ".".join(str(p) for p in problem["loc"]) or "(the file)"
+        raise PolicyError(f"{path}: {where}: {problem['msg']}") from None
+
+
+def _policy(d: Description, params: dict) -> Policy:
+    try:
+        observes = tuple(tuple(d.observation_names.index(n) for n in a.observes) for a in d.agents)
+        drives = tuple(tuple(d.action_names.index(n) for n in a.drives) for a in d.agents)
+    except ValueError as exc:  # "'x' is not in list"
+        raise PolicyError(f"{DESCRIPTION}: agents: {exc}: each agent observes observation_names and drives "
+                          "action_names") from None
+    stats = {}
+    if d.normalizer is not None:
+        stats = dict(obs_mean=jnp.asarray(d.normalizer.mean, jnp.float32),
+                     obs_std=jnp.asarray(d.normalizer.std, jnp.float32), clip=d.normalizer.clip)
+    n = d.network
+    return Policy(params, observes, drives, tuple(n.hidden), n.outputs, layer_norm=n.layer_norm,
+                  skip_every=n.skip_every, per_agent=n.per_agent, **stats)
+
+
+def _check_shapes(policy: Policy, path: Path) -> None:
+    """The weights are those of the network the description builds, layer by layer."""
+    inputs = jnp.zeros((1, len(policy.observes[0])))
+    init = jax.vmap(policy.network.init, in_axes=(0, None)) if policy.per_agent else policy.network.init
+    key = jax.random.split(jax.random.PRNGKey(0), len(policy.observes)) if policy.per_agent else jax.random.PRNGKey(0)
+    want, got = _shapes(jax.eval_shape(init, key, inputs)), _shapes(policy.params)
+    for name in sorted(want.keys() | got.keys()):
+        if want.get(name) != got.get(name):
+            raise PolicyError(f"{path}: the weights {name} are {got.get(name, 'missing')} where {DESCRIPTION} "
+                              f"describes a network whose {name} is {want.get(name, 'absent')}; export the policy again")
+
+
+def _shapes(tree) -> dict[str, tuple[int, ...]]:
+    return {jax.tree_util.keystr(path): tuple(x.shape) for path, x in jax.tree_util.tree_flatten_with_path(tree)[0]}

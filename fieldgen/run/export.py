@@ -1,0 +1,43 @@
+"""A run's policy taken out of its run folder: one seed's actor, at the last checkpoint, written as an
+exported policy folder (fieldgen.policy) that `fieldgen.load_policy` calls without fieldgen's trainers."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import jax
+
+from fieldgen.agents import loop
+from fieldgen.files import WriteError
+from fieldgen.policy import Description, describe, save_policy
+from fieldgen.run import record, session
+
+
+@dataclasses.dataclass(frozen=True)
+class Exported:
+    folder: Path
+    description: Description
+
+
+def export(run_dir: Path, out: Path, seed: int | None = None) -> Exported:
+    """Write the policy of `seed` (the run's first by default) to `out`, replacing what was there."""
+    run = session.open_run(run_dir)
+    if run.state is None:
+        raise record.RunError(f"{run_dir} has not trained yet, so it has no policy; start it with: "
+                              f"fieldgen train --resume {run_dir}")
+    seed = run.seeds[0] if seed is None else seed
+    if seed not in run.seeds:
+        raise record.RunError(f"{run_dir} trained seeds {', '.join(map(str, run.seeds))}, not {seed}; "
+                              "pick one of them with --seed")
+    trainer = run.judge()
+    state = loop.seed_slice(run.state, run.seeds.index(seed))
+    policy = trainer.export(state)
+    env = run.env
+    description = describe(policy, env.observation_names, env.action_names, algorithm=run.algo, field=env.spec.name,
+                           seed=seed, env_steps=int(jax.device_get(state.env_steps)))
+    try:
+        save_policy(policy, description, out)
+    except WriteError as exc:
+        raise record.RunError(f"{exc}; free some space, fix the folder's permissions or choose another -o") from None
+    return Exported(out, description)

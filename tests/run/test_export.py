@@ -1,0 +1,90 @@
+"""fieldgen export: a run's policy out of its run folder, loaded by fieldgen.load_policy without the trainers."""
+
+from __future__ import annotations
+
+import json
+
+import jax
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+import fieldgen
+from fieldgen.agents import loop
+from fieldgen.cli import app
+from fieldgen.policy import DESCRIPTION, PARAMS, PolicyError
+from fieldgen.run import session
+
+runner = CliRunner()
+TINY = ["--set", "crl.hidden=[32,32]", "--set", "crl.repr_dim=8", "--set", "crl.batch_size=32",
+        "--set", "crl.unroll_length=10", "--set", "crl.min_replay_rows=100", "--set", "crl.max_replay_rows=400",
+        "--set", "crl.num_evals=1", "--set", "crl.eval_envs=8"]
+
+
+pytestmark = pytest.mark.slow  # training the run they share takes minutes on two CPU cores
+
+
+@pytest.fixture(scope="module")
+def trained(tmp_path_factory):
+    """A tiny CRL run of two seeds on point_nav."""
+    out = tmp_path_factory.mktemp("runs")
+    result = runner.invoke(app, ["train", "point_nav", "--steps", "1000", "--envs", "8", "--seeds", "2",
+                                 "--out", str(out), "--no-videos", *TINY])
+    assert result.exit_code == 0, result.output
+    return out / "point_nav-crl-0to1"
+
+
+def test_exported_policy_acts_as_the_run(trained, tmp_path):
+    folder = tmp_path / "policy"
+    result = runner.invoke(app, ["export", str(trained), "-o", str(folder), "--seed", "1"])
+    assert result.exit_code == 0, result.output
+    assert "exported crl seed 1 at 960 env steps (point_nav: 6 observations -> 2 actions)" in result.output
+    assert sorted(p.name for p in folder.iterdir()) == [PARAMS, DESCRIPTION]
+    run = session.open_run(trained)
+    described = json.loads((folder / DESCRIPTION).read_text())
+    assert described["algorithm"] == "crl" and described["seed"] == 1 and described["env_steps"] == 960
+    assert described["observation_names"] == list(run.env.observation_names)
+    assert described["action_names"] == list(run.env.action_names) == described["agents"][0]["drives"]
+    assert described["network"]["hidden"] == [32, 32] and described["normalizer"] is None
+
+    act = fieldgen.load_policy(folder)
+    obs = jax.vmap(run.env.reset)(jax.random.split(jax.random.PRNGKey(3), 32)).obs
+    obs = obs.at[:, :2].add(jax.random.normal(jax.random.PRNGKey(4), (32, 2)))  # spread the agents over the field
+    own = np.asarray(run.trainers[0].act(loop.seed_slice(run.state, 1), obs))
+    other_seed = np.asarray(run.trainers[0].act(loop.seed_slice(run.state, 0), obs))
+    assert not np.allclose(own, other_seed, atol=1e-3)  # the seeds' policies differ, so the export picked seed 1
+    np.testing.assert_allclose(np.asarray(jax.jit(act)(obs)), own, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(np.asarray(jax.jit(lambda a, o: a(o))(act, obs[0])), own[0], rtol=0, atol=1e-6)
+
+
+def test_export_errors_are_one_sentence(trained, tmp_path):
+    unknown = runner.invoke(app, ["export", str(trained), "-o", str(tmp_path / "p"), "--seed", "7"])
+    assert unknown.exit_code == 1 and "trained seeds 0, 1, not 7" in unknown.output
+    assert not (tmp_path / "p").exists()
+    prepared = runner.invoke(app, ["train", "point_nav", "--steps", "1000", "--envs", "8", "--out", str(tmp_path),
+                                   "--prepare", *TINY])
+    assert prepared.exit_code == 0, prepared.output
+    untrained = runner.invoke(app, ["export", str(tmp_path / "point_nav-crl-0"), "-o", str(tmp_path / "p")])
+    assert untrained.exit_code == 1 and "has not trained yet" in untrained.output and "Traceback" not in untrained.output
+
+
+def test_a_damaged_export_is_a_clear_error(trained, tmp_path):
+    folder = tmp_path / "policy"
+    assert runner.invoke(app, ["export", str(trained), "-o", str(folder)]).exit_code == 0
+    with pytest.raises(PolicyError, match="is not a folder"):
+        fieldgen.load_policy(tmp_path / "nowhere")
+    described = json.loads((folder / DESCRIPTION).read_text())
+    (folder / DESCRIPTION).write_text(json.dumps({**described, "network": {**described["network"], "hidden": [32]}}))
+    with pytest.raises(PolicyError, match=r"\['params'\]\['Dense_1'\]\['bias'\] are \(32,\) where policy.json "
+                                          r"describes a network whose .* is \(4,\)"):
+        fieldgen.load_policy(folder)
+    (folder / DESCRIPTION).write_text(json.dumps({**described, "agents": [{"observes": ["ball.x"], "drives": []}]}))
+    with pytest.raises(PolicyError, match="'ball.x' is not in list"):
+        fieldgen.load_policy(folder)
+    (folder / DESCRIPTION).write_text(json.dumps({**described, "normalizer": {"mean": [0.0]}}))
+    with pytest.raises(PolicyError, match="policy.json: normalizer.std: Field required"):
+        fieldgen.load_policy(folder)
+    (folder / DESCRIPTION).write_text(json.dumps(described))
+    (folder / PARAMS).write_bytes((folder / PARAMS).read_bytes()[:100])
+    with pytest.raises(PolicyError, match="params.msgpack is damaged"):
+        fieldgen.load_policy(folder)
