@@ -108,3 +108,16 @@ def test_counts_are_read_as_people_write_them(tmp_path):
         message = " ".join(result.output.split())
         assert result.exit_code == 2 and f"'{bad}' is not a positive whole count" in message, result.output
         assert "Traceback" not in result.output
+
+
+def test_version_and_python_dash_m():
+    from fieldgen.version import VERSION
+
+    result = runner.invoke(app, ["--version"])
+    assert result.exit_code == 0 and result.output.strip() == f"fieldgen {VERSION}"
+    import subprocess
+    import sys
+
+    for module in ("fieldgen", "fieldgen.cli"):
+        proc = subprocess.run([sys.executable, "-m", module, "--version"], capture_output=True, text=True, timeout=120)
+        assert proc.returncode == 0 and proc.stdout.strip() == f"fieldgen {VERSION}", proc.stderr
