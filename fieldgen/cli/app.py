@@ -10,10 +10,12 @@ from typing import Annotated
 import typer
 from rich.console import Console
 
+from fieldgen.cli.helptext import ReadableTyper
 from fieldgen.schema import bundled_fields, resolve_spec_path
+from fieldgen.suggest import did_you_mean
 from fieldgen.version import VERSION
 
-app = typer.Typer(
+app = ReadableTyper(
     help="Robot-soccer fields from YAML specs, compiled to GPU-batched MJX environments.",
     no_args_is_help=True,
     pretty_exceptions_enable=False,
@@ -22,6 +24,25 @@ out = Console()
 err = Console(stderr=True, soft_wrap=True)  # messages wrap in the terminal, not mid-phrase here
 
 SpecArg = Annotated[str, typer.Argument(help="a YAML file, a bundled field name, or (render, bench) a build directory")]
+# the choices of --algo and --camera (the trainers' registry and the renderer own them, but take a second
+# or more to import)
+ALGORITHMS = ("crl", "icrl", "ppo", "sac", "td3")
+CAMERAS = ("top", "follow")
+
+
+def choice(what: str, choices: tuple[str, ...]) -> dict:
+    """typer.Option settings for one of `choices`: listed in --help, completed by the shell, and checked as
+    the command line is read, before anything loads."""
+
+    def check(value: str | None) -> str | None:
+        if value is not None and value not in choices:
+            fail(f"unknown {what} '{value}'{did_you_mean(value, choices) or '.'} Choose one of: {', '.join(choices)}.")
+        return value
+
+    def complete(incomplete: str) -> list[str]:
+        return [c for c in choices if c.startswith(incomplete)]
+
+    return {"metavar": "|".join(choices), "callback": check, "autocompletion": complete}
 
 
 SUFFIXES = {"k": 1_000, "m": 1_000_000, "g": 1_000_000_000}

@@ -10,12 +10,12 @@ from typing import Annotated, Optional
 import typer
 from rich.table import Table
 
-from fieldgen.cli.app import SpecArg, app, err, fail, field_source, out, spec_path
+from fieldgen.cli.app import CAMERAS, SpecArg, app, choice, err, fail, field_source, out, spec_path
 from fieldgen.schema import SpecError, bundled_fields, load_spec
 
 
 @app.command()
-def validate(specs: Annotated[list[str], typer.Argument(help="YAML files or bundled field names")]) -> None:
+def validate(specs: Annotated[list[str], typer.Argument(metavar="SPEC", help="YAML files or bundled field names")]) -> None:
     """Check field specs and report every problem with file:line:column and key path.
 
     Example: fieldgen validate fields/soccer_v2.yaml my_field.yaml
@@ -35,8 +35,8 @@ def validate(specs: Annotated[list[str], typer.Argument(help="YAML files or bund
 
 @app.command()
 def build(
-    specs: Annotated[list[str], typer.Argument(help="YAML files or bundled field names")],
-    out_dir: Annotated[Path, typer.Option("--out", help="where build/<name>/ folders go")] = Path("build"),
+    specs: Annotated[list[str], typer.Argument(metavar="SPEC", help="YAML files or bundled field names")],
+    out_dir: Annotated[Path, typer.Option("--out", metavar="DIR", help="where build/<name>/ folders go")] = Path("build"),
     force: Annotated[bool, typer.Option(help="rebuild even when the build is current")] = False,
     preview: Annotated[bool, typer.Option(help="render preview.png")] = True,
 ) -> None:
@@ -119,8 +119,9 @@ def _role(geom: str) -> str:
 @app.command()
 def render(
     spec: SpecArg,
-    output: Annotated[Path, typer.Option("-o", "--output", help="PNG file to write")] = Path("field.png"),
-    camera: Annotated[str, typer.Option(help="top, follow, or both (side by side)")] = "top",
+    output: Annotated[Path, typer.Option("-o", "--output", metavar="FILE", help="PNG file to write")] = Path("field.png"),
+    camera: Annotated[str, typer.Option(help="the view; both: side by side",
+                                        **choice("camera", (*CAMERAS, "both")))] = "top",
 ) -> None:
     """Render a field to a PNG, headless.
 
@@ -128,12 +129,10 @@ def render(
     """
     from fieldgen.compile.artifact import ArtifactError, compile_spec, load_artifact
     from fieldgen.files import write_atomic
-    from fieldgen.render import CAMERAS, RenderError, png_bytes, preview, render_pose
+    from fieldgen.render import RenderError, png_bytes, preview, render_pose
 
     from fieldgen import curriculum
 
-    if camera not in CAMERAS + ("both",):
-        fail(f"unknown camera '{camera}'; choose one of: {', '.join(CAMERAS)}, both")
     if curriculum.is_curriculum(Path(spec)):
         from fieldgen.render import contact_sheet
 
@@ -167,14 +166,14 @@ def render(
 @app.command("curriculum")
 def make_curriculum(
     base: Annotated[str, typer.Argument(help="the first (easiest) field: a YAML file or bundled name")],
-    output: Annotated[Path, typer.Option("-o", "--out", help="curriculum folder to write")],
-    to: Annotated[Optional[str], typer.Option(help="the last (hardest) field: interpolate from BASE to it")] = None,
+    output: Annotated[Path, typer.Option("-o", "--out", metavar="DIR", help="curriculum folder to write")],
+    to: Annotated[Optional[str], typer.Option(metavar="SPEC", help="the last (hardest) field: interpolate from BASE to it")] = None,
     stages: Annotated[int, typer.Option(help="stages of an interpolation, both ends included")] = 5,
-    geometric: Annotated[Optional[list[str]], typer.Option(help="interpolate this key geometrically")] = None,
-    switch_at: Annotated[Optional[int], typer.Option(help="stage where booleans and choices switch (default halfway)")] = None,
-    vary: Annotated[Optional[list[str]], typer.Option(help="a grid axis: KEY=V1,V2,... (repeat for more axes)")] = None,
-    stage: Annotated[Optional[list[str]], typer.Option(help="one listed variant: 'KEY=V KEY=V' (repeat)")] = None,
-    start_near: Annotated[Optional[float], typer.Option(
+    geometric: Annotated[Optional[list[str]], typer.Option(metavar="KEY", help="interpolate this key geometrically")] = None,
+    switch_at: Annotated[Optional[int], typer.Option(metavar="STAGE", help="stage where booleans and choices switch (default halfway)")] = None,
+    vary: Annotated[Optional[list[str]], typer.Option(metavar="KEY=V1,V2", help="a grid axis (repeat for more axes)")] = None,
+    stage: Annotated[Optional[list[str]], typer.Option(metavar="'KEY=V ...'", help="one listed variant (repeat)")] = None,
+    start_near: Annotated[Optional[float], typer.Option(metavar="DISTANCE",
         help="a start-state curriculum: the first stage spawns the ball this far from the target, later "
              "stages move the kick-off back to BASE's (--stages of them)")] = None,
     threshold: Annotated[float, typer.Option(help="success_any that promotes a run to the next stage")] = 0.5,
@@ -253,8 +252,8 @@ def schema() -> None:
 @app.command()
 def bench(
     spec: SpecArg,
-    envs: Annotated[Optional[list[int]], typer.Option("--envs", help="batch sizes; repeat the option")] = None,
-    steps: Annotated[int, typer.Option(help="steps per timed rollout")] = 200,
+    envs: Annotated[Optional[list[int]], typer.Option("--envs", metavar="N", help="batch sizes; repeat the option")] = None,
+    steps: Annotated[int, typer.Option(metavar="N", help="steps per timed rollout")] = 200,
 ) -> None:
     """Measure env-steps per second of a field at several batch sizes (random actions, lax.scan).
 

@@ -8,7 +8,7 @@ from typing import Annotated, Optional
 import typer
 from rich.table import Table
 
-from fieldgen.cli.app import app, count, err, fail, field_source, out
+from fieldgen.cli.app import ALGORITHMS, CAMERAS, app, choice, count, err, fail, field_source, out
 from fieldgen.schema import SpecError
 
 
@@ -34,16 +34,16 @@ def _train(run, videos: bool) -> None:
 def train(
     spec: Annotated[Optional[str], typer.Argument(
         help="a YAML file, bundled field name or build folder (omit with --resume)")] = None,
-    algo: Annotated[str, typer.Option(help="training algorithm: crl, icrl, ppo, sac or td3")] = "crl",
+    algo: Annotated[str, typer.Option(help="training algorithm", **choice("algorithm", ALGORITHMS))] = "crl",
     steps: Annotated[Optional[int], typer.Option(parser=count, metavar="N",
                                                  help="total env steps: 40000, 50M, 1.5k, 2e6")] = None,
     envs: Annotated[Optional[int], typer.Option(parser=count, metavar="N", help="parallel environments")] = None,
     seed: Annotated[int, typer.Option(help="random seed; names the run folder")] = 0,
-    seeds: Annotated[int, typer.Option(help="train this many seeds at once (seed, seed+1, ...), vmapped")] = 1,
-    sets: Annotated[Optional[list[str]], typer.Option("--set", help="override a config key: crl.repr_dim=128")] = None,
-    config: Annotated[Optional[Path], typer.Option(help="YAML file: {crl: {key: value}}")] = None,
-    runs: Annotated[Path, typer.Option("--out", help="folder for run folders")] = Path("runs"),
-    resume: Annotated[Optional[Path], typer.Option(help="continue the run in this folder")] = None,
+    seeds: Annotated[int, typer.Option(metavar="K", help="train this many seeds at once (seed, seed+1, ...), vmapped")] = 1,
+    sets: Annotated[Optional[list[str]], typer.Option("--set", metavar="KEY=VALUE", help="override a config key: crl.repr_dim=128")] = None,
+    config: Annotated[Optional[Path], typer.Option(metavar="FILE", help="YAML file: {crl: {key: value}}")] = None,
+    runs: Annotated[Path, typer.Option("--out", metavar="DIR", help="folder for run folders")] = Path("runs"),
+    resume: Annotated[Optional[Path], typer.Option(metavar="RUN", help="continue the run in this folder")] = None,
     videos: Annotated[bool, typer.Option(help="write videos/eval_NNN.gif of the policy at every evaluation")] = True,
     mixed: Annotated[bool, typer.Option(help="a curriculum's stages all at once, each env its own stage, "
                                               "re-weighted by progress (default: one stage after another)")] = False,
@@ -85,15 +85,15 @@ def train(
 @app.command()
 def compare(
     spec: Annotated[str, typer.Argument(help="a YAML file, bundled field name or build folder")],
-    algos: Annotated[str, typer.Option(help="comma-separated algorithms: crl, icrl, ppo, sac, td3")] = "crl,ppo",
+    algos: Annotated[str, typer.Option(metavar="A,B,...", help="comma-separated algorithms: crl, icrl, ppo, sac, td3")] = "crl,ppo",
     steps: Annotated[Optional[int], typer.Option(parser=count, metavar="N",
                                                  help="total env steps of each run: 40000, 50M, 1.5k")] = None,
     envs: Annotated[Optional[int], typer.Option(parser=count, metavar="N",
                                                 help="parallel environments of each run")] = None,
-    seeds: Annotated[int, typer.Option(help="seeds per algorithm (0, 1, ...), vmapped in one run")] = 1,
-    sets: Annotated[Optional[list[str]], typer.Option("--set", help="override a config key: sac.her=0.8")] = None,
-    config: Annotated[Optional[Path], typer.Option(help="YAML file: {crl: {...}, sac: {...}}")] = None,
-    runs: Annotated[Optional[Path], typer.Option("--out", help="folder of the runs and the plot "
+    seeds: Annotated[int, typer.Option(metavar="K", help="seeds per algorithm (0, 1, ...), vmapped in one run")] = 1,
+    sets: Annotated[Optional[list[str]], typer.Option("--set", metavar="KEY=VALUE", help="override a config key: sac.her=0.8")] = None,
+    config: Annotated[Optional[Path], typer.Option(metavar="FILE", help="YAML file: {crl: {...}, sac: {...}}")] = None,
+    runs: Annotated[Optional[Path], typer.Option("--out", metavar="DIR", help="folder of the runs and the plot "
                                                                "(default runs/compare-<field>)")] = None,
     videos: Annotated[bool, typer.Option(help="write each run's videos")] = False,
     prepare: Annotated[bool, typer.Option(help="write the run folders and stop (train them with "
@@ -134,12 +134,12 @@ def compare(
 
 @app.command("eval")
 def evaluate(
-    run_dir: Annotated[Path, typer.Argument(help="a run folder written by fieldgen train")],
-    episodes: Annotated[int, typer.Option(help="evaluation episodes per seed, one per parallel env")] = 128,
+    run_dir: Annotated[Path, typer.Argument(metavar="RUN", help="a run folder written by fieldgen train")],
+    episodes: Annotated[int, typer.Option(metavar="N", help="evaluation episodes per seed, one per parallel env")] = 128,
     video: Annotated[bool, typer.Option(help="write eval.gif of one episode of the run's first seed")] = True,
-    camera: Annotated[str, typer.Option(help="video camera: follow or top")] = "follow",
+    camera: Annotated[str, typer.Option(help="video camera", **choice("camera", CAMERAS))] = "follow",
     seed: Annotated[int, typer.Option(help="evaluation seed")] = 0,
-    field: Annotated[Optional[str], typer.Option(
+    field: Annotated[Optional[str], typer.Option(metavar="SPEC",
         help="judge the policy on this field instead (YAML file, bundled name or build folder) with the "
              "run's observations and actions; the video is eval_<field>.gif")] = None,
 ) -> None:
@@ -149,14 +149,11 @@ def evaluate(
     Example: fieldgen eval runs/point_nav-crl-0 --episodes 256
     """
     from fieldgen.agents.config import ConfigError
-    from fieldgen.render import CAMERAS
     from fieldgen.run import record, session
     from fieldgen.run.evaluate import evaluate as judge
     from fieldgen.run.evaluate import video_path
     from fieldgen.run.videos import EpisodeRecorder
 
-    if camera not in CAMERAS:
-        fail(f"unknown camera '{camera}'; choose one of: {', '.join(CAMERAS)}")
     try:
         run = session.open_run(run_dir)
         if field is not None:
@@ -184,8 +181,8 @@ def evaluate(
 
 @app.command()
 def videos(
-    run_dir: Annotated[Path, typer.Argument(help="a run folder written by fieldgen train")],
-    field: Annotated[Optional[str], typer.Option(
+    run_dir: Annotated[Path, typer.Argument(metavar="RUN", help="a run folder written by fieldgen train")],
+    field: Annotated[Optional[str], typer.Option(metavar="SPEC",
         help="the field that `fieldgen eval --field` played eval_<field>.npz on")] = None,
 ) -> None:
     """Draw the episodes a run kept where nothing could render (videos/eval_NNN.npz, eval.npz) as GIFs beside them.
