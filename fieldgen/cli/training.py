@@ -9,17 +9,18 @@ import typer
 from rich.table import Table
 
 from fieldgen.cli.app import ALGORITHMS, CAMERAS, app, choice, count, err, fail, field_source, out
+from fieldgen.run.loggers import LOGGERS
 from fieldgen.schema import SpecError
 
 
-def _train(run, videos: bool) -> None:
+def _train(run, videos: bool, logger: str) -> None:
     """Train a run; Ctrl-C exits with 130, and a failed write or a diverged run says what to do (training.train
     says how to go on)."""
     from fieldgen.run import record
     from fieldgen.run.train import train as train_run
 
     try:
-        train_run(run, out, videos)
+        train_run(run, out, videos, logger)
     except KeyboardInterrupt:
         raise typer.Exit(130) from None
     except record.RunError as exc:  # training diverged
@@ -49,6 +50,9 @@ def train(
                                               "re-weighted by progress (default: one stage after another)")] = False,
     prepare: Annotated[bool, typer.Option(help="write the run folder (config, built fields) and stop; start it "
                                                 "later with --resume, e.g. on a machine without dm_control")] = False,
+    logger: Annotated[str, typer.Option(help="also log every evaluation's numbers and video to TensorBoard "
+                                             "(RUN/tensorboard) or Weights & Biases (RUN/wandb)",
+                                        **choice("logger", LOGGERS))] = "none",
 ) -> None:
     """Train an agent on a field or through a curriculum folder's stages; writes runs/<name>-<algo>-<seed>/.
 
@@ -57,6 +61,7 @@ def train(
     with --mixed it trains on every stage at once, favouring those being learnt (success neither 0 nor 1).
 
     Example: fieldgen train point_nav --algo crl --steps 40000 --envs 16 --set 'crl.hidden=[64,64]'
+    Example: fieldgen train point_nav --logger tensorboard, then: tensorboard --logdir runs
     """
     from fieldgen.agents import registry
     from fieldgen.run import record, session
@@ -79,7 +84,7 @@ def train(
     if prepare:
         out.print(f"prepared {run.folder}; start it with: fieldgen train --resume {run.folder}")
         return
-    _train(run, videos)
+    _train(run, videos, logger)
 
 
 @app.command()
@@ -98,6 +103,8 @@ def compare(
     videos: Annotated[bool, typer.Option(help="write each run's videos")] = False,
     prepare: Annotated[bool, typer.Option(help="write the run folders and stop (train them with "
                                                 "fieldgen train --resume, then compare again to plot)")] = False,
+    logger: Annotated[str, typer.Option(help="also log each run to TensorBoard or Weights & Biases",
+                                        **choice("logger", LOGGERS))] = "none",
 ) -> None:
     """Train several algorithms on one field and plot success against env steps and wall-clock time.
 
@@ -128,7 +135,7 @@ def compare(
             out.print(f"{run.folder} is already complete ({run.rows[-1]['env_steps']:,} env steps)")
             continue
         out.print(f"[bold]{run.algo}[/] -> {run.folder}")
-        _train(run, videos)
+        _train(run, videos, logger)
     comparing.report(todo, folder, out)
 
 
