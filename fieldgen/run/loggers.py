@@ -81,7 +81,11 @@ class WandbLogger:
         self.run.log({"env_steps": env_steps, "video": wandb.Video(str(gif), format="gif")})
 
     def close(self) -> None:
+        """Finish the run and wait until W&B's service has written it all (finish alone may return before)."""
+        import wandb
+
         self.run.finish()
+        wandb.teardown()
 
 
 class NoLogger:
