@@ -11,7 +11,6 @@ import typer
 from rich.console import Console
 
 from fieldgen.cli.helptext import ReadableTyper
-from fieldgen.run.loggers import LOGGERS  # noqa: F401  (the choices of --logger; imports nothing heavy)
 from fieldgen.schema import bundled_fields, resolve_spec_path
 from fieldgen.suggest import did_you_mean
 from fieldgen.version import VERSION

@@ -134,20 +134,15 @@ def render(
     from fieldgen import curriculum
 
     if curriculum.is_curriculum(Path(spec)):
-        from fieldgen.render import contact_sheet
+        from fieldgen.curriculum.sheet import stage_sheet
 
-        try:
-            c = curriculum.load(Path(spec))
-            models = [compile_spec(s).model() for s in c.specs()]
-        except curriculum.CurriculumError as exc:
-            fail(str(exc))
         view = "top" if camera == "both" else camera
         try:
-            images = [render_pose(m, camera=view, size=(240, 320)) for m in models]
-        except RenderError as exc:
+            c = curriculum.load(Path(spec))
+            write_atomic(output, stage_sheet(c, view))
+        except (curriculum.CurriculumError, RenderError) as exc:
             fail(str(exc))
-        write_atomic(output, contact_sheet(images, [f"{i}. {st.name}" for i, st in enumerate(c.stages, 1)]))
-        out.print(f"wrote {output}: {len(models)} stages of {spec}, camera {view}")
+        out.print(f"wrote {output}: {len(c.stages)} stages of {spec}, camera {view}")
         return
     try:
         path = Path(spec)
@@ -188,24 +183,12 @@ def make_curriculum(
     """
     from fieldgen import curriculum
 
-    kinds = [k for k, given in (("interpolation", to), ("grid", vary), ("list", stage),
-                                ("start_states", start_near is not None)) if given]
-    if len(kinds) != 1:
-        fail("give exactly one of --to FIELD (interpolation), --vary KEY=V1,V2 (grid), --stage 'KEY=V' (list) "
-              "or --start-near DISTANCE (start states)")
     base_path = spec_path(base)
     try:
-        if start_near is not None:
-            variants = curriculum.start_states(base_path, start_near, stages)
-        elif to is not None:
-            variants = curriculum.interpolate(base_path, spec_path(to), stages, tuple(geometric or ()), switch_at)
-        elif vary:
-            variants = curriculum.grid(base_path, dict(curriculum.parse_axis(v) for v in vary))
-        else:
-            variants = curriculum.explicit(base_path, [curriculum.parse_assignments(s.split(), "--stage")
-                                                       for s in stage])
-        c = curriculum.write(output, base, base_path, kinds[0], variants,
-                             curriculum.Promotion(threshold, window), force)
+        kind, variants = curriculum.variants(base_path, to=spec_path(to) if to is not None else None, stages=stages,
+                                             geometric=tuple(geometric or ()), switch_at=switch_at, vary=vary or [],
+                                             listed=stage or [], start_near=start_near)
+        c = curriculum.write(output, base, base_path, kind, variants, curriculum.Promotion(threshold, window), force)
     except curriculum.CurriculumError as exc:
         fail(str(exc))
     table = Table("stage", "name", "changes from the base", title=f"{output}/{curriculum.INDEX} ({c.kind})")
