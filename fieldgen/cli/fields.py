@@ -15,7 +15,8 @@ from fieldgen.schema import SpecError, bundled_fields, load_spec
 
 
 @app.command()
-def validate(specs: Annotated[list[str], typer.Argument(metavar="SPEC", help="YAML files or bundled field names")]) -> None:
+def validate(specs: Annotated[list[str], typer.Argument(metavar="SPEC",
+                                                        help="YAML files or bundled field names")]) -> None:
     """Check field specs and report every problem with file:line:column and key path.
 
     Example: fieldgen validate fields/soccer_v2.yaml my_field.yaml
@@ -36,7 +37,8 @@ def validate(specs: Annotated[list[str], typer.Argument(metavar="SPEC", help="YA
 @app.command()
 def build(
     specs: Annotated[list[str], typer.Argument(metavar="SPEC", help="YAML files or bundled field names")],
-    out_dir: Annotated[Path, typer.Option("--out", metavar="DIR", help="where build/<name>/ folders go")] = Path("build"),
+    out_dir: Annotated[Path, typer.Option("--out", metavar="DIR",
+                                          help="where build/<name>/ folders go")] = Path("build"),
     force: Annotated[bool, typer.Option(help="rebuild even when the build is current")] = False,
     preview: Annotated[bool, typer.Option(help="render preview.png")] = True,
 ) -> None:
@@ -119,7 +121,8 @@ def _role(geom: str) -> str:
 @app.command()
 def render(
     spec: SpecArg,
-    output: Annotated[Path, typer.Option("-o", "--output", metavar="FILE", help="PNG file to write")] = Path("field.png"),
+    output: Annotated[Path, typer.Option("-o", "--output", metavar="FILE",
+                                         help="PNG file to write")] = Path("field.png"),
     camera: Annotated[str, typer.Option(help="the view; both: side by side",
                                         **choice("camera", (*CAMERAS, "both")))] = "top",
 ) -> None:
@@ -162,12 +165,18 @@ def render(
 def make_curriculum(
     base: Annotated[str, typer.Argument(help="the first (easiest) field: a YAML file or bundled name")],
     output: Annotated[Path, typer.Option("-o", "--out", metavar="DIR", help="curriculum folder to write")],
-    to: Annotated[Optional[str], typer.Option(metavar="SPEC", help="the last (hardest) field: interpolate from BASE to it")] = None,
+    to: Annotated[Optional[str], typer.Option(metavar="SPEC",
+                                              help="the last (hardest) field: interpolate from BASE to it")] = None,
     stages: Annotated[int, typer.Option(help="stages of an interpolation, both ends included")] = 5,
-    geometric: Annotated[Optional[list[str]], typer.Option(metavar="KEY", help="interpolate this key geometrically")] = None,
-    switch_at: Annotated[Optional[int], typer.Option(metavar="STAGE", help="stage where booleans and choices switch (default halfway)")] = None,
-    vary: Annotated[Optional[list[str]], typer.Option(metavar="KEY=V1,V2", help="a grid axis (repeat for more axes)")] = None,
-    stage: Annotated[Optional[list[str]], typer.Option(metavar="'KEY=V ...'", help="one listed variant (repeat)")] = None,
+    geometric: Annotated[Optional[list[str]], typer.Option(metavar="KEY",
+                                                           help="interpolate this key geometrically")] = None,
+    switch_at: Annotated[Optional[int], typer.Option(metavar="STAGE",
+                                                     help="stage where booleans and choices switch "
+                                                          "(default halfway)")] = None,
+    vary: Annotated[Optional[list[str]], typer.Option(metavar="KEY=V1,V2",
+                                                      help="a grid axis (repeat for more axes)")] = None,
+    stage: Annotated[Optional[list[str]], typer.Option(metavar="'KEY=V ...'",
+                                                       help="one listed variant (repeat)")] = None,
     start_near: Annotated[Optional[float], typer.Option(metavar="DISTANCE",
         help="a start-state curriculum: the first stage spawns the ball this far from the target, later "
              "stages move the kick-off back to BASE's (--stages of them)")] = None,
@@ -235,7 +244,8 @@ def schema() -> None:
 @app.command()
 def bench(
     spec: SpecArg,
-    envs: Annotated[Optional[list[int]], typer.Option("--envs", metavar="N", help="batch sizes; repeat the option")] = None,
+    envs: Annotated[Optional[list[int]], typer.Option("--envs", metavar="N",
+                                                      help="batch sizes; repeat the option")] = None,
     steps: Annotated[int, typer.Option(metavar="N", help="steps per timed rollout")] = 200,
 ) -> None:
     """Measure env-steps per second of a field at several batch sizes (random actions, lax.scan).

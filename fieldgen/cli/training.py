@@ -40,8 +40,10 @@ def train(
                                                  help="total env steps: 40000, 50M, 1.5k, 2e6")] = None,
     envs: Annotated[Optional[int], typer.Option(parser=count, metavar="N", help="parallel environments")] = None,
     seed: Annotated[int, typer.Option(help="random seed; names the run folder")] = 0,
-    seeds: Annotated[int, typer.Option(metavar="K", help="train this many seeds at once (seed, seed+1, ...), vmapped")] = 1,
-    sets: Annotated[Optional[list[str]], typer.Option("--set", metavar="KEY=VALUE", help="override a config key: crl.repr_dim=128")] = None,
+    seeds: Annotated[int, typer.Option(metavar="K",
+                                       help="train this many seeds at once (seed, seed+1, ...), vmapped")] = 1,
+    sets: Annotated[Optional[list[str]], typer.Option("--set", metavar="KEY=VALUE",
+                                                      help="override a config key: crl.repr_dim=128")] = None,
     config: Annotated[Optional[Path], typer.Option(metavar="FILE", help="YAML file: {crl: {key: value}}")] = None,
     runs: Annotated[Path, typer.Option("--out", metavar="DIR", help="folder for run folders")] = Path("runs"),
     resume: Annotated[Optional[Path], typer.Option(metavar="RUN", help="continue the run in this folder")] = None,
@@ -90,16 +92,18 @@ def train(
 @app.command()
 def compare(
     spec: Annotated[str, typer.Argument(help="a YAML file, bundled field name or build folder")],
-    algos: Annotated[str, typer.Option(metavar="A,B,...", help="comma-separated algorithms: crl, icrl, ppo, sac, td3")] = "crl,ppo",
+    algos: Annotated[str, typer.Option(metavar="A,B,...",
+                                       help="comma-separated algorithms: crl, icrl, ppo, sac, td3")] = "crl,ppo",
     steps: Annotated[Optional[int], typer.Option(parser=count, metavar="N",
                                                  help="total env steps of each run: 40000, 50M, 1.5k")] = None,
     envs: Annotated[Optional[int], typer.Option(parser=count, metavar="N",
                                                 help="parallel environments of each run")] = None,
     seeds: Annotated[int, typer.Option(metavar="K", help="seeds per algorithm (0, 1, ...), vmapped in one run")] = 1,
-    sets: Annotated[Optional[list[str]], typer.Option("--set", metavar="KEY=VALUE", help="override a config key: sac.her=0.8")] = None,
+    sets: Annotated[Optional[list[str]], typer.Option("--set", metavar="KEY=VALUE",
+                                                      help="override a config key: sac.her=0.8")] = None,
     config: Annotated[Optional[Path], typer.Option(metavar="FILE", help="YAML file: {crl: {...}, sac: {...}}")] = None,
     runs: Annotated[Optional[Path], typer.Option("--out", metavar="DIR", help="folder of the runs and the plot "
-                                                               "(default runs/compare-<field>)")] = None,
+                                                                             "(default runs/compare-<field>)")] = None,
     videos: Annotated[bool, typer.Option(help="write each run's videos")] = False,
     prepare: Annotated[bool, typer.Option(help="write the run folders and stop (train them with "
                                                 "fieldgen train --resume, then compare again to plot)")] = False,
@@ -142,7 +146,8 @@ def compare(
 @app.command("eval")
 def evaluate(
     run_dir: Annotated[Path, typer.Argument(metavar="RUN", help="a run folder written by fieldgen train")],
-    episodes: Annotated[int, typer.Option(metavar="N", help="evaluation episodes per seed, one per parallel env")] = 128,
+    episodes: Annotated[int, typer.Option(metavar="N",
+                                          help="evaluation episodes per seed, one per parallel env")] = 128,
     video: Annotated[bool, typer.Option(help="write eval.gif of one episode of the run's first seed")] = True,
     camera: Annotated[str, typer.Option(help="video camera", **choice("camera", CAMERAS))] = "follow",
     seed: Annotated[int, typer.Option(help="evaluation seed")] = 0,

@@ -57,9 +57,10 @@ class PlainProgress:
         self.task.update(changes)
         if "stats" in changes:
             t = self.task
-            self.console.print(f"{t['description']} {t['completed']:,} of {t['total']:,} steps "
-                               f"({100 * t['completed'] / t['total']:.0f}%) {t['rate']}  {t['stats']}",
-                               highlight=False, soft_wrap=True)
+            share = 100 * t["completed"] / t["total"]
+            done = f"{t['description']} {t['completed']:,} of {t['total']:,} steps ({share:.0f}%)"
+            self.console.print("  ".join(part for part in (done, t["rate"], t["stats"]) if part), highlight=False,
+                               soft_wrap=True)
 
 
 def display(console: Console) -> TrainingProgress | PlainProgress:

@@ -88,7 +88,8 @@ def write_metrics(run_dir: Path, rows: list[dict]) -> None:
 
 
 def flat_row(row: dict) -> dict:
-    """A row as one CSV line (and as loggers name its numbers): a mixed run's per-variant lists become variants.<metric>.<stage from 1>."""
+    """A row as one CSV line (and as loggers name its numbers): a mixed run's per-variant lists become
+    variants.<metric>.<stage from 1>."""
     out = {k: v for k, v in row.items() if k != "variants"}
     for metric, values in row.get("variants", {}).items():
         out.update({f"variants.{metric}.{k}": v for k, v in enumerate(values, 1)})

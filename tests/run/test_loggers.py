@@ -63,8 +63,9 @@ def test_tensorboard_gets_every_number_per_seed_and_the_video(tmp_path):
     logger.video(a_gif(tmp_path / "eval_001.gif"), 1000)
     logger.close()
     seed0, seed1 = (scalars_of(tmp_path / "tensorboard" / f"seed_{s}") for s in (0, 1))
-    assert seed0 == {"success_any": [(1000, 0.25)], "critic_loss": [(1000, 3.5)], "entropy": [(1000, pytest.approx(1.2))],
-                     "term_ball_progress": [(1000, -0.5)], "steps_per_second": [(1000, 2000.0)], "stage": [(1000, 0.0)],
+    assert seed0 == {"success_any": [(1000, 0.25)], "critic_loss": [(1000, 3.5)],
+                     "entropy": [(1000, pytest.approx(1.2))], "term_ball_progress": [(1000, -0.5)],
+                     "steps_per_second": [(1000, 2000.0)], "stage": [(1000, 0.0)],
                      "variants.success_any.1": [(1000, 0.5)], "variants.success_any.2": [(1000, 0.125)]}
     assert seed1["success_any"] == [(1000, 1.25)]
     images = [(e.step, v) for e in events(tmp_path / "tensorboard" / "seed_0") for v in e.summary.value
@@ -105,7 +106,7 @@ def test_an_unknown_logger_is_refused_before_anything_loads(tmp_path):
 def test_train_logs_to_tensorboard_and_prints_a_line_per_evaluation(tmp_path):
     result = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path), "--logger", "tensorboard", *TINY])
     assert result.exit_code == 0, result.output
-    lines = re.findall(r"^point_nav ([\d,]+) of 1,900 steps \(\d+%\) .*success 0\.\d\d", result.output, re.M)
+    lines = re.findall(r"^point_nav ([\d,]+) of 1,900 steps \(\d+%\)  .*success 0\.\d\d", result.output, re.M)
     assert lines == ["800", "1,280", "1,760"], result.output  # one per evaluation, as they come
     run = tmp_path / "point_nav-crl-0"
     rows = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
@@ -128,3 +129,21 @@ def test_train_logs_to_wandb_offline(tmp_path, monkeypatch):
     [run] = (tmp_path / "point_nav-crl-0" / "wandb").glob("offline-run-*")
     log = next(run.glob("run-*.wandb")).read_bytes()
     assert all(name.encode() in log for name in ("success_any", "critic_loss", "entropy", "steps_per_second"))
+
+
+def test_a_log_that_is_not_a_terminal_gets_a_line_per_evaluation():
+    import io
+
+    from rich.console import Console
+
+    from fieldgen.run.progress import display
+
+    log = io.StringIO()
+    with display(Console(file=log, width=60)) as bar:  # a file: no live display, which would print only at the end
+        task = bar.add_task("point_nav", total=1900, completed=0, rate="compiling...", stats="")
+        bar.update(task, completed=800, rate="", stats="success 0.00  at goal 0.0")
+        assert log.getvalue() == "point_nav 800 of 1,900 steps (42%)  success 0.00  at goal 0.0\n"
+        bar.update(task, completed=1280, rate="6 steps/s, 2 min left", stats="success 0.25  at goal 3.0  critic 4.363")
+        bar.update(task, total=1760, rate="814 steps/s")  # the end: no new evaluation, no line
+    assert log.getvalue().splitlines()[1:] == [
+        "point_nav 1,280 of 1,900 steps (67%)  6 steps/s, 2 min left  success 0.25  at goal 3.0  critic 4.363"]
