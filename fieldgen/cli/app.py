@@ -9,6 +9,7 @@ from typing import Annotated
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 
 from fieldgen.cli.helptext import ReadableTyper
 from fieldgen.schema import bundled_fields, resolve_spec_path
@@ -64,7 +65,8 @@ def count(text: str) -> int:
 
 
 def fail(message: str) -> None:
-    err.print(f"[bold red]error:[/] {message}", highlight=False)
+    """The message as written (brackets in it, such as fieldgen[wandb], are not markup), and exit 1."""
+    err.print(f"[bold red]error:[/] {escape(message)}", highlight=False)
     raise typer.Exit(1)
 
 

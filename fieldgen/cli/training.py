@@ -66,10 +66,11 @@ def train(
     Example: fieldgen train point_nav --logger tensorboard, then: tensorboard --logdir runs
     """
     from fieldgen.agents import registry
-    from fieldgen.run import record, session
+    from fieldgen.run import loggers, record, session
     from fieldgen.agents.config import ConfigError
 
     try:
+        loggers.require(logger)
         if resume is not None:
             run = session.open_run(resume)
         else:

@@ -57,10 +57,8 @@ class WandbLogger:
     its config the run's; with several seeds each number is logged as seed_N/<name>."""
 
     def __init__(self, folder: Path, seeds: list[int], config: dict):
-        try:
-            import wandb
-        except ImportError:
-            raise RunError("--logger wandb needs Weights & Biases: pip install 'fieldgen[wandb]'") from None
+        import wandb
+
         try:
             self.run = wandb.init(project=os.environ.get("WANDB_PROJECT", "fieldgen"), name=folder.name,
                                   group=folder.name, dir=folder, config=config)
@@ -99,8 +97,19 @@ class NoLogger:
         pass
 
 
+def require(name: str) -> None:
+    """Refuse a logger whose package is not installed, before a run folder is written for it."""
+    if name == "wandb":
+        try:
+            import wandb  # noqa: F401
+        except ImportError:
+            raise RunError("--logger wandb needs Weights & Biases, an optional extra: "
+                           "pip install 'fieldgen[wandb]'") from None
+
+
 def open_logger(name: str, folder: Path, seeds: list[int], config: dict):
     """The logger `fieldgen train --logger NAME` writes to; close it when training ends."""
+    require(name)
     if name == "tensorboard":
         return TensorBoardLogger(folder, seeds)
     if name == "wandb":

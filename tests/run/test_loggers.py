@@ -147,3 +147,12 @@ def test_a_log_that_is_not_a_terminal_gets_a_line_per_evaluation():
         bar.update(task, total=1760, rate="814 steps/s")  # the end: no new evaluation, no line
     assert log.getvalue().splitlines()[1:] == [
         "point_nav 1,280 of 1,900 steps (67%)  6 steps/s, 2 min left  success 0.25  at goal 3.0  critic 4.363"]
+
+
+def test_wandb_not_installed_is_one_sentence_before_anything_is_written(tmp_path, monkeypatch):
+    import sys
+
+    monkeypatch.setitem(sys.modules, "wandb", None)  # what an install without the extra finds
+    result = runner.invoke(app, ["train", "point_nav", "--logger", "wandb", "--out", str(tmp_path)])
+    assert result.exit_code == 1 and "pip install 'fieldgen[wandb]'" in result.output, result.output
+    assert "Traceback" not in result.output and not any(tmp_path.iterdir())
