@@ -29,7 +29,8 @@ def plot_success(run_dir: Path, rows: list[dict], title: str) -> None:
 
     metrics = [m for m in PANELS if any(m in r for r in rows)]
     losses = list(dict.fromkeys(k for r in rows for k in r if k.endswith("_loss")))
-    fig, axes = plt.subplots(1, len(metrics) + bool(losses), figsize=(5 * (len(metrics) + bool(losses)), 3.6))
+    count = len(metrics) + bool(losses)
+    fig, axes = plt.subplots(1, count, figsize=(5 * count, 3.6), sharex=True)  # losses begin after the first evaluation
     panels = dict(zip(metrics, axes))
     (_plot_variants if "variants" in rows[0] else _plot_groups)(panels, rows)
     for metric, ax in panels.items():
