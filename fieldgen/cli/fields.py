@@ -167,7 +167,7 @@ def make_curriculum(
     output: Annotated[Path, typer.Option("-o", "--out", metavar="DIR", help="curriculum folder to write")],
     to: Annotated[Optional[str], typer.Option(metavar="SPEC",
                                               help="the last (hardest) field: interpolate from BASE to it")] = None,
-    stages: Annotated[int, typer.Option(help="stages of an interpolation, both ends included")] = 5,
+    stages: Annotated[int, typer.Option(metavar="N", help="stages of an interpolation, both ends included")] = 5,
     geometric: Annotated[Optional[list[str]], typer.Option(metavar="KEY",
                                                            help="interpolate this key geometrically")] = None,
     switch_at: Annotated[Optional[int], typer.Option(metavar="STAGE",
@@ -181,7 +181,7 @@ def make_curriculum(
         help="a start-state curriculum: the first stage spawns the ball this far from the target, later "
              "stages move the kick-off back to BASE's (--stages of them)")] = None,
     threshold: Annotated[float, typer.Option(help="success_any that promotes a run to the next stage")] = 0.5,
-    window: Annotated[int, typer.Option(help="evaluations averaged for promotion")] = 2,
+    window: Annotated[int, typer.Option(metavar="N", help="evaluations averaged for promotion")] = 2,
     force: Annotated[bool, typer.Option(help="replace an existing folder")] = False,
 ) -> None:
     """Write field variants and a curriculum.yaml: an interpolation (--to), a grid (--vary), a list (--stage)
