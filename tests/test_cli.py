@@ -108,3 +108,54 @@ def test_counts_are_read_as_people_write_them(tmp_path):
         message = " ".join(result.output.split())
         assert result.exit_code == 2 and f"'{bad}' is not a positive whole count" in message, result.output
         assert "Traceback" not in result.output
+
+
+def test_version_and_python_dash_m():
+    from fieldgen.version import VERSION
+
+    result = runner.invoke(app, ["--version"])
+    assert result.exit_code == 0 and result.output.strip() == f"fieldgen {VERSION}"
+    import subprocess
+    import sys
+
+    for module in ("fieldgen", "fieldgen.cli"):
+        proc = subprocess.run([sys.executable, "-m", module, "--version"], capture_output=True, text=True, timeout=120)
+        assert proc.returncode == 0 and proc.stdout.strip() == f"fieldgen {VERSION}", proc.stderr
+
+
+def test_help_reads_as_command_lines_do():
+    """No Python types beside parameters: flags alone, values by metavar, choices listed."""
+    import re
+
+    for command in ([], ["train"], ["eval"], ["render"], ["build"], ["curriculum"], ["compare"], ["bench"],
+                    ["validate"], ["videos"]):
+        result = runner.invoke(app, [*command, "--help"], env={"COLUMNS": "200"})
+        assert result.exit_code == 0, result.output
+        assert not re.search(r"<(bool|str|int|float|path|list\[\w+\])>", result.output), result.output
+    train = runner.invoke(app, ["train", "--help"], env={"COLUMNS": "200"}).output
+    assert re.search(r"--algo +crl\|icrl\|ppo\|sac\|td3 ", train) and re.search(r"--set +KEY=VALUE ", train)
+    assert re.search(r"--seed +SEED ", train) and re.search(r"--videos +--no-videos +write", train)
+    assert "[SPEC]" in train
+    render = runner.invoke(app, ["render", "--help"], env={"COLUMNS": "200"}).output
+    assert re.search(r"--camera +top\|follow\|both ", render)
+    root = runner.invoke(app, ["--help"], env={"COLUMNS": "200"}).output
+    assert "--install-completion" in root and "--version" in root
+
+
+def test_choices_are_checked_before_anything_loads_and_complete_in_the_shell():
+    import subprocess
+    import sys
+
+    from fieldgen import render
+    from fieldgen.agents import registry
+    from fieldgen.cli.app import ALGORITHMS, CAMERAS
+
+    assert ALGORITHMS == tuple(registry.TRAINERS) and CAMERAS == render.CAMERAS
+    bad = runner.invoke(app, ["eval", "no/such/run", "--camera", "side"])
+    assert bad.exit_code == 1 and "unknown camera 'side'. Choose one of: top, follow." in bad.output
+    assert "no/such/run" not in bad.output  # refused before the run folder is looked at
+    env = {"COMP_WORDS": "fieldgen train --algo ", "COMP_CWORD": "3", "_FIELDGEN_COMPLETE": "complete_bash"}
+    code = "from fieldgen.cli import app; app(prog_name='fieldgen')"
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
+                          env={**__import__("os").environ, **env})
+    assert proc.stdout.split() == list(ALGORITHMS), proc.stderr

@@ -17,6 +17,25 @@ from fieldgen.suggest import did_you_mean
 IGNORED = ("name", "description", "extends")  # never interpolated
 
 
+def variants(base: Path, *, to: Path | None = None, stages: int = 5, geometric: tuple[str, ...] = (),
+             switch_at: int | None = None, vary: list[str] = (), listed: list[str] = (),
+             start_near: float | None = None) -> tuple[str, list[tuple[dict, str]]]:
+    """The kind and variants of the one curriculum asked for: an interpolation to `to`, a grid over `vary`
+    axes ('KEY=V1,V2'), the `listed` variants ('KEY=V KEY=V' each) or start states `start_near` the target."""
+    asked = [kind for kind, given in (("interpolation", to is not None), ("grid", vary), ("list", listed),
+                                      ("start_states", start_near is not None)) if given]
+    if len(asked) != 1:
+        raise CurriculumError("give exactly one of --to FIELD (interpolation), --vary KEY=V1,V2 (grid), "
+                              "--stage 'KEY=V' (list) or --start-near DISTANCE (start states)")
+    if start_near is not None:
+        return asked[0], start_states(base, start_near, stages)
+    if to is not None:
+        return asked[0], interpolate(base, to, stages, geometric, switch_at)
+    if vary:
+        return asked[0], grid(base, dict(parse_axis(v) for v in vary))
+    return asked[0], explicit(base, [parse_assignments(s.split(), "--stage") for s in listed])
+
+
 def interpolate(base: Path, target: Path, stages: int, geometric: tuple[str, ...] = (),
                 switch_at: int | None = None) -> list[tuple[dict, str]]:
     """`stages` variants from base (first) to target (last): (changes, origin) each.

@@ -1,5 +1,5 @@
-"""success.png: a run's success, time at goal and closest approach against env steps, and the figure
-conventions every fieldgen plot shares."""
+"""success.png: a run's success, time at goal, closest approach and training losses against env steps,
+and the figure conventions every fieldgen plot shares."""
 
 from __future__ import annotations
 
@@ -20,20 +20,34 @@ PANELS = {"success_any": ("success_any", "episodes with a success", (-0.02, 1.02
 
 def plot_success(run_dir: Path, rows: list[dict], title: str) -> None:
     """success_any, time_at_goal and closest_distance against env steps: one line per seed; for a
-    staged curriculum one colour per stage and a line for the last stage; for a mixed one a line per stage."""
+    staged curriculum one colour per stage and a line for the last stage; for a mixed one a line per stage.
+    A last panel holds the training losses (each `*_loss` of the rows, mean over seeds) once training has begun."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     metrics = [m for m in PANELS if any(m in r for r in rows)]
-    fig, axes = plt.subplots(1, len(metrics), figsize=(5 * len(metrics), 3.6))
+    losses = list(dict.fromkeys(k for r in rows for k in r if k.endswith("_loss")))
+    count = len(metrics) + bool(losses)
+    fig, axes = plt.subplots(1, count, figsize=(5 * count, 3.6), sharex=True)  # losses begin after the first evaluation
     panels = dict(zip(metrics, axes))
     (_plot_variants if "variants" in rows[0] else _plot_groups)(panels, rows)
     for metric, ax in panels.items():
         label, name, limits = PANELS[metric]
         ax.set(xlabel="env steps", ylabel=label, title=name, ylim=limits)
+    if losses:
+        _plot_losses(axes[-1], rows, losses)
     save_figure(fig, axes, title, run_dir / PLOT)
+
+
+def _plot_losses(ax, rows: list[dict], losses: list[str]) -> None:
+    """Each loss's mean over seeds (no evaluation before training has one)."""
+    for name in losses:
+        steps = sorted({r["env_steps"] for r in rows if name in r})
+        ax.plot(steps, [np.mean([r[name] for r in rows if r["env_steps"] == s and name in r]) for s in steps],
+                marker="o", label=name.removesuffix("_loss"))
+    ax.set(xlabel="env steps", ylabel="loss", title="training losses")
 
 
 def save_figure(fig, axes, title: str, path: Path) -> None:

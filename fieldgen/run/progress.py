@@ -1,5 +1,6 @@
 """What a run shows while it trains and when it ends: a progress line with its rate and time left,
-the last evaluation's statistics, and a summary table."""
+the last evaluation's statistics (live in a terminal, a plain line per evaluation elsewhere), and a
+summary table."""
 
 from __future__ import annotations
 
@@ -32,6 +33,38 @@ class TrainingProgress(Progress):
         for task in self.tasks:
             if task.fields.get("stats"):
                 yield Text("  " + task.fields["stats"], no_wrap=True, overflow="ellipsis")
+
+
+class PlainProgress:
+    """TrainingProgress's news as one plain line per evaluation, for output that is not a terminal (a
+    batch job's log), where a live display writes nothing until the run ends."""
+
+    def __init__(self, console: Console):
+        self.console, self.task = console, {}
+
+    def __enter__(self) -> PlainProgress:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        pass
+
+    def add_task(self, description: str, **fields) -> int:
+        self.task = {"description": description, **fields}
+        return 0
+
+    def update(self, task: int, **changes) -> None:
+        """Prints a line where an evaluation's statistics come in."""
+        self.task.update(changes)
+        if "stats" in changes:
+            t = self.task
+            share = 100 * t["completed"] / t["total"]
+            done = f"{t['description']} {t['completed']:,} of {t['total']:,} steps ({share:.0f}%)"
+            self.console.print("  ".join(part for part in (done, t["rate"], t["stats"]) if part), highlight=False,
+                               soft_wrap=True)
+
+
+def display(console: Console) -> TrainingProgress | PlainProgress:
+    return TrainingProgress(console) if console.is_terminal else PlainProgress(console)
 
 
 def rate(history: list[dict], total: int) -> str:

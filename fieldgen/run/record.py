@@ -78,7 +78,7 @@ def read_metrics(run_dir: Path) -> list[dict]:
 def write_metrics(run_dir: Path, rows: list[dict]) -> None:
     """metrics.jsonl and metrics.csv with every evaluation so far; both replaced atomically."""
     write_atomic(run_dir / METRICS, "".join(json.dumps(r) + "\n" for r in rows).encode())
-    flat = [_flat(r) for r in rows]
+    flat = [flat_row(r) for r in rows]
     names = list(dict.fromkeys(k for r in flat for k in r))
     text = io.StringIO()
     writer = csv.DictWriter(text, fieldnames=names)
@@ -87,8 +87,9 @@ def write_metrics(run_dir: Path, rows: list[dict]) -> None:
     write_atomic(run_dir / CSV, text.getvalue().encode())
 
 
-def _flat(row: dict) -> dict:
-    """A row as one CSV line: a mixed run's per-variant lists become variants.<metric>.<stage from 1>."""
+def flat_row(row: dict) -> dict:
+    """A row as one CSV line (and as loggers name its numbers): a mixed run's per-variant lists become
+    variants.<metric>.<stage from 1>."""
     out = {k: v for k, v in row.items() if k != "variants"}
     for metric, values in row.get("variants", {}).items():
         out.update({f"variants.{metric}.{k}": v for k, v in enumerate(values, 1)})

@@ -1,8 +1,10 @@
 """Training a run in its folder: the chunks between evaluations, and after each a checkpoint, the
-metrics, the plot and a video, written beside training; a run whose numbers stop being finite stops."""
+metrics, the plot and a video, written beside training and sent to a logger (TensorBoard, W&B); a run
+whose numbers stop being finite stops."""
 
 from __future__ import annotations
 
+import contextlib
 import math
 import time
 
@@ -12,14 +14,16 @@ from rich.console import Console
 from fieldgen.agents import checkpoint, loop
 from fieldgen.files import write_atomic
 from fieldgen.run import background, record
+from fieldgen.run.loggers import open_logger
 from fieldgen.run.plots import plot_success
-from fieldgen.run.progress import TrainingProgress, rate, stats, summary
+from fieldgen.run.progress import display, rate, stats, summary
 from fieldgen.run.session import Run
 from fieldgen.run.videos import EpisodeRecorder, video_name
 
 
-def train(run: Run, console: Console, videos: bool = True) -> None:
-    """Train until the run's last evaluation; Ctrl-C leaves the last checkpoint intact."""
+def train(run: Run, console: Console, videos: bool = True, logger: str = "none") -> None:
+    """Train until the run's last evaluation, logging to `logger` (loggers.LOGGERS) too; Ctrl-C leaves the
+    last checkpoint intact."""
     config, env = run.config, run.env
     if run.state is not None and run.finished:
         console.print(f"{run.folder} is already complete ({run.rows[-1]['env_steps']:,} env steps)")
@@ -27,7 +31,9 @@ def train(run: Run, console: Console, videos: bool = True) -> None:
     trainers = run.trainers
     recorders: dict[int, EpisodeRecorder] = {}
     started = time.perf_counter() - (run.rows[-1].get("wall_seconds", 0.0) if run.rows else 0.0)  # over resumes
-    with TrainingProgress(console) as bar, background.Writer() as writer:
+    log = open_logger(logger, run.folder, run.seeds, {"algo": run.algo, "field": env.spec.name,
+                                                       **run.config.model_dump()})
+    with contextlib.closing(log), display(console) as bar, background.Writer() as writer:
         first = run.rows[-1]["env_steps"] if run.rows else 0
         task = bar.add_task(env.spec.name, total=config.total_steps, completed=first, rate="compiling...", stats="")
 
@@ -40,8 +46,13 @@ def train(run: Run, console: Console, videos: bool = True) -> None:
                 if filmed_stage not in recorders:
                     recorders[filmed_stage] = EpisodeRecorder(run.envs[-1 if run.mixed else filmed_stage])
                 recorder = recorders[filmed_stage]
-                writer.submit(recorder.save, run.folder, video_name(run.folder, index),
-                              recorder.episode(frames), console)
+                writer.submit(film, recorder, video_name(run.folder, index), recorder.episode(frames),
+                              run.rows[-1]["env_steps"])
+
+        def film(recorder, name, episode, env_steps):
+            """Draw the episode; a GIF drawn goes to the logger too."""
+            if recorder.save(run.folder, name, episode, console) is not None:
+                log.video(name.with_suffix(".gif"), env_steps)
 
         def progress(index, rows):
             stop_if_diverged(run, index, rows)
@@ -53,6 +64,7 @@ def train(run: Run, console: Console, videos: bool = True) -> None:
             run.rows.extend(rows)
             record.write_metrics(run.folder, run.rows)
             plot_success(run.folder, run.rows, f"{env.spec.name}: {run.algo}")
+            log.rows(rows)
             bar.update(task, completed=rows[0]["env_steps"], rate=rate(run.rows, config.total_steps),
                        stats=stats(rows))
 

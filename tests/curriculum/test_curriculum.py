@@ -157,3 +157,16 @@ def test_start_states_need_a_fixed_target_and_a_reachable_distance():
         curriculum.start_states(FIELDS["ant_nav"], 3.0, 3)
     with pytest.raises(curriculum.CurriculumError, match="between 0 and 7.00"):
         curriculum.start_states(FIELDS["soccer_v1"], 8.0, 3)
+
+
+def test_a_curriculum_renders_as_a_sheet_of_its_stages(tmp_path):
+    import imageio.v3 as iio
+
+    folder = tmp_path / "near"
+    made = runner.invoke(app, ["curriculum", "point_nav", "-o", str(folder), "--vary", "task.target.radius=1,2,3"])
+    assert made.exit_code == 0, made.output
+    sheet = tmp_path / "sheet.png"
+    result = runner.invoke(app, ["render", str(folder), "-o", str(sheet), "--camera", "both"])
+    assert result.exit_code == 0 and f"3 stages of {folder}, camera top" in " ".join(result.output.split())
+    image = iio.imread(sheet)
+    assert image.ndim == 3 and image.std() > 10

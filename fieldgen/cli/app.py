@@ -1,0 +1,97 @@
+"""The `fieldgen` application and what its commands share: the consoles, counts as people write them,
+resolving a field named on the command line, and failing with one paragraph."""
+
+from __future__ import annotations
+
+from decimal import Decimal, InvalidOperation
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.console import Console
+from rich.text import Text
+
+from fieldgen.cli.helptext import ReadableTyper
+from fieldgen.schema import bundled_fields, resolve_spec_path
+from fieldgen.suggest import did_you_mean
+from fieldgen.version import VERSION
+
+app = ReadableTyper(
+    help="Robot-soccer fields from YAML specs, compiled to GPU-batched MJX environments.",
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+)
+# Nothing is read as rich markup: messages quote spec text, names and paths ("[/x]", "[link=...]",
+# the name pattern "^[a-z0-9]...$", fieldgen[wandb]), which print as written; styles come as Text.
+out = Console(markup=False)
+err = Console(stderr=True, soft_wrap=True, markup=False)  # messages wrap in the terminal, not mid-phrase here
+
+SpecArg = Annotated[str, typer.Argument(help="a YAML file, a bundled field name, or (render, bench) a build directory")]
+# the choices of --algo and --camera (the trainers' registry and the renderer own them, but take a second
+# or more to import)
+ALGORITHMS = ("crl", "icrl", "ppo", "sac", "td3")
+CAMERAS = ("top", "follow")
+
+
+def choice(what: str, choices: tuple[str, ...]) -> dict:
+    """typer.Option settings for one of `choices`: listed in --help, completed by the shell, and checked as
+    the command line is read, before anything loads."""
+
+    def check(value: str | None) -> str | None:
+        if value is not None and value not in choices:
+            fail(f"unknown {what} '{value}'{did_you_mean(value, choices) or '.'} Choose one of: {', '.join(choices)}.")
+        return value
+
+    def complete(incomplete: str) -> list[str]:
+        return [c for c in choices if c.startswith(incomplete)]
+
+    return {"metavar": "|".join(choices), "callback": check, "autocompletion": complete}
+
+
+SUFFIXES = {"k": 1_000, "m": 1_000_000, "g": 1_000_000_000}
+
+
+def count(text: str) -> int:
+    """A whole count as people write them: 50M, 1.5k, 2e6, 10_000_000 or 40000 (read as a Decimal, so
+    that 1.1k is exactly 1100)."""
+    cleaned = text.strip().replace("_", "").replace(",", "")
+    scale = SUFFIXES.get(cleaned[-1:].lower(), 1)
+    try:
+        value = Decimal(cleaned[:-1] if scale > 1 else cleaned) * scale
+    except InvalidOperation:
+        value = Decimal(0)
+    if not (value.is_finite() and 1 <= value < 10**15 and value == value.to_integral_value()):
+        raise typer.BadParameter(f"'{text}' is not a positive whole count; write it as 40000, 50M, 1.5k or 2e6 "
+                                 "(k, M and G stand for thousand, million and billion)")
+    return int(value)
+
+
+def fail(message: str) -> None:
+    """The message as written, and exit 1."""
+    err.print(Text.assemble(("error:", "bold red"), f" {message}"), highlight=False)
+    raise typer.Exit(1)
+
+
+def spec_path(ref: str) -> Path:
+    path = resolve_spec_path(ref)
+    if not path.exists():
+        names = ", ".join(bundled_fields())
+        fail(f"'{ref}' is neither a file nor a bundled field ({names})")
+    return path
+
+
+def field_source(ref: str) -> Path:
+    """A build folder as it is; else a YAML file or bundled field name."""
+    return Path(ref) if Path(ref).is_dir() else spec_path(ref)
+
+
+def _print_version(given: bool) -> None:
+    if given:
+        out.print(f"fieldgen {VERSION}")
+        raise typer.Exit()
+
+
+@app.callback()
+def main(version: Annotated[bool, typer.Option("--version", callback=_print_version, is_eager=True,
+                                               help="print fieldgen's version and exit")] = False) -> None:
+    """Robot-soccer fields from YAML specs, compiled to GPU-batched MJX environments."""

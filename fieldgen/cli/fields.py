@@ -1,0 +1,269 @@
+"""Commands on fields: validate, build, render, curriculum, list, schema, bench."""
+
+from __future__ import annotations
+
+import json
+from collections import Counter
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+from rich.table import Table
+from rich.text import Text
+
+from fieldgen.cli.app import CAMERAS, SpecArg, app, choice, err, fail, field_source, out, spec_path
+from fieldgen.schema import SpecError, bundled_fields, load_spec
+
+
+@app.command()
+def validate(specs: Annotated[list[str], typer.Argument(metavar="SPEC",
+                                                        help="YAML files or bundled field names")]) -> None:
+    """Check field specs and report every problem with file:line:column and key path.
+
+    Example: fieldgen validate fields/soccer_v2.yaml my_field.yaml
+    """
+    failed = 0
+    for ref in specs:
+        try:
+            spec = load_spec(spec_path(ref))
+        except SpecError as exc:
+            failed += 1
+            err.print(str(exc), highlight=False)
+            continue
+        out.print(Text.assemble(("ok", "green"), f" {ref}: {spec.name}"))
+    if failed:
+        raise typer.Exit(1)
+
+
+@app.command()
+def build(
+    specs: Annotated[list[str], typer.Argument(metavar="SPEC", help="YAML files or bundled field names")],
+    out_dir: Annotated[Path, typer.Option("--out", metavar="DIR",
+                                          help="where build/<name>/ folders go")] = Path("build"),
+    force: Annotated[bool, typer.Option(help="rebuild even when the build is current")] = False,
+    preview: Annotated[bool, typer.Option(help="render preview.png")] = True,
+) -> None:
+    """Compile specs to build/<name>/: scene.xml, field.json and preview.png.
+
+    A build whose inputs are unchanged is reused (cache hit).
+    Example: fieldgen build fields/soccer_v2.yaml --out build
+    """
+    from fieldgen import curriculum
+    from fieldgen.compile.build import build as run_build
+    from fieldgen.render import RenderError
+
+    failed = 0
+    for ref in specs:
+        try:
+            if curriculum.is_curriculum(Path(ref)):
+                failed += _build_curriculum(Path(ref), out_dir, preview, force)
+                continue
+            result = run_build(spec_path(ref), out_dir, preview=preview, force=force)
+        except SpecError as exc:
+            failed += 1
+            err.print(str(exc), highlight=False)
+            continue
+        except RenderError as exc:
+            fail(f"{exc}; or build without preview.png: fieldgen build {' '.join(specs)} --no-preview")
+        except OSError as exc:
+            fail(f"{exc}; any earlier build there is unchanged: free some space, fix the folder's permissions "
+                  "or choose another --out")
+        _report(result)
+    if failed:
+        raise typer.Exit(1)
+
+
+def _build_curriculum(folder: Path, out_dir: Path, preview: bool, force: bool) -> int:
+    """Build every stage; one table row each. Returns 1 on failure."""
+    from fieldgen import curriculum
+    from fieldgen.compile.build import build as run_build
+
+    try:
+        c = curriculum.load(folder)
+    except curriculum.CurriculumError as exc:
+        err.print(Text.assemble(("error:", "bold red"), f" {exc}"), highlight=False)
+        return 1
+    table = Table("stage", "name", "build", "geoms", "contact pairs", "seconds", title=f"{folder} ({c.kind})")
+    for i, path in enumerate(c.spec_paths(), 1):
+        result = run_build(path, out_dir, preview=preview, force=force)
+        meta = json.loads((result.out_dir / "field.json").read_text())
+        table.add_row(str(i), meta["name"], "cache hit" if result.cache_hit else "built", str(meta["model"]["ngeom"]),
+                      str(len(meta["contact_pairs"])), f"{result.seconds:.2f}")
+    out.print(table)
+    return 0
+
+
+def _report(result) -> None:
+    meta = json.loads((result.out_dir / "field.json").read_text())  # written by the build: no recompiling here
+    model = meta["model"]
+    state = ("cache hit", "yellow") if result.cache_hit else ("built", "green")
+    out.print(Text.assemble(state, " ", (meta["name"], "bold"),
+                            f" -> {result.out_dir}/  ({result.seconds:.2f} s, hash {meta['hash']})"))
+    table = Table(show_header=False, box=None, padding=(0, 2))
+    table.add_row("model", f"{model['nbody']} bodies, {model['ngeom']} geoms, nq {model['nq']}, nv {model['nv']}, "
+                  f"nu {model['nu']}")
+    slices = ", ".join(f"{k} {a}:{b}" for k, a, b in ((k, *v) for k, v in meta["observation"]["slices"].items()))
+    table.add_row("observation", f"{meta['observation']['size']} = {slices}")
+    table.add_row("goal", f"state_dim {meta['state_dim']}, goal_indices {meta['goal_indices']}")
+    table.add_row("task", f"success {meta['success']['kind']}; reward "
+                  + " + ".join(f"{t['weight']:g}*{t['term']}" for t in meta["reward"]))
+    pairs = meta["contact_pairs"]
+    kinds = Counter(" - ".join(sorted(_role(g) for g in p)) for p in pairs)
+    table.add_row("contact pairs", f"{len(pairs)}: " + ", ".join(f"{k} x{n}" for k, n in sorted(kinds.items())))
+    out.print(table)
+
+
+def _role(geom: str) -> str:
+    for prefix in ("wall", "obstacle", "post", "crossbar"):
+        if geom.startswith(prefix):
+            return "goal frame" if prefix == "crossbar" else prefix
+    return "foot" if geom.endswith("_foot") else geom
+
+
+@app.command()
+def render(
+    spec: SpecArg,
+    output: Annotated[Path, typer.Option("-o", "--output", metavar="FILE",
+                                         help="PNG file to write")] = Path("field.png"),
+    camera: Annotated[str, typer.Option(help="the view; both: side by side",
+                                        **choice("camera", (*CAMERAS, "both")))] = "top",
+) -> None:
+    """Render a field to a PNG, headless.
+
+    Example: fieldgen render fields/soccer_v2.yaml -o v2.png --camera follow
+    """
+    from fieldgen.compile.artifact import ArtifactError, compile_spec, load_artifact
+    from fieldgen.files import write_atomic
+    from fieldgen.render import RenderError, png_bytes, preview, render_pose
+
+    from fieldgen import curriculum
+
+    if curriculum.is_curriculum(Path(spec)):
+        from fieldgen.curriculum.sheet import stage_sheet
+
+        view = "top" if camera == "both" else camera
+        try:
+            c = curriculum.load(Path(spec))
+            write_atomic(output, stage_sheet(c, view))
+        except (curriculum.CurriculumError, RenderError) as exc:
+            fail(str(exc))
+        out.print(f"wrote {output}: {len(c.stages)} stages of {spec}, camera {view}")
+        return
+    try:
+        path = Path(spec)
+        artifact = load_artifact(path) if path.is_dir() else compile_spec(load_spec(spec_path(spec)))
+    except (SpecError, ArtifactError) as exc:
+        fail(str(exc))
+    model = artifact.model()
+    try:
+        image = preview(model) if camera == "both" else render_pose(model, camera=camera)
+    except RenderError as exc:
+        fail(str(exc))
+    write_atomic(output, png_bytes(image))
+    out.print(f"wrote {output} ({image.shape[1]}x{image.shape[0]}, camera {camera})")
+
+
+@app.command("curriculum")
+def make_curriculum(
+    base: Annotated[str, typer.Argument(help="the first (easiest) field: a YAML file or bundled name")],
+    output: Annotated[Path, typer.Option("-o", "--out", metavar="DIR", help="curriculum folder to write")],
+    to: Annotated[Optional[str], typer.Option(metavar="SPEC",
+                                              help="the last (hardest) field: interpolate from BASE to it")] = None,
+    stages: Annotated[int, typer.Option(metavar="N", help="stages of an interpolation, both ends included")] = 5,
+    geometric: Annotated[Optional[list[str]], typer.Option(metavar="KEY",
+                                                           help="interpolate this key geometrically")] = None,
+    switch_at: Annotated[Optional[int], typer.Option(metavar="STAGE",
+                                                     help="stage where booleans and choices switch "
+                                                          "(default halfway)")] = None,
+    vary: Annotated[Optional[list[str]], typer.Option(metavar="KEY=V1,V2",
+                                                      help="a grid axis (repeat for more axes)")] = None,
+    stage: Annotated[Optional[list[str]], typer.Option(metavar="'KEY=V ...'",
+                                                       help="one listed variant (repeat)")] = None,
+    start_near: Annotated[Optional[float], typer.Option(metavar="DISTANCE",
+        help="a start-state curriculum: the first stage spawns the ball this far from the target, later "
+             "stages move the kick-off back to BASE's (--stages of them)")] = None,
+    threshold: Annotated[float, typer.Option(help="success_any that promotes a run to the next stage")] = 0.5,
+    window: Annotated[int, typer.Option(metavar="N", help="evaluations averaged for promotion")] = 2,
+    force: Annotated[bool, typer.Option(help="replace an existing folder")] = False,
+) -> None:
+    """Write field variants and a curriculum.yaml: an interpolation (--to), a grid (--vary), a list (--stage)
+    or start states (--start-near).
+
+    Example: fieldgen curriculum fields/soccer_v1.yaml --to fields/v2_wide_goalie.yaml --stages 6 -o curricula/v1_to_wide
+    Example: fieldgen curriculum soccer_v2 --start-near 3 --stages 5 -o curricula/v2_start_states
+    """
+    from fieldgen import curriculum
+
+    base_path = spec_path(base)
+    try:
+        kind, variants = curriculum.variants(base_path, to=spec_path(to) if to is not None else None, stages=stages,
+                                             geometric=tuple(geometric or ()), switch_at=switch_at, vary=vary or [],
+                                             listed=stage or [], start_near=start_near)
+        c = curriculum.write(output, base, base_path, kind, variants, curriculum.Promotion(threshold, window), force)
+    except curriculum.CurriculumError as exc:
+        fail(str(exc))
+    table = Table("stage", "name", "changes from the base", title=f"{output}/{curriculum.INDEX} ({c.kind})")
+    for i, st in enumerate(c.stages, 1):
+        table.add_row(str(i), st.name, _flat_changes(st.changes) or "(the base itself)")
+    out.print(table)
+    out.print(f"build them: fieldgen build {output}; see them: fieldgen render {output} -o sheet.png")
+
+
+def _flat_changes(tree: dict, prefix: str = "") -> str:
+    parts = []
+    for k, v in tree.items():
+        key = f"{prefix}.{k}" if prefix else k
+        parts.append(_flat_changes(v, key) if isinstance(v, dict) and v else f"{key}={v}")
+    return ", ".join(parts)
+
+
+@app.command("list")
+def list_fields() -> None:
+    """List the bundled fields, one line each.
+
+    Example: fieldgen list
+    """
+    table = Table("name", "description", box=None)
+    for name, path in bundled_fields().items():
+        try:
+            table.add_row(name, load_spec(path).description)
+        except SpecError as exc:
+            table.add_row(name, Text(f"invalid: {exc.problems[0].message}", style="red"))
+    out.print(table)
+
+
+@app.command()
+def schema() -> None:
+    """Print the JSON Schema of a field spec, for editors that check YAML as it is typed.
+
+    Example: fieldgen schema > fieldgen.schema.json
+    """
+    from fieldgen.schema.editor import schema_text
+
+    print(schema_text(), end="")
+
+
+@app.command()
+def bench(
+    spec: SpecArg,
+    envs: Annotated[Optional[list[int]], typer.Option("--envs", metavar="N",
+                                                      help="batch sizes; repeat the option")] = None,
+    steps: Annotated[int, typer.Option(metavar="N", help="steps per timed rollout")] = 200,
+) -> None:
+    """Measure env-steps per second of a field at several batch sizes (random actions, lax.scan).
+
+    Example: fieldgen bench fields/soccer_v2.yaml --envs 1024 --envs 8192
+    """
+    import fieldgen
+    from fieldgen.compile.artifact import ArtifactError
+    from fieldgen.env.throughput import measure
+
+    try:
+        env = fieldgen.make(field_source(spec))
+    except (SpecError, ArtifactError) as exc:
+        fail(str(exc))
+    table = Table("envs", "steps/s", "seconds per rollout", title=f"{env.spec.name}, {steps}-step rollouts")
+    for n in envs or [64]:
+        result = measure(env, n, steps)
+        table.add_row(str(n), f"{result.steps_per_second:,.0f}", f"{result.seconds:.3f}")
+    out.print(table)

@@ -1,0 +1,262 @@
+"""Commands on training runs: train, compare, eval, videos, export."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+from rich.table import Table
+from rich.text import Text
+
+from fieldgen.cli.app import ALGORITHMS, CAMERAS, app, choice, count, err, fail, field_source, out
+from fieldgen.run.loggers import LOGGERS
+from fieldgen.schema import SpecError
+
+
+def _train(run, videos: bool, logger: str) -> None:
+    """Train a run; Ctrl-C exits with 130, and a failed write or a diverged run says what to do (training.train
+    says how to go on)."""
+    from fieldgen.run import record
+    from fieldgen.run.train import train as train_run
+
+    try:
+        train_run(run, out, videos, logger)
+    except KeyboardInterrupt:
+        raise typer.Exit(130) from None
+    except record.RunError as exc:  # training diverged
+        fail(str(exc))
+    except OSError as exc:  # every file of a run is replaced atomically, so the last good ones remain
+        fail(f"could not write {exc.filename or run.folder}: {exc.strerror or exc}; the files already there are "
+              f"intact: free some space (or fix the folder's permissions) and continue with "
+              f"fieldgen train --resume {run.folder}")
+
+
+@app.command()
+def train(
+    spec: Annotated[Optional[str], typer.Argument(
+        help="a YAML file, bundled field name or build folder (omit with --resume)")] = None,
+    algo: Annotated[str, typer.Option(help="training algorithm", **choice("algorithm", ALGORITHMS))] = "crl",
+    steps: Annotated[Optional[int], typer.Option(parser=count, metavar="N",
+                                                 help="total env steps: 40000, 50M, 1.5k, 2e6")] = None,
+    envs: Annotated[Optional[int], typer.Option(parser=count, metavar="N", help="parallel environments")] = None,
+    seed: Annotated[int, typer.Option(help="random seed; names the run folder")] = 0,
+    seeds: Annotated[int, typer.Option(metavar="K",
+                                       help="train this many seeds at once (seed, seed+1, ...), vmapped")] = 1,
+    sets: Annotated[Optional[list[str]], typer.Option("--set", metavar="KEY=VALUE",
+                                                      help="override a config key: crl.repr_dim=128")] = None,
+    config: Annotated[Optional[Path], typer.Option(metavar="FILE", help="YAML file: {crl: {key: value}}")] = None,
+    runs: Annotated[Path, typer.Option("--out", metavar="DIR", help="folder for run folders")] = Path("runs"),
+    resume: Annotated[Optional[Path], typer.Option(metavar="RUN", help="continue the run in this folder")] = None,
+    videos: Annotated[bool, typer.Option(help="write videos/eval_NNN.gif of the policy at every evaluation")] = True,
+    mixed: Annotated[bool, typer.Option(help="a curriculum's stages all at once, each env its own stage, "
+                                              "re-weighted by progress (default: one stage after another)")] = False,
+    prepare: Annotated[bool, typer.Option(help="write the run folder (config, built fields) and stop; start it "
+                                                "later with --resume, e.g. on a machine without dm_control")] = False,
+    logger: Annotated[str, typer.Option(help="also log every evaluation's numbers and video to TensorBoard "
+                                             "(RUN/tensorboard) or Weights & Biases (RUN/wandb)",
+                                        **choice("logger", LOGGERS))] = "none",
+) -> None:
+    """Train an agent on a field or through a curriculum folder's stages; writes runs/<name>-<algo>-<seed>/.
+
+    Resumes exactly after an interrupt (--resume). A curriculum run moves to the next stage when its
+    promotion rule is met and reports which stage it reached, when, and success on the last stage;
+    with --mixed it trains on every stage at once, favouring those being learnt (success neither 0 nor 1).
+
+    Example: fieldgen train point_nav --algo crl --steps 40000 --envs 16 --set 'crl.hidden=[64,64]'
+    Example: fieldgen train point_nav --logger tensorboard, then: tensorboard --logdir runs
+    """
+    from fieldgen.agents import registry
+    from fieldgen.run import loggers, record, session
+    from fieldgen.agents.config import ConfigError
+
+    try:
+        loggers.require(logger)
+        if resume is not None:
+            run = session.open_run(resume)
+        else:
+            if spec is None:
+                fail("name a field to train on, or --resume a run folder")
+            if seeds < 1:
+                fail(f"--seeds {seeds}: train at least one seed")
+            algo_config = registry.trainer(algo).config.layered(config, sets or [], total_steps=steps,
+                                                                num_envs=envs, seed=seed)
+            source = field_source(spec)
+            run = session.new_run(source, algo, list(range(seed, seed + seeds)), algo_config, runs, mixed)
+    except (SpecError, ConfigError, record.RunError) as exc:
+        fail(str(exc))
+    if prepare:
+        out.print(f"prepared {run.folder}; start it with: fieldgen train --resume {run.folder}")
+        return
+    _train(run, videos, logger)
+
+
+@app.command()
+def compare(
+    spec: Annotated[str, typer.Argument(help="a YAML file, bundled field name or build folder")],
+    algos: Annotated[str, typer.Option(metavar="A,B,...",
+                                       help="comma-separated algorithms: crl, icrl, ppo, sac, td3")] = "crl,ppo",
+    steps: Annotated[Optional[int], typer.Option(parser=count, metavar="N",
+                                                 help="total env steps of each run: 40000, 50M, 1.5k")] = None,
+    envs: Annotated[Optional[int], typer.Option(parser=count, metavar="N",
+                                                help="parallel environments of each run")] = None,
+    seeds: Annotated[int, typer.Option(metavar="K", help="seeds per algorithm (0, 1, ...), vmapped in one run")] = 1,
+    sets: Annotated[Optional[list[str]], typer.Option("--set", metavar="KEY=VALUE",
+                                                      help="override a config key: sac.her=0.8")] = None,
+    config: Annotated[Optional[Path], typer.Option(metavar="FILE", help="YAML file: {crl: {...}, sac: {...}}")] = None,
+    runs: Annotated[Optional[Path], typer.Option("--out", metavar="DIR", help="folder of the runs and the plot "
+                                                                             "(default runs/compare-<field>)")] = None,
+    videos: Annotated[bool, typer.Option(help="write each run's videos")] = False,
+    prepare: Annotated[bool, typer.Option(help="write the run folders and stop (train them with "
+                                                "fieldgen train --resume, then compare again to plot)")] = False,
+    logger: Annotated[str, typer.Option(help="also log each run to TensorBoard or Weights & Biases",
+                                        **choice("logger", LOGGERS))] = "none",
+) -> None:
+    """Train several algorithms on one field and plot success against env steps and wall-clock time.
+
+    Runs train one after another (the seeds of each at once); rerunning the same comparison
+    resumes unfinished runs and redraws compare.png and compare.json.
+
+    Example: fieldgen compare point_nav --algos crl,icrl,sac --steps 40000 --envs 16 --seeds 2
+    """
+    from fieldgen.agents.config import ConfigError
+    from fieldgen.run import compare as comparing
+    from fieldgen.run import record
+
+    if seeds < 1:
+        fail(f"--seeds {seeds}: compare at least one seed")
+    source = field_source(spec)
+    names = [a.strip() for a in algos.split(",") if a.strip()]
+    try:
+        folder, todo = comparing.runs(source, names, list(range(seeds)), runs, config, sets or [],
+                                      total_steps=steps, num_envs=envs)
+    except (SpecError, ConfigError, record.RunError) as exc:
+        fail(str(exc))
+    if prepare:
+        out.print(f"prepared {len(todo)} runs in {folder}; train each with fieldgen train --resume RUN, "
+                  "then run this comparison again to plot")
+        return
+    for run in todo:
+        if run.finished:
+            out.print(f"{run.folder} is already complete ({run.rows[-1]['env_steps']:,} env steps)")
+            continue
+        out.print(Text.assemble((run.algo, "bold"), f" -> {run.folder}"))
+        _train(run, videos, logger)
+    comparing.report(todo, folder, out)
+
+
+@app.command("eval")
+def evaluate(
+    run_dir: Annotated[Path, typer.Argument(metavar="RUN", help="a run folder written by fieldgen train")],
+    episodes: Annotated[int, typer.Option(metavar="N",
+                                          help="evaluation episodes per seed, one per parallel env")] = 128,
+    video: Annotated[bool, typer.Option(help="write eval.gif of one episode of the run's first seed")] = True,
+    camera: Annotated[str, typer.Option(help="video camera", **choice("camera", CAMERAS))] = "follow",
+    seed: Annotated[int, typer.Option(help="evaluation seed")] = 0,
+    field: Annotated[Optional[str], typer.Option(metavar="SPEC",
+        help="judge the policy on this field instead (YAML file, bundled name or build folder) with the "
+             "run's observations and actions; the video is eval_<field>.gif")] = None,
+) -> None:
+    """Evaluate a run's last checkpoint (on a curriculum's last stage, or --field): success rate, time at goal,
+    return, video.
+
+    Example: fieldgen eval runs/point_nav-crl-0 --episodes 256
+    """
+    from fieldgen.agents.config import ConfigError
+    from fieldgen.run import record, session
+    from fieldgen.run.evaluate import evaluate as judge
+    from fieldgen.run.evaluate import video_path
+    from fieldgen.run.videos import EpisodeRecorder
+
+    try:
+        run = session.open_run(run_dir)
+        if field is not None:
+            run = session.on_field(run, field_source(field))
+    except (SpecError, ConfigError, record.RunError) as exc:
+        fail(str(exc))
+    if run.state is None:
+        fail(f"{run_dir} has not started training yet; start it with: fieldgen train --resume {run_dir}")
+    evaluation = judge(run, episodes, seed, video)
+    result, steps = evaluation.metrics, evaluation.env_steps
+    table = Table("seed", "success_any", "time_at_goal", "closest", "length", "return",
+                  title=f"{run_dir} at {steps:,} env steps on {run.env.spec.name}, {episodes} episodes per seed")
+    for i, s in enumerate(run.seeds):
+        table.add_row(str(s), f"{result['success_any'][i]:.3f}",
+                      f"{result['time_at_goal'][i]:.1f} of {run.env.episode_length} steps",
+                      f"{result['closest_distance'][i]:.2f}", f"{result['episode_length'][i]:.0f}",
+                      f"{result['episode_return'][i]:.2f}")
+    out.print(table)
+    if video:  # the first seed's first evaluation episode
+        name = video_path(run, run_dir, field is not None)
+        drawn = EpisodeRecorder(run.env, camera).save(run_dir, name, evaluation.episode, err)
+        if drawn is not None:
+            out.print(f"video: {name.with_suffix('.gif')} ({drawn} frames, {camera} camera)")
+
+
+@app.command()
+def videos(
+    run_dir: Annotated[Path, typer.Argument(metavar="RUN", help="a run folder written by fieldgen train")],
+    field: Annotated[Optional[str], typer.Option(metavar="SPEC",
+        help="the field that `fieldgen eval --field` played eval_<field>.npz on")] = None,
+) -> None:
+    """Draw the episodes a run kept where nothing could render (videos/eval_NNN.npz, eval.npz) as GIFs beside them.
+
+    A training machine without OpenGL keeps each evaluation's episode as joint positions; run this
+    wherever mujoco's renderer works (MUJOCO_GL=egl or osmesa). GIFs already drawn are left alone.
+
+    Example: fieldgen videos runs/soccer_v1-crl-0
+    """
+    from fieldgen.agents.config import ConfigError
+    from fieldgen.render import RenderError
+    from fieldgen.run import record, session
+    from fieldgen.run.videos import draw_kept, kept_episodes
+
+    try:
+        run = session.open_run(run_dir, load_state=False)
+        if field is not None:
+            run.envs.append(session.on_field(run, field_source(field)).env)
+    except (SpecError, ConfigError, record.RunError) as exc:
+        fail(str(exc))
+    kept = kept_episodes(run_dir)
+    if not kept:
+        fail(f"nothing to draw: {run_dir / record.VIDEOS} holds no eval_NNN.npz and {run_dir} no eval.npz "
+              "(training and fieldgen eval keep them only where they could not render)")
+    models = {env.spec.name: env.mj_model for env in run.envs}
+    table = Table("episode", "field", "frames", "video", title=f"{run_dir}: kept episodes")
+    for path in kept:
+        try:
+            played, frames = draw_kept(path, models)
+        except (RenderError, record.RunError) as exc:
+            fail(str(exc))
+        gif = path.with_suffix(".gif").name
+        table.add_row(path.name, played, "" if frames is None else str(frames),
+                      f"{gif} (already drawn)" if frames is None else gif)
+    out.print(table)
+
+
+if __name__ == "__main__":
+    app()
+
+
+@app.command()
+def export(
+    run_dir: Annotated[Path, typer.Argument(metavar="RUN", help="a run folder written by fieldgen train")],
+    folder: Annotated[Path, typer.Option("--out", "-o", metavar="DIR", help="the folder to write the policy to")],
+    seed: Annotated[Optional[int], typer.Option(metavar="SEED",
+                                                help="which of the run's seeds (default: its first)")] = None,
+) -> None:
+    """Write a run's policy (policy.json and params.msgpack) for fieldgen.load_policy, which needs no trainer or run.
+
+    Example: fieldgen export runs/point_nav-crl-0 -o policies/point_nav
+    """
+    from fieldgen.agents.config import ConfigError
+    from fieldgen.run import record
+    from fieldgen.run.export import export as write_policy
+
+    try:
+        d = write_policy(run_dir, folder, seed).description
+    except (SpecError, ConfigError, record.RunError) as exc:
+        fail(str(exc))
+    out.print(f"exported {d.algorithm} seed {d.seed} at {d.env_steps:,} env steps ({d.field}: "
+              f"{len(d.observation_names)} observations -> {len(d.action_names)} actions) to {folder}; "
+              f"load it with fieldgen.load_policy('{folder}')", highlight=False)
