@@ -167,7 +167,9 @@ class FieldEnv:
         sys = self._model(variant)
         with jax.default_matmul_precision(self.spec.sim.precision):
             data = self._advance(sys, before, action)
-        goal = state.obs[self.state_dim:]  # = info["goal"], and follows a wrapper that swaps observations
+        goal = state.info["goal"]
+        if "first_obs" in state.info:  # brax's AutoResetWrapper swaps observations, not info: the goal is the obs'
+            goal = state.obs[self.state_dim:]
         t = Transition(self._ball_pos(before, variant), self._ball_pos(data, variant), self._agent_pos(before),
                        self._agent_pos(data), goal, action, self.dt)
         steps, down_steps = state.info["episode_step"], state.info["down_steps"]
