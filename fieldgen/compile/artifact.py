@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import mujoco
+from pydantic import ValidationError
 
 from fieldgen.files import replace_folder, write_atomic
 from fieldgen.version import VERSION
@@ -136,4 +137,12 @@ def load_artifact(out_dir: str | Path) -> Artifact:
     if "scene_sha256" in meta and meta["scene_sha256"] != scene_digest(xml):
         raise ArtifactError(f"{out_dir / SCENE} is not the scene {out_dir / META} describes (an interrupted or "
                             "mixed-up build); rebuild the field with `fieldgen build --force`")
-    return Artifact(FieldSpec.model_validate(meta["spec"]), xml, meta["hash"])
+    damaged = f"{out_dir / META} was edited or damaged ({{}}); rebuild the field with `fieldgen build --force`"
+    if not isinstance(meta.get("hash"), str) or "spec" not in meta:
+        raise ArtifactError(damaged.format("it lacks the spec or its hash"))
+    try:
+        spec = FieldSpec.model_validate(meta["spec"])
+    except ValidationError as exc:
+        error = exc.errors()[0]
+        raise ArtifactError(damaged.format(f"spec.{'.'.join(map(str, error['loc']))}: {error['msg']}")) from None
+    return Artifact(spec, xml, meta["hash"])

@@ -119,22 +119,21 @@ def open_run(folder: Path, load_state: bool = True) -> Run:
     saved = record.read_run(folder)
     remove_leftovers(folder)
     envs = []
-    for sub in saved.get("fields", [FIELD]):
+    for sub in saved.fields or [FIELD]:
         try:
             envs.append(fieldgen.make(folder / sub))
         except ArtifactError as exc:
             raise record.RunError(f"{folder / sub}: {exc}") from None
-    if any(saved["observation"] != env.layout.to_json() for env in envs):
+    if any(saved.observation != env.layout.to_json() for env in envs):
         raise record.RunError(f"{folder} was trained on a different observation layout than its fields give now")
     try:
-        config = registry.trainer(saved["algo"]).config.layered(**saved["config"])
+        config = registry.trainer(saved.algo).config.layered(**saved.config)
     except (KeyError, ConfigError) as exc:
         raise record.RunError(f"{folder / record.RUN} holds no usable config ({exc}); it was edited or damaged, "
                               "or written by another version of fieldgen") from None
-    seeds = saved.get("seeds", [config.seed])
+    seeds = saved.seeds or [config.seed]
     rows = record.read_metrics(folder)
-    run = Run(folder, saved["algo"], envs, config, seeds, rows, Promotion(**saved.get("promotion", {})),
-              mixed=saved.get("mixed", False))
+    run = Run(folder, saved.algo, envs, config, seeds, rows, saved.promotion, mixed=saved.mixed)
     if not load_state:
         return run  # only reported on
     if not (folder / record.CHECKPOINT).exists():
@@ -142,6 +141,10 @@ def open_run(folder: Path, load_state: bool = True) -> Run:
         return run
     if rows and not run.mixed:
         run.stage = rows[-1].get("promoted_to", rows[-1].get("stage", 0))
+        if run.stage >= len(envs):
+            raise record.RunError(f"{folder / record.METRICS}'s last row puts the run at stage {run.stage + 1}, "
+                                  f"past its last ({len(envs)}); the file was edited or damaged: restore it from a "
+                                  "copy, or start the run again in a new folder")
     keys = jnp.stack([jax.random.PRNGKey(s) for s in seeds])
     template = jax.eval_shape(jax.vmap(run.trainers[run.stage].start), keys)
     try:

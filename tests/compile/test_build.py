@@ -77,6 +77,25 @@ def test_incomplete_or_corrupt_artifact_is_a_clear_error(tmp_path):
         load_artifact(result.out_dir)
 
 
+@pytest.mark.parametrize("edit,phrase", [
+    (lambda meta: meta.pop("spec"), "it lacks the spec or its hash"),
+    (lambda meta: meta.update(hash=None), "it lacks the spec or its hash"),
+    (lambda meta: meta["spec"]["episode"].update(length=-3),
+     "spec.episode.length: Input should be greater than or equal to 1"),
+])
+def test_an_edited_field_json_is_a_clear_error(tmp_path, edit, phrase):
+    """A field.json whose scene is intact but whose description was edited or damaged names the file, the key
+    and what to do, rather than failing with a KeyError or pydantic's report."""
+    result = build("fields/point_nav.yaml", tmp_path, preview=False)
+    meta = json.loads((result.out_dir / "field.json").read_text())
+    edit(meta)
+    (result.out_dir / "field.json").write_text(json.dumps(meta))
+    with pytest.raises(ArtifactError) as caught:
+        load_artifact(result.out_dir)
+    assert str(caught.value) == (f"{result.out_dir / 'field.json'} was edited or damaged ({phrase}); rebuild the "
+                                 "field with `fieldgen build --force`")
+
+
 def test_a_build_interrupted_after_its_scene_never_serves_the_wrong_one(tmp_path, write_spec):
     """The failure a cache that trusts field.json allowed: a rebuild of one field into another's folder
     stopped after writing its scene.xml. The old field.json then names a scene it does not describe: it

@@ -118,40 +118,61 @@ def test_a_run_without_a_checkpoint_starts_again(tmp_path, monkeypatch):
         assert leftovers(run) == []
 
 
+def edit_record(run: Path, **changes) -> None:
+    (run / "run.json").write_text(json.dumps({**json.loads((run / "run.json").read_text()), **changes}))
+
+
+ROW = json.dumps({"eval": 0, "seed": 0, "env_steps": 800})
+TORN = '{"eval": 1, "se'
+
+
 @pytest.mark.parametrize("damage,phrase", [
-    ("file", "is a file, not a run folder; --resume takes the folder fieldgen train wrote"),
-    ("{}", "run.json is not a run record: it lacks algo, config, observation"),
-    ("[]", "run.json is not a run record: it lacks algo, config, observation"),
-    ('{"algo": "crl", "config": [], "observation": {}}', "run.json is not a run record: it lacks a config mapping"),
-    ("torn", None),
-    ("middle", "metrics.jsonl:1 is not a metrics row"),
-    ("folder", "cannot read the checkpoint"),
-])
+    (lambda run: run / "run.json", "is a file, not a run folder; --resume takes the folder fieldgen train wrote"),
+    (lambda run: (run / "run.json").write_text("{}"), "run.json is not a run record: it lacks algo, config, observation"),
+    (lambda run: (run / "run.json").write_text("[]"), "run.json is not a run record: it lacks algo, config, observation"),
+    (lambda run: edit_record(run, config=[]), "run.json is not a run record: config should be a valid dictionary, not []"),
+    (lambda run: edit_record(run, seeds="x"), "run.json is not a run record: seeds should be a valid list, not 'x'"),
+    (lambda run: edit_record(run, seeds=[0, -1], mixed="yes"), "run.json is not a run record: seeds.1 should be "
+     "greater than or equal to 0, not -1; mixed should be a valid boolean, not 'yes' (edited or damaged); start the "
+     "run again in a new folder"),
+    (lambda run: edit_record(run, fields=["../../elsewhere"]), "run.json is not a run record: fields.0 should name a "
+     "folder inside the run, such as field or stages/01, not '../../elsewhere'"),
+    (lambda run: edit_record(run, promotion={"window": 1.5}), "run.json is not a run record: promotion.window "
+     "should be a valid integer, got a number with a fractional part, not 1.5"),
+    (lambda run: (run / "metrics.jsonl").write_text(f"{TORN}\n{ROW}\n"), "metrics.jsonl:1 is not a metrics row "
+     "(not JSON); the file was edited or damaged: restore it from a copy, or start the run again in a new folder"),
+    (lambda run: (run / "metrics.jsonl").write_bytes(b"\xff\xfe\n" + ROW.encode()), "metrics.jsonl:1 is not a "
+     "metrics row (not JSON)"),
+    (lambda run: (run / "metrics.jsonl").write_text(f'{ROW}\n{json.dumps({"eval": "0", "env_steps": 0})}\n'),
+     "metrics.jsonl:2 is not a metrics row (eval should be a valid integer, not '0')"),
+    (lambda run: ((run / "metrics.jsonl").write_text(ROW.replace("}", ', "promoted_to": 3}')),
+                  (run / "checkpoint.msgpack").write_bytes(b"x")), "metrics.jsonl's last row puts the run at stage 4, past its "
+     "last (1); the file was edited or damaged"),
+    (lambda run: (run / "checkpoint.msgpack").mkdir(), "cannot read the checkpoint"),
+    (lambda run: (run / "field" / "field.json").write_text(
+        (run / "field" / "field.json").read_text().replace('"length": 100', '"length": -3')),
+     "field/field.json was edited or damaged (spec.episode.length: Input should be greater than or equal to 1)"),
+], ids=["file", "empty", "list", "config", "seeds", "seeds_mixed", "fields", "promotion", "middle", "bytes",
+        "eval_text", "stage", "folder", "field"])
 def test_damaged_run_folders_are_clear_errors(tmp_path, damage, phrase):
-    """What a kill, an editor or a copy can leave in a run folder: one sentence, never a traceback; a torn
-    last metrics line (a write cut short) is dropped and the run resumes."""
+    """What a kill, an editor or a copy can leave in a run folder: one sentence naming the file and the key,
+    never a traceback."""
     prepared = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path), "--prepare", *TINY])
     assert prepared.exit_code == 0, prepared.output
     run = tmp_path / "point_nav-crl-0"
-    target = run
-    row = json.dumps({"eval": 0, "seed": 0, "env_steps": 800})
-    if damage == "file":
-        target = run / "run.json"
-    elif damage in ("torn", "middle"):
-        torn = '{"eval": 1, "se'
-        (run / "metrics.jsonl").write_text(f"{row}\n{torn}\n" if damage == "torn" else f"{torn}\n{row}\n")
-    elif damage == "folder":
-        (run / "checkpoint.msgpack").mkdir()
-    else:
-        (run / "run.json").write_text(damage)
-    if damage == "torn":
-        from fieldgen.run import record
-
-        assert [r["eval"] for r in record.read_metrics(run)] == [0]
-        return
-    result = runner.invoke(app, ["train", "--resume", str(target)])
+    target = damage(run)  # the folder, or the path --resume is given instead
+    result = runner.invoke(app, ["train", "--resume", str(target if isinstance(target, Path) else run)])
     assert result.exit_code == 1 and "Traceback" not in result.output, result.output
-    assert "".join(phrase.split()) in "".join(result.output.split())
+    assert "".join(phrase.split()) in "".join(result.output.split()), result.output
+
+
+@pytest.mark.parametrize("torn", [TORN.encode(), b'{"eval": 1, "env_steps": "\xe2\x82'])
+def test_a_torn_last_metrics_line_is_dropped(tmp_path, torn):
+    """A last line cut short (mid-JSON or mid-character) is what a kill leaves: the rows before it stand."""
+    from fieldgen.run import record
+
+    (tmp_path / "metrics.jsonl").write_bytes(ROW.encode() + b"\n" + torn)
+    assert [r["eval"] for r in record.read_metrics(tmp_path)] == [0]
 
 
 def test_a_run_folder_that_cannot_be_written_is_one_sentence(tmp_path, monkeypatch):
