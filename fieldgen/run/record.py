@@ -90,7 +90,9 @@ def read_run(run_dir: Path) -> RunRecord:
     try:
         saved = json.loads((run_dir / RUN).read_bytes())
     except FileNotFoundError:
-        raise RunError(f"{run_dir} is not a training run: {RUN} is missing") from None
+        raise RunError(f"{run_dir} is not a training run: {RUN} is missing; --resume takes the folder fieldgen "
+                       "train wrote, and one whose setup was cut short is set up again by the same fieldgen train "
+                       "command") from None
     except (OSError, ValueError) as exc:
         raise RunError(f"{run_dir / RUN} cannot be read as a run record ({exc})") from None
     try:

@@ -16,7 +16,7 @@ import fieldgen
 from fieldgen import curriculum
 from fieldgen.agents import checkpoint, loop, registry, sharding
 from fieldgen.agents.config import ConfigError
-from fieldgen.compile.artifact import ArtifactError, write_artifact
+from fieldgen.compile.artifact import ArtifactError, load_artifact, write_artifact
 from fieldgen.compile.variants import VariantError, compile_variants
 from fieldgen.curriculum.promotion import Promotion
 from fieldgen.files import remove_leftovers
@@ -120,8 +120,12 @@ def open_run(folder: Path, load_state: bool = True) -> Run:
     remove_leftovers(folder)
     envs = []
     for sub in saved.fields or [FIELD]:
+        if not (folder / sub).is_dir():
+            raise record.RunError(f"{folder / sub} is missing: the run's own copy of its field (a setup cut short, or "
+                                  "a copy of the run that left it out); set the run up again with the fieldgen train "
+                                  "command that made it, or restore the folder from a copy")
         try:
-            envs.append(fieldgen.make(folder / sub))
+            envs.append(fieldgen.FieldEnv(load_artifact(folder / sub)))
         except ArtifactError as exc:
             raise record.RunError(f"{folder / sub}: {exc}") from None
     if any(saved.observation != env.layout.to_json() for env in envs):

@@ -136,6 +136,15 @@ def test_a_full_disk_or_a_read_only_folder_keeps_the_old_build(tmp_path, monkeyp
     assert sorted(p.name for p in tmp_path.iterdir()) == ["point_nav"]
 
 
+def test_a_file_in_the_way_of_the_build_folder_is_named(tmp_path):
+    from fieldgen.files import WriteError
+
+    (tmp_path / "out").write_text("")
+    with pytest.raises(WriteError) as caught:
+        build("fields/point_nav.yaml", tmp_path / "out", preview=False)
+    assert str(caught.value) == f"cannot write {tmp_path / 'out'}: a file is in the way of the folder"
+
+
 def test_artifact_loads_without_dm_control(tmp_path):
     result = build("fields/point_soccer.yaml", tmp_path, preview=False)
     code = (

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -152,8 +153,14 @@ TORN = '{"eval": 1, "se'
     (lambda run: (run / "field" / "field.json").write_text(
         (run / "field" / "field.json").read_text().replace('"length": 100', '"length": -3')),
      "field/field.json was edited or damaged (spec.episode.length: Input should be greater than or equal to 1)"),
+    (lambda run: shutil.rmtree(run / "field"), "point_nav-crl-0/field is missing: the run's own copy of its field "
+     "(a setup cut short, or a copy of the run that left it out); set the run up again with the fieldgen train "
+     "command that made it"),
+    (lambda run: (run / "run.json").unlink(), "point_nav-crl-0 is not a training run: run.json is missing; --resume "
+     "takes the folder fieldgen train wrote, and one whose setup was cut short is set up again by the same fieldgen "
+     "train command"),
 ], ids=["file", "empty", "list", "config", "seeds", "seeds_mixed", "fields", "promotion", "middle", "bytes",
-        "eval_text", "stage", "folder", "field"])
+        "eval_text", "stage", "folder", "field", "field_missing", "record_missing"])
 def test_damaged_run_folders_are_clear_errors(tmp_path, damage, phrase):
     """What a kill, an editor or a copy can leave in a run folder: one sentence naming the file and the key,
     never a traceback."""
