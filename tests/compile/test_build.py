@@ -136,6 +136,18 @@ def test_a_full_disk_or_a_read_only_folder_keeps_the_old_build(tmp_path, monkeyp
     assert sorted(p.name for p in tmp_path.iterdir()) == ["point_nav"]
 
 
+@pytest.mark.parametrize("damage", [lambda xml: xml.replace(b"<geom", b"<gem ", 1),  # still text
+                                    lambda xml: xml[:50] + b"\xff" + xml[51:]])  # no longer UTF-8
+def test_a_damaged_scene_is_named_and_never_a_cache_hit(tmp_path, damage):
+    result = build("fields/point_nav.yaml", tmp_path, preview=False)
+    scene = result.out_dir / "scene.xml"
+    scene.write_bytes(damage(scene.read_bytes()))
+    with pytest.raises(ArtifactError) as caught:
+        load_artifact(result.out_dir)
+    assert str(caught.value).startswith(f"{scene} is not the scene {result.out_dir / 'field.json'} describes")
+    assert not build("fields/point_nav.yaml", tmp_path, preview=False).cache_hit
+
+
 def test_a_file_in_the_way_of_the_build_folder_is_named(tmp_path):
     from fieldgen.files import WriteError
 
