@@ -117,7 +117,6 @@ def open_run(folder: Path, load_state: bool = True) -> Run:
     """A run folder with its fields loaded from the run's own copies and (with load_state) its last
     checkpoint; without, the run's record and metrics alone, enough to report on a finished run."""
     saved = record.read_run(folder)
-    remove_leftovers(folder)
     envs = []
     for sub in saved.fields or [FIELD]:
         if not (folder / sub).is_dir():
@@ -143,12 +142,14 @@ def open_run(folder: Path, load_state: bool = True) -> Run:
     if not (folder / record.CHECKPOINT).exists():
         run.rows = []  # prepared, or stopped before its first checkpoint: it starts from the beginning
         return run
-    if rows and not run.mixed:
+    damaged = "the file was edited or damaged: restore it from a copy, or start the run again in a new folder"
+    if not rows:  # the checkpoint's own evaluation is always written before it
+        raise record.RunError(f"{folder / record.METRICS} holds no evaluation, yet the run has a checkpoint; {damaged}")
+    if not run.mixed:
         run.stage = rows[-1].get("promoted_to", rows[-1].get("stage", 0))
         if run.stage >= len(envs):
             raise record.RunError(f"{folder / record.METRICS}'s last row puts the run at stage {run.stage + 1}, "
-                                  f"past its last ({len(envs)}); the file was edited or damaged: restore it from a "
-                                  "copy, or start the run again in a new folder")
+                                  f"past its last ({len(envs)}); {damaged}")
     keys = jnp.stack([jax.random.PRNGKey(s) for s in seeds])
     template = jax.eval_shape(jax.vmap(run.trainers[run.stage].start), keys)
     try:

@@ -71,8 +71,9 @@ def leftovers(run: Path) -> list[str]:
 
 @pytest.mark.slow
 def test_a_run_killed_at_any_moment_resumes_to_the_uninterrupted_result(tmp_path):
-    """Killed before its first checkpoint, in the middle of writing one, and between the metrics and the
-    checkpoint of one evaluation, the run resumed each time ends with the same bytes as a run never stopped."""
+    """Killed before its first checkpoint, in the middle of writing its first and a later one, and between the
+    metrics and the checkpoint of one evaluation, the run resumed each time ends with the same bytes as a run
+    never stopped."""
     whole = train(tmp_path, "never", 0, "point_nav", "--out", "whole", *TINY)
     assert whole.returncode == 0, whole.stderr[-3000:]
     run = tmp_path / "killed" / "point_nav-crl-0"
@@ -81,13 +82,20 @@ def test_a_run_killed_at_any_moment_resumes_to_the_uninterrupted_result(tmp_path
     assert first.returncode == -signal.SIGKILL
     assert not (run / "checkpoint.msgpack").exists() and rows(run)[-1]["eval"] == 0
 
-    # the same command again sets the run up anew; it is then killed halfway through its second checkpoint
-    second = train(tmp_path, "write", 2, "point_nav", "--out", "killed", *TINY)
+    # the same command again sets the run up anew; it is then killed halfway through its first checkpoint
+    second = train(tmp_path, "write", 1, "point_nav", "--out", "killed", *TINY)
     assert second.returncode == -signal.SIGKILL, second.stderr[-3000:]
+    assert not (run / "checkpoint.msgpack").exists()
     assert leftovers(run) == [n for n in leftovers(run) if n.startswith(".checkpoint.msgpack.")] != []
 
-    third = train(tmp_path, "metrics", 3, "--resume", str(run))
+    # --resume starts it from the beginning too; killed halfway through its second checkpoint, the first stays
+    third = train(tmp_path, "write", 2, "--resume", str(run))
     assert third.returncode == -signal.SIGKILL, third.stderr[-3000:]
+    assert (run / "checkpoint.msgpack").exists()
+    assert leftovers(run) == [n for n in leftovers(run) if n.startswith(".checkpoint.msgpack.")] != []
+
+    fourth = train(tmp_path, "metrics", 3, "--resume", str(run))
+    assert fourth.returncode == -signal.SIGKILL, fourth.stderr[-3000:]
     assert rows(run)[-1]["eval"] == 3
 
     last = train(tmp_path, "never", 0, "--resume", str(run))
@@ -117,6 +125,18 @@ def test_a_run_without_a_checkpoint_starts_again(tmp_path, monkeypatch):
         assert result.exit_code == 130 and "Traceback" not in result.output, result.output
         assert started[-1] is None  # no resume point: from the beginning
         assert leftovers(run) == []
+
+
+def test_opening_a_run_leaves_the_writes_of_its_training_alone(tmp_path):
+    """`fieldgen eval` or `compare` may open a run while it trains: the checkpoint being written stays."""
+    from fieldgen.run import session
+
+    prepared = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path), "--prepare", *TINY])
+    assert prepared.exit_code == 0, prepared.output
+    run = tmp_path / "point_nav-crl-0"
+    (run / ".checkpoint.msgpack.x1y2.tmp").write_bytes(b"a checkpoint being written")
+    session.open_run(run)
+    assert leftovers(run) == [".checkpoint.msgpack.x1y2.tmp"]
 
 
 def edit_record(run: Path, **changes) -> None:
@@ -149,7 +169,11 @@ TORN = '{"eval": 1, "se'
     (lambda run: ((run / "metrics.jsonl").write_text(ROW.replace("}", ', "promoted_to": 3}')),
                   (run / "checkpoint.msgpack").write_bytes(b"x")), "metrics.jsonl's last row puts the run at stage 4, past its "
      "last (1); the file was edited or damaged"),
-    (lambda run: (run / "checkpoint.msgpack").mkdir(), "cannot read the checkpoint"),
+    (lambda run: (run / "checkpoint.msgpack").write_bytes(b"x"), "metrics.jsonl holds no evaluation, yet the run "
+     "has a checkpoint; the file was edited or damaged: restore it from a copy, or start the run again in a new "
+     "folder"),
+    (lambda run: ((run / "metrics.jsonl").write_text(ROW), (run / "checkpoint.msgpack").mkdir()),
+     "cannot read the checkpoint"),
     (lambda run: (run / "field" / "field.json").write_text(
         (run / "field" / "field.json").read_text().replace('"length": 100', '"length": -3')),
      "field/field.json was edited or damaged (spec.episode.length: Input should be greater than or equal to 1)"),
@@ -160,7 +184,7 @@ TORN = '{"eval": 1, "se'
      "takes the folder fieldgen train wrote, and one whose setup was cut short is set up again by the same fieldgen "
      "train command"),
 ], ids=["file", "empty", "list", "config", "seeds", "seeds_mixed", "fields", "promotion", "middle", "bytes",
-        "eval_text", "stage", "folder", "field", "field_missing", "record_missing"])
+        "eval_text", "stage", "no_rows", "folder", "field", "field_missing", "record_missing"])
 def test_damaged_run_folders_are_clear_errors(tmp_path, damage, phrase):
     """What a kill, an editor or a copy can leave in a run folder: one sentence naming the file and the key,
     never a traceback."""
