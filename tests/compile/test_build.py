@@ -136,6 +136,36 @@ def test_a_full_disk_or_a_read_only_folder_keeps_the_old_build(tmp_path, monkeyp
     assert sorted(p.name for p in tmp_path.iterdir()) == ["point_nav"]
 
 
+def test_a_disk_that_fills_midway_keeps_the_old_build_whole(tmp_path, write_spec, monkeypatch):
+    """The disk fills after the new scene.xml is written, at field.json: the old build stays as it was (its
+    scene with its own field.json, a cache hit), and nothing of the new one is left."""
+    import os
+
+    from fieldgen import files
+
+    a = write_spec("extends: point_nav\nname: same_name\n", "a.yaml")
+    b = write_spec("extends: point_nav\nname: same_name\nfield: {length: 30, width: 30}\n", "b.yaml")
+    out = tmp_path / "build"
+    built = build(a, out, preview=False)
+    before = {p.name: p.read_bytes() for p in built.out_dir.iterdir()}
+    synced, real_fsync = [], os.fsync
+
+    def fsync(fd):
+        synced.append(fd)
+        if len(synced) == 2:  # scene.xml went through; field.json does not
+            raise OSError(28, "No space left on device")
+        real_fsync(fd)
+
+    monkeypatch.setattr(files.os, "fsync", fsync)
+    with pytest.raises(files.WriteError) as caught:
+        build(b, out, preview=False)
+    monkeypatch.undo()
+    assert len(synced) == 2
+    assert str(caught.value) == f"cannot write {built.out_dir}: No space left on device"
+    assert {p.name: p.read_bytes() for p in built.out_dir.iterdir()} == before
+    assert sorted(p.name for p in out.iterdir()) == ["same_name"] and build(a, out, preview=False).cache_hit
+
+
 @pytest.mark.parametrize("damage", [lambda xml: xml.replace(b"<geom", b"<gem ", 1),  # still text
                                     lambda xml: xml[:50] + b"\xff" + xml[51:]])  # no longer UTF-8
 def test_a_damaged_scene_is_named_and_never_a_cache_hit(tmp_path, damage):
