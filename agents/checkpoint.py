@@ -71,7 +71,8 @@ def load(path: Path, template):
     except FileNotFoundError:
         raise CheckpointError(f"no checkpoint at {path}") from None
     except OSError as exc:
-        raise CheckpointError(f"cannot read the checkpoint {path}: {exc.strerror}") from None
+        raise CheckpointError(f"cannot read the checkpoint {path}: {exc.strerror}; put the run's checkpoint file "
+                              "there, or move what is there aside to train the run again from its start") from None
     corrupt = (f"checkpoint corrupt: {path} was damaged after it was written (on disk or in a copy); "
                "restore it from a copy, or start the run again in a new folder")
     try:

@@ -104,8 +104,9 @@ class RunConfig(BaseModel):
         """Defaults < config file ({algo: {key: value}}) < --set algo.key=value < options (None: not given).
 
         Sections and --set items of the algorithms in `others` (those compared beside this one) are skipped."""
-        values = {key: cls._checked(key, value, f"{file}: {cls.algo}.{key}")
-                  for key, value in cls._section(file, others).items()}
+        section, lines = cls._section(file, others)
+        values = {key: cls._checked(key, value, f"{file}:{lines[key]}" if key in lines else f"{file}")
+                  for key, value in section.items()}  # a key merged in (<<: *defaults) has no line of its own
         for item in sets:
             name, sep, raw = item.partition("=")
             section, dot, key = name.partition(".")
@@ -122,20 +123,24 @@ class RunConfig(BaseModel):
         return cls(**values)
 
     @classmethod
-    def _section(cls, file: Path | None, others: tuple[str, ...]) -> dict:
-        """This algorithm's keys in a config file; a file with any other section is refused."""
+    def _section(cls, file: Path | None, others: tuple[str, ...]) -> tuple[dict, dict[str, int]]:
+        """This algorithm's keys in a config file, and the line of each; a file with any other section is
+        refused."""
         if file is None:
-            return {}
+            return {}, {}
         try:
-            loaded = yaml.safe_load(file.read_text()) or {}
-        except (OSError, yaml.YAMLError) as exc:
+            text = file.read_text()
+            loaded = yaml.safe_load(text) or {}
+        except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
             raise ConfigError(f"cannot read config file {file}: {exc}") from None
         section = (loaded.get(cls.algo) or {}) if isinstance(loaded, dict) else None
         if not isinstance(section, dict) or set(loaded) - {cls.algo, *others}:
             sections = ", ".join(f"'{a}:'" for a in (cls.algo, *others))
             what = f"sections {sections}" if others else f"one section, {sections},"
             raise ConfigError(f"{file}: a config file is a mapping with {what} of config keys")
-        return section
+        root = yaml.compose(text, Loader=yaml.SafeLoader)
+        body = next(value for key, value in root.value if key.value == cls.algo) if section else None
+        return section, {key.value: key.start_mark.line + 1 for key, _ in getattr(body, "value", [])}
 
     @classmethod
     def _checked(cls, key: str, value, where: str):

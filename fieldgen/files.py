@@ -8,6 +8,7 @@ can leave only hidden `.NAME.*.tmp` files or folders behind, which `remove_lefto
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 import shutil
 import tempfile
@@ -55,6 +56,9 @@ def replace_folder(folder: Path, fill: Callable[[Path], None]) -> None:
     try:
         folder.parent.mkdir(parents=True, exist_ok=True)
         staging = Path(tempfile.mkdtemp(dir=folder.parent, prefix=f".{folder.name}.", suffix=TMP_SUFFIX))
+    except FileExistsError:  # mkdir's word for a file where a folder should be
+        in_the_way = next(p for p in (folder.parent, *folder.parent.parents) if p.exists() and not p.is_dir())
+        raise WriteError(errno.ENOTDIR, "a file is in the way of the folder", str(in_the_way)) from None
     except OSError as exc:
         raise WriteError(exc.errno, exc.strerror, str(folder)) from None
     try:

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import mujoco
+from pydantic import ValidationError
 
 from fieldgen.files import replace_folder, write_atomic
 from fieldgen.version import VERSION
@@ -91,8 +92,8 @@ def compile_spec(spec: FieldSpec) -> Artifact:
     return Artifact(spec, build_scene(spec).to_xml_string(), spec_hash(spec))
 
 
-def scene_digest(xml: str) -> str:
-    return hashlib.sha256(xml.encode()).hexdigest()
+def scene_digest(xml: str | bytes) -> str:
+    return hashlib.sha256(xml.encode() if isinstance(xml, str) else xml).hexdigest()
 
 
 def is_current(out_dir: Path, digest: str) -> bool:
@@ -120,20 +121,34 @@ def write_artifact(artifact: Artifact, out_dir: Path, preview: bytes | None = No
 def load_artifact(out_dir: str | Path) -> Artifact:
     out_dir = Path(out_dir)
     try:
-        meta = json.loads((out_dir / META).read_text())
-        xml = (out_dir / SCENE).read_text()
+        meta, scene = (out_dir / META).read_bytes(), (out_dir / SCENE).read_bytes()
     except FileNotFoundError as exc:
         raise ArtifactError(f"{out_dir} is not a built field: {Path(exc.filename).name} is missing; "
                             "run `fieldgen build` on its spec") from None
-    except ValueError as exc:
-        raise ArtifactError(f"{out_dir / META} is not valid JSON ({exc}); rebuild the field") from None
     except OSError as exc:
         raise ArtifactError(f"{out_dir} cannot be read as a built field ({exc}); rebuild it with `fieldgen build`") from None
+    try:
+        meta = json.loads(meta)
+    except ValueError as exc:
+        raise ArtifactError(f"{out_dir / META} is not valid JSON ({exc}); rebuild the field") from None
     if not isinstance(meta, dict) or meta.get("artifact_format") != ARTIFACT_FORMAT:
         found = meta.get("artifact_format") if isinstance(meta, dict) else None
         raise ArtifactError(f"{out_dir} has artifact format {found}, "
                             f"this fieldgen reads format {ARTIFACT_FORMAT}; rebuild the field")
-    if "scene_sha256" in meta and meta["scene_sha256"] != scene_digest(xml):
-        raise ArtifactError(f"{out_dir / SCENE} is not the scene {out_dir / META} describes (an interrupted or "
-                            "mixed-up build); rebuild the field with `fieldgen build --force`")
-    return Artifact(FieldSpec.model_validate(meta["spec"]), xml, meta["hash"])
+    mismatch = (f"{out_dir / SCENE} is not the scene {out_dir / META} describes (an interrupted, mixed-up or "
+                "damaged build); rebuild the field with `fieldgen build --force`")
+    if "scene_sha256" in meta and meta["scene_sha256"] != scene_digest(scene):
+        raise ArtifactError(mismatch)
+    try:
+        xml = scene.decode()
+    except UnicodeDecodeError:
+        raise ArtifactError(mismatch) from None
+    damaged = f"{out_dir / META} was edited or damaged ({{}}); rebuild the field with `fieldgen build --force`"
+    if not isinstance(meta.get("hash"), str) or "spec" not in meta:
+        raise ArtifactError(damaged.format("it lacks the spec or its hash"))
+    try:
+        spec = FieldSpec.model_validate(meta["spec"])
+    except ValidationError as exc:
+        error = exc.errors()[0]
+        raise ArtifactError(damaged.format(f"spec.{'.'.join(map(str, error['loc']))}: {error['msg']}")) from None
+    return Artifact(spec, xml, meta["hash"])

@@ -11,8 +11,12 @@ from __future__ import annotations
 import csv
 import io
 import json
-from pathlib import Path
+from pathlib import Path, PurePosixPath
+from typing import Annotated
 
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, StrictBool, StrictInt, StrictStr, ValidationError
+
+from fieldgen.curriculum.promotion import Promotion
 from fieldgen.files import write_atomic
 
 RUN, METRICS, CSV, CHECKPOINT, PLOT = "run.json", "metrics.jsonl", "metrics.csv", "checkpoint.msgpack", "success.png"
@@ -33,44 +37,95 @@ def write_run(run_dir: Path, field: dict, algo: str, config, layout: dict, seeds
     write_atomic(run_dir / RUN, (json.dumps(record, indent=1) + "\n").encode())
 
 
-REQUIRED = ("algo", "config", "observation")  # what run.json must hold to reopen a run
+Index = Annotated[StrictInt, Field(ge=0)]
 
 
-def read_run(run_dir: Path) -> dict:
+def _inside(name: str) -> str:
+    """A folder of the run's own: a record copied in from elsewhere never reaches outside its run."""
+    parts = PurePosixPath(name).parts
+    if not parts or name.startswith("/") or ".." in parts:
+        raise ValueError("should name a folder inside the run, such as field or stages/01")
+    return name
+
+
+class RunRecord(BaseModel):
+    """What run.json must hold to reopen a run, each value of the type fieldgen wrote."""
+
+    algo: StrictStr
+    config: dict
+    observation: dict
+    seeds: Annotated[list[Index], Field(min_length=1)] = []  # [] (left out): the config's seed
+    fields: Annotated[list[Annotated[StrictStr, AfterValidator(_inside)]], Field(min_length=1)] = []  # []: field/
+    promotion: Promotion = Promotion()
+    mixed: StrictBool = False
+
+
+class MetricsRow(BaseModel):
+    """What a metrics row must hold for a run to go on from it; its other values are only reported."""
+
+    model_config = ConfigDict(extra="allow")
+    eval: Index
+    env_steps: Index
+    stage: Index = 0
+    promoted_to: Index = 0
+
+
+def _problems(exc: ValidationError) -> str:
+    """pydantic's complaints in the record's words: the key, what it should be and what it holds."""
+    errors = exc.errors()
+    missing = [".".join(map(str, e["loc"])) for e in errors if e["type"] == "missing"]
+    said = [f"it lacks {', '.join(missing)}"] if missing else []
+    for e in errors:
+        if e["type"] != "missing":
+            what = str(e["ctx"]["error"]) if e["type"] == "value_error" else e["msg"].removeprefix("Input ")
+            said.append(f"{'.'.join(map(str, e['loc']))} {what}, not {e['input']!r}")
+    return "; ".join(said)
+
+
+def read_run(run_dir: Path) -> RunRecord:
     if not run_dir.is_dir():
         what = "a file" if run_dir.exists() else "missing"
         raise RunError(f"{run_dir} is {what}, not a run folder; --resume takes the folder fieldgen train wrote "
                        "(runs/<field>-<algo>-<seed>)")
     try:
-        record = json.loads((run_dir / RUN).read_text())
+        saved = json.loads((run_dir / RUN).read_bytes())
     except FileNotFoundError:
-        raise RunError(f"{run_dir} is not a training run: {RUN} is missing") from None
+        raise RunError(f"{run_dir} is not a training run: {RUN} is missing; --resume takes the folder fieldgen "
+                       "train wrote, and one whose setup was cut short is set up again by the same fieldgen train "
+                       "command") from None
     except (OSError, ValueError) as exc:
         raise RunError(f"{run_dir / RUN} cannot be read as a run record ({exc})") from None
-    missing = [k for k in REQUIRED if not isinstance(record, dict) or k not in record]
-    if missing or not isinstance(record["config"], dict):
-        raise RunError(f"{run_dir / RUN} is not a run record: it lacks {', '.join(missing) or 'a config mapping'} "
-                       "(edited or damaged); start the run again in a new folder")
-    return record
+    try:
+        return RunRecord.model_validate(saved if isinstance(saved, dict) else {})
+    except ValidationError as exc:
+        raise RunError(f"{run_dir / RUN} is not a run record: {_problems(exc)} (edited or damaged); "
+                       "start the run again in a new folder") from None
 
 
 def read_metrics(run_dir: Path) -> list[dict]:
     """The evaluation rows; a torn last line (a write cut short by a kill) is dropped, since the run
     resumes from its checkpoint, which never comes after the last whole row."""
     path = run_dir / METRICS
-    if not path.exists():
+    try:
+        lines = [line for line in path.read_bytes().splitlines() if line.strip()]
+    except FileNotFoundError:
         return []
-    lines = [line for line in path.read_text().splitlines() if line.strip()]
+    except OSError as exc:
+        raise RunError(f"{path} cannot be read ({exc.strerror})") from None
     rows = []
     for n, line in enumerate(lines, 1):
+        damaged = (f"{path}:{n} is not a metrics row ({{}}); the file was edited or damaged: restore it from a "
+                   "copy, or start the run again in a new folder")
         try:
             row = json.loads(line)
-        except ValueError:
+        except ValueError:  # undecodable bytes as well as broken JSON
             if n == len(lines):
                 break
-            raise RunError(f"{path}:{n} is not a metrics row; the file was edited or damaged") from None
-        if not isinstance(row, dict) or not {"eval", "env_steps"} <= row.keys():
-            raise RunError(f"{path}:{n} is not a metrics row; the file was edited or damaged")
+            raise RunError(damaged.format("not JSON")) from None
+        try:
+            MetricsRow.model_validate(row if isinstance(row, dict) else {})
+        except ValidationError as exc:
+            raise RunError(damaged.format(_problems(exc))) from None
         rows.append(row)
     return rows
 

@@ -16,7 +16,7 @@ import fieldgen
 from fieldgen import curriculum
 from fieldgen.agents import checkpoint, loop, registry, sharding
 from fieldgen.agents.config import ConfigError
-from fieldgen.compile.artifact import ArtifactError, write_artifact
+from fieldgen.compile.artifact import ArtifactError, load_artifact, write_artifact
 from fieldgen.compile.variants import VariantError, compile_variants
 from fieldgen.curriculum.promotion import Promotion
 from fieldgen.env.brax_pipeline import check_batchable
@@ -121,31 +121,39 @@ def open_run(folder: Path, load_state: bool = True) -> Run:
     """A run folder with its fields loaded from the run's own copies and (with load_state) its last
     checkpoint; without, the run's record and metrics alone, enough to report on a finished run."""
     saved = record.read_run(folder)
-    remove_leftovers(folder)
     envs = []
-    for sub in saved.get("fields", [FIELD]):
+    for sub in saved.fields or [FIELD]:
+        if not (folder / sub).is_dir():
+            raise record.RunError(f"{folder / sub} is missing: the run's own copy of its field (a setup cut short, or "
+                                  "a copy of the run that left it out); set the run up again with the fieldgen train "
+                                  "command that made it, or restore the folder from a copy")
         try:
-            envs.append(fieldgen.make(folder / sub))
+            envs.append(fieldgen.FieldEnv(load_artifact(folder / sub)))
         except ArtifactError as exc:
             raise record.RunError(f"{folder / sub}: {exc}") from None
-    if any(saved["observation"] != env.layout.to_json() for env in envs):
+    if any(saved.observation != env.layout.to_json() for env in envs):
         raise record.RunError(f"{folder} was trained on a different observation layout than its fields give now")
     try:
-        config = registry.trainer(saved["algo"]).config.layered(**saved["config"])
+        config = registry.trainer(saved.algo).config.layered(**saved.config)
     except (KeyError, ConfigError) as exc:
         raise record.RunError(f"{folder / record.RUN} holds no usable config ({exc}); it was edited or damaged, "
                               "or written by another version of fieldgen") from None
-    seeds = saved.get("seeds", [config.seed])
+    seeds = saved.seeds or [config.seed]
     rows = record.read_metrics(folder)
-    run = Run(folder, saved["algo"], envs, config, seeds, rows, Promotion(**saved.get("promotion", {})),
-              mixed=saved.get("mixed", False))
+    run = Run(folder, saved.algo, envs, config, seeds, rows, saved.promotion, mixed=saved.mixed)
     if not load_state:
         return run  # only reported on
     if not (folder / record.CHECKPOINT).exists():
         run.rows = []  # prepared, or stopped before its first checkpoint: it starts from the beginning
         return run
-    if rows and not run.mixed:
+    damaged = "the file was edited or damaged: restore it from a copy, or start the run again in a new folder"
+    if not rows:  # the checkpoint's own evaluation is always written before it
+        raise record.RunError(f"{folder / record.METRICS} holds no evaluation, yet the run has a checkpoint; {damaged}")
+    if not run.mixed:
         run.stage = rows[-1].get("promoted_to", rows[-1].get("stage", 0))
+        if run.stage >= len(envs):
+            raise record.RunError(f"{folder / record.METRICS}'s last row puts the run at stage {run.stage + 1}, "
+                                  f"past its last ({len(envs)}); {damaged}")
     keys = jnp.stack([jax.random.PRNGKey(s) for s in seeds])
     template = jax.eval_shape(jax.vmap(run.trainers[run.stage].start), keys)
     try:

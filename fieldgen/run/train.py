@@ -12,7 +12,7 @@ import jax
 from rich.console import Console
 
 from fieldgen.agents import checkpoint, loop
-from fieldgen.files import write_atomic
+from fieldgen.files import remove_leftovers, write_atomic
 from fieldgen.run import background, record
 from fieldgen.run.loggers import open_logger
 from fieldgen.run.plots import plot_success
@@ -24,6 +24,7 @@ from fieldgen.run.videos import EpisodeRecorder, video_name
 def train(run: Run, console: Console, videos: bool = True, logger: str = "none") -> None:
     """Train until the run's last evaluation, logging to `logger` (loggers.LOGGERS) too; Ctrl-C leaves the
     last checkpoint intact."""
+    remove_leftovers(run.folder)  # of writes killed midway; here, not on opening, which `fieldgen eval` does mid-run
     config, env = run.config, run.env
     if run.state is not None and run.finished:
         console.print(f"{run.folder} is already complete ({run.rows[-1]['env_steps']:,} env steps)")

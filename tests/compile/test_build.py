@@ -77,6 +77,25 @@ def test_incomplete_or_corrupt_artifact_is_a_clear_error(tmp_path):
         load_artifact(result.out_dir)
 
 
+@pytest.mark.parametrize("edit,phrase", [
+    (lambda meta: meta.pop("spec"), "it lacks the spec or its hash"),
+    (lambda meta: meta.update(hash=None), "it lacks the spec or its hash"),
+    (lambda meta: meta["spec"]["episode"].update(length=-3),
+     "spec.episode.length: Input should be greater than or equal to 1"),
+])
+def test_an_edited_field_json_is_a_clear_error(tmp_path, edit, phrase):
+    """A field.json whose scene is intact but whose description was edited or damaged names the file, the key
+    and what to do, rather than failing with a KeyError or pydantic's report."""
+    result = build("fields/point_nav.yaml", tmp_path, preview=False)
+    meta = json.loads((result.out_dir / "field.json").read_text())
+    edit(meta)
+    (result.out_dir / "field.json").write_text(json.dumps(meta))
+    with pytest.raises(ArtifactError) as caught:
+        load_artifact(result.out_dir)
+    assert str(caught.value) == (f"{result.out_dir / 'field.json'} was edited or damaged ({phrase}); rebuild the "
+                                 "field with `fieldgen build --force`")
+
+
 def test_a_build_interrupted_after_its_scene_never_serves_the_wrong_one(tmp_path, write_spec):
     """The failure a cache that trusts field.json allowed: a rebuild of one field into another's folder
     stopped after writing its scene.xml. The old field.json then names a scene it does not describe: it
@@ -115,6 +134,57 @@ def test_a_full_disk_or_a_read_only_folder_keeps_the_old_build(tmp_path, monkeyp
     assert f"cannotwrite{built.out_dir}:{error[1]}".replace(" ", "") in "".join(result.output.split())
     assert {p.name: p.read_bytes() for p in built.out_dir.iterdir()} == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["point_nav"]
+
+
+def test_a_disk_that_fills_midway_keeps_the_old_build_whole(tmp_path, write_spec, monkeypatch):
+    """The disk fills after the new scene.xml is written, at field.json: the old build stays as it was (its
+    scene with its own field.json, a cache hit), and nothing of the new one is left."""
+    import os
+
+    from fieldgen import files
+
+    a = write_spec("extends: point_nav\nname: same_name\n", "a.yaml")
+    b = write_spec("extends: point_nav\nname: same_name\nfield: {length: 30, width: 30}\n", "b.yaml")
+    out = tmp_path / "build"
+    built = build(a, out, preview=False)
+    before = {p.name: p.read_bytes() for p in built.out_dir.iterdir()}
+    synced, real_fsync = [], os.fsync
+
+    def fsync(fd):
+        synced.append(fd)
+        if len(synced) == 2:  # scene.xml went through; field.json does not
+            raise OSError(28, "No space left on device")
+        real_fsync(fd)
+
+    monkeypatch.setattr(files.os, "fsync", fsync)
+    with pytest.raises(files.WriteError) as caught:
+        build(b, out, preview=False)
+    monkeypatch.undo()
+    assert len(synced) == 2
+    assert str(caught.value) == f"cannot write {built.out_dir}: No space left on device"
+    assert {p.name: p.read_bytes() for p in built.out_dir.iterdir()} == before
+    assert sorted(p.name for p in out.iterdir()) == ["same_name"] and build(a, out, preview=False).cache_hit
+
+
+@pytest.mark.parametrize("damage", [lambda xml: xml.replace(b"<geom", b"<gem ", 1),  # still text
+                                    lambda xml: xml[:50] + b"\xff" + xml[51:]])  # no longer UTF-8
+def test_a_damaged_scene_is_named_and_never_a_cache_hit(tmp_path, damage):
+    result = build("fields/point_nav.yaml", tmp_path, preview=False)
+    scene = result.out_dir / "scene.xml"
+    scene.write_bytes(damage(scene.read_bytes()))
+    with pytest.raises(ArtifactError) as caught:
+        load_artifact(result.out_dir)
+    assert str(caught.value).startswith(f"{scene} is not the scene {result.out_dir / 'field.json'} describes")
+    assert not build("fields/point_nav.yaml", tmp_path, preview=False).cache_hit
+
+
+def test_a_file_in_the_way_of_the_build_folder_is_named(tmp_path):
+    from fieldgen.files import WriteError
+
+    (tmp_path / "out").write_text("")
+    with pytest.raises(WriteError) as caught:
+        build("fields/point_nav.yaml", tmp_path / "out", preview=False)
+    assert str(caught.value) == f"cannot write {tmp_path / 'out'}: a file is in the way of the folder"
 
 
 def test_artifact_loads_without_dm_control(tmp_path):

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -70,8 +71,9 @@ def leftovers(run: Path) -> list[str]:
 
 @pytest.mark.slow
 def test_a_run_killed_at_any_moment_resumes_to_the_uninterrupted_result(tmp_path):
-    """Killed before its first checkpoint, in the middle of writing one, and between the metrics and the
-    checkpoint of one evaluation, the run resumed each time ends with the same bytes as a run never stopped."""
+    """Killed before its first checkpoint, in the middle of writing its first and a later one, and between the
+    metrics and the checkpoint of one evaluation, the run resumed each time ends with the same bytes as a run
+    never stopped."""
     whole = train(tmp_path, "never", 0, "point_nav", "--out", "whole", *TINY)
     assert whole.returncode == 0, whole.stderr[-3000:]
     run = tmp_path / "killed" / "point_nav-crl-0"
@@ -80,13 +82,20 @@ def test_a_run_killed_at_any_moment_resumes_to_the_uninterrupted_result(tmp_path
     assert first.returncode == -signal.SIGKILL
     assert not (run / "checkpoint.msgpack").exists() and rows(run)[-1]["eval"] == 0
 
-    # the same command again sets the run up anew; it is then killed halfway through its second checkpoint
-    second = train(tmp_path, "write", 2, "point_nav", "--out", "killed", *TINY)
+    # the same command again sets the run up anew; it is then killed halfway through its first checkpoint
+    second = train(tmp_path, "write", 1, "point_nav", "--out", "killed", *TINY)
     assert second.returncode == -signal.SIGKILL, second.stderr[-3000:]
+    assert not (run / "checkpoint.msgpack").exists()
     assert leftovers(run) == [n for n in leftovers(run) if n.startswith(".checkpoint.msgpack.")] != []
 
-    third = train(tmp_path, "metrics", 3, "--resume", str(run))
+    # --resume starts it from the beginning too; killed halfway through its second checkpoint, the first stays
+    third = train(tmp_path, "write", 2, "--resume", str(run))
     assert third.returncode == -signal.SIGKILL, third.stderr[-3000:]
+    assert (run / "checkpoint.msgpack").exists()
+    assert leftovers(run) == [n for n in leftovers(run) if n.startswith(".checkpoint.msgpack.")] != []
+
+    fourth = train(tmp_path, "metrics", 3, "--resume", str(run))
+    assert fourth.returncode == -signal.SIGKILL, fourth.stderr[-3000:]
     assert rows(run)[-1]["eval"] == 3
 
     last = train(tmp_path, "never", 0, "--resume", str(run))
@@ -118,40 +127,83 @@ def test_a_run_without_a_checkpoint_starts_again(tmp_path, monkeypatch):
         assert leftovers(run) == []
 
 
-@pytest.mark.parametrize("damage,phrase", [
-    ("file", "is a file, not a run folder; --resume takes the folder fieldgen train wrote"),
-    ("{}", "run.json is not a run record: it lacks algo, config, observation"),
-    ("[]", "run.json is not a run record: it lacks algo, config, observation"),
-    ('{"algo": "crl", "config": [], "observation": {}}', "run.json is not a run record: it lacks a config mapping"),
-    ("torn", None),
-    ("middle", "metrics.jsonl:1 is not a metrics row"),
-    ("folder", "cannot read the checkpoint"),
-])
-def test_damaged_run_folders_are_clear_errors(tmp_path, damage, phrase):
-    """What a kill, an editor or a copy can leave in a run folder: one sentence, never a traceback; a torn
-    last metrics line (a write cut short) is dropped and the run resumes."""
+def test_opening_a_run_leaves_the_writes_of_its_training_alone(tmp_path):
+    """`fieldgen eval` or `compare` may open a run while it trains: the checkpoint being written stays."""
+    from fieldgen.run import session
+
     prepared = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path), "--prepare", *TINY])
     assert prepared.exit_code == 0, prepared.output
     run = tmp_path / "point_nav-crl-0"
-    target = run
-    row = json.dumps({"eval": 0, "seed": 0, "env_steps": 800})
-    if damage == "file":
-        target = run / "run.json"
-    elif damage in ("torn", "middle"):
-        torn = '{"eval": 1, "se'
-        (run / "metrics.jsonl").write_text(f"{row}\n{torn}\n" if damage == "torn" else f"{torn}\n{row}\n")
-    elif damage == "folder":
-        (run / "checkpoint.msgpack").mkdir()
-    else:
-        (run / "run.json").write_text(damage)
-    if damage == "torn":
-        from fieldgen.run import record
+    (run / ".checkpoint.msgpack.x1y2.tmp").write_bytes(b"a checkpoint being written")
+    session.open_run(run)
+    assert leftovers(run) == [".checkpoint.msgpack.x1y2.tmp"]
 
-        assert [r["eval"] for r in record.read_metrics(run)] == [0]
-        return
-    result = runner.invoke(app, ["train", "--resume", str(target)])
+
+def edit_record(run: Path, **changes) -> None:
+    (run / "run.json").write_text(json.dumps({**json.loads((run / "run.json").read_text()), **changes}))
+
+
+ROW = json.dumps({"eval": 0, "seed": 0, "env_steps": 800})
+TORN = '{"eval": 1, "se'
+
+
+@pytest.mark.parametrize("damage,phrase", [
+    (lambda run: run / "run.json", "is a file, not a run folder; --resume takes the folder fieldgen train wrote"),
+    (lambda run: (run / "run.json").write_text("{}"), "run.json is not a run record: it lacks algo, config, observation"),
+    (lambda run: (run / "run.json").write_text("[]"), "run.json is not a run record: it lacks algo, config, observation"),
+    (lambda run: edit_record(run, config=[]), "run.json is not a run record: config should be a valid dictionary, not []"),
+    (lambda run: edit_record(run, seeds="x"), "run.json is not a run record: seeds should be a valid list, not 'x'"),
+    (lambda run: edit_record(run, seeds=[0, -1], mixed="yes"), "run.json is not a run record: seeds.1 should be "
+     "greater than or equal to 0, not -1; mixed should be a valid boolean, not 'yes' (edited or damaged); start the "
+     "run again in a new folder"),
+    (lambda run: edit_record(run, fields=["../../elsewhere"]), "run.json is not a run record: fields.0 should name a "
+     "folder inside the run, such as field or stages/01, not '../../elsewhere'"),
+    (lambda run: edit_record(run, promotion={"window": 1.5}), "run.json is not a run record: promotion.window "
+     "should be a valid integer, got a number with a fractional part, not 1.5"),
+    (lambda run: (run / "metrics.jsonl").write_text(f"{TORN}\n{ROW}\n"), "metrics.jsonl:1 is not a metrics row "
+     "(not JSON); the file was edited or damaged: restore it from a copy, or start the run again in a new folder"),
+    (lambda run: (run / "metrics.jsonl").write_bytes(b"\xff\xfe\n" + ROW.encode()), "metrics.jsonl:1 is not a "
+     "metrics row (not JSON)"),
+    (lambda run: (run / "metrics.jsonl").write_text(f'{ROW}\n{json.dumps({"eval": "0", "env_steps": 0})}\n'),
+     "metrics.jsonl:2 is not a metrics row (eval should be a valid integer, not '0')"),
+    (lambda run: ((run / "metrics.jsonl").write_text(ROW.replace("}", ', "promoted_to": 3}')),
+                  (run / "checkpoint.msgpack").write_bytes(b"x")), "metrics.jsonl's last row puts the run at stage 4, past its "
+     "last (1); the file was edited or damaged"),
+    (lambda run: (run / "checkpoint.msgpack").write_bytes(b"x"), "metrics.jsonl holds no evaluation, yet the run "
+     "has a checkpoint; the file was edited or damaged: restore it from a copy, or start the run again in a new "
+     "folder"),
+    (lambda run: ((run / "metrics.jsonl").write_text(ROW), (run / "checkpoint.msgpack").mkdir()),
+     "cannot read the checkpoint"),
+    (lambda run: (run / "field" / "field.json").write_text(
+        (run / "field" / "field.json").read_text().replace('"length": 100', '"length": -3')),
+     "field/field.json was edited or damaged (spec.episode.length: Input should be greater than or equal to 1)"),
+    (lambda run: shutil.rmtree(run / "field"), "point_nav-crl-0/field is missing: the run's own copy of its field "
+     "(a setup cut short, or a copy of the run that left it out); set the run up again with the fieldgen train "
+     "command that made it"),
+    (lambda run: (run / "run.json").unlink(), "point_nav-crl-0 is not a training run: run.json is missing; --resume "
+     "takes the folder fieldgen train wrote, and one whose setup was cut short is set up again by the same fieldgen "
+     "train command"),
+], ids=["file", "empty", "list", "config", "seeds", "seeds_mixed", "fields", "promotion", "middle", "bytes",
+        "eval_text", "stage", "no_rows", "folder", "field", "field_missing", "record_missing"])
+def test_damaged_run_folders_are_clear_errors(tmp_path, damage, phrase):
+    """What a kill, an editor or a copy can leave in a run folder: one sentence naming the file and the key,
+    never a traceback."""
+    prepared = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path), "--prepare", *TINY])
+    assert prepared.exit_code == 0, prepared.output
+    run = tmp_path / "point_nav-crl-0"
+    target = damage(run)  # the folder, or the path --resume is given instead
+    result = runner.invoke(app, ["train", "--resume", str(target if isinstance(target, Path) else run)])
     assert result.exit_code == 1 and "Traceback" not in result.output, result.output
-    assert "".join(phrase.split()) in "".join(result.output.split())
+    assert "".join(phrase.split()) in "".join(result.output.split()), result.output
+
+
+@pytest.mark.parametrize("torn", [TORN.encode(), b'{"eval": 1, "env_steps": "\xe2\x82'])
+def test_a_torn_last_metrics_line_is_dropped(tmp_path, torn):
+    """A last line cut short (mid-JSON or mid-character) is what a kill leaves: the rows before it stand."""
+    from fieldgen.run import record
+
+    (tmp_path / "metrics.jsonl").write_bytes(ROW.encode() + b"\n" + torn)
+    assert [r["eval"] for r in record.read_metrics(tmp_path)] == [0]
 
 
 def test_a_run_folder_that_cannot_be_written_is_one_sentence(tmp_path, monkeypatch):

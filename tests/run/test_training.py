@@ -242,6 +242,10 @@ def test_config_file_and_precedence(tmp_path):
     file.write_text("ppo: {}\n")
     with pytest.raises(ConfigError, match="one section, 'crl:'"):
         crl.CRLConfig.layered(file)
+    file.write_text("# a config file's problems name its line\ncrl:\n  repr_dim: 32\n\n  batch_size: -64\n")
+    with pytest.raises(ConfigError) as caught:
+        crl.CRLConfig.layered(file)
+    assert str(caught.value) == f"{file}:5: crl.batch_size must be greater than 0, not -64"
 
 
 def test_a_config_comes_back_from_its_run_json_record():
