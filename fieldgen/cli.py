@@ -189,7 +189,7 @@ def render(
             _fail(str(exc))
         view = "top" if camera == "both" else camera
         try:
-            images = [render_pose(m, camera=view, size=(240, 320)) for m in models]
+            images = [render_pose(m, camera=view, height=240) for m in models]
         except RenderError as exc:
             _fail(str(exc))
         write_atomic(output, contact_sheet(images, [f"{i}. {st.name}" for i, st in enumerate(c.stages, 1)]))

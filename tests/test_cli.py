@@ -55,13 +55,16 @@ def test_schema_is_json_schema_with_descriptions():
 
 
 def test_render_top_and_follow(tmp_path):
-    for camera, width in (("top", 640), ("both", 1280)):
+    images = {}
+    for camera in ("top", "follow", "both"):
         out = tmp_path / f"{camera}.png"
         result = runner.invoke(app, ["render", "point_soccer", "-o", str(out), "--camera", camera])
         assert result.exit_code == 0, result.output
-        image = iio.imread(out)
-        assert image.shape == (480, width, 3)
-        assert image.std() > 10  # a picture, not a blank frame
+        images[camera] = iio.imread(out)
+        assert images[camera].std() > 10  # a picture, not a blank frame
+    top = images["top"].shape[1]
+    assert top < 480 and images["top"].shape == (480, top, 3)  # point_soccer is longer than wide
+    assert images["follow"].shape == (480, 640, 3) and images["both"].shape == (480, top + 640, 3)
     result = runner.invoke(app, ["render", "point_soccer", "--camera", "side"])
     assert result.exit_code == 1 and "unknown camera 'side'" in result.output
 
@@ -108,3 +111,4 @@ def test_counts_are_read_as_people_write_them(tmp_path):
         message = " ".join(result.output.split())
         assert result.exit_code == 2 and f"'{bad}' is not a positive whole count" in message, result.output
         assert "Traceback" not in result.output
+

@@ -44,6 +44,8 @@ def test_variants_share_one_structure_with_absent_walls_parked(walled):
     assert wall.pos[2] < -PARK_DEPTH / 2 and wall.rgba[3] == 0  # parked and invisible where walls are off
     assert abs(models[0].geom("wall_left").pos[0]) == pytest.approx(3.0)
     assert abs(models[1].geom("wall_left").pos[0]) == pytest.approx(2.0)
+    widths = [m.cam_resolution[m.cam("top").id][0] for m in models]
+    assert widths[0] > widths[1]  # each variant's top view frames its own field, 6 wide and then 4
 
 
 
