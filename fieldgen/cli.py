@@ -13,6 +13,7 @@ from rich.console import Console
 from rich.table import Table
 
 from fieldgen.schema import SpecError, bundled_fields, load_spec, resolve_spec_path
+from fieldgen.video import Format
 
 app = typer.Typer(
     help="Robot-soccer fields from YAML specs, compiled to GPU-batched MJX environments.",
@@ -24,6 +25,8 @@ out = Console()
 err = Console(stderr=True, soft_wrap=True)  # messages wrap in the terminal, not mid-phrase here
 
 SpecArg = Annotated[str, typer.Argument(help="a YAML file, a bundled field name, or (render, bench) a build directory")]
+VideoFormat = Annotated[Optional[Format], typer.Option(
+    "--video-format", help="videos as mp4 (the default where imageio-ffmpeg's encoder is installed) or gif")]
 
 
 SUFFIXES = {"k": 1_000, "m": 1_000_000, "g": 1_000_000_000}
@@ -47,6 +50,16 @@ def count(text: str) -> int:
 def _fail(message: str) -> None:
     err.print(f"[bold red]error:[/] {message}", highlight=False)
     raise typer.Exit(1)
+
+
+def _video_format(fmt: str | None) -> str:
+    """The video format to write, checked before anything loads."""
+    from fieldgen.video import VideoError, choose
+
+    try:
+        return choose(fmt)
+    except VideoError as exc:
+        _fail(str(exc))
 
 
 def _spec_path(ref: str) -> Path:
@@ -311,14 +324,14 @@ def bench(
     out.print(table)
 
 
-def _train(run, videos: bool) -> None:
+def _train(run, videos: bool, video_format: str | None = None) -> None:
     """Train a run; Ctrl-C exits with 130, and a failed write or a diverged run says what to do (training.train
     says how to go on)."""
     from fieldgen.run import record
     from fieldgen.run.train import train as train_run
 
     try:
-        train_run(run, out, videos)
+        train_run(run, out, videos, video_format)
     except KeyboardInterrupt:
         raise typer.Exit(130) from None
     except record.RunError as exc:  # training diverged
@@ -343,7 +356,8 @@ def train(
     config: Annotated[Optional[Path], typer.Option(help="YAML file: {crl: {key: value}}")] = None,
     runs: Annotated[Path, typer.Option("--out", help="folder for run folders")] = Path("runs"),
     resume: Annotated[Optional[Path], typer.Option(help="continue the run in this folder")] = None,
-    videos: Annotated[bool, typer.Option(help="write videos/eval_NNN.gif of the policy at every evaluation")] = True,
+    videos: Annotated[bool, typer.Option(help="write videos/eval_NNN.mp4 of the policy at every evaluation")] = True,
+    video_format: VideoFormat = None,
     mixed: Annotated[bool, typer.Option(help="a curriculum's stages all at once, each env its own stage, "
                                               "re-weighted by progress (default: one stage after another)")] = False,
     prepare: Annotated[bool, typer.Option(help="write the run folder (config, built fields) and stop; start it "
@@ -361,6 +375,7 @@ def train(
     from fieldgen.run import record, session
     from fieldgen.agents.config import ConfigError
 
+    fmt = _video_format(video_format) if videos else None
     try:
         if resume is not None:
             run = session.open_run(resume)
@@ -378,7 +393,7 @@ def train(
     if prepare:
         out.print(f"prepared {run.folder}; start it with: fieldgen train --resume {run.folder}")
         return
-    _train(run, videos)
+    _train(run, videos, fmt)
 
 
 @app.command()
@@ -435,12 +450,13 @@ def compare(
 def evaluate(
     run_dir: Annotated[Path, typer.Argument(help="a run folder written by fieldgen train")],
     episodes: Annotated[int, typer.Option(help="evaluation episodes per seed, one per parallel env")] = 128,
-    video: Annotated[bool, typer.Option(help="write eval.gif of one episode of the run's first seed")] = True,
+    video: Annotated[bool, typer.Option(help="write eval.mp4 of one episode of the run's first seed")] = True,
+    video_format: VideoFormat = None,
     camera: Annotated[str, typer.Option(help="video camera: follow or top")] = "follow",
     seed: Annotated[int, typer.Option(help="evaluation seed")] = 0,
     field: Annotated[Optional[str], typer.Option(
         help="judge the policy on this field instead (YAML file, bundled name or build folder) with the "
-             "run's observations and actions; the video is eval_<field>.gif")] = None,
+             "run's observations and actions; the video is eval_<field>.mp4")] = None,
 ) -> None:
     """Evaluate a run's last checkpoint (on a curriculum's last stage, or --field): success rate, time at goal,
     return, video.
@@ -456,6 +472,7 @@ def evaluate(
 
     if camera not in CAMERAS:
         _fail(f"unknown camera '{camera}'; choose one of: {', '.join(CAMERAS)}")
+    fmt = _video_format(video_format) if video else None
     try:
         run = session.open_run(run_dir)
         if field is not None:
@@ -476,9 +493,9 @@ def evaluate(
     out.print(table)
     if video:  # the first seed's first evaluation episode
         name = video_path(run, run_dir, field is not None)
-        drawn = EpisodeRecorder(run.env, camera).save(run_dir, name, evaluation.episode, err)
+        drawn = EpisodeRecorder(run.env, camera, fmt).save(run_dir, name, evaluation.episode, err)
         if drawn is not None:
-            out.print(f"video: {name.with_suffix('.gif')} ({drawn} frames, {camera} camera)")
+            out.print(f"video: {name.with_suffix('.' + fmt)} ({drawn} frames, {camera} camera)")
 
 
 @app.command()
@@ -486,11 +503,12 @@ def videos(
     run_dir: Annotated[Path, typer.Argument(help="a run folder written by fieldgen train")],
     field: Annotated[Optional[str], typer.Option(
         help="the field that `fieldgen eval --field` played eval_<field>.npz on")] = None,
+    video_format: VideoFormat = None,
 ) -> None:
-    """Draw the episodes a run kept where nothing could render (videos/eval_NNN.npz, eval.npz) as GIFs beside them.
+    """Draw the episodes a run kept where nothing could render (videos/eval_NNN.npz, eval.npz) as videos beside them.
 
     A training machine without OpenGL keeps each evaluation's episode as joint positions; run this
-    wherever mujoco's renderer works (MUJOCO_GL=egl or osmesa). GIFs already drawn are left alone.
+    wherever mujoco's renderer works (MUJOCO_GL=egl or osmesa). Videos already drawn are left alone.
 
     Example: fieldgen videos runs/soccer_v1-crl-0
     """
@@ -499,6 +517,7 @@ def videos(
     from fieldgen.run import record, session
     from fieldgen.run.videos import draw_kept, kept_episodes
 
+    fmt = _video_format(video_format)
     try:
         run = session.open_run(run_dir, load_state=False)
         if field is not None:
@@ -513,12 +532,12 @@ def videos(
     table = Table("episode", "field", "frames", "video", title=f"{run_dir}: kept episodes")
     for path in kept:
         try:
-            played, frames = draw_kept(path, models)
+            played, frames = draw_kept(path, models, fmt)
         except (RenderError, record.RunError) as exc:
             _fail(str(exc))
-        gif = path.with_suffix(".gif").name
+        video = path.with_suffix(f".{fmt}").name
         table.add_row(path.name, played, "" if frames is None else str(frames),
-                      f"{gif} (already drawn)" if frames is None else gif)
+                      f"{video} (already drawn)" if frames is None else video)
     out.print(table)
 
 

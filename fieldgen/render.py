@@ -81,12 +81,6 @@ def render_rollout(model: mujoco.MjModel, qpos: np.ndarray, mocap_pos: np.ndarra
     return frames
 
 
-def gif_bytes(frames: list[np.ndarray], fps: float) -> bytes:
-    buf = io.BytesIO()
-    iio.imwrite(buf, np.stack(frames), extension=".gif", duration=1000 / fps, loop=0)
-    return buf.getvalue()
-
-
 def png_bytes(image: np.ndarray) -> bytes:
     buf = io.BytesIO()
     iio.imwrite(buf, image, extension=".png")

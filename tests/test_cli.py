@@ -112,3 +112,19 @@ def test_counts_are_read_as_people_write_them(tmp_path):
         assert result.exit_code == 2 and f"'{bad}' is not a positive whole count" in message, result.output
         assert "Traceback" not in result.output
 
+
+def test_a_video_format_this_machine_cannot_write_is_refused_before_anything_loads(tmp_path, monkeypatch):
+    import imageio_ffmpeg
+
+    def missing():
+        raise RuntimeError("No ffmpeg exe could be found")
+
+    monkeypatch.setattr(imageio_ffmpeg, "get_ffmpeg_exe", missing)
+    for args in (["train", "point_nav", "--out", str(tmp_path)], ["eval", str(tmp_path / "run")],
+                 ["videos", str(tmp_path / "run")]):
+        result = runner.invoke(app, [*args, "--video-format", "mp4"])
+        assert result.exit_code == 1 and "Traceback" not in result.output, result.output
+        assert "mp4 videos need imageio-ffmpeg's encoder" in result.output and "--video-format gif" in result.output
+    assert not any(tmp_path.iterdir())  # no run folder begun
+    unknown = runner.invoke(app, ["videos", str(tmp_path), "--video-format", "avi"])
+    assert unknown.exit_code == 2 and "'avi'isnotoneof'mp4','gif'" in "".join(unknown.output.split()).replace("│", "")

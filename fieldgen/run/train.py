@@ -18,8 +18,9 @@ from fieldgen.run.session import Run
 from fieldgen.run.videos import EpisodeRecorder, video_name
 
 
-def train(run: Run, console: Console, videos: bool = True) -> None:
-    """Train until the run's last evaluation; Ctrl-C leaves the last checkpoint intact."""
+def train(run: Run, console: Console, videos: bool = True, video_format: str | None = None) -> None:
+    """Train until the run's last evaluation, filming each in `video_format` (fieldgen.video.choose);
+    Ctrl-C leaves the last checkpoint intact."""
     config, env = run.config, run.env
     if run.state is not None and run.finished:
         console.print(f"{run.folder} is already complete ({run.rows[-1]['env_steps']:,} env steps)")
@@ -38,7 +39,8 @@ def train(run: Run, console: Console, videos: bool = True) -> None:
             if filmed is not None:  # the episode just evaluated (a mixed run films its last stage)
                 filmed_stage, frames = filmed
                 if filmed_stage not in recorders:
-                    recorders[filmed_stage] = EpisodeRecorder(run.envs[-1 if run.mixed else filmed_stage])
+                    recorders[filmed_stage] = EpisodeRecorder(run.envs[-1 if run.mixed else filmed_stage],
+                                                              fmt=video_format)
                 recorder = recorders[filmed_stage]
                 writer.submit(recorder.save, run.folder, video_name(run.folder, index),
                               recorder.episode(frames), console)
