@@ -42,7 +42,7 @@ def main() -> None:
     entry = registry.trainer(args.algo)
     config = entry.config.layered(total_steps=args.steps, num_envs=args.envs, num_evals=args.evals)
     trainer = entry.make_train(config, env)
-    recorder = videos.EpisodeRecorder(env)
+    recorder = videos.EpisodeRecorder(env, fmt="gif")
     times: list[dict] = []
     mark = {"t": 0.0}
 
@@ -65,7 +65,8 @@ def main() -> None:
         snapshot = timed("state_to_host", lambda: jax.device_get(state))
         timed("write_checkpoint", lambda: write_atomic(written, checkpoint.pieces(snapshot)))
         try:
-            timed("draw_gif", lambda: videos.draw_episode(env.mj_model, recorder.episode(filmed[1]), recorder.camera))
+            timed("draw_gif", lambda: videos.draw_episode(env.mj_model, recorder.episode(filmed[1]),
+                                                          recorder.camera, recorder.fmt))
         except Exception:  # noqa: BLE001 - a machine without OpenGL: the GIF is drawn elsewhere
             timing["draw_gif"] = float("nan")
         mark["t"] = time.perf_counter()

@@ -7,7 +7,6 @@ run folder, field or simulator is needed, so the policy can go wherever JAX and 
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Literal
 

@@ -11,7 +11,14 @@ import mujoco
 import numpy as np
 
 CAMERAS = ("top", "follow")
-SIZE = (480, 640)  # height, width; the top camera frames the field for this aspect
+HEIGHT = 480  # of a still; videos are drawn half as high
+PERSPECTIVE_ASPECT = 4 / 3
+# Geom groups beside the bodies' 0: floor markings (lines, the goal area, the target) are drawn in every
+# view; the goal's volume and net only in perspective ones, since from above they would veil the goal
+# area and the target.
+MARKINGS, SIDE_VIEW = 1, 2
+MARKED = ("torso", "agent", "ball")  # geoms the top view puts a disc under: the ant's torso, the point, the ball
+MARK_RADIUS = 0.02  # of the top view's height
 
 
 class RenderError(RuntimeError):
@@ -33,14 +40,24 @@ def renderer(model: mujoco.MjModel, size: tuple[int, int]):
         yield context
 
 
+def frame_size(model: mujoco.MjModel, camera: str, height: int) -> tuple[int, int]:
+    """(height, width) of a frame from `camera` in its own aspect: an orthographic camera's resolution (the
+    top view's is the field's aspect), 4:3 for a perspective one. Widths are multiples of 16, which video
+    encoders take without rescaling."""
+    w, h = model.cam_resolution[model.cam(camera).id]
+    aspect = w / h if _orthographic(model, camera) else PERSPECTIVE_ASPECT
+    return height, max(16, 16 * round(height * aspect / 16))
+
+
 def render_pose(model: mujoco.MjModel, qpos: np.ndarray | None = None, camera: str = "top",
-                size: tuple[int, int] = SIZE) -> np.ndarray:
+                height: int = HEIGHT) -> np.ndarray:
     """One RGB frame of the model at `qpos` (default: the `home` keyframe)."""
     data = mujoco.MjData(model)
     data.qpos[:] = model.key("home").qpos if qpos is None else qpos
     mujoco.mj_forward(model, data)
-    with renderer(model, size) as r:
-        r.update_scene(data, camera=camera, scene_option=_scene_option())
+    with renderer(model, frame_size(model, camera, height)) as r:
+        r.update_scene(data, camera=camera, scene_option=_scene_option(model, camera))
+        _mark(model, data, r.scene, camera)
         return r.render()
 
 
@@ -50,23 +67,18 @@ def preview(model: mujoco.MjModel) -> np.ndarray:
 
 
 def render_rollout(model: mujoco.MjModel, qpos: np.ndarray, mocap_pos: np.ndarray, camera: str = "follow",
-                   size: tuple[int, int] = (240, 320)) -> list[np.ndarray]:
+                   height: int = HEIGHT // 2) -> list[np.ndarray]:
     """Frames of a recorded rollout: qpos [T, nq] and mocap_pos [T, nmocap, 3]."""
     data = mujoco.MjData(model)
     frames = []
-    with renderer(model, size) as r:
+    with renderer(model, frame_size(model, camera, height)) as r:
         for q, m in zip(qpos, mocap_pos):
             data.qpos[:], data.mocap_pos[:] = q, m
             mujoco.mj_forward(model, data)
-            r.update_scene(data, camera=camera, scene_option=_scene_option())
+            r.update_scene(data, camera=camera, scene_option=_scene_option(model, camera))
+            _mark(model, data, r.scene, camera)
             frames.append(r.render())
     return frames
-
-
-def gif_bytes(frames: list[np.ndarray], fps: float) -> bytes:
-    buf = io.BytesIO()
-    iio.imwrite(buf, np.stack(frames), extension=".gif", duration=1000 / fps, loop=0)
-    return buf.getvalue()
 
 
 def png_bytes(image: np.ndarray) -> bytes:
@@ -97,7 +109,31 @@ def contact_sheet(images: list[np.ndarray], titles: list[str], columns: int = 3)
     return buf.getvalue()
 
 
-def _scene_option() -> mujoco.MjvOption:
+def _scene_option(model: mujoco.MjModel, camera: str) -> mujoco.MjvOption:
+    """Bodies and floor markings in every view; the goal's volume and net only in perspective ones."""
     option = mujoco.MjvOption()
-    option.geomgroup[:] = 1  # show the painted lines, goal region, net and target marker
+    option.geomgroup[:] = 0
+    option.geomgroup[:SIDE_VIEW + (not _orthographic(model, camera))] = 1
     return option
+
+
+def _mark(model: mujoco.MjModel, data: mujoco.MjData, scene: mujoco.MjvScene, camera: str) -> None:
+    """In the top view, a translucent disc in its own colour under the agent and under the ball, so both
+    show at a glance however large the field; they are drawn, not simulated."""
+    if not _orthographic(model, camera):
+        return
+    radius = MARK_RADIUS * model.cam_fovy[model.cam(camera).id]
+    for name in MARKED:
+        geom = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, name)
+        if geom < 0 or scene.ngeom == scene.maxgeom:
+            continue
+        x, y, _ = data.geom_xpos[geom]
+        rgba = np.array([*model.geom_rgba[geom][:3], 0.6], dtype=np.float32)
+        mujoco.mjv_initGeom(scene.geoms[scene.ngeom], mujoco.mjtGeom.mjGEOM_CYLINDER,
+                            np.array([max(radius, 1.5 * model.geom_size[geom][0]), 0.005, 0.0]),
+                            np.array([x, y, 0.01]), np.eye(3).ravel(), rgba)
+        scene.ngeom += 1
+
+
+def _orthographic(model: mujoco.MjModel, camera: str) -> bool:
+    return model.cam_projection[model.cam(camera).id] == mujoco.mjtProjection.mjPROJ_ORTHOGRAPHIC

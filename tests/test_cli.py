@@ -55,13 +55,16 @@ def test_schema_is_json_schema_with_descriptions():
 
 
 def test_render_top_and_follow(tmp_path):
-    for camera, width in (("top", 640), ("both", 1280)):
+    images = {}
+    for camera in ("top", "follow", "both"):
         out = tmp_path / f"{camera}.png"
         result = runner.invoke(app, ["render", "point_soccer", "-o", str(out), "--camera", camera])
         assert result.exit_code == 0, result.output
-        image = iio.imread(out)
-        assert image.shape == (480, width, 3)
-        assert image.std() > 10  # a picture, not a blank frame
+        images[camera] = iio.imread(out)
+        assert images[camera].std() > 10  # a picture, not a blank frame
+    top = images["top"].shape[1]
+    assert top < 480 and images["top"].shape == (480, top, 3)  # point_soccer is longer than wide
+    assert images["follow"].shape == (480, 640, 3) and images["both"].shape == (480, top + 640, 3)
     result = runner.invoke(app, ["render", "point_soccer", "--camera", "side"])
     assert result.exit_code == 1 and "unknown camera 'side'" in result.output
 
@@ -159,3 +162,20 @@ def test_choices_are_checked_before_anything_loads_and_complete_in_the_shell():
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
                           env={**__import__("os").environ, **env})
     assert proc.stdout.split() == list(ALGORITHMS), proc.stderr
+
+
+def test_a_video_format_this_machine_cannot_write_is_refused_before_anything_loads(tmp_path, monkeypatch):
+    import imageio_ffmpeg
+
+    def missing():
+        raise RuntimeError("No ffmpeg exe could be found")
+
+    monkeypatch.setattr(imageio_ffmpeg, "get_ffmpeg_exe", missing)
+    for args in (["train", "point_nav", "--out", str(tmp_path)], ["eval", str(tmp_path / "run")],
+                 ["videos", str(tmp_path / "run")]):
+        result = runner.invoke(app, [*args, "--video-format", "mp4"])
+        assert result.exit_code == 1 and "Traceback" not in result.output, result.output
+        assert "mp4 videos need imageio-ffmpeg's encoder" in result.output and "--video-format gif" in result.output
+    assert not any(tmp_path.iterdir())  # no run folder begun
+    unknown = runner.invoke(app, ["videos", str(tmp_path), "--video-format", "avi"])
+    assert unknown.exit_code == 2 and "'avi'isnotoneof'mp4','gif'" in "".join(unknown.output.split()).replace("│", "")

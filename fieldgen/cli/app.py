@@ -31,6 +31,7 @@ SpecArg = Annotated[str, typer.Argument(help="a YAML file, a bundled field name,
 # or more to import)
 ALGORITHMS = ("crl", "icrl", "ppo", "sac", "td3")
 CAMERAS = ("top", "follow")
+VIDEO_FORMATS = ("mp4", "gif")
 
 
 def choice(what: str, choices: tuple[str, ...]) -> dict:
@@ -95,3 +96,14 @@ def _print_version(given: bool) -> None:
 def main(version: Annotated[bool, typer.Option("--version", callback=_print_version, is_eager=True,
                                                help="print fieldgen's version and exit")] = False) -> None:
     """Robot-soccer fields from YAML specs, compiled to GPU-batched MJX environments."""
+
+
+def video_format(fmt: str | None) -> str:
+    """The video format to write (fieldgen.video.choose: mp4 where its encoder is installed), checked before
+    anything loads."""
+    from fieldgen.video import VideoError, choose
+
+    try:
+        return choose(fmt)
+    except VideoError as exc:
+        fail(str(exc))

@@ -9,19 +9,24 @@ import typer
 from rich.table import Table
 from rich.text import Text
 
-from fieldgen.cli.app import ALGORITHMS, CAMERAS, app, choice, count, err, fail, field_source, out
+from fieldgen.cli.app import ALGORITHMS, CAMERAS, VIDEO_FORMATS, app, choice, count, err, fail, field_source, out, video_format
 from fieldgen.run.loggers import LOGGERS
 from fieldgen.schema import SpecError
 
 
-def _train(run, videos: bool, logger: str) -> None:
+VideoFormat = Annotated[Optional[str], typer.Option(
+    "--video-format", help="videos as mp4 (the default where imageio-ffmpeg's encoder is installed) or gif",
+    **choice("video format", VIDEO_FORMATS))]
+
+
+def _train(run, videos: bool, logger: str, fmt: str | None = None) -> None:
     """Train a run; Ctrl-C exits with 130, and a failed write or a diverged run says what to do (training.train
     says how to go on)."""
     from fieldgen.run import record
     from fieldgen.run.train import train as train_run
 
     try:
-        train_run(run, out, videos, logger)
+        train_run(run, out, videos, logger, fmt)
     except KeyboardInterrupt:
         raise typer.Exit(130) from None
     except record.RunError as exc:  # training diverged
@@ -48,7 +53,8 @@ def train(
     config: Annotated[Optional[Path], typer.Option(metavar="FILE", help="YAML file: {crl: {key: value}}")] = None,
     runs: Annotated[Path, typer.Option("--out", metavar="DIR", help="folder for run folders")] = Path("runs"),
     resume: Annotated[Optional[Path], typer.Option(metavar="RUN", help="continue the run in this folder")] = None,
-    videos: Annotated[bool, typer.Option(help="write videos/eval_NNN.gif of the policy at every evaluation")] = True,
+    videos: Annotated[bool, typer.Option(help="write videos/eval_NNN.mp4 of the policy at every evaluation")] = True,
+    video_fmt: VideoFormat = None,
     mixed: Annotated[bool, typer.Option(help="a curriculum's stages all at once, each env its own stage, "
                                               "re-weighted by progress (default: one stage after another)")] = False,
     prepare: Annotated[bool, typer.Option(help="write the run folder (config, built fields) and stop; start it "
@@ -66,6 +72,7 @@ def train(
     Example: fieldgen train point_nav --algo crl --steps 40000 --envs 16 --set 'crl.hidden=[64,64]'
     Example: fieldgen train point_nav --logger tensorboard, then: tensorboard --logdir runs
     """
+    fmt = video_format(video_fmt) if videos else None
     from fieldgen.agents import registry
     from fieldgen.run import loggers, record, session
     from fieldgen.agents.config import ConfigError
@@ -88,7 +95,7 @@ def train(
     if prepare:
         out.print(f"prepared {run.folder}; start it with: fieldgen train --resume {run.folder}")
         return
-    _train(run, videos, logger)
+    _train(run, videos, logger, fmt)
 
 
 @app.command()
@@ -150,18 +157,20 @@ def evaluate(
     run_dir: Annotated[Path, typer.Argument(metavar="RUN", help="a run folder written by fieldgen train")],
     episodes: Annotated[int, typer.Option(metavar="N",
                                           help="evaluation episodes per seed, one per parallel env")] = 128,
-    video: Annotated[bool, typer.Option(help="write eval.gif of one episode of the run's first seed")] = True,
+    video: Annotated[bool, typer.Option(help="write eval.mp4 of one episode of the run's first seed")] = True,
+    video_fmt: VideoFormat = None,
     camera: Annotated[str, typer.Option(help="video camera", **choice("camera", CAMERAS))] = "follow",
     seed: Annotated[int, typer.Option(help="evaluation seed")] = 0,
     field: Annotated[Optional[str], typer.Option(metavar="SPEC",
         help="judge the policy on this field instead (YAML file, bundled name or build folder) with the "
-             "run's observations and actions; the video is eval_<field>.gif")] = None,
+             "run's observations and actions; the video is eval_<field>.mp4")] = None,
 ) -> None:
     """Evaluate a run's last checkpoint (on a curriculum's last stage, or --field): success rate, time at goal,
     return, video.
 
     Example: fieldgen eval runs/point_nav-crl-0 --episodes 256
     """
+    fmt = video_format(video_fmt) if video else None
     from fieldgen.agents.config import ConfigError
     from fieldgen.run import record, session
     from fieldgen.run.evaluate import evaluate as judge
@@ -188,9 +197,9 @@ def evaluate(
     out.print(table)
     if video:  # the first seed's first evaluation episode
         name = video_path(run, run_dir, field is not None)
-        drawn = EpisodeRecorder(run.env, camera).save(run_dir, name, evaluation.episode, err)
+        drawn = EpisodeRecorder(run.env, camera, fmt).save(run_dir, name, evaluation.episode, err)
         if drawn is not None:
-            out.print(f"video: {name.with_suffix('.gif')} ({drawn} frames, {camera} camera)")
+            out.print(f"video: {name.with_suffix('.' + fmt)} ({drawn} frames, {camera} camera)")
 
 
 @app.command()
@@ -198,14 +207,16 @@ def videos(
     run_dir: Annotated[Path, typer.Argument(metavar="RUN", help="a run folder written by fieldgen train")],
     field: Annotated[Optional[str], typer.Option(metavar="SPEC",
         help="the field that `fieldgen eval --field` played eval_<field>.npz on")] = None,
+    video_fmt: VideoFormat = None,
 ) -> None:
-    """Draw the episodes a run kept where nothing could render (videos/eval_NNN.npz, eval.npz) as GIFs beside them.
+    """Draw the episodes a run kept where nothing could render (videos/eval_NNN.npz, eval.npz) as videos beside them.
 
     A training machine without OpenGL keeps each evaluation's episode as joint positions; run this
-    wherever mujoco's renderer works (MUJOCO_GL=egl or osmesa). GIFs already drawn are left alone.
+    wherever mujoco's renderer works (MUJOCO_GL=egl or osmesa). Videos already drawn are left alone.
 
     Example: fieldgen videos runs/soccer_v1-crl-0
     """
+    fmt = video_format(video_fmt)
     from fieldgen.agents.config import ConfigError
     from fieldgen.render import RenderError
     from fieldgen.run import record, session
@@ -225,12 +236,12 @@ def videos(
     table = Table("episode", "field", "frames", "video", title=f"{run_dir}: kept episodes")
     for path in kept:
         try:
-            played, frames = draw_kept(path, models)
+            played, frames = draw_kept(path, models, fmt)
         except (RenderError, record.RunError) as exc:
             fail(str(exc))
-        gif = path.with_suffix(".gif").name
+        drawn_name = path.with_suffix(f".{fmt}").name
         table.add_row(path.name, played, "" if frames is None else str(frames),
-                      f"{gif} (already drawn)" if frames is None else gif)
+                      f"{drawn_name} (already drawn)" if frames is None else drawn_name)
     out.print(table)
 
 

@@ -12,7 +12,10 @@ from fieldgen.compile.contacts import bits
 from fieldgen.schema.geometry import POINT_RADIUS
 from fieldgen.schema.models import FieldSpec
 
-AGENT_RGBA = (0.85, 0.55, 0.25, 1.0)
+AGENT_RGBA = (0.8, 0.475, 0.655, 1.0)  # Okabe and Ito's reddish purple (see fieldgen.compile.scene)
+# Behind the agent, pitched down 20 degrees: looking along the field, the goal's posts stand upright
+# instead of leaning outward as they do under a steeper, wider view.
+FOLLOW_CAMERA = dict(name="follow", mode="trackcom", pos=(0, -8, 3.2), xyaxes=(1, 0, 0, 0, 0.342, 0.94), fovy=40)
 
 
 # The ant's legs: (name, hip direction in the xy plane, ankle axis, ankle range, home ankle angle).
@@ -34,7 +37,7 @@ def build_ant(root: mjcf.RootElement, spec: FieldSpec) -> tuple[float, ...]:
     torso.add("freejoint", name="root")
     ct, ca = bits("torso", spec)
     torso.add("geom", name="torso", type="sphere", size=(0.25,), contype=ct, conaffinity=ca, rgba=AGENT_RGBA)
-    torso.add("camera", name="follow", mode="trackcom", pos=(0, -6, 4), xyaxes=(1, 0, 0, 0, 0.55, 0.83))
+    torso.add("camera", **FOLLOW_CAMERA)
     foot_ct, foot_ca = bits("foot", spec)
     home = [sx, sy, 0.55, 1.0, 0.0, 0.0, 0.0]
     for name, (dx, dy), ankle_axis, ankle_range, ankle_home in _LEGS:
@@ -67,7 +70,7 @@ def build_point(root: mjcf.RootElement, spec: FieldSpec) -> tuple[float, ...]:
     ct, ca = bits("torso", spec)
     body.add("geom", name="agent", type="sphere", size=(POINT_RADIUS,), mass=1.0, contype=ct, conaffinity=ca,
              rgba=AGENT_RGBA)
-    body.add("camera", name="follow", mode="trackcom", pos=(0, -6, 4), xyaxes=(1, 0, 0, 0, 0.55, 0.83))
+    body.add("camera", **FOLLOW_CAMERA)
     for axis in ("x", "y"):
         root.actuator.add("motor", name=f"agent_{axis}", joint=f"agent_{axis}", gear=(gear,),
                           ctrllimited=True, ctrlrange=(-1, 1))

@@ -8,28 +8,31 @@ build report look geoms and joints up by name.
 
 from __future__ import annotations
 
-import math
-
 from dm_control import mjcf
 
 from fieldgen.compile.agents import BUILDERS
 from fieldgen.compile.contacts import ball_touches_floor, bits, contact_limit
 from fieldgen.compile.pipelines import brax_parameters
+from fieldgen.render import MARKINGS, SIDE_VIEW
 from fieldgen.schema import geometry
 from fieldgen.schema.models import FieldSpec
 
-PREVIEW_ASPECT = 4 / 3
-TOP_FOVY = 45.0
+TOP_HEIGHT_PX = 480  # the top view's frame height; its width follows the field's aspect
+TOP_MARGIN = 0.05  # of the framed extent's longer side, on every side of the top view
+# Okabe and Ito's colour-blind-safe palette on a neutral floor: the target (vermillion), goal (blue),
+# ball (yellow) and agent (reddish purple, in fieldgen.compile.agents) differ in hue and lightness alike.
 RGBA = {
-    "wall": (0.3, 0.35, 0.55, 1.0),
-    "obstacle": (0.75, 0.2, 0.2, 1.0),
+    "wall": (0.72, 0.72, 0.74, 1.0),
+    "obstacle": (0.12, 0.12, 0.14, 1.0),
     "post": (0.95, 0.95, 0.95, 1.0),
     "net": (0.95, 0.95, 0.95, 0.25),
-    "goal_region": (0.3, 0.9, 0.3, 0.15),
-    "ball": (0.95, 0.95, 0.2, 1.0),
-    "target": (0.2, 0.9, 0.2, 0.6),
+    "goal_region": (0.0, 0.447, 0.698, 0.2),
+    "goal_area": (0.0, 0.447, 0.698, 1.0),
+    "ball": (0.941, 0.894, 0.259, 1.0),
+    "target": (0.835, 0.369, 0.0, 1.0),
     "line": (1.0, 1.0, 1.0, 1.0),
 }
+FLOOR_RGB = ((0.36, 0.36, 0.36), (0.39, 0.39, 0.39))
 DECORATIVE_ALPHA = 0.45
 GRAVITY = 9.81
 
@@ -76,8 +79,10 @@ def _options(root: mjcf.RootElement, spec: FieldSpec) -> None:
     root.default.geom.condim = 3
     root.default.geom.friction = (1.0, 0.5, 0.5)
     root.default.geom.density = 5.0
-    root.visual.headlight.ambient = (0.35, 0.35, 0.35)
-    root.visual.headlight.diffuse = (0.5, 0.5, 0.5)
+    # Light that adds up to about 1 on the floor seen from above, so colours show as they are, not washed out.
+    root.visual.headlight.ambient = (0.3, 0.3, 0.3)
+    root.visual.headlight.diffuse = (0.3, 0.3, 0.3)
+    root.visual.headlight.specular = (0.1, 0.1, 0.1)
     root.visual.quality.shadowsize = 2048
     root.visual.map.zfar = 500.0
 
@@ -87,14 +92,14 @@ def _floor(root: mjcf.RootElement, spec: FieldSpec) -> None:
     root.asset.add("texture", name="sky", type="skybox", builtin="gradient", width=256, height=256,
                    rgb1=(0.55, 0.7, 0.9), rgb2=(0.15, 0.2, 0.3))
     tex = root.asset.add("texture", name="grid", type="2d", builtin="checker", width=256, height=256,
-                         rgb1=(0.22, 0.45, 0.25), rgb2=(0.25, 0.5, 0.28))
+                         rgb1=FLOOR_RGB[0], rgb2=FLOOR_RGB[1])
     extent = 1.5 * max(hx, hy) + 4  # the plane collides everywhere; its size only bounds the drawing
-    mat = root.asset.add("material", name="grass", texture=tex, texrepeat=(extent, extent), reflectance=0.0)
+    mat = root.asset.add("material", name="floor", texture=tex, texrepeat=(extent, extent), reflectance=0.0)
     ct, ca = bits("floor", spec)
     root.worldbody.add("geom", name="floor", type="plane", size=(extent, extent, 0.1), material=mat,
                        friction=(spec.field.friction, 0.5, 0.5), contype=ct, conaffinity=ca)
     root.worldbody.add("light", name="sun", pos=(0, 0, 40), dir=(0.2, 0.3, -1), directional=True,
-                       diffuse=(0.7, 0.7, 0.7), castshadow=False)
+                       diffuse=(0.45, 0.45, 0.45), castshadow=False)
     # Painted boundary lines, so a field without walls still shows its extent.
     w = 0.05
     for name, pos, size in (
@@ -105,22 +110,33 @@ def _floor(root: mjcf.RootElement, spec: FieldSpec) -> None:
         ("line_kickoff", (0, 0, 0.001), (hx, w, 0.001)),
     ):
         root.worldbody.add("geom", name=name, type="box", pos=pos, size=size, rgba=RGBA["line"],
-                           contype=0, conaffinity=0, group=1)
+                           contype=0, conaffinity=0, group=MARKINGS)
 
 
 def _top_camera(root: mjcf.RootElement, spec: FieldSpec) -> None:
-    """A camera straight down that frames the field and the goal at the preview's aspect."""
+    """An orthographic camera straight down that frames the field, its walls, goal and obstacles with a
+    margin. Its resolution keeps their aspect (a portrait field gives a portrait image); orthographic,
+    fovy is the view's height in metres."""
+    x0, x1, y0, y1 = _framed_extent(spec)
+    margin = TOP_MARGIN * max(x1 - x0, y1 - y0)
+    span_x, span_y = x1 - x0 + 2 * margin, y1 - y0 + 2 * margin
+    width = max(16, 16 * round(TOP_HEIGHT_PX * span_x / span_y / 16))  # what video encoders take
+    height_m = max(span_y, span_x * TOP_HEIGHT_PX / width)
+    getattr(root.visual, "global").offwidth = max(640, width)
+    root.worldbody.add("camera", name="top", pos=((x0 + x1) / 2, (y0 + y1) / 2, 2 * max(span_x, span_y)),
+                       xyaxes=(1, 0, 0, 0, 1, 0), projection="orthographic", fovy=height_m,
+                       resolution=(width, TOP_HEIGHT_PX))
+
+
+def _framed_extent(spec: FieldSpec) -> tuple[float, float, float, float]:
+    """x0, x1, y0, y1 of the field and everything standing on or beside it."""
     hx, hy = spec.field.width / 2, spec.field.length / 2
-    y0, y1 = -hy, hy
+    boxes = [b.xy_bounds() for b in geometry.walls(spec) + geometry.obstacles(spec)]
     goal = geometry.goal_region(spec)
     if goal is not None:
-        y1 = max(y1, goal.xy_bounds()[3])
-    span_y = (y1 - y0) * 1.08
-    span_x = 2 * hx * 1.08
-    half = max(span_y, span_x / PREVIEW_ASPECT) / 2
-    height = half / math.tan(math.radians(TOP_FOVY / 2))
-    root.worldbody.add("camera", name="top", pos=(0, (y0 + y1) / 2, height), xyaxes=(1, 0, 0, 0, 1, 0),
-                       fovy=TOP_FOVY)
+        boxes.append(goal.xy_bounds(inflate=spec.goal.post_radius))
+    x0s, x1s, y0s, y1s = zip((-hx, hx, -hy, hy), *boxes)
+    return min(x0s), max(x1s), min(y0s), max(y1s)
 
 
 def _ball(root: mjcf.RootElement, spec: FieldSpec) -> tuple[float, ...]:
@@ -160,7 +176,7 @@ def _target_marker(root: mjcf.RootElement, spec: FieldSpec) -> None:
     radius = 0.1 if success.kind == "ball_in_goal" else success.radius
     body = root.worldbody.add("body", name="target", mocap=True, pos=(x, y, 0.0))
     body.add("geom", name="target", type="cylinder", size=(radius, 0.005), rgba=RGBA["target"],
-             contype=0, conaffinity=0, group=1)
+             contype=0, conaffinity=0, group=MARKINGS)
 
 
 def _goal(spec: FieldSpec) -> list[dict]:
@@ -168,8 +184,11 @@ def _goal(spec: FieldSpec) -> list[dict]:
     if region is None:
         return []
     g = spec.goal
+    (cx, cy, cz), (hx, hy, hz) = region.center, region.half
     out = [dict(name="goal_region", type="box", pos=region.center, size=region.half, rgba=RGBA["goal_region"],
-                contype=0, conaffinity=0, group=1)]
+                contype=0, conaffinity=0, group=SIDE_VIEW),
+           dict(name="goal_area", type="box", pos=(cx, cy, 0.002), size=(hx, hy, 0.001), rgba=RGBA["goal_area"],
+                contype=0, conaffinity=0, group=MARKINGS)]
     alpha = 1.0 if g.solid else DECORATIVE_ALPHA
     for cap in geometry.goal_frame(spec):
         reachable = min(cap.start[2], cap.end[2]) - cap.radius < geometry.reach_height(spec)
@@ -177,7 +196,6 @@ def _goal(spec: FieldSpec) -> list[dict]:
         out.append(dict(name=cap.name, type="capsule", fromto=cap.start + cap.end, size=(cap.radius,),
                         rgba=RGBA["post"][:3] + (alpha,), contype=ct, conaffinity=ca))
     if g.net:
-        (cx, cy, cz), (hx, hy, hz) = region.center, region.half
         t = 0.01
         for name, pos, size in (
             ("net_back", (cx, cy + hy, cz), (hx, t, hz)),
@@ -186,7 +204,7 @@ def _goal(spec: FieldSpec) -> list[dict]:
             ("net_top", (cx, cy, cz + hz), (hx, hy, t)),
         ):
             out.append(dict(name=name, type="box", pos=pos, size=size, rgba=RGBA["net"], contype=0, conaffinity=0,
-                            group=1))
+                            group=SIDE_VIEW))
     return out
 
 

@@ -33,9 +33,10 @@ def check_compatible(variants: list[Variant], models, layout) -> None:
 
 
 # Static (non-array) model fields that differ between variants but that stepping never reads:
-# keyframes (each variant's home pose is read from its own MjModel) and height-field bounds.
+# keyframes (each variant's home pose is read from its own MjModel), height-field bounds and the
+# cameras' resolution (the top view's aspect follows each variant's field; rendering reads its own MjModel).
 _UNREAD_STATIC = {"key_time", "key_qpos", "key_qvel", "key_act", "key_mpos", "key_mquat", "key_ctrl",
-                  "geom_rbound_hfield"}
+                  "geom_rbound_hfield", "cam_resolution"}
 
 
 def batched_model(models, names: list[str]) -> tuple[object, frozenset[int]]:

@@ -37,13 +37,17 @@ class TensorBoardLogger:
                 writer.add_summary(scalar(name, value), row["env_steps"])
             writer.flush()
 
-    def video(self, gif: Path, env_steps: int) -> None:
-        """The GIF as it is: TensorBoard's images tab plays an image summary that holds a GIF."""
+    def video(self, video: Path, env_steps: int) -> None:
+        """As a GIF (an MP4 re-encoded as one): TensorBoard's images tab plays an image summary that holds a GIF."""
         import imageio.v3 as iio
         from tensorboardX.proto.summary_pb2 import Summary
 
-        height, width, channels = iio.improps(gif, index=0).shape
-        image = Summary.Image(height=height, width=width, colorspace=channels, encoded_image_string=gif.read_bytes())
+        from fieldgen.video import GIF_FPS, encode
+
+        data = video.read_bytes() if video.suffix == ".gif" else encode(list(iio.imread(video, index=None)),
+                                                                          GIF_FPS, "gif")[0]
+        height, width, channels = iio.improps(data, index=0, extension=".gif").shape
+        image = Summary.Image(height=height, width=width, colorspace=channels, encoded_image_string=data)
         self.filmed.add_summary(Summary(value=[Summary.Value(tag="video", image=image)]), env_steps)
         self.filmed.flush()
 
@@ -73,10 +77,10 @@ class WandbLogger:
         data = {self.prefix(row["seed"]) + name: value for row in rows for name, value in scalars(row).items()}
         self.run.log({"env_steps": rows[0]["env_steps"], **data})
 
-    def video(self, gif: Path, env_steps: int) -> None:
+    def video(self, video: Path, env_steps: int) -> None:
         import wandb
 
-        self.run.log({"env_steps": env_steps, "video": wandb.Video(str(gif), format="gif")})
+        self.run.log({"env_steps": env_steps, "video": wandb.Video(str(video), format=video.suffix.lstrip("."))})
 
     def close(self) -> None:
         """Finish the run and wait until W&B's service has written it all (finish alone may return before)."""
@@ -90,7 +94,7 @@ class NoLogger:
     def rows(self, rows: list[dict]) -> None:
         pass
 
-    def video(self, gif: Path, env_steps: int) -> None:
+    def video(self, video: Path, env_steps: int) -> None:
         pass
 
     def close(self) -> None:

@@ -3,7 +3,7 @@
 A run folder holds everything needed to resume: `run.json` (the field's build, the
 algorithm, its full config and the seeds), `metrics.jsonl` / `metrics.csv` (one row per
 evaluation and seed), `checkpoint.msgpack` (the whole training state after the last
-evaluation), `success.png` and `videos/eval_NNN.gif`; every file is replaced whole.
+evaluation), `success.png` and `videos/eval_NNN.mp4` (or .gif); every file is replaced whole.
 """
 
 from __future__ import annotations

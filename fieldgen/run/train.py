@@ -21,9 +21,9 @@ from fieldgen.run.session import Run
 from fieldgen.run.videos import EpisodeRecorder, video_name
 
 
-def train(run: Run, console: Console, videos: bool = True, logger: str = "none") -> None:
-    """Train until the run's last evaluation, logging to `logger` (loggers.LOGGERS) too; Ctrl-C leaves the
-    last checkpoint intact."""
+def train(run: Run, console: Console, videos: bool = True, logger: str = "none", video_format: str | None = None) -> None:
+    """Train until the run's last evaluation, filming each in `video_format` (fieldgen.video.choose) and logging
+    to `logger` (loggers.LOGGERS) too; Ctrl-C leaves the last checkpoint intact."""
     remove_leftovers(run.folder)  # of writes killed midway; here, not on opening, which `fieldgen eval` does mid-run
     config, env = run.config, run.env
     if run.state is not None and run.finished:
@@ -45,15 +45,16 @@ def train(run: Run, console: Console, videos: bool = True, logger: str = "none")
             if filmed is not None:  # the episode just evaluated (a mixed run films its last stage)
                 filmed_stage, frames = filmed
                 if filmed_stage not in recorders:
-                    recorders[filmed_stage] = EpisodeRecorder(run.envs[-1 if run.mixed else filmed_stage])
+                    recorders[filmed_stage] = EpisodeRecorder(run.envs[-1 if run.mixed else filmed_stage],
+                                                              fmt=video_format)
                 recorder = recorders[filmed_stage]
                 writer.submit(film, recorder, video_name(run.folder, index), recorder.episode(frames),
                               run.rows[-1]["env_steps"])
 
         def film(recorder, name, episode, env_steps):
-            """Draw the episode; a GIF drawn goes to the logger too."""
+            """Draw the episode; a video drawn goes to the logger too."""
             if recorder.save(run.folder, name, episode, console) is not None:
-                log.video(name.with_suffix(".gif"), env_steps)
+                log.video(name.with_suffix(f".{recorder.fmt}"), env_steps)
 
         def progress(index, rows):
             stop_if_diverged(run, index, rows)

@@ -24,8 +24,11 @@ class EpisodeRecorder:
     """Videos of a policy's deterministic episode, filmed by its evaluation (`film`, passed to
     agents.loop's evaluation) and drawn by mujoco's renderer."""
 
-    def __init__(self, env, camera: str = "follow"):
-        self.env, self.camera, self.broken = env, camera, False
+    def __init__(self, env, camera: str = "follow", fmt: str | None = None):
+        """`fmt`: mp4 or gif, by default mp4 where its encoder is installed (fieldgen.video.choose)."""
+        from fieldgen.video import choose
+
+        self.env, self.camera, self.fmt, self.broken = env, camera, choose(fmt), False
 
     @staticmethod
     def film(env_state) -> tuple:
@@ -41,12 +44,12 @@ class EpisodeRecorder:
         return {"qpos": qpos[:end:stride], "mocap_pos": mocap[:end:stride], "fps": 1 / (self.env.dt * stride)}
 
     def save(self, run_dir: Path, name: Path, episode: dict, console) -> int | None:
-        """name.gif, and its frame count. A machine that cannot render keeps the episode instead (name.npz,
-        drawn later by `fieldgen videos` where a renderer works), with one warning, and returns None."""
+        """name.mp4 or name.gif, and its frame count. A machine that cannot render keeps the episode instead
+        (name.npz, drawn later by `fieldgen videos` where a renderer works), with one warning, and returns None."""
         if not self.broken:
             try:
-                data, frames = draw_episode(self.env.mj_model, episode, self.camera)
-                write_atomic(name.with_suffix(".gif"), data)
+                data, frames = draw_episode(self.env.mj_model, episode, self.camera, self.fmt)
+                write_atomic(name.with_suffix(f".{self.fmt}"), data)
                 return frames
             except Exception as exc:  # noqa: BLE001 - renderer back ends fail in many ways
                 self.broken = True
@@ -59,12 +62,13 @@ class EpisodeRecorder:
         return None
 
 
-def draw_episode(model, episode, camera: str) -> tuple[bytes, int]:
-    """GIF bytes of a recorded episode ({qpos, mocap_pos, fps}) and its frame count."""
-    from fieldgen.render import gif_bytes, render_rollout
+def draw_episode(model, episode, camera: str, fmt: str) -> tuple[bytes, int]:
+    """The video (`fmt`: mp4 or gif) of a recorded episode ({qpos, mocap_pos, fps}) and its frame count."""
+    from fieldgen.render import render_rollout
+    from fieldgen.video import encode
 
     frames = render_rollout(model, episode["qpos"], episode["mocap_pos"], camera)
-    return gif_bytes(frames, fps=float(episode["fps"])), len(frames)
+    return encode(frames, float(episode["fps"]), fmt)
 
 
 def kept_episodes(run_dir: Path) -> list[Path]:
@@ -72,9 +76,10 @@ def kept_episodes(run_dir: Path) -> list[Path]:
     return sorted((run_dir / VIDEOS).glob("eval_*.npz")) + sorted(run_dir.glob("eval*.npz"))
 
 
-def draw_kept(path: Path, models: dict) -> tuple[str, int | None]:
-    """Draw a kept episode as the GIF beside it, with the model of the field it records (`models`: field
-    name -> MjModel). Returns (the field, frames drawn), frames None where the GIF was already there."""
+def draw_kept(path: Path, models: dict, fmt: str) -> tuple[str, int | None]:
+    """Draw a kept episode as the video (`fmt`: mp4 or gif) beside it, with the model of the field it records
+    (`models`: field name -> MjModel). Returns (the field, frames drawn), frames None where that video was
+    already there."""
     from fieldgen.run.record import RunError
 
     try:
@@ -87,9 +92,9 @@ def draw_kept(path: Path, models: dict) -> tuple[str, int | None]:
                        f"({', '.join(models)}); pass its YAML file, bundled name or build folder: "
                        f"fieldgen videos {path.parent if path.parent.name != VIDEOS else path.parent.parent} "
                        "--field SPEC")
-    gif = path.with_suffix(".gif")
-    if gif.exists():
+    video = path.with_suffix(f".{fmt}")
+    if video.exists():
         return played, None
-    data, frames = draw_episode(models[played], episode, camera)
-    write_atomic(gif, data)
+    data, frames = draw_episode(models[played], episode, camera, fmt)
+    write_atomic(video, data)
     return played, frames

@@ -44,6 +44,8 @@ def test_variants_share_one_structure_with_absent_walls_parked(walled):
     assert wall.pos[2] < -PARK_DEPTH / 2 and wall.rgba[3] == 0  # parked and invisible where walls are off
     assert abs(models[0].geom("wall_left").pos[0]) == pytest.approx(3.0)
     assert abs(models[1].geom("wall_left").pos[0]) == pytest.approx(2.0)
+    widths = [m.cam_resolution[m.cam("top").id][0] for m in models]
+    assert widths[0] > widths[1]  # each variant's top view frames its own field, 6 wide and then 4
 
 
 
@@ -137,7 +139,7 @@ def test_mixed_training_reports_every_stage_and_resumes(tmp_path):
     assert {"variants.success_any.1", "variants.success_any.2", "variants.weight.2"} <= set(header)
     text = " ".join(result.output.split())
     assert "success_any per stage at the end: 1." in text and "success_any on the last stage (ring_s02)" in text
-    assert (run / "success.png").stat().st_size > 0 and (run / "videos" / "eval_002.gif").exists()
+    assert (run / "success.png").stat().st_size > 0 and (run / "videos" / "eval_002.mp4").exists()
     assert sorted(p.name for p in (run / "stages").iterdir()) == ["01", "02"]
 
 

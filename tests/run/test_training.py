@@ -143,7 +143,7 @@ def test_cli_run_folder_and_resume_of_a_finished_run(tmp_path, monkeypatch):
     run = tmp_path / "point_nav-crl-0"
     assert {p.name for p in run.iterdir()} == {"run.json", "metrics.jsonl", "metrics.csv", "checkpoint.msgpack",
                                                "success.png", "videos", "field"}
-    assert sorted(p.name for p in (run / "videos").iterdir()) == ["eval_000.gif", "eval_001.gif", "eval_002.gif"]
+    assert sorted(p.name for p in (run / "videos").iterdir()) == ["eval_000.mp4", "eval_001.mp4", "eval_002.mp4"]
     rows = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
     assert [r["eval"] for r in rows] == [0, 1, 2] and rows[-1]["env_steps"] == 800 + 12 * 80  # prefill + 2 x 6 iterations
     assert (run / "metrics.csv").read_text().splitlines()[0].startswith("eval,seed,env_steps")
@@ -157,17 +157,17 @@ def test_cli_run_folder_and_resume_of_a_finished_run(tmp_path, monkeypatch):
     assert re.search(r"│ 100 +│", evaluated.output), evaluated.output  # length: point_nav's episodes never end early
     import imageio.v3 as iio
 
-    frames = iio.imread(run / "eval.gif", index=None)
+    frames = iio.imread(run / "eval.mp4", index=None)
     assert frames.shape[0] == 100 and frames.shape[1:3] == (240, 320)
 
     from fieldgen import render
 
-    (run / "eval.gif").unlink()
+    (run / "eval.mp4").unlink()
     monkeypatch.setattr(render, "render_rollout", no_opengl)
     blind = runner.invoke(app, ["eval", str(run), "--episodes", "8"])
     assert blind.exit_code == 0 and "Traceback" not in blind.output, blind.output
     assert "cannot render here (no OpenGL here)" in blind.output and "success_any" in blind.output
-    assert (run / "eval.npz").exists() and not (run / "eval.gif").exists()
+    assert (run / "eval.npz").exists() and not (run / "eval.mp4").exists()
     short = tmp_path / "point_nav_short.yaml"
     short.write_text("extends: point_nav\nname: point_nav_short\nepisode: {length: 40}\n")
     elsewhere = runner.invoke(app, ["eval", str(run), "--episodes", "8", "--field", str(short)])
@@ -182,8 +182,8 @@ def test_cli_run_folder_and_resume_of_a_finished_run(tmp_path, monkeypatch):
     assert "--fieldSPEC" in unwrapped(unnamed.output)
     drawn = runner.invoke(app, ["videos", str(run), "--field", str(short)])
     assert drawn.exit_code == 0 and "eval.npz" in drawn.output, drawn.output
-    assert iio.imread(run / "eval.gif", index=None).shape[0] == 100
-    assert iio.imread(run / "eval_point_nav_short.gif", index=None).shape[0] == 40
+    assert iio.imread(run / "eval.mp4", index=None).shape[0] == 100
+    assert iio.imread(run / "eval_point_nav_short.mp4", index=None).shape[0] == 40
 
 
 @pytest.mark.parametrize("path", sorted((Path(__file__).parents[2] / "configs").glob("*.yaml")), ids=lambda p: p.name)
@@ -289,9 +289,12 @@ def test_a_machine_that_cannot_render_keeps_episodes_for_fieldgen_videos(tmp_pat
     with np.load(folder / "eval_000.npz") as kept:
         frames = len(kept["qpos"])
         assert kept["qpos"][-1, 0] > kept["qpos"][0, 0] + 0.5  # the held action moved the point along +x
-    assert iio.imread(folder / "eval_000.gif", index=None).shape[0] == frames
+    assert iio.imread(folder / "eval_000.mp4", index=None).shape[0] == frames
     assert "already drawn" in runner.invoke(app, ["videos", str(run_dir)]).output
-    (folder / "eval_001.gif").unlink()
+    gifs = runner.invoke(app, ["videos", str(run_dir), "--video-format", "gif"])  # beside the MP4s
+    assert gifs.exit_code == 0 and "already drawn" not in gifs.output, gifs.output
+    assert iio.imread(folder / "eval_000.gif", index=None).shape[0] == -(-frames // 2)  # 20 frames/s drawn at 10
+    (folder / "eval_001.mp4").unlink()
     (folder / "eval_001.npz").write_bytes(b"truncated")
     broken = runner.invoke(app, ["videos", str(run_dir)])
     assert broken.exit_code == 1 and "eval_001.npz is not an episode kept by fieldgen train" in broken.output
