@@ -1,6 +1,7 @@
 """Every trainer's settings, one validated model per algorithm, and what each checks before a run.
 
-A config is layered (`RunConfig.layered`): defaults < a config file ({algo: {key: value}}) <
+A config is layered (`RunConfig.layered`): defaults < the bundled preset for the field's kind
+of agent (presets/<algo>_<agent>.yaml) < a config file ({algo: {key: value}}) <
 `--set algo.key=value` < explicit options, each value checked by pydantic as it comes in, so
 that a bad one is reported where it was written. `validate_env` holds what only the
 environment can tell (its episode length, its actuators, its success), so that a run fails
@@ -25,6 +26,7 @@ from .networks import residual_blocks
 from .sharding import by_seed
 from .team import GROUPINGS, split
 
+PRESETS = Path(__file__).with_name("presets")
 REWARDS = ("dense", "sparse")
 SPREADS = ("global", "state")
 
@@ -99,14 +101,23 @@ class RunConfig(BaseModel):
     seed: Annotated[Int, Field(ge=0)] = 0
 
     @classmethod
+    def preset(cls, agent: str | None) -> Path | None:
+        """The bundled settings of this trainer for fields of this kind of agent (ant, point), if any."""
+        path = PRESETS / f"{cls.algo}_{agent}.yaml"
+        return path if agent and path.is_file() else None
+
+    @classmethod
     def layered(cls, file: Path | None = None, sets: Sequence[str] = (), others: tuple[str, ...] = (),
-                **options) -> RunConfig:
-        """Defaults < config file ({algo: {key: value}}) < --set algo.key=value < options (None: not given).
+                agent: str | None = None, **options) -> RunConfig:
+        """Defaults < the preset for `agent` < config file ({algo: {key: value}}) < --set algo.key=value <
+        options (None: not given).
 
         Sections and --set items of the algorithms in `others` (those compared beside this one) are skipped."""
-        section, lines = cls._section(file, others)
-        values = {key: cls._checked(key, value, f"{file}:{lines[key]}" if key in lines else f"{file}")
-                  for key, value in section.items()}  # a key merged in (<<: *defaults) has no line of its own
+        values = {}
+        for source in (cls.preset(agent), file):
+            section, lines = cls._section(source, others)
+            values.update({key: cls._checked(key, value, f"{source}:{lines[key]}" if key in lines else f"{source}")
+                           for key, value in section.items()})  # a key merged in (<<: *defaults) has no line
         for item in sets:
             name, sep, raw = item.partition("=")
             section, dot, key = name.partition(".")

@@ -9,9 +9,11 @@ of reset + step.
     python bench/env_throughput.py --fields soccer_v2,soccer_v2_seed --envs 1024,8192
 
 --backends runs each field on each physics pipeline named (sim.backend; each
-with its own default physics step), building the spec anew for every backend
-but the one it was built for, so it needs dm_control:
+with its own default physics step). A field runs on another backend than the one
+it was built for from BUILD/<name>-<backend>/, which --prepare writes here, with
+dm_control, for a machine without it:
 
+    python bench/env_throughput.py --fields ant_nav,soccer_v2 --backends mjx,spring,positional,generalized --prepare
     python bench/env_throughput.py --fields ant_nav,soccer_v2 --backends mjx,spring,positional,generalized
 """
 
@@ -26,7 +28,9 @@ from pathlib import Path
 import jax
 
 import fieldgen
+from fieldgen.compile.artifact import compile_spec, load_artifact, write_artifact
 from fieldgen.env.throughput import append_jsonl, measure
+from fieldgen.schema import load_spec, resolve_spec_path
 
 
 def brax_ant():
@@ -41,14 +45,27 @@ def contacts_per_step(env) -> int:
     return int(mjx.make_data(env.mj_model)._impl.contact.dist.shape[0])
 
 
-def field_env(folder: Path, name: str, backend: str | None):
-    """The built field, or its spec (a bundled name when the folder is missing) built for another backend."""
-    if folder.is_dir():
-        built = fieldgen.make(folder)
-        if backend in (None, built.spec.sim.backend):
-            return built
-        return fieldgen.make(built.spec, backend=backend)
-    return fieldgen.make(name, backend=backend)
+def backend_folder(build: Path, name: str, backend: str | None) -> Path:
+    """Where the field built for `backend` lies: its own build folder, or <name>-<backend> beside it."""
+    own = build / name
+    if backend is None or (own.is_dir() and load_artifact(own).spec.sim.backend == backend):
+        return own
+    return build / f"{name}-{backend}"
+
+
+def prepare(build: Path, name: str, backend: str | None) -> None:
+    """Build the bundled field for `backend` (needs dm_control; the pipeline's own physics step where
+    the spec leaves it out) where the run will look for it."""
+    folder = backend_folder(build, name, backend)
+    if not folder.is_dir():
+        write_artifact(compile_spec(load_spec(resolve_spec_path(name), backend)), folder)
+        print(f"built {folder}")
+
+
+def field_env(build: Path, name: str, backend: str | None):
+    """The field built for `backend`, or its bundled spec built now when no folder holds it."""
+    folder = backend_folder(build, name, backend)
+    return fieldgen.make(folder) if folder.is_dir() else fieldgen.make(name, backend=backend)
 
 
 def compile_seconds(env, n_envs: int) -> float:
@@ -69,10 +86,17 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=200)
     parser.add_argument("--backends", default="", help="comma-separated sim.backend names; default: each field's own")
     parser.add_argument("--no-reference", action="store_true", help="skip brax ant")
+    parser.add_argument("--prepare", action="store_true", help="build each field for each backend and stop")
     parser.add_argument("--json", type=Path, help="append results here, one JSON object per line")
     args = parser.parse_args()
     sizes = [int(n) for n in args.envs.split(",")]
     names = args.fields.split(",") if args.fields else sorted(p.parent.name for p in args.build.glob("*/field.json"))
+    backends = args.backends.split(",") if args.backends else [None]
+    if args.prepare:
+        for name in names:
+            for backend in backends:
+                prepare(args.build, name, backend)
+        return
     print(f"device: {jax.devices()[0].device_kind}, jax {jax.__version__}, {args.steps}-step rollouts")
 
     reference = {}
@@ -83,10 +107,9 @@ def main() -> None:
             print(f"{'brax ant':16s} {n:>7d} envs {reference[n]:>12,.0f} steps/s   1.00x")
             append_jsonl(args.json, {"field": "brax_ant", "envs": n, "steps_per_second": reference[n]})
 
-    backends = args.backends.split(",") if args.backends else [None]
     for name in names:
         for backend in backends:
-            env = field_env(args.build / name, name, backend)
+            env = field_env(args.build, name, backend)
             label = f"{name} ({env.spec.sim.backend})"
             contacts = contacts_per_step(env)
             compile_s = compile_seconds(env, sizes[0])

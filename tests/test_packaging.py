@@ -50,6 +50,8 @@ def test_a_built_wheel_installed_elsewhere_has_its_fields_and_trainers(tmp_path)
         assert env.spec.goal.distance == 20
         wide = load_spec("mine/wide.yaml")
         assert wide.obstacles["goalie"].width == 3.0 and wide.goal.distance == 20
+        from fieldgen.agents.crl import CRLConfig
+        assert CRLConfig.layered(agent="ant").layer_norm  # the bundled preset came with the wheel
         print("installed ok", env.observation_size)
     """)
     assert "installed ok 33" in run(python, "-c", check, cwd=work, env=env)

@@ -86,9 +86,13 @@ def train(
                 fail("name a field to train on, or --resume a run folder")
             if seeds < 1:
                 fail(f"--seeds {seeds}: train at least one seed")
-            algo_config = registry.trainer(algo).config.layered(config, sets or [], total_steps=steps,
-                                                                num_envs=envs, seed=seed)
             source = field_source(spec)
+            trainer_config, agent = registry.trainer(algo).config, session.agent_kind(source)
+            algo_config = trainer_config.layered(config, sets or [], agent=agent, total_steps=steps,
+                                                 num_envs=envs, seed=seed)
+            if trainer_config.preset(agent):
+                out.print(f"{algo} on an {agent} field: settings of {trainer_config.preset(agent).name} "
+                          "(a --config file or --set overrides them)")
             run = session.new_run(source, algo, list(range(seed, seed + seeds)), algo_config, runs, mixed)
     except (SpecError, ConfigError, record.RunError) as exc:
         fail(str(exc))

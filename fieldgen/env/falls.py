@@ -1,9 +1,10 @@
 """Fall rules, generated from the spec: when an ant has fallen, which ends its episode early.
 
-`flipped` (the default) ends it once the torso turns over, as MuJoCo Playground's
-quadrupeds do; `height_band` is the soccer study's and the CRL reference's rule, a
-torso height band tuned on brax's spring physics, where under MJX a hop that rises
-past it counts as a fall; `never` leaves episodes to run out of time.
+`never` (the default, OGBench's ant soccer) leaves episodes to run out of time: the one
+rule under which CRL has learnt the MJX ant. `flipped` ends it once the torso turns over
+(for more than a grace of control steps), as MuJoCo Playground's quadrupeds do;
+`height_band` is the soccer study's and the CRL reference's rule, a torso height band
+tuned on brax's spring physics, where under MJX a hop that rises past it counts as a fall.
 """
 
 from __future__ import annotations

@@ -35,7 +35,7 @@ def runs(source: Path, algos: list[str], seeds: list[int], folder: Path | None, 
     configs = {}
     for algo, entry in entries.items():
         others = tuple(a for a in registry.TRAINERS if a != algo)
-        configs[algo] = entry.config.layered(config_file, sets, others, **fixed)
+        configs[algo] = entry.config.layered(config_file, sets, others, env.spec.agent.kind, **fixed)
         configs[algo].validate_env(env, sharding.device_count(), len(seeds))
     result = []
     for algo in algos:

@@ -23,6 +23,7 @@ from fieldgen.env.brax_pipeline import check_batchable
 from fieldgen.env.make import environment
 from fieldgen.files import remove_leftovers
 from fieldgen.run import record
+from fieldgen.schema import load_spec
 
 FIELD, STAGES = "field", "stages"  # the run's own copies of its built fields: resuming needs no compiler
 
@@ -67,6 +68,19 @@ class Run:
 def run_name(field: str, algo: str, seeds: list[int]) -> str:
     suffix = str(seeds[0]) if len(seeds) == 1 else f"{seeds[0]}to{seeds[-1]}"
     return f"{field}-{algo}-{suffix}"
+
+
+def agent_kind(source: Path) -> str:
+    """The kind of agent (ant, point) a field, build folder or curriculum folder trains: it picks the
+    trainer's preset (agents/presets) before anything compiles."""
+    try:
+        if curriculum.is_curriculum(source):
+            return curriculum.load(source).specs()[0].agent.kind
+        if source.is_dir():
+            return load_artifact(source).spec.agent.kind
+    except (curriculum.CurriculumError, ArtifactError) as exc:
+        raise record.RunError(str(exc)) from None
+    return load_spec(source).agent.kind
 
 
 def new_run(source: Path, algo: str, seeds: list[int], config, out: Path, mixed: bool = False) -> Run:

@@ -312,8 +312,9 @@ class EpisodeSection(Section):
     length: int = Field(1001, ge=1, le=1_000_000, description="control steps per episode")
     control_dt: float = Field(0.05, ge=1e-4, le=10, description="seconds per control step")
     physics_dt: float = Field(0.01, ge=1e-4, le=1, description="seconds per physics step")
-    fall: Fall = Field(default_factory=lambda: FallFlipped(kind="flipped"),
-                       description="when the ant has fallen, which ends its episode early; a point agent never falls")
+    fall: Fall = Field(default_factory=lambda: FallNever(kind="never"),
+                       description="when the ant has fallen, which ends its episode early; by default never, the "
+                       "one rule under which CRL learns the MJX ant; a point agent never falls")
 
     @property
     def substeps(self) -> int:

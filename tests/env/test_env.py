@@ -223,10 +223,21 @@ def test_a_flipped_rule_with_a_smaller_tilt_ends_sooner():
     spec = load_spec(bundled_fields()["ant_nav"])
     from fieldgen.env.falls import fall_fn
 
-    tilted = spec.model_copy(update={"episode": spec.episode.model_validate(
-        {**spec.episode.model_dump(), "fall": {"kind": "flipped", "tilt_deg": 45}})})
-    assert bool(fall_fn(tilted)[0](jnp.asarray([0.0, 0.0, 0.5]), jnp.asarray(TILTED_60)))
-    assert not bool(fall_fn(spec)[0](jnp.asarray([0.0, 0.0, 0.5]), jnp.asarray(TILTED_60)))
+    def flipped(**rule):
+        return spec.model_copy(update={"episode": spec.episode.model_validate(
+            {**spec.episode.model_dump(), "fall": {"kind": "flipped", **rule}})})
+
+    assert bool(fall_fn(flipped(tilt_deg=45))[0](jnp.asarray([0.0, 0.0, 0.5]), jnp.asarray(TILTED_60)))
+    assert not bool(fall_fn(flipped())[0](jnp.asarray([0.0, 0.0, 0.5]), jnp.asarray(TILTED_60)))
+
+
+def test_ant_fields_end_on_time_unless_they_name_a_rule():
+    """Bundled ant fields end episodes only when time runs out (the rule CRL learns the MJX ant under);
+    soccer_v2_seed keeps the study's band, as it reproduces the study's scene."""
+    specs = {name: load_spec(path) for name, path in bundled_fields().items()}
+    assert specs["ant_nav"].episode.fall.kind == "never"
+    assert specs["soccer_v2"].episode.fall.kind == "never"
+    assert specs["soccer_v2_seed"].episode.fall.model_dump() == {"kind": "height_band", "band": (0.2, 1.0)}
 
 
 def test_a_flipped_ant_with_grace_falls_only_once_it_stays_over(env_cache):

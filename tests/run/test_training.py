@@ -248,6 +248,21 @@ def test_config_file_and_precedence(tmp_path):
     assert str(caught.value) == f"{file}:5: crl.batch_size must be greater than 0, not -64"
 
 
+def test_ant_fields_get_the_ant_preset_under_a_config_file_and_set(tmp_path):
+    """CRL on an ant field starts from agents/presets/crl_ant.yaml; a config file and --set still win;
+    a point field, and trainers without a preset, keep their defaults."""
+    from fieldgen.agents.sac import SACConfig
+
+    ant = crl.CRLConfig.layered(agent="ant")
+    assert (ant.hidden, ant.layer_norm, ant.windows, ant.batch_size) == ((256,) * 4, True, 2048, 1024)
+    assert crl.CRLConfig.layered(agent="point") == crl.CRLConfig.layered() == crl.CRLConfig()
+    assert SACConfig.preset("ant") is None
+    file = tmp_path / "c.yaml"
+    file.write_text("crl: {batch_size: 256}\n")
+    mine = crl.CRLConfig.layered(file, ["crl.layer_norm=false"], agent="ant")
+    assert (mine.batch_size, mine.layer_norm, mine.windows) == (256, False, 2048)
+
+
 def test_a_config_comes_back_from_its_run_json_record():
     """run.json keeps the config as JSON (tuples become lists); read back, it is the same hashable value."""
     config = tiny_config(hidden=(32, 16), layer_norm=True)
