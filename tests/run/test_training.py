@@ -261,6 +261,8 @@ def test_ant_fields_get_the_ant_preset_under_a_config_file_and_set(tmp_path):
     file.write_text("crl: {batch_size: 256}\n")
     mine = crl.CRLConfig.layered(file, ["crl.layer_norm=false"], agent="ant")
     assert (mine.batch_size, mine.layer_norm, mine.windows) == (256, False, 2048)
+    reference = Path(__file__).parents[2] / "bench" / "configs" / "crl_reference.yaml"
+    assert crl.CRLConfig.layered(reference, agent="ant") == crl.CRLConfig()  # the reference's settings, back
 
 
 def test_a_config_comes_back_from_its_run_json_record():
