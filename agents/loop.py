@@ -177,7 +177,8 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
     a promoting row `promoted_to`. `on_eval(state, index, stage, episode)` gets the stage the next
     chunk trains on and, with `film`, the first seed's episode filmed by the evaluation just done
     (`evaluate_policy`) with the stage it was filmed on, `(stage, film)`, else None;
-    `resume=(state, index, stage)` continues from there.
+    `resume=(state, index, stage)` continues from there. An evaluation is handed to `progress` and
+    `on_eval` once the next chunk has been dispatched, so that the GPU trains while the host writes.
     """
     keys = jnp.stack([jax.random.PRNGKey(s) for s in seeds])
     staged, last = len(trainers) > 1, len(trainers) - 1
@@ -203,6 +204,12 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
         return metrics, None if frames is None else (k, seed_slice(frames, 0))
 
     history: list[dict] = []
+    reported = None  # the last evaluation's (index, rows, state, stage, episode), not yet handed on
+
+    def report(index, rows, state, stage, episode):
+        progress(index, rows)
+        on_eval(state, index, stage, episode)
+
     if resume is None:
         state, first, stage, previous = programs(0)[1](keys), 1, 0, 0
     else:
@@ -214,6 +221,8 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
         metrics = {}
         if index > 0:
             state, metrics = programs(stage)[2](state)
+            if reported is not None:  # its metrics, checkpoint and video, written on the host while the chunk trains
+                report(*reported)
             metrics = jax.device_get(metrics)  # waits for the chunk
         seconds = time.perf_counter() - began
         judged, episode = judge(stage, state, index)
@@ -244,8 +253,9 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
             state = jax.device_put(_with_env(trainers[stage], state, index), programs(stage)[0])
             for row in rows:
                 row["promoted_to"] = stage
-        progress(index, rows)
-        on_eval(state, index, stage, episode)
+        reported = (index, rows, state, stage, episode)
+    if reported is not None:
+        report(*reported)
     return state, history
 
 

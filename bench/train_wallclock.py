@@ -1,13 +1,15 @@
 """Wall-clock cost of a whole `fieldgen train` run beside the rate of its training chunks alone.
 
 Each code root given runs the same `fieldgen train` command in a subprocess (its folder first on
-PYTHONPATH). The reference, measured in the same run, is the mean of the training chunks' own
+PYTHONPATH): a folder holding an installed fieldgen, e.g. an earlier version's wheel installed
+with `pip install --no-deps --target DIR`; "." is the fieldgen this Python imports. The reference, measured in the same run, is the mean of the training chunks' own
 env steps per second (`steps_per_second` in metrics.jsonl): what training would reach if
 evaluations, checkpoints and videos cost nothing. The end-to-end rate counts everything between
 the first and the last evaluation row (`wall_seconds`); compile time and start-up are left out.
 With several roots the later ones are also printed as a ratio to the first.
 
     python bench/train_wallclock.py --field build/soccer_v1 --steps 12000000 --evals 4
+    pip install --no-deps --target /tmp/previous fieldgen-previous.whl
     python bench/train_wallclock.py --field build/soccer_v1 --roots /tmp/previous,. --json out.jsonl
 """
 
@@ -28,10 +30,12 @@ from fieldgen.env.throughput import append_jsonl, run_arguments
 def run_once(root: Path, args) -> dict:
     """One `fieldgen train` run with `root`'s code; its end-to-end and chunk rates."""
     with tempfile.TemporaryDirectory(prefix="fieldgen-wallclock-") as out:
-        command = [sys.executable, "-m", "fieldgen.cli", "train", args.field, "--algo", args.algo,
+        # -P: the working folder's own fieldgen/ and agents/ must not shadow the root's
+        command = [sys.executable, "-P", "-m", "fieldgen.cli", "train", args.field, "--algo", args.algo,
                    "--steps", str(args.steps), "--envs", str(args.envs), "--set", f"{args.algo}.num_evals={args.evals}",
                    "--out", out, *([] if args.videos else ["--no-videos"])]
-        env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(root.resolve()), os.environ.get("PYTHONPATH", "")])}
+        paths = [] if str(root) == "." else [str(root.resolve())]
+        env = {**os.environ, "PYTHONPATH": os.pathsep.join([*paths, os.environ.get("PYTHONPATH", "")])}
         started = time.perf_counter()
         subprocess.run(command, env=env, check=True, stdout=subprocess.DEVNULL)
         total = time.perf_counter() - started
@@ -48,7 +52,7 @@ def run_once(root: Path, args) -> dict:
 
 def main() -> None:
     parser = run_arguments(__doc__)
-    parser.add_argument("--roots", default=".", help="comma-separated folders holding fieldgen/ and agents/")
+    parser.add_argument("--roots", default=".", help="comma-separated folders holding an installed fieldgen; '.': this Python's")
     parser.add_argument("--videos", action=argparse.BooleanOptionalAction, default=True)
     args = parser.parse_args()
     first = None
