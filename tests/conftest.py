@@ -19,23 +19,21 @@ import fieldgen
 from fieldgen.schema import bundled_fields
 
 FIELDS = sorted(bundled_fields())
-CACHE_VARIABLE = "FIELDGEN_TEST_JAX_CACHE"
 
 
 def pytest_configure(config):
-    """The first process of the session (the controller, or the only one) makes the cache folder;
-    workers started after it inherit the variable."""
-    if "JAX_COMPILATION_CACHE_DIR" in os.environ:  # the user's own cache wins
+    """The first process of the session (the controller, or the only one) makes the cache folder; workers
+    and the `fieldgen` commands tests start inherit the variable (JAX reads it on import)."""
+    if "JAX_COMPILATION_CACHE_DIR" in os.environ:  # the user's own cache, or the controller's
         return
-    if CACHE_VARIABLE not in os.environ:
-        os.environ[CACHE_VARIABLE] = tempfile.mkdtemp(prefix="fieldgen-test-jax-cache-")
-        config.owns_jax_cache = True
-    jax.config.update("jax_compilation_cache_dir", os.environ[CACHE_VARIABLE])
+    os.environ["JAX_COMPILATION_CACHE_DIR"] = tempfile.mkdtemp(prefix="fieldgen-test-jax-cache-")
+    config.owns_jax_cache = True
+    jax.config.update("jax_compilation_cache_dir", os.environ["JAX_COMPILATION_CACHE_DIR"])
 
 
 def pytest_unconfigure(config):
     if getattr(config, "owns_jax_cache", False):
-        shutil.rmtree(os.environ.pop(CACHE_VARIABLE), ignore_errors=True)
+        shutil.rmtree(os.environ.pop("JAX_COMPILATION_CACHE_DIR"), ignore_errors=True)
 
 
 @pytest.fixture(scope="session")

@@ -23,6 +23,20 @@ def test_validate_ok_and_bad(write_spec):
     assert "Traceback" not in result.output
 
 
+def test_commands_keep_compiled_programs_in_a_cache_the_user_can_move(tmp_path, monkeypatch):
+    """Every command points JAX's persistent compilation cache at ~/.cache/fieldgen/xla (XDG_CACHE_HOME
+    honoured) before JAX loads, unless JAX_COMPILATION_CACHE_DIR already names a folder."""
+    import os
+
+    monkeypatch.delenv("JAX_COMPILATION_CACHE_DIR")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    assert runner.invoke(app, ["validate", "point_nav"]).exit_code == 0
+    assert os.environ["JAX_COMPILATION_CACHE_DIR"] == str(tmp_path / "fieldgen" / "xla")
+    monkeypatch.setenv("JAX_COMPILATION_CACHE_DIR", str(tmp_path / "mine"))
+    assert runner.invoke(app, ["validate", "point_nav"]).exit_code == 0
+    assert os.environ["JAX_COMPILATION_CACHE_DIR"] == str(tmp_path / "mine")
+
+
 def test_unknown_field_name_is_a_clear_error():
     result = runner.invoke(app, ["build", "socer_v2"])
     assert result.exit_code == 1

@@ -11,6 +11,7 @@ import typer
 from rich.console import Console
 from rich.text import Text
 
+from fieldgen import xla_cache
 from fieldgen.cli.helptext import ReadableTyper
 from fieldgen.schema import bundled_fields, resolve_spec_path
 from fieldgen.suggest import did_you_mean
@@ -96,6 +97,7 @@ def _print_version(given: bool) -> None:
 def main(version: Annotated[bool, typer.Option("--version", callback=_print_version, is_eager=True,
                                                help="print fieldgen's version and exit")] = False) -> None:
     """Robot-soccer fields from YAML specs, compiled to GPU-batched MJX environments."""
+    xla_cache.enable()
 
 
 def video_format(fmt: str | None) -> str:

@@ -52,9 +52,7 @@ KILLED_AT = textwrap.dedent("""
 
 
 def train(tmp_path: Path, moment: str, at: int, *args: str) -> subprocess.CompletedProcess:
-    env = dict(os.environ, JAX_PLATFORMS="cpu")
-    if "FIELDGEN_TEST_JAX_CACHE" in os.environ:  # the compiled programs this test session shares
-        env["JAX_COMPILATION_CACHE_DIR"] = os.environ["FIELDGEN_TEST_JAX_CACHE"]
+    env = dict(os.environ, JAX_PLATFORMS="cpu")  # with the compiled programs this test session shares
     return subprocess.run([sys.executable, "-c", KILLED_AT, moment, str(at), "train", *args], cwd=tmp_path, env=env,
                           capture_output=True, text=True, timeout=600)
 
