@@ -2,7 +2,8 @@
 
 Each setting is one `fieldgen train` command run alone, one after another (timings of runs that
 share a GPU say nothing). The clock starts before the process does, so imports, building the
-environment and every compile count, as a user waiting for the result sees it. The run's
+environment and every compile count, as a user waiting for the result sees it (each run with an
+empty compilation cache, unless --warm-cache). The run's
 metrics.jsonl is read as it grows; once an evaluation's success_any reaches the threshold the
 run is stopped (`--keep-going` lets it finish). The first setting is the reference: later ones
 are also printed as a ratio of its time.
@@ -15,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import shlex
 import shutil
 import subprocess
@@ -48,8 +50,11 @@ def run_setting(name: str, options: list[str], seed: int, runs: Path, args) -> d
     # -P: the repository's own folders (agents/, fields/) must not shadow the installed package
     command = [sys.executable, "-P", "-m", "fieldgen.cli", "train", args.field, "--algo", args.algo,
                "--steps", args.steps, "--seed", str(seed), "--out", str(out), "--no-videos", *options]
+    env = dict(os.environ)
+    if not args.warm_cache:  # every run compiles everything, as the first run on a machine does
+        env["JAX_COMPILATION_CACHE_DIR"] = str(out / "xla-cache")
     started = time.perf_counter()
-    proc = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=env)
     passed, seconds = None, None
     while proc.poll() is None:
         metrics = next(out.glob("*/metrics.jsonl"), None)
@@ -65,6 +70,7 @@ def run_setting(name: str, options: list[str], seed: int, runs: Path, args) -> d
         time.sleep(0.5)
     proc.wait()
     total = time.perf_counter() - started
+    shutil.rmtree(out / "xla-cache", ignore_errors=True)
     metrics = next(out.glob("*/metrics.jsonl"), None)
     if passed is None and metrics:  # it ended: judge every row it wrote
         passed = first_passing(metrics, args.threshold)
@@ -93,6 +99,8 @@ def main() -> None:
     parser.add_argument("--keep-going", action="store_true", help="let each run finish after it passes")
     parser.add_argument("--limit", type=float, default=0.0, help="stop a run that has not passed after this "
                         "many seconds (0: none)")
+    parser.add_argument("--warm-cache", action="store_true", help="let runs share the user's compilation cache "
+                        "(default: each run starts with an empty one, so compiling counts)")
     parser.add_argument("--runs", type=Path, help="keep the run folders here (default: a temporary folder)")
     parser.add_argument("--json", type=Path, help="append one JSON object per setting and seed")
     args = parser.parse_args()
