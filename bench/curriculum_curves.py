@@ -1,4 +1,5 @@
-"""Success on a curriculum's last field against env steps, for runs trained directly on it and through it.
+"""Success on a curriculum's last field against env steps and wall clock, for runs trained directly
+on it and through it.
 
 Each run is a metrics.jsonl (a run folder's, or one kept in bench/results): a direct run's own
 success, a staged or mixed run's `last_stage_success_any` (the policy judged on the last field
@@ -45,18 +46,21 @@ def main() -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, (left, right) = plt.subplots(1, 2, figsize=(10, 3.6))
+    fig, (left, clock, right) = plt.subplots(1, 3, figsize=(15, 3.6))
     for item in args.runs:
         label, _, path = item.partition("=")
         rows = [json.loads(line) for line in Path(path).read_text().splitlines() if line.strip()]
         steps, success, judged, at_goal = last_field(rows)
         left.plot(steps, success, marker="o", label=label)
+        clock.plot([r["wall_seconds"] / 60 for r in rows], success, marker="o", label=label)
         right.plot(judged, at_goal, marker="o", label=label)
         print(f"{label:>10s}: last evaluation {success[-1]:.2f} success_any, best {max(success):.2f}; "
               f"time at goal {at_goal[-1]:.0f}")
     left.set(xlabel="env steps", ylabel="success_any", ylim=(-0.02, 1.02), title="episodes with a success")
+    clock.set(xlabel="minutes from the start (resumes included)", ylabel="success_any", ylim=(-0.02, 1.02),
+              title="against wall clock")
     right.set(xlabel="env steps", ylabel="steps at goal per episode", title="time at goal")
-    save_figure(fig, (left, right), args.title, args.out)
+    save_figure(fig, (left, clock, right), args.title, args.out)
 
 
 if __name__ == "__main__":
