@@ -37,9 +37,9 @@ def iterations(config) -> tuple[int, int]:
 
 
 def gradient_steps(config, episode_length: int) -> tuple[int, int]:
-    """(episode-long windows sampled, gradient steps) per iteration: `config.windows` windows, or one
-    per environment when it is 0, cut into batches of `config.batch_size` transitions."""
-    windows = config.windows or config.num_envs
+    """(episode-long windows sampled, gradient steps) per iteration: `config.windows` windows, or
+    `config.windows_per_env` per environment when it is 0, cut into batches of `config.batch_size` transitions."""
+    windows = config.windows or max(1, round(config.windows_per_env * config.num_envs))
     return windows, windows * episode_length // config.batch_size
 
 

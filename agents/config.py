@@ -219,8 +219,9 @@ class ReplayConfig(RunConfig):
     """What every trainer with a replay buffer of episode-long windows shares (CRL, SAC, TD3)."""
 
     batch_size: Count = 256  # transitions per gradient step
-    windows: Annotated[Int, Field(ge=0)] = 0  # episode-long trajectory windows sampled per iteration; 0: one per environment
-    # (the reference), so an iteration makes windows x episode_length / batch_size gradient steps
+    windows: Annotated[Int, Field(ge=0)] = 0  # episode-long trajectory windows sampled per iteration; 0: windows_per_env
+    # for each environment, so an iteration makes windows x episode_length / batch_size gradient steps
+    windows_per_env: Annotated[Float, Field(gt=0, le=1000)] = 1.0  # 1: the reference; keeps the update ratio at any num_envs
     min_replay_rows: Count = 1000  # time rows collected before updates start
     max_replay_rows: Count = 10000
     discount: Discount = 0.99

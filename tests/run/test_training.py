@@ -12,6 +12,7 @@ import pytest
 from typer.testing import CliRunner
 
 from fieldgen.agents import checkpoint, crl, loop
+from fieldgen.agents.buffer import gradient_steps
 from fieldgen.agents.config import ConfigError
 from fieldgen.agents.registry import trainer
 from fieldgen.cli import app
@@ -254,13 +255,17 @@ def test_ant_fields_get_the_ant_preset_under_a_config_file_and_set(tmp_path):
     from fieldgen.agents.sac import SACConfig
 
     ant = crl.CRLConfig.layered(agent="ant")
-    assert (ant.hidden, ant.layer_norm, ant.windows, ant.batch_size) == ((256,) * 4, True, 2048, 1024)
+    assert (ant.hidden, ant.layer_norm, ant.windows_per_env, ant.batch_size) == ((256,) * 4, True, 2.0, 1024)
+    # twice the reference's windows at any number of environments: 2,048 at 1,024 envs, 32 at a test's 16
+    assert gradient_steps(ant, 1001) == (2048, 2002)
+    assert gradient_steps(crl.CRLConfig.layered(agent="ant", num_envs=16), 1001) == (32, 31)
+    assert gradient_steps(crl.CRLConfig.layered(agent="ant", sets=["crl.windows=100"]), 1001) == (100, 97)
     assert crl.CRLConfig.layered(agent="point") == crl.CRLConfig.layered() == crl.CRLConfig()
     assert SACConfig.preset("ant") is None
     file = tmp_path / "c.yaml"
     file.write_text("crl: {batch_size: 256}\n")
     mine = crl.CRLConfig.layered(file, ["crl.layer_norm=false"], agent="ant")
-    assert (mine.batch_size, mine.layer_norm, mine.windows) == (256, False, 2048)
+    assert (mine.batch_size, mine.layer_norm, mine.windows_per_env) == (256, False, 2.0)
     reference = Path(__file__).parents[2] / "bench" / "configs" / "crl_reference.yaml"
     assert crl.CRLConfig.layered(reference, agent="ant") == crl.CRLConfig()  # the reference's settings, back
 
