@@ -13,17 +13,14 @@ from __future__ import annotations
 
 import os
 import subprocess
-import sys
 import tempfile
 import time
 
-from fieldgen.env.throughput import append_jsonl, run_arguments
+from fieldgen.env.throughput import append_jsonl, run_arguments, run_command
 
 
 def timed_run(args, out: str, cache: str | None) -> float:
-    command = [sys.executable, "-P", "-m", "fieldgen.cli", "train", args.field, "--algo", args.algo,
-               "--steps", str(args.steps), "--envs", str(args.envs), "--set", f"{args.algo}.num_evals={args.evals}",
-               "--out", out, "--no-videos"]
+    command = run_command(args, out, "--no-videos")
     env = dict(os.environ, JAX_COMPILATION_CACHE_DIR=cache or "", JAX_ENABLE_COMPILATION_CACHE=str(cache is not None))
     started = time.perf_counter()
     subprocess.run(command, env=env, check=True, stdout=subprocess.DEVNULL)

@@ -20,12 +20,11 @@ import os
 import shlex
 import shutil
 import subprocess
-import sys
 import tempfile
 import time
 from pathlib import Path
 
-from fieldgen.env.throughput import append_jsonl
+from fieldgen.env.throughput import append_jsonl, train_command
 
 
 def first_passing(metrics: Path, threshold: float) -> dict | None:
@@ -47,9 +46,8 @@ def run_setting(name: str, options: list[str], seed: int, runs: Path, args) -> d
     --limit seconds)."""
     out = runs / f"{name}-s{seed}"
     shutil.rmtree(out, ignore_errors=True)
-    # -P: the repository's own folders (agents/, fields/) must not shadow the installed package
-    command = [sys.executable, "-P", "-m", "fieldgen.cli", "train", args.field, "--algo", args.algo,
-               "--steps", args.steps, "--seed", str(seed), "--out", str(out), "--no-videos", *options]
+    command = train_command(args.field, args.algo, out, "--steps", args.steps, "--seed", str(seed), "--no-videos",
+                            *options)
     env = dict(os.environ)
     if not args.warm_cache:  # every run compiles everything, as the first run on a machine does
         env["JAX_COMPILATION_CACHE_DIR"] = str(out / "xla-cache")

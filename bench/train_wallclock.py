@@ -18,22 +18,18 @@ from __future__ import annotations
 import argparse
 import os
 import subprocess
-import sys
 import tempfile
 import time
 from pathlib import Path
 
 from fieldgen.run import record
-from fieldgen.env.throughput import append_jsonl, run_arguments
+from fieldgen.env.throughput import append_jsonl, run_arguments, run_command
 
 
 def run_once(root: Path, args) -> dict:
     """One `fieldgen train` run with `root`'s code; its end-to-end and chunk rates."""
     with tempfile.TemporaryDirectory(prefix="fieldgen-wallclock-") as out:
-        # -P: the working folder's own fieldgen/ and agents/ must not shadow the root's
-        command = [sys.executable, "-P", "-m", "fieldgen.cli", "train", args.field, "--algo", args.algo,
-                   "--steps", str(args.steps), "--envs", str(args.envs), "--set", f"{args.algo}.num_evals={args.evals}",
-                   "--out", out, *([] if args.videos else ["--no-videos"])]
+        command = run_command(args, out, *([] if args.videos else ["--no-videos"]))
         paths = [] if str(root) == "." else [str(root.resolve())]
         env = {**os.environ, "PYTHONPATH": os.pathsep.join([*paths, os.environ.get("PYTHONPATH", "")])}
         started = time.perf_counter()

@@ -90,9 +90,10 @@ def train(
             trainer_config, agent = registry.trainer(algo).config, session.agent_kind(source)
             algo_config = trainer_config.layered(config, sets or [], agent=agent, total_steps=steps,
                                                  num_envs=envs, seed=seed)
-            if trainer_config.preset(agent):
-                out.print(f"{algo} on an {agent} field: settings of {trainer_config.preset(agent).name} "
-                          "(a --config file or --set overrides them)")
+            preset = trainer_config.preset(agent)
+            if preset:
+                out.print(f"{algo} on {agent} fields starts from {preset.name} (a --config file or --set "
+                          "overrides it)")
             run = session.new_run(source, algo, list(range(seed, seed + seeds)), algo_config, runs, mixed)
     except (SpecError, ConfigError, record.RunError) as exc:
         fail(str(exc))

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -65,6 +66,19 @@ def append_jsonl(path: Path | None, row: dict) -> None:
     if path is not None:
         with path.open("a") as f:
             f.write(json.dumps(row) + "\n")
+
+
+def train_command(field, algo: str, out, *options: str) -> list[str]:
+    """`fieldgen train FIELD --algo ALGO --out OUT OPTIONS...` in a fresh interpreter of this Python, run
+    with -P so that a checkout's own fieldgen/, agents/ and fields/ never shadow the fieldgen it imports."""
+    return [sys.executable, "-P", "-m", "fieldgen.cli", "train", str(field), "--algo", algo, "--out", str(out),
+            *options]
+
+
+def run_command(args: argparse.Namespace, out, *options: str) -> list[str]:
+    """The `fieldgen train` command of a benchmark's run_arguments."""
+    return train_command(args.field, args.algo, out, "--steps", str(args.steps), "--envs", str(args.envs),
+                         "--set", f"{args.algo}.num_evals={args.evals}", *options)
 
 
 def run_arguments(description: str) -> argparse.ArgumentParser:
