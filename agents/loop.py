@@ -17,7 +17,7 @@ import flax.struct
 import jax
 import jax.numpy as jnp
 
-from . import sharding
+from .programs import Programs
 
 EVAL_STREAM = 0x5EED  # evaluation keys: fold_in(fold_in(seed key, EVAL_STREAM), evaluation index)
 
@@ -116,14 +116,12 @@ def evaluate(trainer: Trainer, state, key: jax.Array, film: Callable | None = No
     return evaluate_policy(trainer.env, functools.partial(trainer.act, state), key, trainer.config.eval_envs, film)
 
 
-def adapt(trainer: Trainer, state, metrics: dict) -> tuple[object, dict]:
+def adapt(trainer: Trainer, state, variants: VariantResults) -> tuple[object, VariantResults]:
     """Let an environment of several variants re-weight them from an evaluation's results on each
-    (`env.adapt(env_state, success_any per variant) -> (env_state, weights)`), recording the weights in
-    `metrics["variants"]`; others pass through."""
-    if "variants" not in metrics:
-        return state, metrics
-    env_state, weights = trainer.env.adapt(state.env_state, metrics["variants"].success_any)
-    return state.replace(env_state=env_state), {**metrics, "variants": metrics["variants"].replace(weight=weights)}
+    (`env.adapt(env_state, success_any per variant) -> (env_state, weights)`); the results come back
+    with the weights recorded."""
+    env_state, weights = trainer.env.adapt(state.env_state, variants.success_any)
+    return state.replace(env_state=env_state), variants.replace(weight=weights)
 
 
 def eval_key(seed_key: jax.Array, index) -> jax.Array:
@@ -137,7 +135,9 @@ def pure_train(trainer: Trainer, num_evals: int) -> Callable:
         def interval(state, index):
             state, metrics = trainer.chunk(state)
             metrics.update(evaluate(trainer, state, eval_key(key, index))[0])
-            return adapt(trainer, state, metrics)
+            if "variants" in metrics:
+                state, metrics["variants"] = adapt(trainer, state, metrics["variants"])
+            return state, metrics
 
         return jax.lax.scan(interval, trainer.start(key), jnp.arange(1, num_evals + 1))
 
@@ -183,24 +183,17 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
     keys = jnp.stack([jax.random.PRNGKey(s) for s in seeds])
     staged, last = len(trainers) > 1, len(trainers) - 1
 
-    def programs(k: int):
-        """(placement, start, chunk, evaluate, adapt) of stage k, compiled on first use. Evaluation reads only
-        the policy, so it takes a state of any stage (the last stage is judged while training earlier ones)."""
+    def programs(k: int) -> Programs:
+        """Stage k's programs, compiled once. Evaluation reads only the policy, so it takes a state of any
+        stage (the last stage is judged while training earlier ones)."""
         trainer = trainers[k]
         if (len(seeds), film) not in trainer.compiled:
-            shapes = jax.eval_shape(jax.vmap(trainer.start), keys)
-            placement = sharding.training_shardings(shapes, sharding.local_mesh(), trainer.env_axes)
-            trainer.compiled[len(seeds), film] = (
-                placement, jax.jit(jax.vmap(trainer.start), out_shardings=placement),
-                jax.jit(jax.vmap(trainer.chunk), in_shardings=(placement,), out_shardings=(placement, None)),
-                jax.jit(jax.vmap(functools.partial(evaluate, trainer, film=film))),
-                jax.jit(jax.vmap(functools.partial(adapt, trainer)), in_shardings=(placement, None),
-                        out_shardings=(placement, None)))
+            trainer.compiled[len(seeds), film] = Programs(trainer, keys, film, evaluate, adapt)
         return trainer.compiled[len(seeds), film]
 
     def judge(k: int, state, index: int) -> tuple[dict, object]:
         """Metrics per seed, and the first seed's episode filmed on stage k (None without `film`)."""
-        metrics, frames = jax.device_get(programs(k)[3](state, jax.vmap(eval_key, in_axes=(0, None))(keys, index)))
+        metrics, frames = jax.device_get(programs(k).evaluate(state, jax.vmap(eval_key, in_axes=(0, None))(keys, index)))
         return metrics, None if frames is None else (k, seed_slice(frames, 0))
 
     history: list[dict] = []
@@ -210,17 +203,23 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
         progress(index, rows)
         on_eval(state, index, stage, episode)
 
+    stage = 0 if resume is None else resume[2]
+    # every program the first evaluations need compiles at once, in the order they run
+    programs(stage).prepare(*(("start",) if resume is None else ()), "evaluate", "chunk",
+                            *(("adapt",) if getattr(trainers[stage].env, "variant_count", 1) > 1 else ()))
+    if staged and stage != last:
+        programs(last).prepare("evaluate")
     if resume is None:
-        state, first, stage, previous = programs(0)[1](keys), 1, 0, 0
+        state, first, previous = programs(0).start(keys), 1, 0
     else:
-        state, index, stage = resume
-        state, first = jax.device_put(state, programs(stage)[0]), index + 1
+        state, index, _ = resume
+        state, first = jax.device_put(state, programs(stage).placement), index + 1
         previous = int(jax.device_get(state.env_steps)[0])
     for index in range(0 if resume is None else first, num_evals + 1):
         began = time.perf_counter()
         metrics = {}
         if index > 0:
-            state, metrics = programs(stage)[2](state)
+            state, metrics = programs(stage).chunk(state)
             if reported is not None:  # its metrics, checkpoint and video, written on the host while the chunk trains
                 report(*reported)
             metrics = jax.device_get(metrics)  # waits for the chunk
@@ -229,8 +228,8 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
         metrics.update(judged)
         count = getattr(trainers[stage].env, "variant_count", 1)
         if count > 1:  # a mixed run: judged on its last variant, and re-weighted
-            state, metrics = programs(stage)[4](state, metrics)
-            metrics = jax.device_get(metrics)
+            state, variants = programs(stage).adapt(state, metrics["variants"])
+            metrics["variants"] = jax.device_get(variants)
             metrics["last_stage_success_any"] = metrics["variants"].success_any[:, -1]
         if staged and stage != last:
             metrics["last_stage_success_any"] = judge(last, state, index)[0]["success_any"]
@@ -250,7 +249,7 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
         history.extend(rows)
         if staged and stage < last and index > 0 and promote(history, stage):
             stage += 1
-            state = jax.device_put(_with_env(trainers[stage], state, index), programs(stage)[0])
+            state = jax.device_put(_with_env(trainers[stage], state, index), programs(stage).placement)
             for row in rows:
                 row["promoted_to"] = stage
         reported = (index, rows, state, stage, episode)

@@ -5,8 +5,9 @@ PYTHONPATH): a folder holding an installed fieldgen, e.g. an earlier version's w
 with `pip install --no-deps --target DIR`; "." is the fieldgen this Python imports. The reference, measured in the same run, is the mean of the training chunks' own
 env steps per second (`steps_per_second` in metrics.jsonl): what training would reach if
 evaluations, checkpoints and videos cost nothing. The end-to-end rate counts everything between
-the first and the last evaluation row (`wall_seconds`); compile time and start-up are left out.
-With several roots the later ones are also printed as a ratio to the first.
+the first and the last evaluation row (`wall_seconds`); start-up is reported apart: the `wall_seconds`
+(from training's start) of the first and second evaluation rows, the second after the first chunk,
+so that both hold every compile, each run compiling from an empty cache as a machine's first run does. With several roots the later ones are also printed as a ratio to the first.
 
     python bench/train_wallclock.py --field build/soccer_v1 --steps 12000000 --evals 4
     pip install --no-deps --target /tmp/previous fieldgen-previous.whl
@@ -31,11 +32,12 @@ def run_once(root: Path, args) -> dict:
     with tempfile.TemporaryDirectory(prefix="fieldgen-wallclock-") as out:
         command = run_command(args, out, *([] if args.videos else ["--no-videos"]))
         paths = [] if str(root) == "." else [str(root.resolve())]
-        env = {**os.environ, "PYTHONPATH": os.pathsep.join([*paths, os.environ.get("PYTHONPATH", "")])}
+        env = {**os.environ, "PYTHONPATH": os.pathsep.join([*paths, os.environ.get("PYTHONPATH", "")]),
+               "JAX_COMPILATION_CACHE_DIR": str(Path(out) / "xla-cache")}
         started = time.perf_counter()
         subprocess.run(command, env=env, check=True, stdout=subprocess.DEVNULL)
         total = time.perf_counter() - started
-        run = next(Path(out).iterdir())  # the one run folder
+        run = next(p for p in Path(out).iterdir() if p.name != "xla-cache")  # the one run folder
         rows = record.read_metrics(run)
         checkpoint = (run / record.CHECKPOINT).stat().st_size
     timed = [r for r in rows if r["eval"] >= 1]
@@ -43,7 +45,8 @@ def run_once(root: Path, args) -> dict:
     end_to_end = (last["env_steps"] - first["env_steps"]) / (last["wall_seconds"] - first["wall_seconds"])
     chunks = sum(r["steps_per_second"] for r in timed[1:]) / len(timed[1:])
     return {"end_to_end_steps_per_second": end_to_end, "chunk_steps_per_second": chunks,
-            "ratio_to_chunks": end_to_end / chunks, "process_seconds": total, "checkpoint_bytes": checkpoint}
+            "ratio_to_chunks": end_to_end / chunks, "process_seconds": total, "checkpoint_bytes": checkpoint,
+            "first_eval_seconds": rows[0]["wall_seconds"], "second_eval_seconds": first["wall_seconds"]}
 
 
 def main() -> None:
@@ -59,6 +62,7 @@ def main() -> None:
         print(f"{str(root):>24s} {args.algo} {args.envs} envs: "
               f"{result['end_to_end_steps_per_second']:>10,.0f} env steps/s end to end; chunks alone {result['chunk_steps_per_second']:>10,.0f}; ratio "
               f"{result['ratio_to_chunks']:.3f}; over the first root {over_first:.2f}; "
+              f"evaluations 0 and 1 at {result['first_eval_seconds']:.0f} and {result['second_eval_seconds']:.0f} s, "
               f"{result['process_seconds']:.0f} s in all; checkpoint {result['checkpoint_bytes'] / 1e9:.2f} GB",
               flush=True)
         append_jsonl(args.json, {"root": str(root), "field": args.field, "algo": args.algo, "envs": args.envs,

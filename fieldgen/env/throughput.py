@@ -78,7 +78,8 @@ def train_command(field, algo: str, out, *options: str) -> list[str]:
 def run_command(args: argparse.Namespace, out, *options: str) -> list[str]:
     """The `fieldgen train` command of a benchmark's run_arguments."""
     return train_command(args.field, args.algo, out, "--steps", str(args.steps), "--envs", str(args.envs),
-                         "--set", f"{args.algo}.num_evals={args.evals}", *options)
+                         "--set", f"{args.algo}.num_evals={args.evals}",
+                         *[item for setting in args.set for item in ("--set", setting)], *options)
 
 
 def run_arguments(description: str) -> argparse.ArgumentParser:
@@ -89,5 +90,7 @@ def run_arguments(description: str) -> argparse.ArgumentParser:
     parser.add_argument("--steps", type=int, default=12_000_000)
     parser.add_argument("--envs", type=int, default=1024)
     parser.add_argument("--evals", type=int, default=4, help="evaluations (each one a checkpoint and a video)")
+    parser.add_argument("--set", action="append", default=[], metavar="ALGO.KEY=VALUE",
+                        help="a setting passed to fieldgen train (repeatable)")
     parser.add_argument("--json", type=Path)
     return parser

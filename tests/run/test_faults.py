@@ -125,6 +125,38 @@ def test_a_run_without_a_checkpoint_starts_again(tmp_path, monkeypatch):
         assert leftovers(run) == []
 
 
+# `fieldgen train` given Ctrl-C as soon as its second program has begun compiling on its own thread
+INTERRUPTED_COMPILING = textwrap.dedent("""
+    import os, signal, sys
+    from fieldgen.agents import programs
+    from fieldgen.cli import app
+
+    signal.signal(signal.SIGINT, signal.default_int_handler)  # even where this process was started ignoring it
+    started, real_init = [], programs.Compiling.__init__
+
+    def init(self, *args):
+        real_init(self, *args)
+        started.append(self)
+        if len(started) == 2:
+            os.kill(os.getpid(), signal.SIGINT)
+
+    programs.Compiling.__init__ = init
+    app(sys.argv[1:])
+""")
+
+
+@pytest.mark.slow
+def test_ctrl_c_while_programs_compile_exits_cleanly(tmp_path):
+    """Stopped while compiles run on their threads, the command says so and exits with Ctrl-C's status once
+    they end, rather than aborting inside XLA."""
+    env = dict(os.environ, JAX_PLATFORMS="cpu")
+    result = subprocess.run([sys.executable, "-c", INTERRUPTED_COMPILING, "train", "point_nav", "--out", "runs", *TINY],
+                            cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600)
+    assert result.returncode == 130, result.stdout[-2000:] + result.stderr[-3000:]
+    assert "interrupted; no checkpoint yet" in result.stdout
+    assert "terminate called" not in result.stderr and "Traceback" not in result.stderr
+
+
 def test_opening_a_run_leaves_the_writes_of_its_training_alone(tmp_path):
     """`fieldgen eval` or `compare` may open a run while it trains: the checkpoint being written stays."""
     from fieldgen.run import session

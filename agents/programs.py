@@ -1,0 +1,89 @@
+"""A trainer's jitted programs for one batch of seeds, each compiled on a worker thread of its own.
+
+Compiling a run's MJX programs (its start, its chunk, its evaluation) takes most of a short run's
+first minutes. Tracing needs Python's lock but XLA's compiler does not: each program is traced in
+the caller's thread and compiled on a worker, so the compiles overlap one another and the tracing
+of the next program, and the start runs while the chunk is still compiling.
+"""
+
+from __future__ import annotations
+
+import functools
+import threading
+from concurrent.futures import Future
+from typing import Callable
+
+import jax
+
+from . import sharding
+
+
+class Compiling:
+    """A jitted function lowered for the given arguments and compiled on a thread of its own; calling it
+    waits for that compile. A run stopped meanwhile (Ctrl-C) exits once the compiles under way end:
+    XLA cannot be stopped mid-compile, and a thread killed inside it aborts the process."""
+
+    def __init__(self, jitted, *args):
+        self._done: Future = Future()
+        lowered = jitted.lower(*args)
+        self.out_info = lowered.out_info  # the shapes of what it returns
+        threading.Thread(target=self._compile, args=(lowered,), name="compile").start()
+
+    def _compile(self, lowered) -> None:
+        try:
+            self._done.set_result(lowered.compile())
+        except BaseException as error:  # raised where the program is called
+            self._done.set_exception(error)
+
+    def __call__(self, *args):
+        return self._done.result()(*args)
+
+
+class Programs:
+    """start(keys), chunk(state), evaluate(state, eval_keys) and adapt(state, variants) of one trainer,
+    vmapped over seeds and placed over the local devices (agents.sharding). Each compiles once asked
+    for, by `prepare` or by its first call."""
+
+    def __init__(self, trainer, keys: jax.Array, film: Callable | None, evaluate: Callable, adapt: Callable):
+        shapes = jax.eval_shape(jax.vmap(trainer.start), keys)
+        self.placement = sharding.training_shardings(shapes, sharding.local_mesh(), trainer.env_axes)
+        self._state = jax.tree.map(lambda s, p: jax.ShapeDtypeStruct(s.shape, s.dtype, sharding=p),
+                                   shapes, self.placement)
+        self._jobs = {
+            "start": lambda: Compiling(jax.jit(jax.vmap(trainer.start), out_shardings=self.placement), keys),
+            "chunk": lambda: Compiling(jax.jit(jax.vmap(trainer.chunk), in_shardings=(self.placement,),
+                                               out_shardings=(self.placement, None)), self._state),
+            "evaluate": lambda: Compiling(jax.jit(jax.vmap(functools.partial(evaluate, trainer, film=film))),
+                                          self._state, keys),
+            "adapt": lambda: Compiling(jax.jit(jax.vmap(functools.partial(adapt, trainer)),
+                                               in_shardings=(self.placement, None), out_shardings=(self.placement, None)),
+                                       self._state, self._variants),
+        }
+        self._compiling: dict[str, Compiling] = {}
+
+    @property
+    def _variants(self):
+        """The shapes of an evaluation's results per variant, what `adapt` reads."""
+        return self._program("evaluate").out_info[0]["variants"]
+
+    def prepare(self, *names: str) -> None:
+        """Start compiling these programs, in this order, unless they already are."""
+        for name in names:
+            if name not in self._compiling:
+                self._compiling[name] = self._jobs[name]()
+
+    def _program(self, name: str) -> Compiling:
+        self.prepare(name)
+        return self._compiling[name]
+
+    def start(self, keys: jax.Array):
+        return self._program("start")(keys)
+
+    def chunk(self, state):
+        return self._program("chunk")(state)
+
+    def evaluate(self, state, eval_keys: jax.Array):
+        return self._program("evaluate")(state, eval_keys)
+
+    def adapt(self, state, variants):
+        return self._program("adapt")(state, variants)
