@@ -1,7 +1,8 @@
 """Wall-clock time from `fieldgen train` starting to the first evaluation that reaches a success rate.
 
 Each setting is one `fieldgen train` command run alone, one after another (timings of runs that
-share a GPU say nothing). The clock starts before the process does, so imports, building the
+share a GPU say nothing); with --together all start at once, to rank settings by the env steps they
+need in one sitting. The clock starts before the process does, so imports, building the
 environment and every compile count, as a user waiting for the result sees it (each run with an
 empty compilation cache, unless --warm-cache). The run's
 metrics.jsonl is read as it grows; once an evaluation's success_any reaches the threshold the
@@ -27,9 +28,9 @@ from pathlib import Path
 from fieldgen.env.throughput import append_jsonl, train_command
 
 
-def first_passing(metrics: Path, threshold: float) -> dict | None:
+def first_passing(metrics: Path | None, threshold: float) -> dict | None:
     """The first evaluation row whose success_any reaches `threshold`, of the rows written so far."""
-    if not metrics.exists():
+    if metrics is None or not metrics.exists():
         return None
     for line in metrics.read_text().splitlines():
         try:
@@ -41,48 +42,73 @@ def first_passing(metrics: Path, threshold: float) -> dict | None:
     return None
 
 
-def run_setting(name: str, options: list[str], seed: int, runs: Path, args) -> dict:
+class Attempt:
     """One `fieldgen train` of a setting and seed, into RUNS/NAME-sSEED, stopped once it passes (or at
     --limit seconds)."""
-    out = runs / f"{name}-s{seed}"
-    shutil.rmtree(out, ignore_errors=True)
-    command = train_command(args.field, args.algo, out, "--steps", args.steps, "--seed", str(seed), "--no-videos",
-                            *options)
-    env = dict(os.environ)
-    if not args.warm_cache:  # every run compiles everything, as the first run on a machine does
-        env["JAX_COMPILATION_CACHE_DIR"] = str(out / "xla-cache")
-    started = time.perf_counter()
-    proc = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=env)
-    passed, seconds = None, None
-    while proc.poll() is None:
-        metrics = next(out.glob("*/metrics.jsonl"), None)
-        passed = first_passing(metrics, args.threshold) if metrics else None
-        if passed is not None:
-            seconds = time.perf_counter() - started
-            if not args.keep_going:
-                proc.terminate()
-            break
-        if args.limit and time.perf_counter() - started > args.limit:
-            proc.terminate()
-            break
+
+    def __init__(self, name: str, options: list[str], seed: int, runs: Path, args, share: int):
+        self.name, self.options, self.seed, self.args = name, options, seed, args
+        self.out = runs / f"{name}-s{seed}"
+        shutil.rmtree(self.out, ignore_errors=True)
+        command = train_command(args.field, args.algo, self.out, "--steps", args.steps, "--seed", str(seed),
+                                "--no-videos", *options)
+        env = dict(os.environ)
+        if not args.warm_cache:  # every run compiles everything, as the first run on a machine does
+            env["JAX_COMPILATION_CACHE_DIR"] = str(self.out / "xla-cache")
+        if share > 1:  # runs side by side split the GPU's memory
+            env.setdefault("XLA_PYTHON_CLIENT_MEM_FRACTION", f"{0.9 / share:.2f}")
+        self.started = time.perf_counter()
+        self.proc = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=env)
+        self.passed, self.seconds = None, None
+
+    @property
+    def metrics(self) -> Path | None:
+        return next(self.out.glob("*/metrics.jsonl"), None)
+
+    def poll(self) -> bool:
+        """Whether the run is over: ended, passed (and stopped, unless --keep-going) or out of time."""
+        if self.proc.poll() is not None:
+            return True
+        if self.passed is None:
+            self.passed = first_passing(self.metrics, self.args.threshold)
+            if self.passed is not None:
+                self.seconds = time.perf_counter() - self.started
+                if not self.args.keep_going:
+                    self.proc.terminate()
+                    return True
+        if self.args.limit and time.perf_counter() - self.started > self.args.limit:
+            self.proc.terminate()
+            return True
+        return False
+
+    def result(self, share: int) -> dict:
+        self.proc.wait()
+        total = time.perf_counter() - self.started
+        shutil.rmtree(self.out / "xla-cache", ignore_errors=True)
+        metrics, passed, seconds = self.metrics, self.passed, self.seconds
+        if passed is None:  # it ended: judge every row it wrote
+            passed = first_passing(metrics, self.args.threshold)
+            seconds = None if passed is None else total
+        if passed is None and self.proc.returncode and not self.args.limit:
+            raise SystemExit(f"{self.name}: fieldgen train failed:\n{self.proc.stderr.read()[-2000:]}")
+        rows = [json.loads(x) for x in metrics.read_text().splitlines() if x.strip()] if metrics else []
+        last = rows[-1] if rows else {}
+        return {"setting": self.name, "options": " ".join(self.options), "field": self.args.field, "seed": self.seed,
+                "threshold": self.args.threshold, "seconds_to_threshold": seconds,
+                "env_steps_at_threshold": None if passed is None else passed["env_steps"],
+                "success_at_threshold": None if passed is None else passed["success_any"],
+                "last_env_steps": last.get("env_steps"), "last_success_any": last.get("success_any"),
+                "seconds_total": total, "runs_sharing_the_gpu": share, "metrics": str(metrics) if metrics else None}
+
+
+def run_group(group: list[tuple[str, list[str], int]], runs: Path, args) -> list[dict]:
+    """The settings of `group` (name, options, seed) started at once, each stopped on its own terms."""
+    attempts = [Attempt(name, options, seed, runs, args, len(group)) for name, options, seed in group]
+    running = list(attempts)
+    while running:
+        running = [a for a in running if not a.poll()]
         time.sleep(0.5)
-    proc.wait()
-    total = time.perf_counter() - started
-    shutil.rmtree(out / "xla-cache", ignore_errors=True)
-    metrics = next(out.glob("*/metrics.jsonl"), None)
-    if passed is None and metrics:  # it ended: judge every row it wrote
-        passed = first_passing(metrics, args.threshold)
-        seconds = None if passed is None else total
-    if passed is None and proc.returncode and not args.limit:
-        raise SystemExit(f"{name}: fieldgen train failed:\n{proc.stderr.read()[-2000:]}")
-    rows = [json.loads(x) for x in metrics.read_text().splitlines() if x.strip()] if metrics else []
-    last = rows[-1] if rows else {}
-    return {"setting": name, "options": " ".join(options), "field": args.field, "seed": seed,
-            "threshold": args.threshold, "seconds_to_threshold": seconds,
-            "env_steps_at_threshold": None if passed is None else passed["env_steps"],
-            "success_at_threshold": None if passed is None else passed["success_any"],
-            "last_env_steps": last.get("env_steps"), "last_success_any": last.get("success_any"),
-            "seconds_total": total, "metrics": str(metrics) if metrics else None}
+    return [a.result(len(group)) for a in attempts]
 
 
 def main() -> None:
@@ -99,29 +125,31 @@ def main() -> None:
                         "many seconds (0: none)")
     parser.add_argument("--warm-cache", action="store_true", help="let runs share the user's compilation cache "
                         "(default: each run starts with an empty one, so compiling counts)")
+    parser.add_argument("--together", action="store_true", help="start every setting and seed at once on the one "
+                        "GPU: their env steps to the threshold compare, their seconds do not")
     parser.add_argument("--runs", type=Path, help="keep the run folders here (default: a temporary folder)")
     parser.add_argument("--json", type=Path, help="append one JSON object per setting and seed")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory(prefix="fieldgen-tts-") as temporary:
         runs = args.runs or Path(temporary)
+        items = [(name, shlex.split(options), seed) for seed in (int(s) for s in args.seeds.split(","))
+                 for name, _, options in (item.partition("=") for item in args.setting)]
+        groups = [items] if args.together else [[item] for item in items]
         reference = {}
-        for seed in (int(s) for s in args.seeds.split(",")):
-            for item in args.setting:
-                name, _, options = item.partition("=")
-                result = run_setting(name, shlex.split(options), seed, runs, args)
-                seconds = result["seconds_to_threshold"]
+        for group in groups:
+            for result in run_group(group, runs, args):
+                seed, seconds = result["seed"], result["seconds_to_threshold"]
                 base = reference.setdefault(seed, seconds)
                 result["ratio_to_reference"] = None if seconds is None or base is None else seconds / base
                 shown = "not reached" if seconds is None else (
                     f"{seconds:.1f} s at {result['env_steps_at_threshold']:,} steps"
                     + ("" if result["ratio_to_reference"] is None else
                        f" ({result['ratio_to_reference']:.2f}x the reference)"))
-                print(f"{name} seed {seed}: success_any >= {args.threshold}: {shown}; last "
+                print(f"{result['setting']} seed {seed}: success_any >= {args.threshold}: {shown}; last "
                       f"{result['last_success_any']} at {result['last_env_steps']} steps "
                       f"after {result['seconds_total']:.0f} s", flush=True)
                 if args.json:
                     append_jsonl(args.json, result)
-
 
 if __name__ == "__main__":
     main()
