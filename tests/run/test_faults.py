@@ -132,6 +132,7 @@ INTERRUPTED_COMPILING = textwrap.dedent("""
     from fieldgen.cli import app
 
     signal.signal(signal.SIGINT, signal.default_int_handler)  # even where this process was started ignoring it
+    programs.SIDE_BY_SIDE = True  # as on a GPU machine
     started, real_init = [], programs.Compiling.__init__
 
     def init(self, *args):
