@@ -47,7 +47,7 @@ class Attempt:
     --limit seconds)."""
 
     def __init__(self, name: str, options: list[str], seed: int, runs: Path, args, share: int):
-        self.name, self.options, self.seed, self.args = name, options, seed, args
+        self.name, self.options, self.seed, self.args, self.share = name, options, seed, args, share
         self.out = runs / f"{name}-s{seed}"
         shutil.rmtree(self.out, ignore_errors=True)
         command = train_command(args.field, args.algo, self.out, "--steps", args.steps, "--seed", str(seed),
@@ -81,7 +81,7 @@ class Attempt:
             return True
         return False
 
-    def result(self, share: int) -> dict:
+    def result(self) -> dict:
         self.proc.wait()
         total = time.perf_counter() - self.started
         shutil.rmtree(self.out / "xla-cache", ignore_errors=True)
@@ -98,7 +98,7 @@ class Attempt:
                 "env_steps_at_threshold": None if passed is None else passed["env_steps"],
                 "success_at_threshold": None if passed is None else passed["success_any"],
                 "last_env_steps": last.get("env_steps"), "last_success_any": last.get("success_any"),
-                "seconds_total": total, "runs_sharing_the_gpu": share, "metrics": str(metrics) if metrics else None}
+                "seconds_total": total, "runs_sharing_the_gpu": self.share, "metrics": str(metrics) if metrics else None}
 
 
 def run_group(group: list[tuple[str, list[str], int]], runs: Path, args) -> list[dict]:
@@ -108,7 +108,7 @@ def run_group(group: list[tuple[str, list[str], int]], runs: Path, args) -> list
     while running:
         running = [a for a in running if not a.poll()]
         time.sleep(0.5)
-    return [a.result(len(group)) for a in attempts]
+    return [a.result() for a in attempts]
 
 
 def main() -> None:
