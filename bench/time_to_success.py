@@ -57,9 +57,12 @@ class Attempt:
             env["JAX_COMPILATION_CACHE_DIR"] = str(self.out / "xla-cache")
         if share > 1:  # runs side by side split the GPU's memory
             env.setdefault("XLA_PYTHON_CLIENT_MEM_FRACTION", f"{0.9 / share:.2f}")
+        self.out.mkdir(parents=True)
+        self.log = self.out / "stderr.log"  # a file, not a pipe: a chatty run must never block on a full pipe
         self.started = time.perf_counter()
-        self.proc = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=env)
-        self.passed, self.seconds = None, None
+        with self.log.open("w") as log:
+            self.proc = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=log, text=True, env=env)
+        self.passed, self.seconds, self.stopped = None, None, False
 
     @property
     def metrics(self) -> Path | None:
@@ -74,12 +77,15 @@ class Attempt:
             if self.passed is not None:
                 self.seconds = time.perf_counter() - self.started
                 if not self.args.keep_going:
-                    self.proc.terminate()
-                    return True
+                    return self.stop()
         if self.args.limit and time.perf_counter() - self.started > self.args.limit:
-            self.proc.terminate()
-            return True
+            return self.stop()
         return False
+
+    def stop(self) -> bool:
+        self.proc.terminate()
+        self.stopped = True
+        return True
 
     def result(self) -> dict:
         self.proc.wait()
@@ -89,8 +95,8 @@ class Attempt:
         if passed is None:  # it ended: judge every row it wrote
             passed = first_passing(metrics, self.args.threshold)
             seconds = None if passed is None else total
-        if passed is None and self.proc.returncode and not self.args.limit:
-            raise SystemExit(f"{self.name}: fieldgen train failed:\n{self.proc.stderr.read()[-2000:]}")
+        if passed is None and self.proc.returncode and not self.stopped:
+            raise SystemExit(f"{self.name}: fieldgen train failed:\n{self.log.read_text()[-2000:]}")
         rows = [json.loads(x) for x in metrics.read_text().splitlines() if x.strip()] if metrics else []
         last = rows[-1] if rows else {}
         return {"setting": self.name, "options": " ".join(self.options), "field": self.args.field, "seed": self.seed,
