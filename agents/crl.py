@@ -172,8 +172,8 @@ def make_train(config: CRLConfig, env, team: Team | None = None, shared: bool = 
         _, metrics = losses((ts.nets, ts.log_temperature, ts.log_alpha), last, keys[-1])
         return ts, {**metrics, "alpha": jnp.mean(jnp.exp(ts.log_alpha))}
 
-    def start(key: jax.Array) -> TrainState:
-        return jax.lax.fori_loop(0, prefill_iters, lambda _, ts: collect(ts)[0], init(key))
+    def prefill(ts: TrainState) -> TrainState:
+        return jax.lax.fori_loop(0, prefill_iters, lambda _, ts: collect(ts)[0], ts)
 
     def chunk(ts: TrainState) -> tuple[TrainState, dict]:
         def body(ts, _):
@@ -198,4 +198,4 @@ def make_train(config: CRLConfig, env, team: Team | None = None, shared: bool = 
         return Policy(actor, observes, tuple(map(tuple, team.actions.tolist())), tuple(c.hidden), 2 * own,
                       layer_norm=c.layer_norm, skip_every=c.skip_every, per_agent=per_agent)
 
-    return Trainer(config, env, start, chunk, act, {"env_state": 0, "buffer": 1}, export)
+    return Trainer(config, env, init, prefill, chunk, act, {"env_state": 0, "buffer": 1}, export)

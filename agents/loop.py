@@ -28,7 +28,8 @@ class Trainer:
 
     config: object
     env: object
-    start: Callable  # key -> state, ready for the first chunk (a CRL buffer is prefilled)
+    init: Callable  # key -> state before any env step: fresh episodes, an empty replay buffer
+    prefill: Callable  # state -> state ready for a chunk: its replay buffer filled by its own policy (or as it is)
     chunk: Callable  # state -> (state, mean training metrics): the iterations between two evaluations
     act: Callable  # (state, obs [batch, observation_size]) -> deterministic actions [batch, action_size]
     env_axes: dict  # state field -> the axis of its leaves that runs over environments (sharded)
@@ -36,6 +37,26 @@ class Trainer:
     # jitted programs by seed count, kept here so that later runs of this trainer in the same
     # process (a resume, an evaluation) reuse them instead of compiling again
     compiled: dict = dataclasses.field(default_factory=dict, init=False, compare=False, repr=False)
+
+    def start(self, key: jax.Array):
+        """A new run's state, ready for its first chunk."""
+        return self.prefill(self.init(key))
+
+    def learned(self, state):
+        """What `state` has learned, without what belongs to its environments (`env_axes`: episodes, the
+        replay buffer): all a run needs to go on, in megabytes where the whole state takes gigabytes."""
+        return state.replace(**{name: None for name in self.env_axes})
+
+    def refill(self, learned):
+        """A `learned` state back in training: fresh episodes, and a replay buffer filled anew by its own
+        policy (the env steps this takes count as training steps)."""
+        k_env, key = jax.random.split(learned.key)
+        fresh = self.init(k_env)
+        return self.prefill(learned.replace(key=key, **{name: getattr(fresh, name) for name in self.env_axes}))
+
+    def holds_environments(self, state) -> bool:
+        """Whether `state` is whole, rather than what `learned` keeps."""
+        return all(getattr(state, name) is not None for name in self.env_axes)
 
 
 def evaluate_policy(env, act: Callable, key: jax.Array, n_envs: int, film: Callable | None = None) -> tuple[dict, object]:
@@ -177,8 +198,10 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
     a promoting row `promoted_to`. `on_eval(state, index, stage, episode)` gets the stage the next
     chunk trains on and, with `film`, the first seed's episode filmed by the evaluation just done
     (`evaluate_policy`) with the stage it was filmed on, `(stage, film)`, else None;
-    `resume=(state, index, stage)` continues from there. An evaluation is handed to `progress` and
-    `on_eval` once the next chunk has been dispatched, so that the GPU trains while the host writes.
+    `resume=(state, index, stage)` continues from there; a state that is only what it learned
+    (`Trainer.learned`) goes on with fresh episodes and a buffer filled anew. An evaluation is handed
+    to `progress` and `on_eval` once the next chunk has been dispatched, so that the GPU trains while
+    the host writes.
     """
     keys = jnp.stack([jax.random.PRNGKey(s) for s in seeds])
     staged, last = len(trainers) > 1, len(trainers) - 1
@@ -204,8 +227,9 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
         on_eval(state, index, stage, episode)
 
     stage = 0 if resume is None else resume[2]
+    refilling = resume is not None and not trainers[stage].holds_environments(resume[0])
     # every program the first evaluations need compiles at once, in the order they run
-    programs(stage).prepare(*(("start",) if resume is None else ()), "evaluate", "chunk",
+    programs(stage).prepare(*(("start",) if resume is None else ("refill",) if refilling else ()), "evaluate", "chunk",
                             *(("adapt",) if getattr(trainers[stage].env, "variant_count", 1) > 1 else ()))
     if staged and stage != last:
         programs(last).prepare("evaluate")
@@ -213,8 +237,8 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
         state, first, previous = programs(0).start(keys), 1, 0
     else:
         state, index, _ = resume
-        state, first = jax.device_put(state, programs(stage).placement), index + 1
-        previous = int(jax.device_get(state.env_steps)[0])
+        state = programs(stage).refill(state) if refilling else jax.device_put(state, programs(stage).placement)
+        first, previous = index + 1, int(jax.device_get(state.env_steps)[0])
     for index in range(0 if resume is None else first, num_evals + 1):
         began = time.perf_counter()
         metrics = {}

@@ -161,8 +161,8 @@ def trainer(nets: ActorCritic, new_state: Callable, explore: Callable, update: C
         ts, metrics = update(ts, mb, k_critic, k_actor)
         return ts.replace(grad_steps=ts.grad_steps + 1), metrics
 
-    def start(key: jax.Array) -> TrainState:
-        return jax.lax.fori_loop(0, prefill_iters, lambda _, ts: collect(ts)[0], init(key))
+    def prefill(ts: TrainState) -> TrainState:
+        return jax.lax.fori_loop(0, prefill_iters, lambda _, ts: collect(ts)[0], ts)
 
     def chunk(ts: TrainState) -> tuple[TrainState, dict]:
         def body(ts, _):
@@ -183,4 +183,4 @@ def trainer(nets: ActorCritic, new_state: Callable, explore: Callable, update: C
         return Policy.whole(env, {"params": ts.actor["params"]["MLP_0"]}, c.hidden, 2 * action_size,
                             layer_norm=c.layer_norm)
 
-    return Trainer(c, env, start, chunk, act, {"env_state": 0, "buffer": 1}, export)
+    return Trainer(c, env, init, prefill, chunk, act, {"env_state": 0, "buffer": 1}, export)

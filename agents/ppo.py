@@ -183,4 +183,4 @@ def make_train(config: PPOConfig, env) -> Trainer:
         stats = dict(obs_mean=norm.mean, obs_std=norm.std, clip=norm.CLIP) if c.normalize_observations else {}
         return Policy.whole(env, ts.params["policy"], c.hidden, policy_net.out, **stats)
 
-    return Trainer(config, env, init, chunk, act, {"env_state": 0}, export)
+    return Trainer(config, env, init, lambda ts: ts, chunk, act, {"env_state": 0}, export)

@@ -53,7 +53,7 @@ class Compiling:
 
 
 class Programs:
-    """start(keys), chunk(state), evaluate(state, eval_keys) and adapt(state, variants) of one trainer,
+    """start(keys), refill(learned), chunk(state), evaluate(state, eval_keys) and adapt(state, variants) of one trainer,
     vmapped over seeds and placed over the local devices (agents.sharding). Each compiles once asked
     for, by `prepare` or by its first call."""
 
@@ -65,6 +65,8 @@ class Programs:
                                    shapes, self.placement)
         self._jobs = {
             "start": lambda: Compiling(jax.jit(start, out_shardings=self.placement), keys),
+            "refill": lambda: Compiling(jax.jit(jax.vmap(trainer.refill), out_shardings=self.placement),
+                                        trainer.learned(shapes)),
             "chunk": lambda: Compiling(jax.jit(jax.vmap(trainer.chunk), in_shardings=(self.placement,),
                                                out_shardings=(self.placement, None)), self._state),
             "evaluate": lambda: Compiling(jax.jit(jax.vmap(functools.partial(evaluate, trainer, film=film))),
@@ -92,6 +94,9 @@ class Programs:
 
     def start(self, keys: jax.Array):
         return self._program("start")(keys)
+
+    def refill(self, learned):
+        return self._program("refill")(learned)
 
     def chunk(self, state):
         return self._program("chunk")(state)

@@ -11,6 +11,9 @@ are also printed as a ratio of its time.
 
     python bench/time_to_success.py --field build/ant_nav --steps 10M --threshold 0.6 --seeds 0,1 \\
         --setting 'b1024=' --setting 'b2048=--set crl.batch_size=2048' --runs tts --limit 300 --json out.jsonl
+
+A setting's options may begin with environment variables for its run, as in a shell:
+`--setting 'plain=' --setting 'no-fusion-tuning=XLA_FLAGS=--xla_gpu_experimental_enable_fusion_autotuner=false'`.
 """
 
 from __future__ import annotations
@@ -18,6 +21,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import shlex
 import shutil
 import subprocess
@@ -42,6 +46,14 @@ def first_passing(metrics: Path | None, threshold: float) -> dict | None:
     return None
 
 
+def environment_variables(options: list[str]) -> tuple[dict[str, str], list[str]]:
+    """A setting's leading NAME=VALUE words, as a shell takes them, and the options after them."""
+    count = 0
+    while count < len(options) and re.fullmatch(r"[A-Z_][A-Z0-9_]*=.*", options[count]):
+        count += 1
+    return dict(word.split("=", 1) for word in options[:count]), options[count:]
+
+
 class Attempt:
     """One `fieldgen train` of a setting and seed, into RUNS/NAME-sSEED, stopped once it passes (or at
     --limit seconds)."""
@@ -50,9 +62,10 @@ class Attempt:
         self.name, self.options, self.seed, self.args, self.share = name, options, seed, args, share
         self.out = runs / f"{name}-s{seed}"
         shutil.rmtree(self.out, ignore_errors=True)
+        variables, train_options = environment_variables(options)
         command = train_command(args.field, args.algo, self.out, "--steps", args.steps, "--seed", str(seed),
-                                "--no-videos", *options)
-        env = dict(os.environ)
+                                "--no-videos", *train_options)
+        env = dict(os.environ, **variables)
         if not args.warm_cache:  # every run compiles everything, as the first run on a machine does
             env["JAX_COMPILATION_CACHE_DIR"] = str(self.out / "xla-cache")
         if share > 1:  # runs side by side split the GPU's memory

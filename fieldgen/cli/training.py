@@ -81,6 +81,9 @@ def train(
         loggers.require(logger)
         if resume is not None:
             run = session.open_run(resume)
+            if run.refills:
+                out.print(f"{resume} holds no {record.CHECKPOINT}: it goes on from {record.LEARNER} with fresh "
+                          "episodes and a replay buffer filled anew by its policy (those env steps count)")
         else:
             if spec is None:
                 fail("name a field to train on, or --resume a run folder")

@@ -3,7 +3,9 @@
 A run folder holds everything needed to resume: `run.json` (the field's build, the
 algorithm, its full config and the seeds), `metrics.jsonl` / `metrics.csv` (one row per
 evaluation and seed), `checkpoint.msgpack` (the whole training state after the last
-evaluation), `success.png` and `videos/eval_NNN.mp4` (or .gif); every file is replaced whole.
+evaluation), `learner.msgpack` (what it learned alone, without its episodes and replay buffer: enough
+to go on where the whole state is too large to move), `success.png` and `videos/eval_NNN.mp4` (or .gif);
+every file is replaced whole.
 """
 
 from __future__ import annotations
@@ -20,7 +22,12 @@ from fieldgen.curriculum.promotion import Promotion
 from fieldgen.files import write_atomic
 
 RUN, METRICS, CSV, CHECKPOINT, PLOT = "run.json", "metrics.jsonl", "metrics.csv", "checkpoint.msgpack", "success.png"
-VIDEOS = "videos"
+LEARNER, VIDEOS = "learner.msgpack", "videos"
+
+
+def has_trained(run_dir: Path) -> bool:
+    """Whether the run has a checkpoint to go on from: its whole state, or what it learned alone."""
+    return (run_dir / CHECKPOINT).exists() or (run_dir / LEARNER).exists()
 
 
 class RunError(Exception):

@@ -46,6 +46,11 @@ class Run:
         return bool(self.rows) and self.rows[-1]["eval"] >= self.config.num_evals
 
     @property
+    def refills(self) -> bool:
+        """Whether the run goes on from what it learned alone, with fresh episodes and its buffer filled anew."""
+        return self.state is not None and not self.trainers[self.stage].holds_environments(self.state)
+
+    @property
     def env(self):
         """The field a run is judged on: its only one, or a curriculum's last stage."""
         return self.envs[-1]
@@ -108,7 +113,7 @@ def new_run(source: Path, algo: str, seeds: list[int], config, out: Path, mixed:
             raise record.RunError(f"{source} is a single field; --mixed trains the stages of a curriculum folder")
         envs = [fieldgen.make(source)]
     folder = out / run_name(name or envs[0].spec.name, algo, seeds)
-    if (folder / record.CHECKPOINT).exists():
+    if record.has_trained(folder):
         raise record.RunError(f"{folder} already holds a run; continue it with --resume {folder}, "
                                 "or pick another --seed or --out")
     for env in envs:
@@ -157,7 +162,7 @@ def open_run(folder: Path, load_state: bool = True) -> Run:
     run = Run(folder, saved.algo, envs, config, seeds, rows, saved.promotion, mixed=saved.mixed)
     if not load_state:
         return run  # only reported on
-    if not (folder / record.CHECKPOINT).exists():
+    if not record.has_trained(folder):
         run.rows = []  # prepared, or stopped before its first checkpoint: it starts from the beginning
         return run
     damaged = "the file was edited or damaged: restore it from a copy, or start the run again in a new folder"
@@ -169,9 +174,12 @@ def open_run(folder: Path, load_state: bool = True) -> Run:
             raise record.RunError(f"{folder / record.METRICS}'s last row puts the run at stage {run.stage + 1}, "
                                   f"past its last ({len(envs)}); {damaged}")
     keys = jnp.stack([jax.random.PRNGKey(s) for s in seeds])
-    template = jax.eval_shape(jax.vmap(run.trainers[run.stage].start), keys)
+    trainer = run.trainers[run.stage]
+    path, template = folder / record.CHECKPOINT, jax.eval_shape(jax.vmap(trainer.start), keys)
+    if not path.exists():  # e.g. copied without it: what it learned goes on, its buffer filled anew
+        path, template = folder / record.LEARNER, trainer.learned(template)
     try:
-        run.state = checkpoint.load(folder / record.CHECKPOINT, template)
+        run.state = checkpoint.load(path, template)
     except checkpoint.CheckpointError as exc:
         raise record.RunError(str(exc)) from None
     done = int(jax.device_get(run.state.env_steps)[0])

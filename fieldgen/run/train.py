@@ -42,6 +42,7 @@ def train(run: Run, console: Console, videos: bool = True, logger: str = "none",
             writer.wait()  # one snapshot at a time in host memory; a failed write stops training here
             snapshot = jax.device_get(state)
             writer.submit(write_atomic, run.folder / record.CHECKPOINT, checkpoint.pieces(snapshot))
+            writer.submit(write_atomic, run.folder / record.LEARNER, checkpoint.pieces(trainers[0].learned(snapshot)))
             if filmed is not None:  # the episode just evaluated (a mixed run films its last stage)
                 filmed_stage, frames = filmed
                 if filmed_stage not in recorders:
@@ -80,7 +81,7 @@ def train(run: Run, console: Console, videos: bool = True, logger: str = "none",
             if writer.busy:
                 console.print("finishing the checkpoint being written...")
             writer.wait()
-            saved = (run.folder / record.CHECKPOINT).exists()
+            saved = record.has_trained(run.folder)
             console.print(f"interrupted; {'the last checkpoint is intact' if saved else 'no checkpoint yet'}. "
                           f"{'Continue' if saved else 'Start again'} with: fieldgen train --resume {run.folder}")
             raise

@@ -24,7 +24,7 @@ TINY = ["--steps", "2700", "--envs", "8", "--no-videos", "--set", "crl.hidden=[3
 
 # `fieldgen train` that kills itself (SIGKILL, nothing cleaned up) at one moment: "metrics N" once
 # evaluation N's metrics are written and before its checkpoint is, "write N" halfway through writing
-# the N-th checkpoint this process writes; "never" runs to the end.
+# the N-th checkpoint file this process writes; "never" runs to the end.
 KILLED_AT = textwrap.dedent("""
     import os, signal, sys
     from fieldgen.agents import checkpoint
@@ -86,8 +86,9 @@ def test_a_run_killed_at_any_moment_resumes_to_the_uninterrupted_result(tmp_path
     assert not (run / "checkpoint.msgpack").exists()
     assert leftovers(run) == [n for n in leftovers(run) if n.startswith(".checkpoint.msgpack.")] != []
 
-    # --resume starts it from the beginning too; killed halfway through its second checkpoint, the first stays
-    third = train(tmp_path, "write", 2, "--resume", str(run))
+    # --resume starts it from the beginning too; killed halfway through its second whole checkpoint (each
+    # evaluation writes the whole state, then what it learned alone), the first stays
+    third = train(tmp_path, "write", 3, "--resume", str(run))
     assert third.returncode == -signal.SIGKILL, third.stderr[-3000:]
     assert (run / "checkpoint.msgpack").exists()
     assert leftovers(run) == [n for n in leftovers(run) if n.startswith(".checkpoint.msgpack.")] != []
@@ -100,7 +101,8 @@ def test_a_run_killed_at_any_moment_resumes_to_the_uninterrupted_result(tmp_path
     assert last.returncode == 0, last.stderr[-3000:]
     assert leftovers(run) == []
     reference = tmp_path / "whole" / "point_nav-crl-0"
-    assert (run / "checkpoint.msgpack").read_bytes() == (reference / "checkpoint.msgpack").read_bytes()
+    for name in ("checkpoint.msgpack", "learner.msgpack"):
+        assert (run / name).read_bytes() == (reference / name).read_bytes()
     assert rows(run) == rows(reference)
 
 

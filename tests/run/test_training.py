@@ -6,6 +6,7 @@ import json
 import re
 from pathlib import Path
 
+import flax.struct
 import jax
 import numpy as np
 import pytest
@@ -38,6 +39,14 @@ class Stop(Exception):
     pass
 
 
+@flax.struct.dataclass
+class Snapshot:
+    """Stands in for a training state where only its name and its environments' fields matter."""
+    name: str = flax.struct.field(pytree_node=False)
+    env_state: object = flax.struct.field(pytree_node=False)
+    buffer: object = flax.struct.field(pytree_node=False)
+
+
 def no_opengl(*args, **kwargs):
     """Stands in for the renderer of a machine without OpenGL."""
     raise RuntimeError("no OpenGL here")
@@ -64,6 +73,48 @@ def test_resume_after_interrupt_reproduces_the_uninterrupted_run(env_cache, tmp_
     for a, b in zip(jax.tree.leaves(full.nets), jax.tree.leaves(resumed.nets)):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
     assert int(full.env_steps[0]) == int(resumed.env_steps[0])
+
+    # what a learner checkpoint keeps: no episode, no replay buffer; training goes on from it with the same
+    # networks, fresh episodes and a buffer filled anew, its prefill counted in the env steps
+    learned = algo.learned(restored)
+    assert learned.env_state is None and learned.buffer is None and not algo.holds_environments(learned)
+    environments = sum(np.asarray(x).nbytes for x in jax.tree.leaves((restored.env_state, restored.buffer)))
+    assert len(saved[1]) - len(checkpoint.to_bytes(learned)) >= environments
+    prefill, chunk = 800, 6 * 80  # 10 iterations of 8 envs x 10 steps fill min_replay_rows; a chunk is 6
+    refilled, history = loop.run(algo, [0], 1, resume=(learned, 1))  # nothing left to train: refilled alone
+    assert history == [] and algo.holds_environments(refilled) and int(refilled.buffer.size[0]) == 100
+    assert int(refilled.env_steps[0]) == 1280 + prefill
+    for a, b in zip(jax.tree.leaves(learned.nets), jax.tree.leaves(refilled.nets)):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    trained, history = loop.run(algo, [0], 2, resume=(learned, 1))
+    assert [row["eval"] for row in history] == [2] and history[0]["env_steps"] == 1280 + prefill + chunk
+    assert all(np.isfinite(np.asarray(x)).all() for x in jax.tree.leaves(trained.nets))
+
+
+@pytest.mark.slow
+def test_a_run_copied_without_its_whole_checkpoint_goes_on_from_what_it_learned(tmp_path, monkeypatch):
+    """A run folder moved without checkpoint.msgpack (gigabytes with a full replay buffer) goes on from
+    learner.msgpack: it says so, and trains to its end with a buffer filled anew."""
+    from fieldgen.run import record
+    args = ["train", "point_nav", "--steps", "1900", "--envs", "8", "--out", str(tmp_path), "--no-videos", *TINY]
+    run = tmp_path / "point_nav-crl-0"
+    write_metrics = record.write_metrics
+
+    def stop_after_eval_1(folder, rows):
+        write_metrics(folder, rows)
+        if rows[-1]["eval"] == 2:
+            raise KeyboardInterrupt
+
+    monkeypatch.setattr(record, "write_metrics", stop_after_eval_1)
+    assert runner.invoke(app, args).exit_code == 130
+    monkeypatch.setattr(record, "write_metrics", write_metrics)
+    (run / "checkpoint.msgpack").unlink()
+    result = runner.invoke(app, ["train", "--resume", str(run)])
+    assert result.exit_code == 0, result.output
+    assert unwrapped("holds no checkpoint.msgpack: it goes on from learner.msgpack") in unwrapped(result.output)
+    rows = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
+    assert [r["eval"] for r in rows] == [0, 1, 2] and rows[-1]["env_steps"] == 1280 + 800 + 6 * 80  # refilled
+    assert (run / "checkpoint.msgpack").exists()
 
 
 def test_an_interrupt_says_whether_a_checkpoint_was_kept(tmp_path, monkeypatch):
@@ -105,9 +156,9 @@ def test_a_diverged_run_stops_before_writing_its_evaluation(tmp_path, monkeypatc
     def diverging(algos, seeds, num_evals, promotion, progress, on_eval, *args, **kwargs):
         row = {"eval": 0, "seed": 0, "env_steps": 0, "success_any": 0.0, "time_at_goal": 0.0, "episode_return": 0.0}
         progress(0, [row])
-        on_eval("sound state", 0, 0, None)
+        on_eval(Snapshot("sound", "episodes", "buffer"), 0, 0, None)
         progress(1, [dict(row, eval=1, env_steps=992, critic_loss=float("nan"), actor_loss=float("inf"))])
-        on_eval("NaN state", 1, 0, None)
+        on_eval(Snapshot("NaN", "episodes", "buffer"), 1, 0, None)
 
     written = []
     monkeypatch.setattr(loop, "run_staged", diverging)
@@ -118,7 +169,7 @@ def test_a_diverged_run_stops_before_writing_its_evaluation(tmp_path, monkeypatc
     assert unwrapped(f"training diverged: after 992 env steps (evaluation 1) seed 0's actor_loss, critic_loss are "
                      f"not finite. Nothing of that evaluation was written; {run} keeps evaluation 0's checkpoint") \
         in unwrapped(result.output)
-    assert written == ["sound state"]
+    assert written == [Snapshot("sound", "episodes", "buffer"), Snapshot("sound", None, None)]  # whole, learned
     assert [json.loads(line)["eval"] for line in (run / "metrics.jsonl").read_text().splitlines()] == [0]
 
 
@@ -143,7 +194,7 @@ def test_cli_run_folder_and_resume_of_a_finished_run(tmp_path, monkeypatch):
     assert result.exit_code == 0, result.output
     run = tmp_path / "point_nav-crl-0"
     assert {p.name for p in run.iterdir()} == {"run.json", "metrics.jsonl", "metrics.csv", "checkpoint.msgpack",
-                                               "success.png", "videos", "field"}
+                                               "learner.msgpack", "success.png", "videos", "field"}
     assert sorted(p.name for p in (run / "videos").iterdir()) == ["eval_000.mp4", "eval_001.mp4", "eval_002.mp4"]
     rows = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
     assert [r["eval"] for r in rows] == [0, 1, 2] and rows[-1]["env_steps"] == 800 + 12 * 80  # prefill + 2 x 6 iterations
