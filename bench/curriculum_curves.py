@@ -31,7 +31,10 @@ def last_field(rows: list[dict]) -> tuple[list, list, list, list]:
     elif legacy:
         judged = [(r["env_steps"], r[legacy[-1]]) for r in rows]
     else:
-        judged = [(r["env_steps"], r["time_at_goal"]) for r in rows if r.get("stage", 0) == last]
+        # a stage whose own success differs from the last field's at some evaluation is not the last field
+        before = {r["stage"] for r in rows if r.get("last_stage_success_any", r["success_any"]) != r["success_any"]}
+        judged = [(r["env_steps"], r["time_at_goal"]) for r in rows
+                  if r.get("stage", 0) == last and last not in before]
     return steps, success, [s for s, _ in judged], [t for _, t in judged]
 
 
@@ -54,8 +57,8 @@ def main() -> None:
         left.plot(steps, success, marker="o", label=label)
         clock.plot([r["wall_seconds"] / 60 for r in rows], success, marker="o", label=label)
         right.plot(judged, at_goal, marker="o", label=label)
-        print(f"{label:>10s}: last evaluation {success[-1]:.2f} success_any, best {max(success):.2f}; "
-              f"time at goal {at_goal[-1]:.0f}")
+        at_goal_text = f"time at goal {at_goal[-1]:.0f}" if at_goal else "not yet on the last field"
+        print(f"{label:>10s}: last evaluation {success[-1]:.2f} success_any, best {max(success):.2f}; {at_goal_text}")
     left.set(xlabel="env steps", ylabel="success_any", ylim=(-0.02, 1.02), title="episodes with a success")
     clock.set(xlabel="minutes from the start (resumes included)", ylabel="success_any", ylim=(-0.02, 1.02),
               title="against wall clock")

@@ -1,24 +1,31 @@
 """End-to-end training throughput (env steps per second, updates included) on built fields.
 
-The reference, measured in the same run, is the same environment stepped alone
-with random actions at the same batch size (fieldgen.env.throughput): the ratio is
-the share of time left to simulation once training runs beside it. Each figure
-times one jitted chunk of training iterations after a warm-up call, its state
-spread over the devices as `fieldgen train` spreads it (agents.sharding): by seed
-when `--seeds` fill the devices evenly, else by environment. The first
-algorithm listed is also the others' reference: `crl/icrl 1.20` means ICRL runs
-1.2 times slower per env step than CRL. With `--devices 1,2` each row is timed on
-one device and then on two, and the second is also printed as a ratio to the first.
+Each algorithm runs with the settings `fieldgen train` would give it on that field (its preset for
+the field's agent, e.g. agents/presets/crl_ant.yaml, then --set). The reference, measured in the
+same run, is the same environment stepped alone with random actions at the same batch size
+(fieldgen.env.throughput): the ratio is the share of time left to simulation once training runs
+beside it. Each figure times one jitted chunk of training iterations after a warm-up call, its state
+spread over the devices as `fieldgen train` spreads it (agents.sharding): by seed when `--seeds`
+fill the devices evenly, else by environment. The first algorithm listed is also the others'
+reference: `crl/icrl 1.20` means ICRL runs 1.2 times slower per env step than CRL. With `--devices
+1,2` each row is timed on one device and then on two, and the second is also printed as a ratio to
+the first. With `--profile DIR` one more chunk of each row runs under JAX's profiler: the trace is
+kept in DIR, and the device's busiest kernels are printed with their share of the chunk, how many
+ran and for how long the device sat idle between them (a launch-bound program idles).
 
     python bench/train_throughput.py --fields build/ant_nav,build/soccer_v1 --algos crl,ppo --envs 1024,4096
     python bench/train_throughput.py --fields build/soccer_v1 --algos crl,icrl,icrl:agents=joint,sac,td3 --envs 1024
     python bench/train_throughput.py --fields build/ant_nav --algos crl,ppo --envs 4096 --devices 1,2
     python bench/train_throughput.py --fields build/ant_nav --algos crl --envs 1024 --seeds 2 --devices 1,2
+    python bench/train_throughput.py --fields build/ant_nav --algos crl --envs 1024 --devices 1 --profile prof
 """
 
 from __future__ import annotations
 
 import argparse
+import collections
+import gzip
+import json
 import time
 from pathlib import Path
 
@@ -32,20 +39,21 @@ from fieldgen.env.throughput import append_jsonl, measure
 from fieldgen.run.train import peak_memory_mb
 
 
-def config_for(entry: str, num_envs: int, iterations: int, sets: list[str]):
-    """A config (defaults, `--set algo.key=value`, then the entry's own `algo:key=value:...`) whose chunk
-    (the work between two evaluations) is `iterations` training iterations."""
+def config_for(entry: str, env, num_envs: int, iterations: int, sets: list[str]):
+    """The config `fieldgen train` would start from on `env` (defaults, the trainer's preset for its agent,
+    `--set algo.key=value`, then the entry's own `algo:key=value:...`) whose chunk (the work between two
+    evaluations) is `iterations` training iterations."""
     algo, *own = entry.split(":")
     sets = [s for s in sets if s.startswith(f"{algo}.")] + [f"{algo}.{item}" for item in own]
-    c = registry.trainer(algo).config.layered(sets=sets, num_envs=num_envs, num_evals=1)
+    c = registry.trainer(algo).config.layered(sets=sets, agent=env.spec.agent.kind, num_envs=num_envs, num_evals=1)
     prefill = buffer.iterations(c)[0] if isinstance(c, ReplayConfig) else 0
     return c.model_copy(update={"total_steps": (prefill + iterations) * num_envs * c.unroll_length})
 
 
-def time_chunk(trainer, seeds: int, devices: int | None = None) -> float:
+def time_chunk(trainer, seeds: int, devices: int | None = None, profile: Path | None = None) -> float:
     """Seconds for one chunk of `seeds` vmapped seeds placed on the first `devices` local devices (all by
     default) as training places them, timed after two warm-up calls (the first, and the first fed its
-    own output, can both compile)."""
+    own output, can both compile); with `profile`, one more chunk is traced into that folder."""
     keys = jnp.stack([jax.random.PRNGKey(s) for s in range(seeds)])
     shapes = jax.eval_shape(jax.vmap(trainer.start), keys)
     placement = sharding.training_shardings(shapes, sharding.local_mesh(devices), trainer.env_axes)
@@ -55,7 +63,39 @@ def time_chunk(trainer, seeds: int, devices: int | None = None) -> float:
         state, _ = jax.block_until_ready(chunk(state))
     t0 = time.perf_counter()
     jax.block_until_ready(chunk(state))
-    return time.perf_counter() - t0
+    seconds = time.perf_counter() - t0
+    if profile:
+        with jax.profiler.trace(profile, create_perfetto_trace=True):
+            jax.block_until_ready(chunk(state))
+    return seconds
+
+
+def kernel_table(profile: Path, top: int = 20) -> str:
+    """The device's kernels in the newest trace under `profile`, by total time: name, calls, share of the
+    time from the first kernel's start to the last one's end, and the share of that span no kernel ran."""
+    trace = json.load(gzip.open(max(profile.rglob("perfetto_trace.json.gz"), key=lambda p: p.stat().st_mtime)))
+    events = trace["traceEvents"] if isinstance(trace, dict) else trace
+    devices = {e["pid"] for e in events if e.get("ph") == "M" and e.get("name") == "process_name"
+               and e["args"]["name"].startswith("/device:")}
+    kernels = [e for e in events if e.get("ph") == "X" and e["pid"] in devices and e.get("dur")]
+    if not kernels:
+        return "no device kernels in the trace (a CPU backend traces host threads only)"
+    total, calls = collections.Counter(), collections.Counter()
+    for e in kernels:
+        total[e["name"]] += e["dur"]
+        calls[e["name"]] += 1
+    busy, end = 0.0, None
+    for e in sorted(kernels, key=lambda e: e["ts"]):  # the union of kernel intervals, over all streams
+        start, stop = e["ts"], e["ts"] + e["dur"]
+        if end is None or start > end:
+            busy, end = busy + stop - start, stop
+        elif stop > end:
+            busy, end = busy + stop - end, stop
+    span = max(e["ts"] + e["dur"] for e in kernels) - min(e["ts"] for e in kernels)
+    rows = [f"{len(kernels):,} kernels in {span / 1e6:.3f} s; device idle {1 - busy / span:.1%} of it"]
+    rows += [f"{t / span:7.1%} {calls[name]:>8,} x {t / calls[name]:8.1f} us  {name[:100]}"
+             for name, t in total.most_common(top)]
+    return "\n".join(rows)
 
 
 def main() -> None:
@@ -68,6 +108,8 @@ def main() -> None:
     parser.add_argument("--set", action="append", default=[], metavar="ALGO.KEY=VALUE", help="config overrides")
     parser.add_argument("--devices", help="comma-separated device counts to time each row on; default: all")
     parser.add_argument("--seeds", type=int, default=1, help="seeds trained at once (vmapped); env steps count all")
+    parser.add_argument("--profile", type=Path, help="trace one more chunk of each row into this folder and "
+                        "print its busiest device kernels")
     parser.add_argument("--json", type=Path)
     args = parser.parse_args()
     counts = [int(x) for x in args.devices.split(",")] if args.devices else [sharding.device_count()]
@@ -79,12 +121,13 @@ def main() -> None:
             algos = args.algos.split(",")
             first = {}  # the first algorithm's figure by device count
             for name in algos:
-                config = config_for(name, n, args.iterations, args.set)
+                config = config_for(name, env, n, args.iterations, args.set)
                 trainer = registry.trainer(name.partition(":")[0]).make_train(config, env)
                 per_iter = n * config.unroll_length
                 alone = None
                 for devices in counts:
-                    seconds = time_chunk(trainer, args.seeds, devices)
+                    profile = args.profile and args.profile / f"{env.spec.name}-{name}-{n}-{devices}"
+                    seconds = time_chunk(trainer, args.seeds, devices, profile)
                     sps = args.seeds * args.iterations * per_iter / seconds
                     memory = peak_memory_mb()
                     first.setdefault(devices, sps)
@@ -101,6 +144,8 @@ def main() -> None:
                                              f"{algos[0]}_over_this": first[devices] / sps, "sets": args.set,
                                              "seconds_per_iteration": seconds / args.iterations,
                                              "peak_memory_mb": memory, "over_first_device_count": sps / alone})
+                    if profile:
+                        print(kernel_table(profile), flush=True)
 
 
 if __name__ == "__main__":

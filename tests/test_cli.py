@@ -37,6 +37,19 @@ def test_commands_keep_compiled_programs_in_a_cache_the_user_can_move(tmp_path, 
     assert os.environ["JAX_COMPILATION_CACHE_DIR"] == str(tmp_path / "mine")
 
 
+def test_commands_turn_xla_fusion_autotuning_off_unless_the_user_sets_it(monkeypatch):
+    """Every command adds fieldgen's XLA defaults to XLA_FLAGS before JAX starts a backend, keeping the
+    user's own flags, and leaves a default the user set alone."""
+    import os
+
+    monkeypatch.setenv("XLA_FLAGS", "--xla_dump_to=/tmp/x")
+    assert runner.invoke(app, ["validate", "point_nav"]).exit_code == 0
+    assert os.environ["XLA_FLAGS"] == "--xla_dump_to=/tmp/x --xla_gpu_experimental_enable_fusion_autotuner=false"
+    monkeypatch.setenv("XLA_FLAGS", "--xla_gpu_experimental_enable_fusion_autotuner=true")
+    assert runner.invoke(app, ["validate", "point_nav"]).exit_code == 0
+    assert os.environ["XLA_FLAGS"] == "--xla_gpu_experimental_enable_fusion_autotuner=true"
+
+
 def test_unknown_field_name_is_a_clear_error():
     result = runner.invoke(app, ["build", "socer_v2"])
     assert result.exit_code == 1

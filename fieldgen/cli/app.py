@@ -11,7 +11,7 @@ import typer
 from rich.console import Console
 from rich.text import Text
 
-from fieldgen import xla_cache
+from fieldgen import xla_cache, xla_flags
 from fieldgen.cli.helptext import ReadableTyper
 from fieldgen.schema import bundled_fields, resolve_spec_path
 from fieldgen.suggest import did_you_mean
@@ -98,6 +98,7 @@ def main(version: Annotated[bool, typer.Option("--version", callback=_print_vers
                                                help="print fieldgen's version and exit")] = False) -> None:
     """Robot-soccer fields from YAML specs, compiled to GPU-batched MJX environments."""
     xla_cache.enable()
+    xla_flags.apply()
 
 
 def video_format(fmt: str | None) -> str:

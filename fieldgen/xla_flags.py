@@ -1,0 +1,23 @@
+"""XLA options every `fieldgen` command starts with, unless the user's own XLA_FLAGS names them.
+
+XLA's fusion autotuner times large reductions on the GPU with each of its code generators. For CRL
+at batch 2,048 on the ant it did not finish within 7.5 minutes on an H100; without it the same run
+reached its first evaluation in 58 s, and the ant preset (batch 1,024) starts and trains as fast
+either way (bench/results/README.md). XLA reads XLA_FLAGS when JAX first starts a backend, so this
+runs before."""
+
+from __future__ import annotations
+
+import os
+import re
+
+DEFAULTS = {"xla_gpu_experimental_enable_fusion_autotuner": "false"}
+
+
+def apply() -> None:
+    """Add each default to XLA_FLAGS that the user's flags do not already set."""
+    flags = os.environ.get("XLA_FLAGS", "")
+    named = set(re.findall(r"--(\w+)", flags))
+    added = [f"--{name}={value}" for name, value in DEFAULTS.items() if name not in named]
+    if added:
+        os.environ["XLA_FLAGS"] = " ".join([flags, *added]).strip()
