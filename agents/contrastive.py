@@ -14,8 +14,24 @@ LOSSES = ("fwd_infonce", "bwd_infonce", "sym_infonce")
 
 
 def energy(kind: str, phi: jax.Array, psi: jax.Array, log_temperature: jax.Array | None = None) -> jax.Array:
-    """Pairwise energies between rows of phi [B, d] and psi [B, d] -> [B, B]."""
-    return paired_energy(kind, phi[:, None, :], psi[None, :, :], log_temperature)
+    """Pairwise energies between rows of phi [B, d] and psi [B, d] -> [B, B].
+
+    Every pair comes from one matrix product (distances as |a|^2 + |b|^2 - 2 a.b), not from the
+    [B, B, d] differences, whose reductions a GPU runs far slower than the product
+    (bench/energy_matrix.py). The diagonal, the positive pairs, whose small distances that form
+    would round away, is `paired_energy`'s own."""
+    if kind not in ENERGIES:
+        raise ValueError(f"unknown energy {kind!r}; choose one of {', '.join(ENERGIES)}")
+    if kind == "cosine":
+        phi, psi = _unit(phi), _unit(psi)
+    cross = jnp.matmul(phi, psi.T, precision=jax.lax.Precision.HIGHEST)
+    if kind == "dot":
+        return cross
+    if kind == "cosine":
+        return cross / jnp.exp(log_temperature)
+    squared = jnp.maximum(jnp.sum(phi ** 2, axis=-1)[:, None] + jnp.sum(psi ** 2, axis=-1)[None, :] - 2 * cross, 0.0)
+    pairs = -jnp.sqrt(squared + 1e-12) if kind == "norm" else -squared
+    return jnp.where(jnp.eye(len(phi), dtype=bool), paired_energy(kind, phi, psi)[:, None], pairs)
 
 
 def paired_energy(kind: str, phi: jax.Array, psi: jax.Array, log_temperature: jax.Array | None = None) -> jax.Array:
@@ -27,9 +43,12 @@ def paired_energy(kind: str, phi: jax.Array, psi: jax.Array, log_temperature: ja
     if kind == "dot":
         return jnp.sum(phi * psi, axis=-1)
     if kind == "cosine":
-        unit = lambda x: x / (jnp.linalg.norm(x, axis=-1, keepdims=True) + 1e-12)  # noqa: E731
-        return jnp.sum(unit(phi) * unit(psi), axis=-1) / jnp.exp(log_temperature)
+        return jnp.sum(_unit(phi) * _unit(psi), axis=-1) / jnp.exp(log_temperature)
     raise ValueError(f"unknown energy {kind!r}; choose one of {', '.join(ENERGIES)}")
+
+
+def _unit(x: jax.Array) -> jax.Array:
+    return x / (jnp.linalg.norm(x, axis=-1, keepdims=True) + 1e-12)
 
 
 def infonce(kind: str, logits: jax.Array, weight: jax.Array) -> jax.Array:

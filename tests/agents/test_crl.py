@@ -34,6 +34,27 @@ def test_paired_energy_is_the_diagonal_and_near_pairs_keep_their_distance():
     np.testing.assert_allclose(energy("norm", phi, psi), direct, rtol=1e-3, atol=1e-3)
 
 
+def test_the_energy_matrix_and_its_gradient_equal_every_pair_taken_apart():
+    """The matrix from one product gives each pair's energy and gradient as `paired_energy` of that
+    pair does, near pairs (the diagonal) and far ones alike."""
+    import jax
+
+    rng = np.random.default_rng(1)
+    phi = jnp.asarray(rng.normal(0, 2, (8, 16)), jnp.float32)
+    psi = phi + jnp.asarray(rng.normal(0, 1e-3, (8, 16)), jnp.float32)
+    psi = psi.at[4:].set(jnp.asarray(rng.normal(0, 2, (4, 16)), jnp.float32))
+
+    for kind in ENERGIES:
+        matrix = lambda p, q: energy(kind, p, q, jnp.log(0.5))  # noqa: E731
+        apart = lambda p, q: paired_energy(kind, p[:, None, :], q[None, :, :], jnp.log(0.5))  # noqa: E731
+        np.testing.assert_allclose(matrix(phi, psi), apart(phi, psi), rtol=1e-4, atol=1e-4)
+        for reduce in (lambda e: jnp.sum(jax.nn.logsumexp(e, axis=1)), lambda e: jnp.sum(jnp.diagonal(e))):
+            mine = jax.grad(lambda p, q: reduce(matrix(p, q)), (0, 1))(phi, psi)
+            theirs = jax.grad(lambda p, q: reduce(apart(p, q)), (0, 1))(phi, psi)
+            for a, b in zip(mine, theirs):
+                np.testing.assert_allclose(a, b, rtol=1e-3, atol=1e-4)
+
+
 def test_infonce_by_hand():
     logits = jnp.array([[2.0, 0.0], [1.0, 3.0]])
     fwd = np.mean([-(2 - np.log(np.exp(2) + 1)), -(3 - np.log(np.exp(1) + np.exp(3)))])
