@@ -182,6 +182,9 @@ def make_curriculum(
     start_near: Annotated[Optional[float], typer.Option(metavar="DISTANCE",
         help="a start-state curriculum: the first stage spawns the ball this far from the target, later "
              "stages move the kick-off back to BASE's (--stages of them)")] = None,
+    agent_near: Annotated[Optional[float], typer.Option(metavar="DISTANCE",
+        help="with --start-near: the first stage also starts the agent this far from the ball, later stages "
+             "widen the gap back to BASE's")] = None,
     threshold: Annotated[float, typer.Option(help="success_any that promotes a run to the next stage")] = 0.5,
     window: Annotated[int, typer.Option(metavar="N", help="evaluations averaged for promotion")] = 2,
     force: Annotated[bool, typer.Option(help="replace an existing folder")] = False,
@@ -191,6 +194,7 @@ def make_curriculum(
 
     Example: fieldgen curriculum fields/soccer_v1.yaml --to fields/v2_wide_goalie.yaml --stages 6 -o curricula/v1_to_wide
     Example: fieldgen curriculum soccer_v2 --start-near 3 --stages 5 -o curricula/v2_start_states
+    Example: fieldgen curriculum soccer_v1 --start-near 1.5 --agent-near 1.75 --stages 5 -o curricula/v1_close
     """
     from fieldgen import curriculum
 
@@ -198,7 +202,7 @@ def make_curriculum(
     try:
         kind, variants = curriculum.variants(base_path, to=spec_path(to) if to is not None else None, stages=stages,
                                              geometric=tuple(geometric or ()), switch_at=switch_at, vary=vary or [],
-                                             listed=stage or [], start_near=start_near)
+                                             listed=stage or [], start_near=start_near, agent_near=agent_near)
         c = curriculum.write(output, base, base_path, kind, variants, curriculum.Promotion(threshold, window), force)
     except curriculum.CurriculumError as exc:
         fail(str(exc))

@@ -19,16 +19,19 @@ IGNORED = ("name", "description", "extends")  # never interpolated
 
 def variants(base: Path, *, to: Path | None = None, stages: int = 5, geometric: tuple[str, ...] = (),
              switch_at: int | None = None, vary: list[str] = (), listed: list[str] = (),
-             start_near: float | None = None) -> tuple[str, list[tuple[dict, str]]]:
+             start_near: float | None = None, agent_near: float | None = None) -> tuple[str, list[tuple[dict, str]]]:
     """The kind and variants of the one curriculum asked for: an interpolation to `to`, a grid over `vary`
-    axes ('KEY=V1,V2'), the `listed` variants ('KEY=V KEY=V' each) or start states `start_near` the target."""
+    axes ('KEY=V1,V2'), the `listed` variants ('KEY=V KEY=V' each) or start states `start_near` the target
+    (the agent `agent_near` the ball at first, if given)."""
     asked = [kind for kind, given in (("interpolation", to is not None), ("grid", vary), ("list", listed),
                                       ("start_states", start_near is not None)) if given]
     if len(asked) != 1:
         raise CurriculumError("give exactly one of --to FIELD (interpolation), --vary KEY=V1,V2 (grid), "
                               "--stage 'KEY=V' (list) or --start-near DISTANCE (start states)")
+    if agent_near is not None and start_near is None:
+        raise CurriculumError("--agent-near belongs to a start-state curriculum: give --start-near too")
     if start_near is not None:
-        return asked[0], start_states(base, start_near, stages)
+        return asked[0], start_states(base, start_near, stages, agent_near)
     if to is not None:
         return asked[0], interpolate(base, to, stages, geometric, switch_at)
     if vary:
@@ -88,10 +91,14 @@ def explicit(base: Path, variants: list[dict[str, object]]) -> list[tuple[dict, 
     return [(_nest(v), "listed: " + ", ".join(f"{k}={x}" for k, x in v.items())) for v in variants]
 
 
-def start_states(base: Path, near: float, stages: int) -> list[tuple[dict, str]]:
+def start_states(base: Path, near: float, stages: int, agent_near: float | None = None) -> list[tuple[dict, str]]:
     """`stages` variants of one field that differ only in where an episode starts: the first puts the
     ball's spawn centre `near` from the target, the agent's start moved by as much, and each later
-    stage moves both back along the line to the target, the last being the base's own kick-off."""
+    stage moves both back along the line to the target, the last being the base's own kick-off.
+
+    With `agent_near` the first stage also starts the agent that far from the ball's spawn centre, on
+    the side it starts in the base, and later stages widen the gap back to the base's: an agent that
+    cannot yet walk touches a ball next to it, and hindsight then sees the ball move."""
     if stages < 2:
         raise CurriculumError(f"--stages {stages}: a start-state curriculum needs at least 2 stages")
     spec = _spec(base)
@@ -106,16 +113,24 @@ def start_states(base: Path, near: float, stages: int) -> list[tuple[dict, str]]
     if not 0 < near < distance:
         raise CurriculumError(f"--near {near:g}: choose a distance between 0 and {distance:.2f}, the distance from "
                               f"the ball's spawn centre to the target in {base}")
+    behind = (spec.agent.start[0] - centre[0], spec.agent.start[1] - centre[1])  # the agent from the ball
+    gap = (behind[0] ** 2 + behind[1] ** 2) ** 0.5
+    if agent_near is not None and not 0 < agent_near < gap:
+        raise CurriculumError(f"--agent-near {agent_near:g}: choose a distance between 0 and {gap:.2f}, the distance "
+                              f"from the ball's spawn centre to the agent's start in {base}")
     out = []
     for k in range(stages):
         t = k / (stages - 1)
         moved = (1 - near / distance) * (1 - t)
+        closer = 0.0 if agent_near is None else (1 - agent_near / gap) * (1 - t)  # share of the gap taken away
         dx, dy = (_rounded(moved * to_target[0]), _rounded(moved * to_target[1]))
-        changes = {} if moved == 0 else {
+        start = (spec.agent.start[0] + dx - closer * behind[0], spec.agent.start[1] + dy - closer * behind[1])
+        changes = {} if moved == 0 and closer == 0 else {
             "ball": {"spawn": {"x": [_rounded(v + dx) for v in spawn.x], "y": [_rounded(v + dy) for v in spawn.y]}},
-            "agent": {"start": [_rounded(spec.agent.start[0] + dx), _rounded(spec.agent.start[1] + dy)]}}
+            "agent": {"start": [_rounded(start[0]), _rounded(start[1])]}}
+        agent = "" if agent_near is None else f", the agent {gap - closer * gap:.2f} from it"
         out.append((changes, f"stage {k + 1} of {stages}: kick-off moved {moved * distance:.2f} toward the target, "
-                             f"the ball's spawn centre {distance - moved * distance:.2f} from it"))
+                             f"the ball's spawn centre {distance - moved * distance:.2f} from it{agent}"))
     return out
 
 

@@ -152,6 +152,22 @@ def test_the_cli_writes_a_start_state_curriculum(tmp_path):
     assert curriculum.load(out).kind == "start_states"
 
 
+def test_start_states_can_begin_with_the_agent_next_to_the_ball(tmp_path):
+    """--agent-near starts the first stage's agent that far behind the ball, on its base side, and widens
+    the gap back to the base's by the last stage, the ball moving back as with --start-near alone."""
+    out = tmp_path / "v1_close"
+    result = CliRunner().invoke(app, ["curriculum", "soccer_v1", "--start-near", "1.5", "--agent-near", "1.75",
+                                      "--stages", "3", "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    specs = curriculum.load(out).specs()
+    assert [s.ball.spawn.y for s in specs] == [(8.5, 8.5), (5.75, 5.75), (3.0, 3.0)]
+    assert [s.agent.start for s in specs] == [(0.0, 6.75), (0.0, 3.375), (0.0, 0.0)]
+    with pytest.raises(curriculum.CurriculumError, match="between 0 and 3.00"):
+        curriculum.start_states(FIELDS["soccer_v1"], 1.5, 3, agent_near=3.5)
+    with pytest.raises(curriculum.CurriculumError, match="give --start-near too"):
+        curriculum.variants(FIELDS["soccer_v1"], listed=["ball.radius=0.4"], agent_near=1.75)
+
+
 def test_start_states_need_a_fixed_target_and_a_reachable_distance():
     with pytest.raises(curriculum.CurriculumError, match="fixed target"):
         curriculum.start_states(FIELDS["ant_nav"], 3.0, 3)
