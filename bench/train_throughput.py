@@ -1,17 +1,17 @@
 """End-to-end training throughput (env steps per second, updates included) on built fields.
 
 Each algorithm runs with the settings `fieldgen train` would give it on that field (its preset for
-the field's agent, e.g. agents/presets/crl_ant.yaml, then --set). The reference, measured in the
-same run, is the same environment stepped alone with random actions at the same batch size
-(fieldgen.env.throughput): the ratio is the share of time left to simulation once training runs
-beside it. Each figure times one jitted chunk of training iterations after a warm-up call, its state
-spread over the devices as `fieldgen train` spreads it (agents.sharding): by seed when `--seeds`
-fill the devices evenly, else by environment. The first algorithm listed is also the others'
-reference: `crl/icrl 1.20` means ICRL runs 1.2 times slower per env step than CRL. With `--devices
-1,2` each row is timed on one device and then on two, and the second is also printed as a ratio to
-the first. With `--profile DIR` one more chunk of each row runs under JAX's profiler: the trace is
-kept in DIR, and the device's busiest kernels are printed with their share of the chunk, how many
-ran and for how long the device sat idle between them (a launch-bound program idles).
+the field's agent, e.g. agents/presets/crl_ant.yaml, then --set) and fieldgen's XLA options. The
+reference, measured in the same run, is the same environment stepped alone with random actions at
+the same batch size (fieldgen.env.throughput): the ratio is the share of time left to simulation
+once training runs beside it. Each figure times one jitted chunk of training iterations after a
+warm-up call, its state spread over the devices as `fieldgen train` spreads it (agents.sharding): by
+seed when `--seeds` fill the devices evenly, else by environment. The first algorithm listed is also
+the others' reference: `crl/icrl 1.20` means ICRL runs 1.2 times slower per env step than CRL. With
+`--devices 1,2` each row is timed on one device and then on two, and the second is also printed as a
+ratio to the first. With `--profile DIR` one more chunk of each row runs under JAX's profiler: the
+trace is kept in DIR, and the device's busiest kernels are printed with their share of the chunk,
+how many ran and for how long the device sat idle between them (a launch-bound program idles).
 
     python bench/train_throughput.py --fields build/ant_nav,build/soccer_v1 --algos crl,ppo --envs 1024,4096
     python bench/train_throughput.py --fields build/soccer_v1 --algos crl,icrl,icrl:agents=joint,sac,td3 --envs 1024
@@ -33,6 +33,7 @@ import jax
 import jax.numpy as jnp
 
 import fieldgen
+from fieldgen import xla_flags
 from fieldgen.agents import buffer, registry, sharding
 from fieldgen.agents.config import ReplayConfig
 from fieldgen.env.throughput import append_jsonl, measure
@@ -112,6 +113,7 @@ def main() -> None:
                         "print its busiest device kernels")
     parser.add_argument("--json", type=Path)
     args = parser.parse_args()
+    xla_flags.apply()  # before JAX starts its backend, as every fieldgen command does
     counts = [int(x) for x in args.devices.split(",")] if args.devices else [sharding.device_count()]
     print(f"device: {jax.devices()[0].device_kind} x {len(jax.devices())}")
     for field in args.fields.split(","):
