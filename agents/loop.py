@@ -16,6 +16,7 @@ from typing import Callable, Sequence
 import flax.struct
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from .programs import Programs
 
@@ -64,8 +65,9 @@ def evaluate_policy(env, act: Callable, key: jax.Array, n_envs: int, film: Calla
 
     success_any: share of episodes with a successful step; time_at_goal: successful steps
     per episode; closest_distance: the mean over episodes of the smallest distance between the
-    goal and what is compared with it (the state at `env.goal_indices`), over the states
-    observed before the episode ended, a sign of progress long before the first success;
+    target and what the success judges (the goal's `env.success_goal_entries`, where an
+    environment names them, and the state entries `env.goal_indices` compares them with), over
+    the states observed before the episode ended, a sign of progress long before the first success;
     episode_length: steps before the episode ended, short where the agent falls (leaves its
     healthy band) early; episode_return; and `term_<name>`: each reward term's mean per live step.
     An environment of several variants (`env.variant_count > 1`) is evaluated on each in turn,
@@ -83,10 +85,11 @@ def evaluate_policy(env, act: Callable, key: jax.Array, n_envs: int, film: Calla
     else:
         env_state = jax.vmap(env.reset)(keys)
     terms = [name for name in env_state.metrics if name != "success"]
-    goal_indices = jnp.asarray(env.goal_indices)
+    judged = np.asarray(getattr(env, "success_goal_entries", range(len(env.goal_indices))))
+    state_entries, goal_entries = np.asarray(env.goal_indices)[judged], env.state_dim + judged
 
     def goal_distance(obs):
-        return jnp.linalg.norm(obs[:, goal_indices] - obs[:, env.state_dim:], axis=-1)
+        return jnp.linalg.norm(obs[:, state_entries] - obs[:, goal_entries], axis=-1)
 
     filmed = count - 1  # 0 without variants; with them, the last (a mixed curriculum's hardest stage)
 

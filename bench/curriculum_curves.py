@@ -5,6 +5,8 @@ Each run is a metrics.jsonl (a run folder's, or one kept in bench/results): a di
 success, a staged or mixed run's `last_stage_success_any` (the policy judged on the last field
 at every evaluation, whichever stage it trained on). Time at goal is drawn where the run was
 judged on the last field (a direct run, a mixed run's last variant, a staged run once there).
+With --own-field every run is judged on the field it trained on at each evaluation instead (a
+staged run's stage), to compare runs on one stage of a curriculum.
 
     python bench/curriculum_curves.py direct=bench/results/h200_ppo_tanh_direct_v2_dense.jsonl \\
         staged=bench/results/h200_ppo_tanh_staged_v2_dense.jsonl mixed=... -o curves.png
@@ -38,11 +40,18 @@ def last_field(rows: list[dict]) -> tuple[list, list, list, list]:
     return steps, success, [s for s, _ in judged], [t for _, t in judged]
 
 
+def own_field(rows: list[dict]) -> tuple[list, list, list, list]:
+    """(steps, success on the field trained on, the same steps, time at goal there)."""
+    steps = [r["env_steps"] for r in rows]
+    return steps, [r["success_any"] for r in rows], steps, [r["time_at_goal"] for r in rows]
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("runs", nargs="+", metavar="LABEL=METRICS_JSONL")
     parser.add_argument("-o", "--out", type=Path, required=True)
     parser.add_argument("--title", default="success on the last field")
+    parser.add_argument("--own-field", action="store_true", help="judge each evaluation on the field it trained on")
     args = parser.parse_args()
     import matplotlib
 
@@ -53,7 +62,7 @@ def main() -> None:
     for item in args.runs:
         label, _, path = item.partition("=")
         rows = [json.loads(line) for line in Path(path).read_text().splitlines() if line.strip()]
-        steps, success, judged, at_goal = last_field(rows)
+        steps, success, judged, at_goal = (own_field if args.own_field else last_field)(rows)
         left.plot(steps, success, marker="o", label=label)
         clock.plot([r["wall_seconds"] / 60 for r in rows], success, marker="o", label=label)
         right.plot(judged, at_goal, marker="o", label=label)

@@ -1,8 +1,10 @@
 """The observation layout: named slices of the observation vector, found by joint name.
 
 obs = [agent qpos, agent qvel, ball position, (ball velocity), goal]. The first
-part is the state (state_dim); `goal_indices` says which state entries the goal
-is compared with: the ball's x, y for ball tasks, the agent's x, y otherwise.
+part is the state (state_dim); the goal names an x, y for each of the spec's
+`task.goal_positions` (the ball's for ball tasks, the agent's otherwise, or both),
+each the target, and `goal_indices` says which state entries it is compared with.
+`success_goal_entries` are the goal's entries that the success predicate reads.
 """
 
 from __future__ import annotations
@@ -30,11 +32,12 @@ class Layout:
     ball_qvel: np.ndarray  # empty unless observation.ball_velocity
     state_dim: int
     goal_indices: tuple[int, ...]
+    success_goal_entries: tuple[int, int]  # the goal's x, y of what the success judges
     names: tuple[str, ...]  # one per observation entry: "<joint>.<coordinate>", "ball.x", "goal.y"...
 
     @property
     def size(self) -> int:
-        return self.state_dim + 2
+        return self.state_dim + len(self.goal_indices)
 
     def to_json(self) -> dict:
         return {
@@ -87,10 +90,13 @@ def observation_layout(spec: FieldSpec, model: mujoco.MjModel) -> Layout:
         slices[name] = (at, at + n)
         at += n
     state_dim = at
-    slices["goal"] = (at, at + 2)
-    if spec.task.success.kind.startswith("ball"):
-        start = slices["ball_pos"][0]
-    else:
-        start = slices["agent_qpos"][0]  # torso or point x, y come first in the agent's qpos
-    return Layout(slices, agent_qpos, agent_qvel, ball_qpos, ball_qvel, state_dim, (start, start + 1),
-                  (*names, "goal.x", "goal.y"))
+    positions = spec.task.goal_positions
+    slices["goal"] = (at, at + 2 * len(positions))
+    starts = {"agent": slices["agent_qpos"][0]}  # torso or point x, y come first in the agent's qpos
+    if spec.ball.enabled:
+        starts["ball"] = slices["ball_pos"][0]
+    goal_indices = tuple(i for p in positions for i in (starts[p], starts[p] + 1))
+    judged = 2 * positions.index(spec.task.success_subject)
+    goal_names = ["goal.x", "goal.y"] if len(positions) == 1 else [f"goal.{p}.{c}" for p in positions for c in "xy"]
+    return Layout(slices, agent_qpos, agent_qvel, ball_qpos, ball_qvel, state_dim, goal_indices,
+                  (judged, judged + 1), (*names, *goal_names))

@@ -74,6 +74,7 @@ class FieldEnv:
         self.action_size = int(self.mj_model.nu)
         self.state_dim = self.layout.state_dim
         self.goal_indices = np.array(self.layout.goal_indices)
+        self.success_goal_entries = np.array(self.layout.success_goal_entries)
         self.observation_names = self.layout.names
         self.action_names = tuple(self.mj_model.actuator(i).name for i in range(self.mj_model.nu))  # = joint names
         self.terms = tuple(dict.fromkeys(n for v in self.variants for n in v.task.terms))
@@ -169,7 +170,7 @@ class FieldEnv:
             data = self._advance(sys, before, action)
         goal = state.info["goal"]
         if "first_obs" in state.info:  # brax's AutoResetWrapper swaps observations, not info: the goal is the obs'
-            goal = state.obs[self.state_dim:]
+            goal = self._target(state.obs[self.state_dim:])
         t = Transition(self._ball_pos(before, variant), self._ball_pos(data, variant), self._agent_pos(before),
                        self._agent_pos(data), goal, action, self.dt)
         steps, down_steps = state.info["episode_step"], state.info["down_steps"]
@@ -210,6 +211,7 @@ class FieldEnv:
         `variant`'s own rule and ball, as `step` judges it; by default the last variant's, the one a
         mixed environment is judged on."""
         variant = jnp.asarray(self.variant_count - 1 if variant is None else variant, jnp.int32)
+        goal = self._target(goal)
         agent = state[:3] if self._is_ant else jnp.append(state[:2], self._agent_z)
         ball = jnp.zeros(3)
         if self.spec.ball.enabled:
@@ -234,10 +236,17 @@ class FieldEnv:
 
     # -- views -------------------------------------------------------------
 
-    def _obs(self, data: mjx.Data, goal: jax.Array) -> jax.Array:
+    def _obs(self, data: mjx.Data, target: jax.Array) -> jax.Array:
+        """The state, then the goal: the target for each of the spec's goal positions."""
+        goal = jnp.tile(target, len(self.goal_indices) // 2)
         parts = [data.qpos[self._agent_qpos], data.qvel[self._agent_qvel], data.qpos[self._ball_qpos],
                  data.qvel[self._ball_qvel], goal]
         return jnp.concatenate(parts)
+
+    def _target(self, goal: jax.Array) -> jax.Array:
+        """The target point in a goal: the entries the success predicate reads."""
+        first = int(self.success_goal_entries[0])
+        return goal[..., first:first + 2]
 
     def _ball_pos(self, data: mjx.Data, variant: jax.Array) -> jax.Array:
         if not self.spec.ball.enabled:

@@ -65,6 +65,14 @@ def _task_needs(spec: FieldSpec) -> Found:
         out.append((("task", "success", "kind"), "'ball_in_goal' needs a goal, but goal.enabled is false"))
     if spec.task.target.kind == "goal" and not spec.goal.enabled:
         out.append((("task", "target", "kind"), "target 'goal' needs a goal, but goal.enabled is false"))
+    positions, subject = spec.task.goal_positions, spec.task.success_subject
+    if len(set(positions)) < len(positions):
+        out.append((("task", "goal_positions"), f"names {positions[0]!r} twice; each of agent, ball at most once"))
+    elif subject not in positions:
+        out.append((("task", "goal_positions"), f"the success ('{kind}') judges the {subject}, so the goal must "
+                    f"name it: add {subject!r}"))
+    if "ball" in positions and not spec.ball.enabled:
+        out.append((("task", "goal_positions"), "'ball' needs a ball, but ball.enabled is false"))
     ball_terms = {"ball_progress", "scaled_ball_progress", "agent_approaches_ball", "ball_in_goal"}
     for i, term in enumerate(spec.task.reward):
         if term.term in ball_terms and not spec.ball.enabled:

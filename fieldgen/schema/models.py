@@ -280,11 +280,29 @@ class RewardTerm(Section):
 class TaskSection(Section):
     target: Target = Field(default_factory=lambda: TargetGoal(kind="goal"), description="where the goal point lies")
     success: Success = Field(default_factory=Success, description="the success predicate")
+    goal_positions: list[Literal["agent", "ball"]] | None = Field(
+        None, min_length=1, max_length=2,
+        description="whose x, y the goal names, in this order, each commanded to the target; default: what the "
+                    "success judges. [agent, ball] gives hindsight the agent's own moves to learn from before the "
+                    "ball ever moves")
     reward: list[RewardTerm] = Field(
         default_factory=lambda: [RewardTerm(term="success")],
         min_length=1,
         description="weighted reward terms, summed; the default is the sparse success reward",
     )
+
+    @model_validator(mode="after")
+    def _goal_of_success(self):
+        """By default the goal names only what the success judges: the ball, or the agent."""
+        if self.goal_positions is None:
+            self.goal_positions = [self.success_subject]
+            self.model_fields_set.discard("goal_positions")
+        return self
+
+    @property
+    def success_subject(self) -> str:
+        """What the success predicate judges: "ball" or "agent"."""
+        return "ball" if self.success.kind.startswith("ball") else "agent"
 
 
 class FallFlipped(Section):

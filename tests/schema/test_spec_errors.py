@@ -44,6 +44,11 @@ BAD = [
     ("name: x\nobstacles:\n  rock: {x: 0, y: 3.2}\n", 3, "obstacles.rock", "touching obstacle 'rock'"),
     ("name: x\nobstacles:\n  rock: {x: 0, y: 0}\n", 3, "obstacles.rock", "overlaps the agent's start"),
     ("name: x\nball: {enabled: false}\n", 1, "task.success.kind", "needs a ball"),
+    ("name: x\ntask:\n  goal_positions: [agent]\n", 3, "task.goal_positions", "judges the ball, so the goal must"),
+    ("name: x\ntask:\n  goal_positions: [ball, ball]\n", 3, "task.goal_positions", "names 'ball' twice"),
+    ("name: x\ntask:\n  goal_positions: [torso, ball]\n", 3, "task.goal_positions[0]", "'agent' or 'ball'"),
+    ("name: x\nball: {enabled: false}\ntask:\n  success: {kind: agent_near_target}\n  goal_positions: [agent, ball]\n",
+     5, "task.goal_positions", "'ball' needs a ball"),
     ("name: x\nagent: {kind: point}\ntask:\n  reward:\n    - {term: upright}\n", 5, "task.reward[0].term",
      "needs an agent with a torso"),
     ("name: x\nwalls: {enabled: true}\nfield: {length: 24, width: 8}\n"
