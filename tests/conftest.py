@@ -7,6 +7,7 @@ program compiles once per session.
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import tempfile
@@ -16,14 +17,26 @@ import jax
 import pytest
 
 import fieldgen
+from fieldgen import xla_flags
 from fieldgen.schema import bundled_fields
 
 FIELDS = sorted(bundled_fields())
 
+# The smallest CRL run on point_nav that trains: 10 iterations of 8 envs x 10 steps prefill its 100 rows
+# (800 env steps), then 2 evaluations of 6 iterations each. Every test that trains it, in-process or through
+# `fieldgen train`, uses these very settings, so that the session compiles its programs once.
+TINY_CRL = {"total_steps": 1900, "num_envs": 8, "unroll_length": 10, "batch_size": 32, "min_replay_rows": 100,
+            "max_replay_rows": 400, "hidden": (32, 32), "repr_dim": 8, "num_evals": 2, "eval_envs": 8}
+
 
 def pytest_configure(config):
     """The first process of the session (the controller, or the only one) makes the cache folder; workers
-    and the `fieldgen` commands tests start inherit the variable (JAX reads it on import)."""
+    and the `fieldgen` commands tests start inherit the variable (JAX reads it on import).
+
+    XLA_FLAGS is part of a compiled program's cache key, and every `fieldgen` command adds its defaults to
+    it: they are set here, before anything compiles, so that a program compiled in a test's process, by a
+    command it invokes or by a `fieldgen` process it starts is the same cache entry."""
+    xla_flags.apply()
     if "JAX_COMPILATION_CACHE_DIR" in os.environ:  # the user's own cache, or the controller's
         return
     os.environ["JAX_COMPILATION_CACHE_DIR"] = tempfile.mkdtemp(prefix="fieldgen-test-jax-cache-")
@@ -59,3 +72,19 @@ def write_spec(tmp_path: Path):
         return path
 
     return write
+
+
+@pytest.fixture(scope="session")
+def tiny_crl():
+    """TINY_CRL as a CRLConfig, with any of its keys changed."""
+    from fieldgen.agents.crl import CRLConfig
+
+    return lambda **changes: CRLConfig(**{**TINY_CRL, **changes})
+
+
+@pytest.fixture(scope="session")
+def tiny_crl_args():
+    """TINY_CRL as `fieldgen train` options."""
+    sets = {k: v for k, v in TINY_CRL.items() if k not in ("total_steps", "num_envs")}
+    return ["--steps", str(TINY_CRL["total_steps"]), "--envs", str(TINY_CRL["num_envs"]),
+            *[x for k, v in sets.items() for x in ("--set", f"crl.{k}={json.dumps(v, separators=(',', ':'))}")]]

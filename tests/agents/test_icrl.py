@@ -46,7 +46,7 @@ def ant_icrl(env_cache):
                              batch_size=32, windows=2, hidden=(16,), repr_dim=4, num_evals=1, agents="joint")
     env = env_cache("ant_nav")
     algo = icrl.make_train(config, env)
-    shapes = jax.eval_shape(algo.start, jax.random.PRNGKey(0)).nets
+    shapes = jax.eval_shape(algo.init, jax.random.PRNGKey(0)).nets  # without tracing the ant's steps
     leaves, treedef = jax.tree.flatten(shapes)
     keys = jax.random.split(jax.random.PRNGKey(1), len(leaves))
     actor = treedef.unflatten([jax.random.normal(k, s.shape) * 0.3 for k, s in zip(keys, leaves)])

@@ -15,19 +15,14 @@ import pytest
 from fieldgen.agents import crl, loop, ppo
 
 
-def tiny_crl():
-    return crl.CRLConfig(total_steps=1900, num_envs=8, unroll_length=10, batch_size=32, min_replay_rows=100,
-                         max_replay_rows=400, hidden=(32, 32), repr_dim=8, num_evals=2, eval_envs=8)
-
-
 @pytest.fixture(scope="module")
-def seed_one(env_cache):
+def seed_one(env_cache, tiny_crl):
     """A tiny CRL run of seed 1 on one device, shared by the comparisons below."""
     return loop.run(crl.make_train(tiny_crl(), env_cache("point_nav")), [1], 2)
 
 
 @pytest.mark.slow
-def test_vmapped_seeds_match_seeds_run_alone(env_cache, seed_one):
+def test_vmapped_seeds_match_seeds_run_alone(env_cache, seed_one, tiny_crl):
     both, rows = loop.run(crl.make_train(tiny_crl(), env_cache("point_nav")), [0, 1], 2)
     alone, alone_rows = seed_one
     for a, b in zip(jax.tree.leaves(loop.seed_slice(both.nets, 1)), jax.tree.leaves(loop.seed_slice(alone.nets, 0))):
@@ -55,13 +50,12 @@ def test_pure_train_is_the_stepwise_run(env_cache):
 
 TWO_DEVICES = """
 import json
+import sys
 import jax
 import fieldgen
 from fieldgen.agents import crl, loop
 assert len(jax.local_devices()) == 2
-config = crl.CRLConfig(total_steps=1900, num_envs=8, unroll_length=10, batch_size=32, min_replay_rows=100,
-                       max_replay_rows=400, hidden=(32, 32), repr_dim=8, num_evals=2, eval_envs=8)
-algo = crl.make_train(config, fieldgen.make("point_nav"))
+algo = crl.make_train(crl.CRLConfig.layered(**json.loads(sys.argv[1])), fieldgen.make("point_nav"))
 out = {}
 for seeds in ([1], [0, 1]):  # one seed: its environments split; two: a seed per device
     state, rows = loop.run(algo, seeds, 2)
@@ -73,15 +67,16 @@ print(json.dumps(out))
 
 
 @pytest.mark.slow
-def test_two_devices_match_one(seed_one):
+def test_two_devices_match_one(seed_one, tiny_crl):
     """The same CRL run on this process's one device and on two host devices. One seed: its environments
     and buffer are split across the two, and the metrics agree within float32 reduction-order tolerance.
     Two seeds: each device trains one (the buffer is split along the seed axis), nothing crosses between
     them, and seed 1 matches its run alone as closely as vmapped seeds do."""
     _, one = seed_one
-    env = {**os.environ, "XLA_FLAGS": "--xla_force_host_platform_device_count=2", "JAX_PLATFORMS": "cpu"}
-    proc = subprocess.run([sys.executable, "-c", TWO_DEVICES], env=env, capture_output=True, text=True,
-                          cwd=Path(__file__).parents[2], timeout=600)
+    flags = f"{os.environ.get('XLA_FLAGS', '')} --xla_force_host_platform_device_count=2"
+    env = {**os.environ, "XLA_FLAGS": flags, "JAX_PLATFORMS": "cpu"}
+    proc = subprocess.run([sys.executable, "-c", TWO_DEVICES, json.dumps(tiny_crl().model_dump())], env=env,
+                          capture_output=True, text=True, cwd=Path(__file__).parents[2], timeout=600)
     assert proc.returncode == 0, proc.stderr[-3000:]
     runs = json.loads(proc.stdout.strip().splitlines()[-1])
     for seeds, split_axis, rel in (("1", 2, 2e-3), ("2", 0, 1e-4)):  # buffer columns: [seeds, rows, envs, ...]

@@ -25,8 +25,9 @@ CASES = {
 
 def random_state(trainer, key):
     """A training state of the trainer's shapes with random weights (a normaliser's statistics positive): what
-    matters is that the exported actor computes what `act` does from any weights."""
-    leaves, treedef = jax.tree_util.tree_flatten_with_path(jax.eval_shape(trainer.start, jax.random.PRNGKey(0)))
+    matters is that the exported actor computes what `act` does from any weights. The shapes are `init`'s, which
+    `start` keeps, without tracing the environment steps of its prefill."""
+    leaves, treedef = jax.tree_util.tree_flatten_with_path(jax.eval_shape(trainer.init, jax.random.PRNGKey(0)))
     keys = jax.random.split(key, len(leaves))
 
     def fill(path, x, k):

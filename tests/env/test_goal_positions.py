@@ -66,11 +66,9 @@ def test_hindsight_success_reads_the_balls_entries_of_a_goal(envs):
     assert float(both.goal_reached(state, jnp.concatenate([agent, far]))) == 0.0
 
 
-def test_crl_trains_on_goals_of_agent_and_ball(envs):
+def test_crl_trains_on_goals_of_agent_and_ball(envs, tiny_crl):
     _, both = envs
-    config = crl.CRLConfig(total_steps=1900, num_envs=8, unroll_length=10, batch_size=32, min_replay_rows=100,
-                           max_replay_rows=400, hidden=(32, 32), repr_dim=8, num_evals=2, eval_envs=8)
-    algo = crl.make_train(config, both)
+    algo = crl.make_train(tiny_crl(), both)
     state, rows = loop.run(algo, [0], 2)
     assert all(np.isfinite(r["critic_loss"]) for r in rows if r["eval"])
     policy = algo.export(loop.seed_slice(state, 0))

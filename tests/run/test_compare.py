@@ -10,24 +10,20 @@ from typer.testing import CliRunner
 from fieldgen.cli import app
 
 runner = CliRunner()
-TINY = ["--steps", "2000", "--envs", "8", "--seeds", "2",
-        "--set", "crl.hidden=[16]", "--set", "crl.repr_dim=4", "--set", "crl.batch_size=32",
-        "--set", "crl.unroll_length=10", "--set", "crl.min_replay_rows=100", "--set", "crl.max_replay_rows=400",
-        "--set", "crl.num_evals=2", "--set", "crl.windows=4",
-        "--set", "td3.hidden=[16]", "--set", "td3.batch_size=32", "--set", "td3.unroll_length=10",
-        "--set", "td3.min_replay_rows=100", "--set", "td3.max_replay_rows=400", "--set", "td3.num_evals=2",
-        "--set", "td3.windows=4"]
+TD3 = ["--set", "td3.hidden=[16]", "--set", "td3.batch_size=32", "--set", "td3.unroll_length=10",
+       "--set", "td3.min_replay_rows=100", "--set", "td3.max_replay_rows=400", "--set", "td3.num_evals=2",
+       "--set", "td3.windows=4"]
 
 
 @pytest.mark.slow
-def test_compare_trains_each_algorithm_then_only_redraws(tmp_path):
-    args = ["compare", "point_nav", "--algos", "crl,td3", "--out", str(tmp_path), *TINY]
+def test_compare_trains_each_algorithm_then_only_redraws(tmp_path, tiny_crl_args):
+    args = ["compare", "point_nav", "--algos", "crl,td3", "--out", str(tmp_path), "--seeds", "2", *tiny_crl_args, *TD3]
     result = runner.invoke(app, args)
     assert result.exit_code == 0, result.output
     table = json.loads((tmp_path / "compare.json").read_text())
     assert [r["algo"] for r in table] == ["crl", "td3"]
-    assert all(r["seeds"] == 2 and r["env_steps"] == 1920 and 0 <= r["success_any"] <= 1 for r in table)  # 2000
-    # less what does not fill an iteration of 8 envs x 10 steps
+    assert all(r["seeds"] == 2 and r["env_steps"] == 1760 and 0 <= r["success_any"] <= 1 for r in table)  # 1900
+    # less what does not fill an evaluation's iterations of 8 envs x 10 steps: 800 of prefill, then 2 x 6 x 80
     assert all(0 <= r["closest_distance"] <= 3.0 + 1e-4 for r in table)  # targets start 3 away
     assert (tmp_path / "compare.png").stat().st_size > 10_000
     metrics = (tmp_path / "point_nav-td3-0to1" / "metrics.jsonl").read_text()

@@ -16,20 +16,17 @@ from fieldgen.policy import DESCRIPTION, PARAMS, PolicyError
 from fieldgen.run import session
 
 runner = CliRunner()
-TINY = ["--set", "crl.hidden=[32,32]", "--set", "crl.repr_dim=8", "--set", "crl.batch_size=32",
-        "--set", "crl.unroll_length=10", "--set", "crl.min_replay_rows=100", "--set", "crl.max_replay_rows=400",
-        "--set", "crl.num_evals=1", "--set", "crl.eval_envs=8"]
 
 
 pytestmark = pytest.mark.slow  # training the run they share takes minutes on two CPU cores
 
 
 @pytest.fixture(scope="module")
-def trained(tmp_path_factory):
+def trained(tmp_path_factory, tiny_crl_args):
     """A tiny CRL run of two seeds on point_nav."""
     out = tmp_path_factory.mktemp("runs")
-    result = runner.invoke(app, ["train", "point_nav", "--steps", "1000", "--envs", "8", "--seeds", "2",
-                                 "--out", str(out), "--no-videos", *TINY])
+    result = runner.invoke(app, ["train", "point_nav", "--seeds", "2", "--out", str(out), "--no-videos",
+                                 *tiny_crl_args])
     assert result.exit_code == 0, result.output
     return out / "point_nav-crl-0to1"
 
@@ -38,11 +35,11 @@ def test_exported_policy_acts_as_the_run(trained, tmp_path):
     folder = tmp_path / "policy"
     result = runner.invoke(app, ["export", str(trained), "-o", str(folder), "--seed", "1"])
     assert result.exit_code == 0, result.output
-    assert "exported crl seed 1 at 960 env steps (point_nav: 6 observations -> 2 actions)" in result.output
+    assert "exported crl seed 1 at 1,760 env steps (point_nav: 6 observations -> 2 actions)" in result.output
     assert sorted(p.name for p in folder.iterdir()) == [PARAMS, DESCRIPTION]
     run = session.open_run(trained)
     described = json.loads((folder / DESCRIPTION).read_text())
-    assert described["algorithm"] == "crl" and described["seed"] == 1 and described["env_steps"] == 960
+    assert described["algorithm"] == "crl" and described["seed"] == 1 and described["env_steps"] == 1760
     assert described["observation_names"] == list(run.env.observation_names)
     assert described["action_names"] == list(run.env.action_names) == described["agents"][0]["drives"]
     assert described["network"]["hidden"] == [32, 32] and described["normalizer"] is None
@@ -57,12 +54,11 @@ def test_exported_policy_acts_as_the_run(trained, tmp_path):
     np.testing.assert_allclose(np.asarray(jax.jit(lambda a, o: a(o))(act, obs[0])), own[0], rtol=0, atol=1e-6)
 
 
-def test_export_errors_are_one_sentence(trained, tmp_path):
+def test_export_errors_are_one_sentence(trained, tmp_path, tiny_crl_args):
     unknown = runner.invoke(app, ["export", str(trained), "-o", str(tmp_path / "p"), "--seed", "7"])
     assert unknown.exit_code == 1 and "trained seeds 0, 1, not 7" in unknown.output
     assert not (tmp_path / "p").exists()
-    prepared = runner.invoke(app, ["train", "point_nav", "--steps", "1000", "--envs", "8", "--out", str(tmp_path),
-                                   "--prepare", *TINY])
+    prepared = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path), "--prepare", *tiny_crl_args])
     assert prepared.exit_code == 0, prepared.output
     untrained = runner.invoke(app, ["export", str(tmp_path / "point_nav-crl-0"), "-o", str(tmp_path / "p")])
     assert untrained.exit_code == 1 and "has not trained yet" in untrained.output and "Traceback" not in untrained.output

@@ -18,9 +18,6 @@ from fieldgen.agents import loop
 from fieldgen.cli import app
 
 runner = CliRunner()
-TINY = ["--steps", "2700", "--envs", "8", "--no-videos", "--set", "crl.hidden=[32,32]", "--set", "crl.repr_dim=8",
-        "--set", "crl.batch_size=32", "--set", "crl.unroll_length=10", "--set", "crl.min_replay_rows=100",
-        "--set", "crl.max_replay_rows=400", "--set", "crl.num_evals=4", "--set", "crl.eval_envs=8"]
 
 # `fieldgen train` that kills itself (SIGKILL, nothing cleaned up) at one moment: "metrics N" once
 # evaluation N's metrics are written and before its checkpoint is, "write N" halfway through writing
@@ -68,20 +65,21 @@ def leftovers(run: Path) -> list[str]:
 
 
 @pytest.mark.slow
-def test_a_run_killed_at_any_moment_resumes_to_the_uninterrupted_result(tmp_path):
+def test_a_run_killed_at_any_moment_resumes_to_the_uninterrupted_result(tmp_path, tiny_crl_args):
     """Killed before its first checkpoint, in the middle of writing its first and a later one, and between the
     metrics and the checkpoint of one evaluation, the run resumed each time ends with the same bytes as a run
     never stopped."""
-    whole = train(tmp_path, "never", 0, "point_nav", "--out", "whole", *TINY)
-    assert whole.returncode == 0, whole.stderr[-3000:]
+    tiny = [*tiny_crl_args, "--no-videos"]
+    whole = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path / "whole"), *tiny])
+    assert whole.exit_code == 0, whole.output
     run = tmp_path / "killed" / "point_nav-crl-0"
 
-    first = train(tmp_path, "metrics", 0, "point_nav", "--out", "killed", *TINY)
+    first = train(tmp_path, "metrics", 0, "point_nav", "--out", "killed", *tiny)
     assert first.returncode == -signal.SIGKILL
     assert not (run / "checkpoint.msgpack").exists() and rows(run)[-1]["eval"] == 0
 
     # the same command again sets the run up anew; it is then killed halfway through its first checkpoint
-    second = train(tmp_path, "write", 1, "point_nav", "--out", "killed", *TINY)
+    second = train(tmp_path, "write", 1, "point_nav", "--out", "killed", *tiny)
     assert second.returncode == -signal.SIGKILL, second.stderr[-3000:]
     assert not (run / "checkpoint.msgpack").exists()
     assert leftovers(run) == [n for n in leftovers(run) if n.startswith(".checkpoint.msgpack.")] != []
@@ -93,9 +91,10 @@ def test_a_run_killed_at_any_moment_resumes_to_the_uninterrupted_result(tmp_path
     assert (run / "checkpoint.msgpack").exists()
     assert leftovers(run) == [n for n in leftovers(run) if n.startswith(".checkpoint.msgpack.")] != []
 
-    fourth = train(tmp_path, "metrics", 3, "--resume", str(run))
+    # from evaluation 0's checkpoint on, killed once the last evaluation's metrics are written, before its checkpoint
+    fourth = train(tmp_path, "metrics", 2, "--resume", str(run))
     assert fourth.returncode == -signal.SIGKILL, fourth.stderr[-3000:]
-    assert rows(run)[-1]["eval"] == 3
+    assert rows(run)[-1]["eval"] == 2
 
     last = train(tmp_path, "never", 0, "--resume", str(run))
     assert last.returncode == 0, last.stderr[-3000:]
@@ -106,10 +105,10 @@ def test_a_run_killed_at_any_moment_resumes_to_the_uninterrupted_result(tmp_path
     assert rows(run) == rows(reference)
 
 
-def test_a_run_without_a_checkpoint_starts_again(tmp_path, monkeypatch):
+def test_a_run_without_a_checkpoint_starts_again(tmp_path, monkeypatch, tiny_crl_args):
     """Stopped before its first checkpoint, a run folder holds no training: --resume and a new
     `fieldgen train` both start it from the beginning, and what killed writes left is cleared."""
-    prepared = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path), "--prepare", *TINY])
+    prepared = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path), "--prepare", *tiny_crl_args])
     assert prepared.exit_code == 0, prepared.output
     run = tmp_path / "point_nav-crl-0"
     started = []
@@ -118,7 +117,7 @@ def test_a_run_without_a_checkpoint_starts_again(tmp_path, monkeypatch):
         raise KeyboardInterrupt
 
     monkeypatch.setattr(loop, "run_staged", stop)
-    for command in (["train", "--resume", str(run)], ["train", "point_nav", "--out", str(tmp_path), *TINY]):
+    for command in (["train", "--resume", str(run)], ["train", "point_nav", "--out", str(tmp_path), *tiny_crl_args]):
         (run / "metrics.jsonl").write_text(json.dumps({"eval": 0, "seed": 0, "env_steps": 800}) + "\n")
         (run / ".checkpoint.msgpack.x1y2.tmp").write_bytes(b"half a checkpoint")
         result = runner.invoke(app, command)
@@ -149,22 +148,23 @@ INTERRUPTED_COMPILING = textwrap.dedent("""
 
 
 @pytest.mark.slow
-def test_ctrl_c_while_programs_compile_exits_cleanly(tmp_path):
+def test_ctrl_c_while_programs_compile_exits_cleanly(tmp_path, tiny_crl_args):
     """Stopped while compiles run on their threads, the command says so and exits with Ctrl-C's status once
     they end, rather than aborting inside XLA."""
     env = dict(os.environ, JAX_PLATFORMS="cpu")
-    result = subprocess.run([sys.executable, "-c", INTERRUPTED_COMPILING, "train", "point_nav", "--out", "runs", *TINY],
+    result = subprocess.run([sys.executable, "-c", INTERRUPTED_COMPILING, "train", "point_nav", "--out", "runs",
+                             *tiny_crl_args, "--no-videos"],
                             cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600)
     assert result.returncode == 130, result.stdout[-2000:] + result.stderr[-3000:]
     assert "interrupted; no checkpoint yet" in result.stdout
     assert "terminate called" not in result.stderr and "Traceback" not in result.stderr
 
 
-def test_opening_a_run_leaves_the_writes_of_its_training_alone(tmp_path):
+def test_opening_a_run_leaves_the_writes_of_its_training_alone(tmp_path, tiny_crl_args):
     """`fieldgen eval` or `compare` may open a run while it trains: the checkpoint being written stays."""
     from fieldgen.run import session
 
-    prepared = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path), "--prepare", *TINY])
+    prepared = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path), "--prepare", *tiny_crl_args])
     assert prepared.exit_code == 0, prepared.output
     run = tmp_path / "point_nav-crl-0"
     (run / ".checkpoint.msgpack.x1y2.tmp").write_bytes(b"a checkpoint being written")
@@ -218,10 +218,10 @@ TORN = '{"eval": 1, "se'
      "train command"),
 ], ids=["file", "empty", "list", "config", "seeds", "seeds_mixed", "fields", "promotion", "middle", "bytes",
         "eval_text", "stage", "no_rows", "folder", "field", "field_missing", "record_missing"])
-def test_damaged_run_folders_are_clear_errors(tmp_path, damage, phrase):
+def test_damaged_run_folders_are_clear_errors(tmp_path, damage, phrase, tiny_crl_args):
     """What a kill, an editor or a copy can leave in a run folder: one sentence naming the file and the key,
     never a traceback."""
-    prepared = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path), "--prepare", *TINY])
+    prepared = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path), "--prepare", *tiny_crl_args])
     assert prepared.exit_code == 0, prepared.output
     run = tmp_path / "point_nav-crl-0"
     target = damage(run)  # the folder, or the path --resume is given instead
@@ -239,7 +239,7 @@ def test_a_torn_last_metrics_line_is_dropped(tmp_path, torn):
     assert [r["eval"] for r in record.read_metrics(tmp_path)] == [0]
 
 
-def test_a_run_folder_that_cannot_be_written_is_one_sentence(tmp_path, monkeypatch):
+def test_a_run_folder_that_cannot_be_written_is_one_sentence(tmp_path, monkeypatch, tiny_crl_args):
     """A read-only --out (simulated: tests may run as root) or a full disk when a run is set up."""
     from fieldgen import files
 
@@ -247,7 +247,7 @@ def test_a_run_folder_that_cannot_be_written_is_one_sentence(tmp_path, monkeypat
         raise PermissionError(13, "Permission denied")
 
     monkeypatch.setattr(files.tempfile, "mkstemp", refuse)
-    result = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path), *TINY])
+    result = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path), *tiny_crl_args])
     assert result.exit_code == 1 and "Traceback" not in result.output
     assert "".join(f"cannot set up the run folder {tmp_path / 'point_nav-crl-0'}: Permission denied; free some "
                    "space, fix the folder's permissions or choose another --out".split()) in "".join(result.output.split())

@@ -17,9 +17,6 @@ from fieldgen.cli import app
 from fieldgen.run import loggers
 
 runner = CliRunner()
-TINY = ["--steps", "1900", "--envs", "8", "--set", "crl.hidden=[32,32]", "--set", "crl.repr_dim=8",
-        "--set", "crl.batch_size=32", "--set", "crl.unroll_length=10", "--set", "crl.min_replay_rows=100",
-        "--set", "crl.max_replay_rows=400", "--set", "crl.num_evals=2", "--set", "crl.eval_envs=8"]
 ROWS = [{"eval": 1, "seed": s, "env_steps": 1000, "success_any": 0.25 + s, "critic_loss": 3.5, "entropy": 1.2,
          "term_ball_progress": -0.5, "steps_per_second": 2000.0, "stage": 0,
          "variants": {"success_any": [0.5, 0.125]}} for s in (0, 1)]
@@ -103,8 +100,9 @@ def test_an_unknown_logger_is_refused_before_anything_loads(tmp_path):
 
 
 @pytest.mark.slow
-def test_train_logs_to_tensorboard_and_prints_a_line_per_evaluation(tmp_path):
-    result = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path), "--logger", "tensorboard", *TINY])
+def test_train_logs_to_tensorboard_and_prints_a_line_per_evaluation(tmp_path, tiny_crl_args):
+    result = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path), "--logger", "tensorboard",
+                                 *tiny_crl_args])
     assert result.exit_code == 0, result.output
     lines = re.findall(r"^point_nav ([\d,]+) of 1,900 steps \(\d+%\)  .*success 0\.\d\d", result.output, re.M)
     assert lines == ["800", "1,280", "1,760"], result.output  # one per evaluation, as they come
@@ -120,11 +118,11 @@ def test_train_logs_to_tensorboard_and_prints_a_line_per_evaluation(tmp_path):
 
 
 @pytest.mark.slow
-def test_train_logs_to_wandb_offline(tmp_path, monkeypatch):
+def test_train_logs_to_wandb_offline(tmp_path, monkeypatch, tiny_crl_args):
     pytest.importorskip("wandb")
     monkeypatch.setenv("WANDB_MODE", "offline")
     result = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path), "--logger", "wandb", "--no-videos",
-                                 *TINY])
+                                 *tiny_crl_args])
     assert result.exit_code == 0, result.output
     [run] = (tmp_path / "point_nav-crl-0" / "wandb").glob("offline-run-*")
     log = next(run.glob("run-*.wandb")).read_bytes()

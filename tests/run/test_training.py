@@ -19,15 +19,6 @@ from fieldgen.agents.registry import trainer
 from fieldgen.cli import app
 
 runner = CliRunner()
-TINY = ["--set", "crl.hidden=[32,32]", "--set", "crl.repr_dim=8", "--set", "crl.batch_size=32",
-        "--set", "crl.unroll_length=10", "--set", "crl.min_replay_rows=100", "--set", "crl.max_replay_rows=400",
-        "--set", "crl.num_evals=2", "--set", "crl.eval_envs=8"]
-
-
-def tiny_config(**kw):
-    base = dict(total_steps=1900, num_envs=8, unroll_length=10, batch_size=32, min_replay_rows=100,
-                max_replay_rows=400, hidden=(32, 32), repr_dim=8, num_evals=2, eval_envs=8)
-    return crl.CRLConfig(**{**base, **kw})
 
 
 def unwrapped(text: str) -> str:
@@ -52,8 +43,8 @@ def no_opengl(*args, **kwargs):
     raise RuntimeError("no OpenGL here")
 
 
-def test_resume_after_interrupt_reproduces_the_uninterrupted_run(env_cache, tmp_path):
-    algo = crl.make_train(tiny_config(), env_cache("point_nav"))
+def test_resume_after_interrupt_reproduces_the_uninterrupted_run(env_cache, tmp_path, tiny_crl):
+    algo = crl.make_train(tiny_crl(), env_cache("point_nav"))
     full, _ = loop.run(algo, [0], 2)
 
     saved = {}
@@ -92,11 +83,11 @@ def test_resume_after_interrupt_reproduces_the_uninterrupted_run(env_cache, tmp_
 
 
 @pytest.mark.slow
-def test_a_run_copied_without_its_whole_checkpoint_goes_on_from_what_it_learned(tmp_path, monkeypatch):
+def test_a_run_copied_without_its_whole_checkpoint_goes_on_from_what_it_learned(tmp_path, monkeypatch, tiny_crl_args):
     """A run folder moved without checkpoint.msgpack (gigabytes with a full replay buffer) goes on from
     learner.msgpack: it says so, and trains to its end with a buffer filled anew."""
     from fieldgen.run import record
-    args = ["train", "point_nav", "--steps", "1900", "--envs", "8", "--out", str(tmp_path), "--no-videos", *TINY]
+    args = ["train", "point_nav", "--out", str(tmp_path), "--no-videos", *tiny_crl_args]
     run = tmp_path / "point_nav-crl-0"
     write_metrics = record.write_metrics
 
@@ -117,9 +108,9 @@ def test_a_run_copied_without_its_whole_checkpoint_goes_on_from_what_it_learned(
     assert (run / "checkpoint.msgpack").exists()
 
 
-def test_an_interrupt_says_whether_a_checkpoint_was_kept(tmp_path, monkeypatch):
+def test_an_interrupt_says_whether_a_checkpoint_was_kept(tmp_path, monkeypatch, tiny_crl_args):
     """Ctrl-C exits with 130 and tells how to go on, before and after the first checkpoint."""
-    args = ["train", "point_nav", "--steps", "1900", "--envs", "8", "--out", str(tmp_path), "--no-videos", *TINY]
+    args = ["train", "point_nav", "--out", str(tmp_path), "--no-videos", *tiny_crl_args]
     run = tmp_path / "point_nav-crl-0"
 
     def interrupted(*args, checkpoint=False):
@@ -136,12 +127,12 @@ def test_an_interrupt_says_whether_a_checkpoint_was_kept(tmp_path, monkeypatch):
         assert unwrapped(f"{phrase}: fieldgen train --resume {run}") in unwrapped(result.output)
 
 
-def test_a_full_disk_is_a_clear_error(tmp_path, monkeypatch):
+def test_a_full_disk_is_a_clear_error(tmp_path, monkeypatch, tiny_crl_args):
     def full(*args, **kwargs):
         raise OSError(28, "No space left on device", str(tmp_path / "point_nav-crl-0" / "checkpoint.msgpack"))
 
     monkeypatch.setattr(loop, "run_staged", full)
-    result = runner.invoke(app, ["train", "point_nav", "--steps", "1900", "--envs", "8", "--out", str(tmp_path), *TINY])
+    result = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path), *tiny_crl_args])
     assert result.exit_code == 1 and "Traceback" not in result.output
     assert unwrapped("checkpoint.msgpack: No space left on device; the files already there are intact") in \
         unwrapped(result.output)
@@ -149,7 +140,7 @@ def test_a_full_disk_is_a_clear_error(tmp_path, monkeypatch):
     assert unwrapped(f"continue with fieldgen train --resume {run}") in unwrapped(result.output)
 
 
-def test_a_diverged_run_stops_before_writing_its_evaluation(tmp_path, monkeypatch):
+def test_a_diverged_run_stops_before_writing_its_evaluation(tmp_path, monkeypatch, tiny_crl_args):
     """NaN losses stop the run with one paragraph, and neither they nor the NaN weights reach the disk."""
     run = tmp_path / "point_nav-crl-0"
 
@@ -163,8 +154,7 @@ def test_a_diverged_run_stops_before_writing_its_evaluation(tmp_path, monkeypatc
     written = []
     monkeypatch.setattr(loop, "run_staged", diverging)
     monkeypatch.setattr(checkpoint, "pieces", lambda state: written.append(state) or [b"x"])
-    result = runner.invoke(app, ["train", "point_nav", "--steps", "1900", "--envs", "8", "--out", str(tmp_path),
-                                 "--no-videos", *TINY])
+    result = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path), "--no-videos", *tiny_crl_args])
     assert result.exit_code == 1 and "Traceback" not in result.output
     assert unwrapped(f"training diverged: after 992 env steps (evaluation 1) seed 0's actor_loss, critic_loss are "
                      f"not finite. Nothing of that evaluation was written; {run} keeps evaluation 0's checkpoint") \
@@ -173,9 +163,9 @@ def test_a_diverged_run_stops_before_writing_its_evaluation(tmp_path, monkeypatc
     assert [json.loads(line)["eval"] for line in (run / "metrics.jsonl").read_text().splitlines()] == [0]
 
 
-def test_checkpoint_errors_are_clear(tmp_path, env_cache):
+def test_checkpoint_errors_are_clear(tmp_path, env_cache, tiny_crl):
     env = env_cache("point_nav")
-    template = jax.eval_shape(crl.make_train(tiny_config(), env).start, jax.random.PRNGKey(0))
+    template = jax.eval_shape(crl.make_train(tiny_crl(), env).start, jax.random.PRNGKey(0))
     with pytest.raises(checkpoint.CheckpointError, match="no checkpoint"):
         checkpoint.load(tmp_path / "none.msgpack", template)
     bad = tmp_path / "bad.msgpack"
@@ -183,13 +173,14 @@ def test_checkpoint_errors_are_clear(tmp_path, env_cache):
     with pytest.raises(checkpoint.CheckpointError, match="checkpoint corrupt"):
         checkpoint.load(bad, template)
     other = tmp_path / "other.msgpack"
-    other.write_bytes(checkpoint.to_bytes(crl.make_train(tiny_config(repr_dim=4), env).start(jax.random.PRNGKey(0))))
+    shapes = jax.eval_shape(crl.make_train(tiny_crl(repr_dim=4), env).start, jax.random.PRNGKey(0))
+    other.write_bytes(checkpoint.to_bytes(jax.tree.map(lambda x: np.zeros(x.shape, x.dtype), shapes)))  # its shapes
     with pytest.raises(checkpoint.CheckpointError, match="config or the field's observation layout differs"):
         checkpoint.load(other, template)
 
 
-def test_cli_run_folder_and_resume_of_a_finished_run(tmp_path, monkeypatch):
-    args = ["train", "point_nav", "--steps", "1900", "--envs", "8", "--out", str(tmp_path), *TINY]
+def test_cli_run_folder_and_resume_of_a_finished_run(tmp_path, monkeypatch, tiny_crl_args):
+    args = ["train", "point_nav", "--out", str(tmp_path), *tiny_crl_args]
     result = runner.invoke(app, args)
     assert result.exit_code == 0, result.output
     run = tmp_path / "point_nav-crl-0"
@@ -277,8 +268,8 @@ def test_bad_training_input_is_reported_before_compiling(tmp_path, args, phrase)
     assert phrase in result.output and "Traceback" not in result.output
 
 
-def test_envs_must_split_over_the_devices_unless_the_seeds_do(env_cache):
-    env, config = env_cache("point_nav"), tiny_config(num_envs=9, batch_size=9, total_steps=20000)
+def test_envs_must_split_over_the_devices_unless_the_seeds_do(env_cache, tiny_crl):
+    env, config = env_cache("point_nav"), tiny_crl(num_envs=9, batch_size=9, total_steps=20000)
     config.validate_env(env, devices=2, seeds=2)  # a seed per device: each keeps all 9 environments
     config.validate_env(env, devices=2, seeds=4)
     for seeds in (1, 3):
@@ -321,14 +312,14 @@ def test_ant_fields_get_the_ant_preset_under_a_config_file_and_set(tmp_path):
     assert crl.CRLConfig.layered(reference, agent="ant") == crl.CRLConfig()  # the reference's settings, back
 
 
-def test_a_config_comes_back_from_its_run_json_record():
+def test_a_config_comes_back_from_its_run_json_record(tiny_crl):
     """run.json keeps the config as JSON (tuples become lists); read back, it is the same hashable value."""
-    config = tiny_config(hidden=(32, 16), layer_norm=True)
+    config = tiny_crl(hidden=(32, 16), layer_norm=True)
     again = crl.CRLConfig.layered(**json.loads(json.dumps(config.model_dump())))
     assert again == config and hash(again) == hash(config) and again.hidden == (32, 16)
 
 
-def test_a_machine_that_cannot_render_keeps_episodes_for_fieldgen_videos(tmp_path, monkeypatch):
+def test_a_machine_that_cannot_render_keeps_episodes_for_fieldgen_videos(tmp_path, monkeypatch, tiny_crl_args):
     import imageio.v3 as iio
     import jax.numpy as jnp
     from rich.console import Console
@@ -336,8 +327,7 @@ def test_a_machine_that_cannot_render_keeps_episodes_for_fieldgen_videos(tmp_pat
     from fieldgen import render
     from fieldgen.run import record, session, videos
 
-    prepared = runner.invoke(app, ["train", "point_nav", "--envs", "8", "--steps", "1900", "--prepare",
-                                   "--out", str(tmp_path), *TINY])
+    prepared = runner.invoke(app, ["train", "point_nav", "--prepare", "--out", str(tmp_path), *tiny_crl_args])
     assert prepared.exit_code == 0, prepared.output
     run_dir = tmp_path / "point_nav-crl-0"
     nothing = runner.invoke(app, ["videos", str(run_dir)])
