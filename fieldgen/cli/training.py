@@ -53,6 +53,9 @@ def train(
     config: Annotated[Optional[Path], typer.Option(metavar="FILE", help="YAML file: {crl: {key: value}}")] = None,
     runs: Annotated[Path, typer.Option("--out", metavar="DIR", help="folder for run folders")] = Path("runs"),
     resume: Annotated[Optional[Path], typer.Option(metavar="RUN", help="continue the run in this folder")] = None,
+    init_from: Annotated[Optional[Path], typer.Option(
+        metavar="RUN", help="start from the networks another run learned (its learner.msgpack), e.g. to fine-tune "
+                            "a policy on a harder field or a curriculum of the same layout; env steps count from 0")] = None,
     videos: Annotated[bool, typer.Option(help="write videos/eval_NNN.mp4 of the policy at every evaluation")] = True,
     video_fmt: VideoFormat = None,
     mixed: Annotated[bool, typer.Option(help="a curriculum's stages all at once, each env its own stage, "
@@ -71,6 +74,7 @@ def train(
 
     Example: fieldgen train point_nav --algo crl --steps 40000 --envs 16 --set 'crl.hidden=[64,64]'
     Example: fieldgen train point_nav --logger tensorboard, then: tensorboard --logdir runs
+    Example: fieldgen train soccer_v2 --init-from runs/soccer_v1-crl-0 --seed 1
     """
     fmt = video_format(video_fmt) if videos else None
     from fieldgen.agents import registry
@@ -80,8 +84,11 @@ def train(
     try:
         loggers.require(logger)
         if resume is not None:
+            if init_from is not None:
+                fail(f"--init-from sets up a new run; {resume} goes on from its own checkpoint (or from what it "
+                     "was set up to start from): drop --init-from, or train into another --out")
             run = session.open_run(resume)
-            if run.refills:
+            if run.refills and run.rows:
                 out.print(f"{resume} holds no {record.CHECKPOINT}: it goes on from {record.LEARNER} with fresh "
                           "episodes and a replay buffer filled anew by its policy (those env steps count)")
         else:
@@ -97,7 +104,10 @@ def train(
             if preset:
                 out.print(f"{algo} on {agent} fields starts from {preset.name} (a --config file or --set "
                           "overrides it)")
-            run = session.new_run(source, algo, list(range(seed, seed + seeds)), algo_config, runs, mixed)
+            run = session.new_run(source, algo, list(range(seed, seed + seeds)), algo_config, runs, mixed, init_from)
+        if run.init_from and not run.rows:
+            out.print(f"starts from what {run.init_from['run']} learned in {run.init_from['env_steps']:,} env steps "
+                      f"(evaluation {run.init_from['eval']}), with fresh episodes and a replay buffer filled anew")
     except (SpecError, ConfigError, record.RunError) as exc:
         fail(str(exc))
     if prepare:

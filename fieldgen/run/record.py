@@ -4,8 +4,9 @@ A run folder holds everything needed to resume: `run.json` (the field's build, t
 algorithm, its full config and the seeds), `metrics.jsonl` / `metrics.csv` (one row per
 evaluation and seed), `checkpoint.msgpack` (the whole training state after the last
 evaluation), `learner.msgpack` (what it learned alone, without its episodes and replay buffer: enough
-to go on where the whole state is too large to move), `success.png` and `videos/eval_NNN.mp4` (or .gif);
-every file is replaced whole.
+to go on where the whole state is too large to move), `initial.msgpack` (for a run started from another's
+networks, `--init-from`, what it starts from), `success.png` and `videos/eval_NNN.mp4` (or .gif); every file
+is replaced whole.
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ from fieldgen.curriculum.promotion import Promotion
 from fieldgen.files import write_atomic
 
 RUN, METRICS, CSV, CHECKPOINT, PLOT = "run.json", "metrics.jsonl", "metrics.csv", "checkpoint.msgpack", "success.png"
-LEARNER, VIDEOS = "learner.msgpack", "videos"
+LEARNER, INITIAL, VIDEOS = "learner.msgpack", "initial.msgpack", "videos"
 
 
 def has_trained(run_dir: Path) -> bool:
@@ -55,6 +56,14 @@ def _inside(name: str) -> str:
     return name
 
 
+class InitFrom(BaseModel):
+    """Where a run started from another's networks came from: that run's folder as given, and how far it was."""
+
+    run: StrictStr
+    env_steps: Index
+    eval: Index
+
+
 class RunRecord(BaseModel):
     """What run.json must hold to reopen a run, each value of the type fieldgen wrote."""
 
@@ -65,6 +74,7 @@ class RunRecord(BaseModel):
     fields: Annotated[list[Annotated[StrictStr, AfterValidator(_inside)]], Field(min_length=1)] = []  # []: field/
     promotion: Promotion = Promotion()
     mixed: StrictBool = False
+    init_from: InitFrom | None = None
 
 
 class MetricsRow(BaseModel):

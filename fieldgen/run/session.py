@@ -1,6 +1,6 @@
 """A training run's folder as an object: a new run set up (its fields built and copied in, its config
-checked before anything compiles), an existing one opened with its last checkpoint, or a run's policy
-put on another field of the same layout."""
+checked before anything compiles, optionally starting from another run's networks), an existing one opened
+with its last checkpoint, or a run's policy put on another field of the same layout."""
 
 from __future__ import annotations
 
@@ -21,7 +21,7 @@ from fieldgen.compile.variants import VariantError, compile_variants
 from fieldgen.curriculum.promotion import Promotion
 from fieldgen.env.brax_pipeline import check_batchable
 from fieldgen.env.make import environment
-from fieldgen.files import remove_leftovers
+from fieldgen.files import remove_leftovers, write_atomic
 from fieldgen.run import record
 from fieldgen.schema import load_spec
 
@@ -40,6 +40,7 @@ class Run:
     state: object = None  # the checkpointed training state of a resumed run
     stage: int = 0  # the stage the next chunk trains on
     mixed: bool = False  # a curriculum trained all at once: every environment carries its own stage
+    init_from: dict | None = None  # record.InitFrom of a run started from another run's networks
 
     @property
     def finished(self) -> bool:
@@ -88,9 +89,10 @@ def agent_kind(source: Path) -> str:
     return load_spec(source).agent.kind
 
 
-def new_run(source: Path, algo: str, seeds: list[int], config, out: Path, mixed: bool = False) -> Run:
+def new_run(source: Path, algo: str, seeds: list[int], config, out: Path, mixed: bool = False,
+            init_from: Path | None = None) -> Run:
     """A run folder for a field (a YAML file or a build folder) or a curriculum folder (staged, or mixed:
-    every stage in one batch, built to one structure)."""
+    every stage in one batch, built to one structure); with `init_from`, starting from what that run learned."""
     promotion, name = Promotion(), None
     if curriculum.is_curriculum(source):
         try:
@@ -119,6 +121,9 @@ def new_run(source: Path, algo: str, seeds: list[int], config, out: Path, mixed:
     for env in envs:
         config.validate_env(env, sharding.device_count(), len(seeds))
     dirs = [FIELD] if len(envs) == 1 else [f"{STAGES}/{k + 1:02d}" for k in range(len(envs))]
+    run = Run(folder, algo, envs, config, seeds, [], promotion, mixed=mixed)
+    if init_from is not None:
+        run.state, run.init_from = started_from(run, init_from)
     try:
         # a folder without a checkpoint holds no training (prepared, or stopped before its first
         # checkpoint): it is set up anew
@@ -128,12 +133,61 @@ def new_run(source: Path, algo: str, seeds: list[int], config, out: Path, mixed:
             (folder / stale).unlink(missing_ok=True)
         for env, sub in zip(envs, dirs):
             write_artifact(env.artifact, folder / sub)
+        (folder / record.INITIAL).unlink(missing_ok=True)
+        if run.state is not None:
+            write_atomic(folder / record.INITIAL, checkpoint.pieces(jax.device_get(run.state)))
         record.write_run(folder, envs[-1].spec.model_dump(mode="json"), algo, config, envs[0].layout.to_json(),
-                         seeds, {"fields": dirs, "promotion": dataclasses.asdict(promotion), "mixed": mixed})
+                         seeds, {"fields": dirs, "promotion": dataclasses.asdict(promotion), "mixed": mixed,
+                                 **({"init_from": run.init_from} if run.init_from else {})})
     except OSError as exc:
         raise record.RunError(f"cannot set up the run folder {folder}: {exc.strerror}; free some space, fix the "
                               "folder's permissions or choose another --out") from None
-    return Run(folder, algo, envs, config, seeds, [], promotion, mixed=mixed)
+    return run
+
+
+def learned_template(run: Run):
+    """The shapes of what the run's trainer keeps of a state in `learner.msgpack` (Trainer.learned)."""
+    keys = jnp.stack([jax.random.PRNGKey(s) for s in run.seeds])
+    trainer = run.trainers[run.stage]
+    return trainer.learned(jax.eval_shape(jax.vmap(trainer.start), keys))
+
+
+def started_from(run: Run, source: Path) -> tuple[object, dict]:
+    """What `source`, another run, learned, as the start of `run`: its networks, optimizers and normalizer,
+    with the env steps counted from 0 and the randomness of `run`'s own seeds, so that fine-tuning one
+    policy with two seeds gives two runs. Refused, before anything is written, where `source` has not
+    learned yet or trained another algorithm, observation layout, action size, seed count or network."""
+    learner = source / record.LEARNER
+    if not learner.is_file():
+        raise record.RunError(f"--init-from {source}: no {record.LEARNER} there; name a run folder that "
+                              "fieldgen train wrote, after its first evaluation")
+    other = open_run(source, load_state=False)
+    here = f"this run ({run.algo} on {run.env.spec.name})"
+    if other.algo != run.algo:
+        raise record.RunError(f"--init-from {source}: it trained {other.algo}, {here} trains {run.algo}; "
+                              f"start from a run of the same --algo")
+    if other.env.layout.to_json() != run.env.layout.to_json() or other.env.action_size != run.env.action_size:
+        raise record.RunError(
+            f"--init-from {source}: {other.env.spec.name} observes or acts differently from {run.env.spec.name} "
+            f"(observation {other.env.observation_size} against {run.env.observation_size} values, actions "
+            f"{other.env.action_size} against {run.env.action_size}); start from a run on a field of the same "
+            "agent, objects and goal")
+    if len(other.seeds) != len(run.seeds):
+        raise record.RunError(f"--init-from {source}: it trained {len(other.seeds)} seeds at once, {here} "
+                              f"{len(run.seeds)}; give --seeds {len(other.seeds)}")
+    try:
+        state = checkpoint.load(learner, learned_template(run))
+    except checkpoint.CheckpointError as exc:
+        theirs, mine = other.config.model_dump(), run.config.model_dump()
+        differ = [f"{run.algo}.{k} ({json.dumps(theirs[k])} there, {json.dumps(mine[k])} here)"
+                  for k in mine if theirs.get(k) != mine[k]]
+        raise record.RunError(f"--init-from {source}: its networks do not fit {here}'s ({exc}); the configs "
+                              f"differ in {', '.join(differ) or 'nothing'}: give this run its network keys "
+                              "with --set or --config") from None
+    last = other.rows[-1] if other.rows else {"eval": 0, "env_steps": int(jax.device_get(state.env_steps)[0])}
+    keys = jnp.stack([jax.random.PRNGKey(s) for s in run.seeds])
+    state = state.replace(key=keys, env_steps=jnp.zeros_like(state.env_steps))
+    return state, {"run": str(source), "env_steps": int(last["env_steps"]), "eval": int(last["eval"])}
 
 
 def open_run(folder: Path, load_state: bool = True) -> Run:
@@ -162,8 +216,15 @@ def open_run(folder: Path, load_state: bool = True) -> Run:
     run = Run(folder, saved.algo, envs, config, seeds, rows, saved.promotion, mixed=saved.mixed)
     if not load_state:
         return run  # only reported on
+    run.init_from = saved.init_from.model_dump() if saved.init_from else None
     if not record.has_trained(folder):
         run.rows = []  # prepared, or stopped before its first checkpoint: it starts from the beginning
+        if run.init_from:
+            try:
+                run.state = checkpoint.load(folder / record.INITIAL, learned_template(run))
+            except checkpoint.CheckpointError as exc:
+                raise record.RunError(f"{exc}; it holds what the run was set up to start from "
+                                      f"({run.init_from['run']}): set the run up again with --init-from") from None
         return run
     damaged = "the file was edited or damaged: restore it from a copy, or start the run again in a new folder"
     if not rows:  # the checkpoint's own evaluation is always written before it
@@ -177,7 +238,7 @@ def open_run(folder: Path, load_state: bool = True) -> Run:
     trainer = run.trainers[run.stage]
     path, template = folder / record.CHECKPOINT, jax.eval_shape(jax.vmap(trainer.start), keys)
     if not path.exists():  # e.g. copied without it: what it learned goes on, its buffer filled anew
-        path, template = folder / record.LEARNER, trainer.learned(template)
+        path, template = folder / record.LEARNER, learned_template(run)
     try:
         run.state = checkpoint.load(path, template)
     except checkpoint.CheckpointError as exc:

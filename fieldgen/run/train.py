@@ -71,7 +71,8 @@ def train(run: Run, console: Console, videos: bool = True, logger: str = "none",
             bar.update(task, completed=rows[0]["env_steps"], rate=rate(run.rows, config.total_steps),
                        stats=stats(rows))
 
-        resume = (run.state, run.rows[-1]["eval"], run.stage) if run.state is not None else None
+        # a run started from another's networks (--init-from) goes on from "evaluation -1": it evaluates them first
+        resume = (run.state, run.rows[-1]["eval"] if run.rows else -1, run.stage) if run.state is not None else None
         try:
             loop.run_staged(trainers, run.seeds, config.num_evals, run.promotion.ready, progress, on_eval, resume,
                             film=EpisodeRecorder.film if videos else None)

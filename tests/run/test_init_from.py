@@ -1,0 +1,92 @@
+"""`fieldgen train --init-from RUN`: a new run that starts from the networks another run learned, counts its
+own env steps and randomness, survives being stopped before its first checkpoint, and refuses a source whose
+networks it could not take before writing anything."""
+
+from __future__ import annotations
+
+import json
+
+import jax
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from fieldgen.agents import checkpoint
+from fieldgen.cli import app
+from fieldgen.run import record, session
+
+runner = CliRunner()
+
+
+def flat(text: str) -> str:
+    """Output without rich's line wrapping."""
+    return "".join(text.split())
+
+
+@pytest.fixture(scope="module")
+def source(tmp_path_factory, tiny_crl_args):
+    """A tiny CRL run on point_nav, trained to its end."""
+    out = tmp_path_factory.mktemp("source")
+    result = runner.invoke(app, ["train", "point_nav", "--out", str(out), "--no-videos", *tiny_crl_args])
+    assert result.exit_code == 0, result.output
+    return out / "point_nav-crl-0"
+
+
+def test_a_run_starts_from_what_another_learned_and_trains_on(tmp_path, source, tiny_crl_args):
+    prepared = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path), "--seed", "3", "--prepare",
+                                   "--init-from", str(source), *tiny_crl_args])
+    assert prepared.exit_code == 0, prepared.output
+    assert flat(f"starts from what {source} learned in 1,760 env steps (evaluation 2)") in flat(prepared.output)
+    run = tmp_path / "point_nav-crl-3"
+    assert json.loads((run / record.RUN).read_text())["init_from"] == {"run": str(source), "env_steps": 1760,
+                                                                       "eval": 2}
+
+    # set up but not trained (as if killed before its first checkpoint): it opens at what it starts from
+    opened = session.open_run(run)
+    assert opened.rows == [] and opened.init_from["run"] == str(source)
+    learned = checkpoint.load(source / record.LEARNER, session.learned_template(opened))
+    for a, b in zip(jax.tree.leaves(opened.state.nets), jax.tree.leaves(learned.nets)):
+        np.testing.assert_array_equal(a, b)
+    assert int(opened.state.env_steps[0]) == 0
+    np.testing.assert_array_equal(opened.state.key[0], jax.random.PRNGKey(3))
+
+    trained = runner.invoke(app, ["train", "--resume", str(run), "--no-videos"])
+    assert trained.exit_code == 0, trained.output
+    rows = [json.loads(line) for line in (run / record.METRICS).read_text().splitlines()]
+    assert [r["eval"] for r in rows] == [0, 1, 2]
+    assert [r["env_steps"] for r in rows] == [800, 1280, 1760]  # its own steps, the buffer's refill first
+    assert (run / record.CHECKPOINT).exists()
+
+
+@pytest.mark.parametrize("field, changes, phrase", [
+    ("point_soccer", [], "point_nav observes or acts differently from point_soccer (observation 6 against 8 values"),
+    ("point_nav", ["--set", "crl.hidden=[16,16]"], "the configs differ in crl.hidden ([32, 32] there, [16, 16] here)"),
+    ("point_nav", ["--seeds", "2"], "it trained 1 seeds at once, this run (crl on point_nav) 2; give --seeds 1"),
+], ids=["layout", "network", "seeds"])
+def test_a_source_whose_networks_do_not_fit_is_refused_before_anything_is_written(tmp_path, source, tiny_crl_args,
+                                                                                  field, changes, phrase):
+    result = runner.invoke(app, ["train", field, "--out", str(tmp_path / "runs"), "--prepare", "--init-from",
+                                 str(source), *tiny_crl_args, *changes])
+    assert result.exit_code == 1 and "Traceback" not in result.output
+    assert flat(phrase) in flat(result.output)
+    assert not (tmp_path / "runs").exists()
+
+
+def test_a_source_of_another_algorithm_is_refused(tmp_path, source):
+    result = runner.invoke(app, ["train", "point_nav", "--algo", "sac", "--out", str(tmp_path), "--prepare",
+                                 "--init-from", str(source)])
+    assert result.exit_code == 1 and "Traceback" not in result.output
+    assert flat("it trained crl, this run (sac on point_nav) trains sac") in flat(result.output)
+
+
+def test_init_from_names_a_run_that_has_learned(tmp_path, tiny_crl_args):
+    result = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path), "--init-from", str(tmp_path / "none"),
+                                 *tiny_crl_args])
+    assert result.exit_code == 1 and "Traceback" not in result.output
+    assert flat(f"--init-from {tmp_path / 'none'}: no learner.msgpack there") in flat(result.output)
+
+
+def test_init_from_is_not_for_a_resumed_run(tmp_path, source):
+    result = runner.invoke(app, ["train", "--resume", str(source), "--init-from", str(source)])
+    assert result.exit_code == 1 and "Traceback" not in result.output
+    assert flat("--init-from sets up a new run") in flat(result.output)
