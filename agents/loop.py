@@ -206,7 +206,7 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
     to `progress` and `on_eval` once the next chunk has been dispatched, so that the GPU trains while
     the host writes.
     """
-    keys = jnp.stack([jax.random.PRNGKey(s) for s in seeds])
+    keys = seed_keys(seeds)
     staged, last = len(trainers) > 1, len(trainers) - 1
 
     def programs(k: int) -> Programs:
@@ -297,6 +297,11 @@ def _with_env(trainer: Trainer, state, index: int):
         return ts.replace(env_state=fresh.replace(info=info))
 
     return jax.vmap(one)(state)
+
+
+def seed_keys(seeds: Sequence[int]) -> jax.Array:
+    """One PRNG key per seed, stacked along the seed axis that vmapped training states carry."""
+    return jnp.stack([jax.random.PRNGKey(s) for s in seeds])
 
 
 def seed_slice(state, i: int):

@@ -30,11 +30,10 @@ import time
 from pathlib import Path
 
 import jax
-import jax.numpy as jnp
 
 import fieldgen
 from fieldgen import xla_flags
-from fieldgen.agents import buffer, registry, sharding
+from fieldgen.agents import buffer, loop, registry, sharding
 from fieldgen.agents.config import ReplayConfig
 from fieldgen.env.throughput import append_jsonl, measure
 from fieldgen.run.train import peak_memory_mb
@@ -55,7 +54,7 @@ def time_chunk(trainer, seeds: int, devices: int | None = None, profile: Path | 
     """Seconds for one chunk of `seeds` vmapped seeds placed on the first `devices` local devices (all by
     default) as training places them, timed after two warm-up calls (the first, and the first fed its
     own output, can both compile); with `profile`, one more chunk is traced into that folder."""
-    keys = jnp.stack([jax.random.PRNGKey(s) for s in range(seeds)])
+    keys = loop.seed_keys(range(seeds))
     shapes = jax.eval_shape(jax.vmap(trainer.start), keys)
     placement = sharding.training_shardings(shapes, sharding.local_mesh(devices), trainer.env_axes)
     chunk = jax.jit(jax.vmap(trainer.chunk), in_shardings=(placement,), out_shardings=(placement, None))

@@ -129,11 +129,10 @@ def new_run(source: Path, algo: str, seeds: list[int], config, out: Path, mixed:
         # checkpoint): it is set up anew
         folder.mkdir(parents=True, exist_ok=True)
         remove_leftovers(folder)
-        for stale in (record.METRICS, record.CSV, record.PLOT):
+        for stale in (record.METRICS, record.CSV, record.PLOT, record.INITIAL):
             (folder / stale).unlink(missing_ok=True)
         for env, sub in zip(envs, dirs):
             write_artifact(env.artifact, folder / sub)
-        (folder / record.INITIAL).unlink(missing_ok=True)
         if run.state is not None:
             write_atomic(folder / record.INITIAL, checkpoint.pieces(jax.device_get(run.state)))
         record.write_run(folder, envs[-1].spec.model_dump(mode="json"), algo, config, envs[0].layout.to_json(),
@@ -147,9 +146,8 @@ def new_run(source: Path, algo: str, seeds: list[int], config, out: Path, mixed:
 
 def learned_template(run: Run):
     """The shapes of what the run's trainer keeps of a state in `learner.msgpack` (Trainer.learned)."""
-    keys = jnp.stack([jax.random.PRNGKey(s) for s in run.seeds])
     trainer = run.trainers[run.stage]
-    return trainer.learned(jax.eval_shape(jax.vmap(trainer.start), keys))
+    return trainer.learned(jax.eval_shape(jax.vmap(trainer.start), loop.seed_keys(run.seeds)))
 
 
 def started_from(run: Run, source: Path) -> tuple[object, dict]:
@@ -166,12 +164,10 @@ def started_from(run: Run, source: Path) -> tuple[object, dict]:
     if other.algo != run.algo:
         raise record.RunError(f"--init-from {source}: it trained {other.algo}, {here} trains {run.algo}; "
                               f"start from a run of the same --algo")
-    if other.env.layout.to_json() != run.env.layout.to_json() or other.env.action_size != run.env.action_size:
-        raise record.RunError(
-            f"--init-from {source}: {other.env.spec.name} observes or acts differently from {run.env.spec.name} "
-            f"(observation {other.env.observation_size} against {run.env.observation_size} values, actions "
-            f"{other.env.action_size} against {run.env.action_size}); start from a run on a field of the same "
-            "agent, objects and goal")
+    if differ := interface_difference(other.env, run.env):
+        raise record.RunError(f"--init-from {source}: {other.env.spec.name} observes or acts differently from "
+                              f"{run.env.spec.name} ({differ}); start from a run on a field of the same agent, "
+                              "objects and goal")
     if len(other.seeds) != len(run.seeds):
         raise record.RunError(f"--init-from {source}: it trained {len(other.seeds)} seeds at once, {here} "
                               f"{len(run.seeds)}; give --seeds {len(other.seeds)}")
@@ -185,8 +181,7 @@ def started_from(run: Run, source: Path) -> tuple[object, dict]:
                               f"differ in {', '.join(differ) or 'nothing'}: give this run its network keys "
                               "with --set or --config") from None
     last = other.rows[-1] if other.rows else {"eval": 0, "env_steps": int(jax.device_get(state.env_steps)[0])}
-    keys = jnp.stack([jax.random.PRNGKey(s) for s in run.seeds])
-    state = state.replace(key=keys, env_steps=jnp.zeros_like(state.env_steps))
+    state = state.replace(key=loop.seed_keys(run.seeds), env_steps=jnp.zeros_like(state.env_steps))
     return state, {"run": str(source), "env_steps": int(last["env_steps"]), "eval": int(last["eval"])}
 
 
@@ -234,9 +229,8 @@ def open_run(folder: Path, load_state: bool = True) -> Run:
         if run.stage >= len(envs):
             raise record.RunError(f"{folder / record.METRICS}'s last row puts the run at stage {run.stage + 1}, "
                                   f"past its last ({len(envs)}); {damaged}")
-    keys = jnp.stack([jax.random.PRNGKey(s) for s in seeds])
     trainer = run.trainers[run.stage]
-    path, template = folder / record.CHECKPOINT, jax.eval_shape(jax.vmap(trainer.start), keys)
+    path, template = folder / record.CHECKPOINT, jax.eval_shape(jax.vmap(trainer.start), loop.seed_keys(seeds))
     if not path.exists():  # e.g. copied without it: what it learned goes on, its buffer filled anew
         path, template = folder / record.LEARNER, learned_template(run)
     try:
@@ -255,11 +249,17 @@ def on_field(run: Run, source: Path) -> Run:
         env = fieldgen.make(source)
     except ArtifactError as exc:
         raise record.RunError(f"{source}: {exc}") from None
-    if env.layout.to_json() != run.env.layout.to_json() or env.action_size != run.env.action_size:
-        raise record.RunError(
-            f"{source} observes or acts differently from {run.env.spec.name}, which {run.folder} was trained on "
-            f"(observation {env.observation_size} against {run.env.observation_size} values, actions "
-            f"{env.action_size} against {run.env.action_size}); a policy moves only between fields of one layout")
+    if differ := interface_difference(env, run.env):
+        raise record.RunError(f"{source} observes or acts differently from {run.env.spec.name}, which {run.folder} "
+                              f"was trained on ({differ}); a policy moves only between fields of one layout")
     return dataclasses.replace(run, envs=[env], mixed=False, stage=0)
+
+
+def interface_difference(env, other) -> str:
+    """How two fields' observations or actions differ ('' where a policy of one acts on the other)."""
+    if env.layout.to_json() == other.layout.to_json() and env.action_size == other.action_size:
+        return ""
+    return (f"observation {env.observation_size} against {other.observation_size} values, actions "
+            f"{env.action_size} against {other.action_size}")
 
 

@@ -14,13 +14,9 @@ from typer.testing import CliRunner
 from fieldgen.agents import checkpoint
 from fieldgen.cli import app
 from fieldgen.run import record, session
+from test_training import unwrapped as flat
 
 runner = CliRunner()
-
-
-def flat(text: str) -> str:
-    """Output without rich's line wrapping."""
-    return "".join(text.split())
 
 
 @pytest.fixture(scope="module")
