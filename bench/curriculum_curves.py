@@ -6,7 +6,10 @@ success, a staged or mixed run's `last_stage_success_any` (the policy judged on 
 at every evaluation, whichever stage it trained on). Time at goal is drawn where the run was
 judged on the last field (a direct run, a mixed run's last variant, a staged run once there).
 With --own-field every run is judged on the field it trained on at each evaluation instead (a
-staged run's stage), to compare runs on one stage of a curriculum.
+staged run's stage), to compare runs on one stage of a curriculum. A run started from another's
+networks (`fieldgen train --init-from`) is drawn as LABEL=SOURCE_METRICS+METRICS: its curve begins
+where its source's ended, in env steps and wall clock, so both count from nothing learned (the
+source's own evaluations, of its own field, are drawn only under a label of their own).
 
     python bench/curriculum_curves.py direct=bench/results/h200_ppo_tanh_direct_v2_dense.jsonl \\
         staged=bench/results/h200_ppo_tanh_staged_v2_dense.jsonl mixed=... -o curves.png
@@ -46,9 +49,23 @@ def own_field(rows: list[dict]) -> tuple[list, list, list, list]:
     return steps, [r["success_any"] for r in rows], steps, [r["time_at_goal"] for r in rows]
 
 
+def load(paths: str) -> list[dict]:
+    """A run's evaluations; after a '+', shifted to start where the run before it (its source) ended."""
+    *sources, path = paths.split("+")
+    steps = seconds = 0
+    for source in sources:
+        last = read(source)[-1]
+        steps, seconds = steps + last["env_steps"], seconds + last["wall_seconds"]
+    return [{**r, "env_steps": r["env_steps"] + steps, "wall_seconds": r["wall_seconds"] + seconds} for r in read(path)]
+
+
+def read(path: str) -> list[dict]:
+    return [json.loads(line) for line in Path(path).read_text().splitlines() if line.strip()]
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("runs", nargs="+", metavar="LABEL=METRICS_JSONL")
+    parser.add_argument("runs", nargs="+", metavar="LABEL=[SOURCE_METRICS+]METRICS")
     parser.add_argument("-o", "--out", type=Path, required=True)
     parser.add_argument("--title", default="success on the last field")
     parser.add_argument("--own-field", action="store_true", help="judge each evaluation on the field it trained on")
@@ -61,7 +78,7 @@ def main() -> None:
     fig, (left, clock, right) = plt.subplots(1, 3, figsize=(15, 3.6))
     for item in args.runs:
         label, _, path = item.partition("=")
-        rows = [json.loads(line) for line in Path(path).read_text().splitlines() if line.strip()]
+        rows = load(path)
         steps, success, judged, at_goal = (own_field if args.own_field else last_field)(rows)
         left.plot(steps, success, marker="o", label=label)
         clock.plot([r["wall_seconds"] / 60 for r in rows], success, marker="o", label=label)
