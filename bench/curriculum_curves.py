@@ -69,26 +69,33 @@ def main() -> None:
     parser.add_argument("-o", "--out", type=Path, required=True)
     parser.add_argument("--title", default="success on the last field")
     parser.add_argument("--own-field", action="store_true", help="judge each evaluation on the field it trained on")
+    parser.add_argument("--log", action="store_true", help="env steps and wall clock on log scales, for runs of "
+                        "very different lengths")
     args = parser.parse_args()
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, (left, clock, right) = plt.subplots(1, 3, figsize=(15, 3.6))
+    fig, (left, clock, right) = plt.subplots(1, 3, figsize=(15, 3.6 + 0.25 * -(-len(args.runs) // 3)))
     for item in args.runs:
         label, _, path = item.partition("=")
         rows = load(path)
         steps, success, judged, at_goal = (own_field if args.own_field else last_field)(rows)
-        left.plot(steps, success, marker="o", label=label)
-        clock.plot([r["wall_seconds"] / 60 for r in rows], success, marker="o", label=label)
-        right.plot(judged, at_goal, marker="o", label=label)
+        left.plot(steps, success, marker="o")
+        clock.plot([r["wall_seconds"] / 60 for r in rows], success, marker="o")
+        right.plot(judged, at_goal, marker="o")
         at_goal_text = f"time at goal {at_goal[-1]:.0f}" if at_goal else "not yet on the last field"
         print(f"{label:>10s}: last evaluation {success[-1]:.2f} success_any, best {max(success):.2f}; {at_goal_text}")
     left.set(xlabel="env steps", ylabel="success_any", ylim=(-0.02, 1.02), title="episodes with a success")
     clock.set(xlabel="minutes from the start (resumes included)", ylabel="success_any", ylim=(-0.02, 1.02),
               title="against wall clock")
     right.set(xlabel="env steps", ylabel="steps at goal per episode", title="time at goal")
+    if args.log:
+        for axes in (left, clock, right):
+            axes.set_xscale("log")
+    fig.legend(left.get_lines(), [item.partition("=")[0] for item in args.runs], loc="lower center", ncol=3,
+               fontsize=8, frameon=False)  # one legend under the panels, three labels a row
     save_figure(fig, (left, clock, right), args.title, args.out)
 
 

@@ -51,7 +51,8 @@ def _plot_losses(ax, rows: list[dict], losses: list[str]) -> None:
 
 
 def save_figure(fig, axes, title: str, path: Path) -> None:
-    """Grids, legends where there are labels, the title; then the PNG, written atomically."""
+    """Grids, legends where there are labels, the title, room for a legend of the whole figure; then the PNG,
+    written atomically."""
     import matplotlib.pyplot as plt
 
     for ax in axes:
@@ -59,7 +60,11 @@ def save_figure(fig, axes, title: str, path: Path) -> None:
         if ax.get_legend_handles_labels()[0]:
             ax.legend(fontsize=8)
     fig.suptitle(title)
-    fig.tight_layout()
+    room = 0.0  # a legend of the whole figure sits under the panels
+    if fig.legends:
+        renderer = fig.canvas.get_renderer()
+        room = max(legend.get_window_extent(renderer).height for legend in fig.legends) / fig.bbox.height
+    fig.tight_layout(rect=(0, room, 1, 1))
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=100)
     plt.close(fig)
