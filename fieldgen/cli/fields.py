@@ -12,7 +12,7 @@ from rich.table import Table
 from rich.text import Text
 
 from fieldgen.cli.app import CAMERAS, SpecArg, app, choice, err, fail, field_source, out, spec_path
-from fieldgen.schema import SpecError, bundled_fields, load_spec
+from fieldgen.schema import SpecError, bundled_fields, geometry, load_spec
 
 
 @app.command()
@@ -193,7 +193,7 @@ def make_curriculum(
     or start states (--start-near).
 
     Example: fieldgen curriculum fields/soccer_v1.yaml --to fields/v2_wide_goalie.yaml --stages 6 -o curricula/v1_to_wide
-    Example: fieldgen curriculum soccer_v2 --start-near 3 --stages 5 -o curricula/v2_start_states
+    Example: fieldgen curriculum soccer_v2 --start-near 3 --stages 4 -o curricula/v2_start_states
     Example: fieldgen curriculum soccer_v1 --start-near 1.5 --agent-near 1.75 --stages 5 -o curricula/v1_close
     """
     from fieldgen import curriculum
@@ -210,6 +210,11 @@ def make_curriculum(
     for i, st in enumerate(c.stages, 1):
         table.add_row(str(i), st.name, _flat_changes(st.changes) or "(the base itself)")
     out.print(table)
+    for i, spec in enumerate(c.specs(), 1):
+        for name in geometry.in_the_way(spec):
+            sx, sy = spec.agent.start
+            out.print(Text(f"stage {i}: obstacle '{name}' stands between the agent's start ({sx:g}, {sy:g}) and the "
+                           "ball: the agent must walk around it to reach the ball", style="yellow"))
     out.print(f"build them: fieldgen build {output}; see them: fieldgen render {output} -o sheet.png")
 
 

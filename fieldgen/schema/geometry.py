@@ -76,6 +76,37 @@ def obstacles(spec: FieldSpec) -> list[Box]:
     return out
 
 
+def in_the_way(spec: FieldSpec) -> list[str]:
+    """The solid obstacles on the agent's straight way from its start to where it touches the ball at its
+    spawn centre, within the agent's reach of that way: the agent must walk around them before it can
+    push the ball. The spec allows it; a curriculum that moves the kick-off past an obstacle says so."""
+    if not spec.ball.enabled or spec.ball.spawn.mode != "region":
+        return []
+    spawn, reach, (ax, ay) = spec.ball.spawn, AGENT_REACH[spec.agent.kind], spec.agent.start
+    bx, by = (spawn.x[0] + spawn.x[1]) / 2, (spawn.y[0] + spawn.y[1]) / 2
+    gap = math.hypot(bx - ax, by - ay)
+    stop = max(0.0, 1 - (reach + spec.ball.radius) / gap) if gap else 0.0  # where the agent's reach meets the ball
+    touch = (ax + stop * (bx - ax), ay + stop * (by - ay))
+    return [box.name.removeprefix("obstacle_") for box in obstacles(spec)
+            if box.solid and _segment_meets((ax, ay), touch, box.xy_bounds(inflate=reach))]
+
+
+def _segment_meets(a, b, rect) -> bool:
+    """Whether the segment a-b meets the rectangle (x0, x1, y0, y1): Liang and Barsky's clipping."""
+    x0, x1, y0, y1 = rect
+    dx, dy = b[0] - a[0], b[1] - a[1]
+    enter, leave = 0.0, 1.0
+    for p, q in ((-dx, a[0] - x0), (dx, x1 - a[0]), (-dy, a[1] - y0), (dy, y1 - a[1])):
+        if p == 0:
+            if q < 0:  # parallel to this edge and outside it
+                return False
+        elif p < 0:
+            enter = max(enter, q / p)
+        else:
+            leave = min(leave, q / p)
+    return enter <= leave
+
+
 def goal_region(spec: FieldSpec) -> Box | None:
     """The goal box: the region that counts as 'in the goal'; it never collides."""
     g = spec.goal

@@ -150,6 +150,11 @@ def test_the_cli_writes_a_start_state_curriculum(tmp_path):
     specs = curriculum.load(out).specs()
     assert [s.ball.spawn.y for s in specs] == [(17.0, 17.0), (13.0, 13.0), (9.0, 9.0), (5.0, 5.0)]
     assert curriculum.load(out).kind == "start_states"
+    # stage 1 starts the ant at y 12 behind the goalie (y 14) with the ball at 17; from stage 2 on the goalie
+    # stands beyond the ball, as on soccer_v2 itself
+    said = " ".join(result.output.split())
+    assert "stage 1: obstacle 'goalie' stands between the agent's start (0, 12) and the ball" in said
+    assert "stage 2:" not in said and "stage 4:" not in said
 
 
 def test_start_states_can_begin_with_the_agent_next_to_the_ball(tmp_path):
