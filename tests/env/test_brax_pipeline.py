@@ -57,6 +57,33 @@ def test_env_class_and_timing_follow_the_spec():
     assert env.observation_names == fieldgen.make("ant_nav").observation_names
 
 
+@pytest.mark.slow
+def test_ant_nav_spring_steps_as_brax_own_spring_ant():
+    """From the same state and with the same actions, ant_nav_spring's ant moves exactly as brax's `ant` on
+    the spring pipeline, the CRL reference's ant: the comparisons with the reference measure the trainer and
+    the task, not a different ant."""
+    from brax import envs
+
+    env = fieldgen.make("ant_nav_spring")
+    theirs = envs.get_environment("ant", backend="spring", exclude_current_positions_from_observation=False)
+    ours = env.reset(jax.random.PRNGKey(0))
+    state = ours.pipeline_state
+    reference = theirs.reset(jax.random.PRNGKey(0)).replace(pipeline_state=theirs.pipeline_init(state.qpos, state.qvel))
+    actions = jax.random.uniform(jax.random.PRNGKey(1), (20, env.action_size), minval=-1.0, maxval=1.0)
+
+    def trajectory(e, start, q, qd):
+        def step(s, a):
+            s = e.step(s, a)
+            return s, jnp.concatenate([q(s), qd(s)])
+
+        return np.asarray(jax.jit(lambda s: jax.lax.scan(step, s, actions)[1])(start))
+
+    got = trajectory(env, ours, lambda s: s.pipeline_state.qpos, lambda s: s.pipeline_state.qvel)
+    want = trajectory(theirs, reference, lambda s: s.pipeline_state.q, lambda s: s.pipeline_state.qd)
+    assert np.ptp(got[:, :2], axis=0).max() > 0.01  # the ant moved
+    np.testing.assert_allclose(got, want, atol=1e-5)
+
+
 def test_mixed_variants_on_brax_are_refused():
     artifacts = [compile_spec(load_spec(bundled_fields()[n])) for n in ("soccer_v2_positional", "soccer_v2_solid_positional")]
     for refuse in (check_batchable, environment):
