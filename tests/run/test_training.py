@@ -229,7 +229,15 @@ def test_cli_run_folder_and_resume_of_a_finished_run(tmp_path, monkeypatch, tiny
     assert iio.imread(run / "eval_point_nav_short.mp4", index=None).shape[0] == 40
 
 
-@pytest.mark.parametrize("path", sorted((Path(__file__).parents[2] / "configs").glob("*.yaml")), ids=lambda p: p.name)
+ROOT = Path(__file__).parents[2]
+CONFIG_FILES = sorted([*(ROOT / "agents" / "presets").glob("*.yaml"), *(ROOT / "bench" / "configs").glob("*.yaml")])
+
+
+def test_the_config_files_are_found():
+    assert {p.name for p in CONFIG_FILES} >= {"crl_ant.yaml", "crl_reference.yaml"}
+
+
+@pytest.mark.parametrize("path", CONFIG_FILES, ids=lambda p: p.name)
 def test_bundled_config_files_hold_only_known_keys(path):
     import yaml
 
