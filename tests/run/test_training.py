@@ -316,7 +316,7 @@ def test_ant_fields_get_the_ant_preset_under_a_config_file_and_set(tmp_path):
     file.write_text("crl: {batch_size: 256}\n")
     mine = crl.CRLConfig.layered(file, ["crl.layer_norm=false"], agent="ant")
     assert (mine.batch_size, mine.layer_norm, mine.windows_per_env) == (256, False, 2.0)
-    reference = Path(__file__).parents[2] / "bench" / "configs" / "crl_reference.yaml"
+    reference = ROOT / "bench" / "configs" / "crl_reference.yaml"
     assert crl.CRLConfig.layered(reference, agent="ant") == crl.CRLConfig()  # the reference's settings, back
 
 
