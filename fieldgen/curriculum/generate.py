@@ -11,7 +11,7 @@ from pathlib import Path
 import yaml
 
 from fieldgen.curriculum.folder import CurriculumError, layout_key
-from fieldgen.schema import FieldSpec, SpecError, load_spec
+from fieldgen.schema import FieldSpec, SpecError, geometry, load_spec
 from fieldgen.suggest import did_you_mean
 
 IGNORED = ("name", "description", "extends")  # never interpolated
@@ -107,7 +107,7 @@ def start_states(base: Path, near: float, stages: int, agent_near: float | None 
         raise CurriculumError(f"{base}: a start-state curriculum moves a ball spawned in a region towards a fixed "
                               "target (a goal or point target)")
     spawn = spec.ball.spawn
-    centre = ((spawn.x[0] + spawn.x[1]) / 2, (spawn.y[0] + spawn.y[1]) / 2)
+    centre = geometry.ball_spawn_centre(spec)
     to_target = (target[0] - centre[0], target[1] - centre[1])
     distance = (to_target[0] ** 2 + to_target[1] ** 2) ** 0.5
     if not 0 < near < distance:

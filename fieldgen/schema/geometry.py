@@ -76,14 +76,19 @@ def obstacles(spec: FieldSpec) -> list[Box]:
     return out
 
 
+def ball_spawn_centre(spec: FieldSpec) -> tuple[float, float]:
+    """The centre of the region the ball spawns in (spawn mode 'region')."""
+    spawn = spec.ball.spawn
+    return (spawn.x[0] + spawn.x[1]) / 2, (spawn.y[0] + spawn.y[1]) / 2
+
+
 def in_the_way(spec: FieldSpec) -> list[str]:
     """The solid obstacles on the agent's straight way from its start to where it touches the ball at its
     spawn centre, within the agent's reach of that way: the agent must walk around them before it can
     push the ball. The spec allows it; a curriculum that moves the kick-off past an obstacle says so."""
     if not spec.ball.enabled or spec.ball.spawn.mode != "region":
         return []
-    spawn, reach, (ax, ay) = spec.ball.spawn, AGENT_REACH[spec.agent.kind], spec.agent.start
-    bx, by = (spawn.x[0] + spawn.x[1]) / 2, (spawn.y[0] + spawn.y[1]) / 2
+    reach, (ax, ay), (bx, by) = AGENT_REACH[spec.agent.kind], spec.agent.start, ball_spawn_centre(spec)
     gap = math.hypot(bx - ax, by - ay)
     stop = max(0.0, 1 - (reach + spec.ball.radius) / gap) if gap else 0.0  # where the agent's reach meets the ball
     touch = (ax + stop * (bx - ax), ay + stop * (by - ay))
