@@ -210,8 +210,7 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
     staged, last = len(trainers) > 1, len(trainers) - 1
 
     def programs(k: int) -> Programs:
-        """Stage k's programs, compiled once. Evaluation reads only the policy, so it takes a state of any
-        stage (the last stage is judged while training earlier ones)."""
+        """Stage k's programs, compiled once."""
         trainer = trainers[k]
         if (len(seeds), film) not in trainer.compiled:
             trainer.compiled[len(seeds), film] = Programs(trainer, keys, film, evaluate, adapt)

@@ -53,7 +53,7 @@ class Compiling:
 
 
 class Programs:
-    """start(keys), refill(learned), chunk(state), evaluate(state, eval_keys) and adapt(state, variants) of one trainer,
+    """start(keys), refill(learned), chunk(state), evaluate(learned, eval_keys) and adapt(state, variants) of one trainer,
     vmapped over seeds and placed over the local devices (agents.sharding). Each compiles once asked
     for, by `prepare` or by its first call."""
 
@@ -70,12 +70,13 @@ class Programs:
             "chunk": lambda: Compiling(jax.jit(jax.vmap(trainer.chunk), in_shardings=(self.placement,),
                                                out_shardings=(self.placement, None)), self._state),
             "evaluate": lambda: Compiling(jax.jit(jax.vmap(functools.partial(evaluate, trainer, film=film))),
-                                          self._state, keys),
+                                          trainer.learned(self._state), keys),
             "adapt": lambda: Compiling(jax.jit(jax.vmap(functools.partial(adapt, trainer)),
                                                in_shardings=(self.placement, None), out_shardings=(self.placement, None)),
                                        self._state, self._variants),
         }
         self._compiling: dict[str, Compiling] = {}
+        self._learned = trainer.learned
 
     @property
     def _variants(self):
@@ -102,7 +103,9 @@ class Programs:
         return self._program("chunk")(state)
 
     def evaluate(self, state, eval_keys: jax.Array):
-        return self._program("evaluate")(state, eval_keys)
+        """Evaluation reads only what the state has learned, so a state of another stage, whose field
+        has other bodies and geoms, is judged here too (a curriculum's last stage while it trains an earlier one)."""
+        return self._program("evaluate")(self._learned(state), eval_keys)
 
     def adapt(self, state, variants):
         return self._program("adapt")(state, variants)

@@ -127,6 +127,25 @@ def test_staged_training_reaches_the_last_stage_of_a_point_curriculum(tmp_path):
     assert done.exit_code == 0 and "already complete" in done.output
 
 
+@pytest.mark.slow
+def test_a_curriculum_whose_stages_differ_in_bodies_trains_and_judges_its_last_stage(tmp_path, tiny_crl_args):
+    """Stage 1 without walls, stage 2 with them: the last stage's evaluation, compiled for its own scene,
+    judges the policy while stage 1 trains."""
+    import json
+
+    made = runner.invoke(app, ["curriculum", "point_soccer", "-o", str(tmp_path / "walls"),
+                               "--stage", "walls.enabled=false", "--stage", "walls.enabled=true"])
+    assert made.exit_code == 0, made.output
+    ngeoms = [compile_spec(spec).model().ngeom for spec in curriculum.load(tmp_path / "walls").specs()]
+    assert ngeoms[0] < ngeoms[1]
+    result = runner.invoke(app, ["train", str(tmp_path / "walls"), "--out", str(tmp_path / "runs"), "--no-videos",
+                                 *tiny_crl_args])
+    assert result.exit_code == 0, result.output
+    rows = [json.loads(line) for line in (tmp_path / "runs" / "walls-crl-0" / "metrics.jsonl").read_text().splitlines()]
+    assert [r["stage"] for r in rows] == [0, 0, 0]
+    assert all(0 <= r["last_stage_success_any"] <= 1 for r in rows)
+
+
 def test_start_states_move_the_kickoff_back_to_the_base_and_every_stage_builds(tmp_path):
     """Stage 1 spawns the ball `near` from the goal with the agent moved as far; the last stage is the base."""
     variants = curriculum.start_states(FIELDS["soccer_v1"], 3.0, 3)
