@@ -78,13 +78,14 @@ def main() -> None:
     import matplotlib.pyplot as plt
 
     fig, (left, clock, right) = plt.subplots(1, 3, figsize=(15, 3.6 + 0.25 * -(-len(args.runs) // 3)))
-    for item in args.runs:
+    colors = plt.get_cmap("tab10" if len(args.runs) <= 10 else "tab20").colors  # a colour of its own for each run
+    for item, color in zip(args.runs, colors * 2):
         label, _, path = item.partition("=")
         rows = load(path)
         steps, success, judged, at_goal = (own_field if args.own_field else last_field)(rows)
-        left.plot(steps, success, marker="o")
-        clock.plot([r["wall_seconds"] / 60 for r in rows], success, marker="o")
-        right.plot(judged, at_goal, marker="o")
+        left.plot(steps, success, marker="o", color=color)
+        clock.plot([r["wall_seconds"] / 60 for r in rows], success, marker="o", color=color)
+        right.plot(judged, at_goal, marker="o", color=color)
         at_goal_text = f"time at goal {at_goal[-1]:.0f}" if at_goal else "not yet on the last field"
         print(f"{label:>10s}: last evaluation {success[-1]:.2f} success_any, best {max(success):.2f}; {at_goal_text}")
     left.set(xlabel="env steps", ylabel="success_any", ylim=(-0.02, 1.02), title="episodes with a success")

@@ -6,6 +6,7 @@ base's own. Each variant is the keys that differ from the base, with where it ca
 from __future__ import annotations
 
 import itertools
+import re
 from pathlib import Path
 
 import yaml
@@ -36,7 +37,7 @@ def variants(base: Path, *, to: Path | None = None, stages: int = 5, geometric: 
         return asked[0], interpolate(base, to, stages, geometric, switch_at)
     if vary:
         return asked[0], grid(base, dict(parse_axis(v) for v in vary))
-    return asked[0], explicit(base, [parse_assignments(s.split(), "--stage") for s in listed])
+    return asked[0], explicit(base, [parse_assignments(split_assignments(s), "--stage") for s in listed])
 
 
 def interpolate(base: Path, target: Path, stages: int, geometric: tuple[str, ...] = (),
@@ -242,6 +243,12 @@ def _diff(base: dict, variant: dict) -> dict:
     return out
 
 
+def split_assignments(text: str) -> list[str]:
+    """'a=1 b={x: 1, y: 2}' -> ['a=1', 'b={x: 1, y: 2}']: a new assignment starts only where a word is
+    followed by '=', so a value may hold spaces (a YAML mapping or list)."""
+    return [item for item in re.split(r"\s+(?=[A-Za-z_][\w.]*=)", text.strip()) if item]
+
+
 def parse_assignments(items: list[str], where: str) -> dict[str, object]:
     """'key=value' strings (values read as YAML) -> {key: value}."""
     out = {}
@@ -249,8 +256,17 @@ def parse_assignments(items: list[str], where: str) -> dict[str, object]:
         key, sep, raw = item.partition("=")
         if not sep or not key:
             raise CurriculumError(f"{where} '{item}': write KEY=VALUE, e.g. goal.distance=12")
-        out[key.strip()] = yaml.safe_load(raw)
+        out[key.strip()] = _yaml_value(raw, f"{where} {key.strip()}")
     return out
+
+
+def _yaml_value(raw: str, where: str):
+    try:
+        return yaml.safe_load(raw)
+    except yaml.YAMLError as error:
+        problem = getattr(error, "problem", None) or "not valid YAML"
+        raise CurriculumError(f"{where}: the value '{raw}' is not valid YAML ({problem}); write a number, a word, "
+                              "[a, list] or {a: mapping}") from None
 
 
 def parse_axis(item: str) -> tuple[str, list]:
@@ -258,7 +274,7 @@ def parse_axis(item: str) -> tuple[str, list]:
     key, sep, raw = item.partition("=")
     if not sep or not key:
         raise CurriculumError(f"--vary '{item}': write KEY=V1,V2,..., e.g. goal.distance=8,12,16")
-    values = [yaml.safe_load(v) for v in raw.split(",") if v.strip()]
+    values = [_yaml_value(v, f"--vary {key.strip()}") for v in raw.split(",") if v.strip()]
     if not values:
         raise CurriculumError(f"--vary {key}: the list of values is empty")
     return key.strip(), values
