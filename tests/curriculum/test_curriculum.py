@@ -64,6 +64,7 @@ def test_grid_has_the_product_size(tmp_path):
     (["--stage", "goal.distance=9 obstacles={rock:"], "--stage obstacles: the value '{rock:' is not valid YAML"),
     (["--vary", "goal.distance=[8"], "--vary goal.distance: the value '[8' is not valid YAML"),
     (["--to", "soccer_v2", "--stages", "1"], "at least 2 stages"),
+    (["--start-near", "9"], "--start-near 9: choose a distance between 0 and 7.00"),
     ([], "give exactly one of"),
 ])
 def test_bad_curriculum_input_writes_nothing(tmp_path, args, phrase):
