@@ -53,9 +53,9 @@ class Compiling:
 
 
 class Programs:
-    """start(keys), refill(learned), chunk(state), evaluate(learned, eval_keys) and adapt(state, variants) of one trainer,
-    vmapped over seeds and placed over the local devices (agents.sharding). Each compiles once asked
-    for, by `prepare` or by its first call."""
+    """start(keys), refill(learned), chunk(state), evaluate(learned, eval_keys) and adapt(state, variants) of
+    one trainer, vmapped over seeds and placed over the local devices (agents.sharding). Each compiles once
+    asked for, by `prepare` or by its first call."""
 
     def __init__(self, trainer, keys: jax.Array, film: Callable | None, evaluate: Callable, adapt: Callable):
         start = jax.vmap(trainer.start)  # one function for both: JAX reuses the shapes' trace to compile it
@@ -63,6 +63,7 @@ class Programs:
         self.placement = sharding.training_shardings(shapes, sharding.local_mesh(), trainer.env_axes)
         self._state = jax.tree.map(lambda s, p: jax.ShapeDtypeStruct(s.shape, s.dtype, sharding=p),
                                    shapes, self.placement)
+        self._learned = trainer.learned
         self._jobs = {
             "start": lambda: Compiling(jax.jit(start, out_shardings=self.placement), keys),
             "refill": lambda: Compiling(jax.jit(jax.vmap(trainer.refill), out_shardings=self.placement),
@@ -70,13 +71,12 @@ class Programs:
             "chunk": lambda: Compiling(jax.jit(jax.vmap(trainer.chunk), in_shardings=(self.placement,),
                                                out_shardings=(self.placement, None)), self._state),
             "evaluate": lambda: Compiling(jax.jit(jax.vmap(functools.partial(evaluate, trainer, film=film))),
-                                          trainer.learned(self._state), keys),
+                                          self._learned(self._state), keys),
             "adapt": lambda: Compiling(jax.jit(jax.vmap(functools.partial(adapt, trainer)),
                                                in_shardings=(self.placement, None), out_shardings=(self.placement, None)),
                                        self._state, self._variants),
         }
         self._compiling: dict[str, Compiling] = {}
-        self._learned = trainer.learned
 
     @property
     def _variants(self):
@@ -103,8 +103,8 @@ class Programs:
         return self._program("chunk")(state)
 
     def evaluate(self, state, eval_keys: jax.Array):
-        """Evaluation reads only what the state has learned, so a state of another stage, whose field
-        has other bodies and geoms, is judged here too (a curriculum's last stage while it trains an earlier one)."""
+        """Evaluation reads only what the state has learned, so a state of another stage, whose field has
+        other bodies and geoms, is judged here too (a curriculum's last stage while it trains an earlier one)."""
         return self._program("evaluate")(self._learned(state), eval_keys)
 
     def adapt(self, state, variants):

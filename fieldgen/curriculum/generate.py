@@ -112,8 +112,8 @@ def start_states(base: Path, near: float, stages: int, agent_near: float | None 
     to_target = (target[0] - centre[0], target[1] - centre[1])
     distance = (to_target[0] ** 2 + to_target[1] ** 2) ** 0.5
     if not 0 < near < distance:
-        raise CurriculumError(f"--start-near {near:g}: choose a distance between 0 and {distance:.2f}, the distance from "
-                              f"the ball's spawn centre to the target in {base}")
+        raise CurriculumError(f"--start-near {near:g}: choose a distance between 0 and {distance:.2f}, the distance "
+                              f"from the ball's spawn centre to the target in {base}")
     behind = (spec.agent.start[0] - centre[0], spec.agent.start[1] - centre[1])  # the agent from the ball
     gap = (behind[0] ** 2 + behind[1] ** 2) ** 0.5
     if agent_near is not None and not 0 < agent_near < gap:
