@@ -138,6 +138,25 @@ def test_counts_are_read_as_people_write_them(tmp_path):
         message = " ".join(result.output.split())
         assert result.exit_code == 2 and f"'{bad}' is not a positive whole count" in message, result.output
         assert "Traceback" not in result.output
+    for bad in ("0", "-3"):
+        result = runner.invoke(app, ["eval", str(tmp_path / "point_nav-crl-0"), "--episodes", bad])
+        assert result.exit_code == 2 and f"'{bad}' is not a positive whole count" in " ".join(result.output.split())
+
+
+def test_outputs_that_cannot_be_written_and_folders_that_are_not_fields_are_clear_errors(tmp_path):
+    """A file where a folder should be: render and curriculum say what they could not write, and write
+    nothing; compare says the folder it was given is not a built field."""
+    blocker = tmp_path / "a_file"
+    blocker.write_text("")
+    cases = [(["render", "point_nav", "-o", str(blocker / "x.png")], f"cannot write {blocker / 'x.png'}"),
+             (["curriculum", "point_nav", "--stage", "task.target.radius=1", "--stage", "task.target.radius=2",
+               "-o", str(blocker / "c")], f"cannot write {blocker / 'c'}"),
+             (["compare", str(tmp_path)], f"{tmp_path} is not a built field")]
+    for args, phrase in cases:
+        result = runner.invoke(app, args)
+        message = " ".join(result.output.split())
+        assert result.exit_code == 1 and phrase in message and "Traceback" not in message, result.output
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a_file"]
 
 
 def test_version_and_python_dash_m():

@@ -53,10 +53,10 @@ def choice(what: str, choices: tuple[str, ...]) -> dict:
 SUFFIXES = {"k": 1_000, "m": 1_000_000, "g": 1_000_000_000}
 
 
-def count(text: str) -> int:
+def count(text: str | int) -> int:
     """A whole count as people write them: 50M, 1.5k, 2e6, 10_000_000 or 40000 (read as a Decimal, so
-    that 1.1k is exactly 1100)."""
-    cleaned = text.strip().replace("_", "").replace(",", "")
+    that 1.1k is exactly 1100); an option's default comes as the number itself."""
+    cleaned = str(text).strip().replace("_", "").replace(",", "")
     scale = SUFFIXES.get(cleaned[-1:].lower(), 1)
     try:
         value = Decimal(cleaned[:-1] if scale > 1 else cleaned) * scale

@@ -145,7 +145,7 @@ def render(
         try:
             c = curriculum.load(Path(spec))
             write_atomic(output, stage_sheet(c, view))
-        except (curriculum.CurriculumError, RenderError) as exc:
+        except (curriculum.CurriculumError, RenderError, OSError) as exc:
             fail(str(exc))
         out.print(f"wrote {output}: {len(c.stages)} stages of {spec}, camera {view}")
         return
@@ -157,9 +157,9 @@ def render(
     model = artifact.model()
     try:
         image = preview(model) if camera == "both" else render_pose(model, camera=camera)
-    except RenderError as exc:
+        write_atomic(output, png_bytes(image))
+    except (RenderError, OSError) as exc:
         fail(str(exc))
-    write_atomic(output, png_bytes(image))
     out.print(f"wrote {output} ({image.shape[1]}x{image.shape[0]}, camera {camera})")
 
 
@@ -206,6 +206,9 @@ def make_curriculum(
         c = curriculum.write(output, base, base_path, kind, variants, curriculum.Promotion(threshold, window), force)
     except curriculum.CurriculumError as exc:
         fail(str(exc))
+    except OSError as exc:
+        fail(f"cannot write {output}: {exc.strerror}; nothing was written: fix the folder's permissions or choose "
+             "another -o")
     table = Table("stage", "name", "changes from the base", title=f"{output}/{curriculum.INDEX} ({c.kind})")
     for i, st in enumerate(c.stages, 1):
         table.add_row(str(i), st.name, _flat_changes(st.changes) or "(the base itself)")

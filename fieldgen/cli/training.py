@@ -145,6 +145,7 @@ def compare(
     Example: fieldgen compare point_nav --algos crl,icrl,sac --steps 40000 --envs 16 --seeds 2
     """
     from fieldgen.agents.config import ConfigError
+    from fieldgen.compile.artifact import ArtifactError
     from fieldgen.run import compare as comparing
     from fieldgen.run import record
 
@@ -155,7 +156,7 @@ def compare(
     try:
         folder, todo = comparing.runs(source, names, list(range(seeds)), runs, config, sets or [],
                                       total_steps=steps, num_envs=envs)
-    except (SpecError, ConfigError, record.RunError) as exc:
+    except (SpecError, ConfigError, record.RunError, ArtifactError) as exc:
         fail(str(exc))
     if prepare:
         out.print(f"prepared {len(todo)} runs in {folder}; train each with fieldgen train --resume RUN, "
@@ -173,7 +174,7 @@ def compare(
 @app.command("eval")
 def evaluate(
     run_dir: Annotated[Path, typer.Argument(metavar="RUN", help="a run folder written by fieldgen train")],
-    episodes: Annotated[int, typer.Option(metavar="N",
+    episodes: Annotated[int, typer.Option(parser=count, metavar="N",
                                           help="evaluation episodes per seed, one per parallel env")] = 128,
     video: Annotated[bool, typer.Option(help="write eval.mp4 of one episode of the run's first seed")] = True,
     video_fmt: VideoFormat = None,
