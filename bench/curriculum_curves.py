@@ -18,6 +18,7 @@ source's own evaluations, of its own field, are drawn only under a label of thei
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 from pathlib import Path
 
@@ -79,7 +80,7 @@ def main() -> None:
 
     fig, (left, clock, right) = plt.subplots(1, 3, figsize=(15, 3.6 + 0.25 * -(-len(args.runs) // 3)))
     colors = plt.get_cmap("tab10" if len(args.runs) <= 10 else "tab20").colors  # a colour of its own for each run
-    for item, color in zip(args.runs, colors * 2):
+    for item, color in zip(args.runs, itertools.cycle(colors)):
         label, _, path = item.partition("=")
         rows = load(path)
         steps, success, judged, at_goal = (own_field if args.own_field else last_field)(rows)

@@ -145,7 +145,6 @@ def compare(
     Example: fieldgen compare point_nav --algos crl,icrl,sac --steps 40000 --envs 16 --seeds 2
     """
     from fieldgen.agents.config import ConfigError
-    from fieldgen.compile.artifact import ArtifactError
     from fieldgen.run import compare as comparing
     from fieldgen.run import record
 
@@ -156,7 +155,7 @@ def compare(
     try:
         folder, todo = comparing.runs(source, names, list(range(seeds)), runs, config, sets or [],
                                       total_steps=steps, num_envs=envs)
-    except (SpecError, ConfigError, record.RunError, ArtifactError) as exc:
+    except (SpecError, ConfigError, record.RunError) as exc:
         fail(str(exc))
     if prepare:
         out.print(f"prepared {len(todo)} runs in {folder}; train each with fieldgen train --resume RUN, "

@@ -17,6 +17,7 @@ from rich.table import Table
 
 import fieldgen
 from fieldgen.agents import registry, sharding
+from fieldgen.compile.artifact import ArtifactError
 from fieldgen.files import write_atomic
 from fieldgen.run import plots, record, session
 
@@ -30,7 +31,10 @@ def runs(source: Path, algos: list[str], seeds: list[int], folder: Path | None, 
     entries = {algo: registry.trainer(algo) for algo in algos}
     if len(set(algos)) != len(algos):
         raise record.RunError(f"--algos lists an algorithm twice: {','.join(algos)}")
-    env = fieldgen.make(source)
+    try:
+        env = fieldgen.make(source)
+    except ArtifactError as exc:
+        raise record.RunError(str(exc)) from None
     folder = folder or Path("runs") / f"compare-{env.spec.name}"
     configs = {}
     for algo, entry in entries.items():
