@@ -185,16 +185,21 @@ def make_curriculum(
     agent_near: Annotated[Optional[float], typer.Option(metavar="DISTANCE",
         help="with --start-near: the first stage also starts the agent this far from the ball, later stages "
              "widen the gap back to BASE's")] = None,
+    then: Annotated[Optional[list[str]], typer.Option(metavar="SPEC",
+        help="then go on from the last stage to this field by interpolation (repeat to go on further)")] = None,
+    then_stages: Annotated[Optional[int], typer.Option(metavar="N",
+        help="stages each --then adds, SPEC the last of them (default: one fewer than --stages)")] = None,
     threshold: Annotated[float, typer.Option(help="success_any that promotes a run to the next stage")] = 0.5,
     window: Annotated[int, typer.Option(metavar="N", help="evaluations averaged for promotion")] = 2,
     force: Annotated[bool, typer.Option(help="replace an existing folder")] = False,
 ) -> None:
     """Write field variants and a curriculum.yaml: an interpolation (--to), a grid (--vary), a list (--stage)
-    or start states (--start-near).
+    or start states (--start-near), going on by interpolation to further fields (--then) if asked.
 
     Example: fieldgen curriculum fields/soccer_v1.yaml --to fields/v2_wide_goalie.yaml --stages 6 -o curricula/v1_to_wide
     Example: fieldgen curriculum soccer_v2 --start-near 3 --stages 4 -o curricula/v2_start_states
     Example: fieldgen curriculum soccer_v1 --start-near 1.5 --agent-near 1.75 --stages 5 -o curricula/v1_close
+    Example: fieldgen curriculum soccer_v1 --start-near 1.5 --stages 5 --then soccer_v2 --then-stages 3 -o curricula/v1_close_to_v2
     """
     from fieldgen import curriculum
 
@@ -202,7 +207,8 @@ def make_curriculum(
     try:
         kind, variants = curriculum.variants(base_path, to=spec_path(to) if to is not None else None, stages=stages,
                                              geometric=tuple(geometric or ()), switch_at=switch_at, vary=vary or [],
-                                             listed=stage or [], start_near=start_near, agent_near=agent_near)
+                                             listed=stage or [], start_near=start_near, agent_near=agent_near,
+                                             then=tuple(spec_path(s) for s in then or ()), then_stages=then_stages)
         c = curriculum.write(output, base, base_path, kind, variants, curriculum.Promotion(threshold, window), force)
     except curriculum.CurriculumError as exc:
         fail(str(exc))

@@ -1,7 +1,9 @@
 """Field variants generated from specs: interpolation between two specs (numbers linearly or
 geometrically, booleans and choices switching at a stated stage), a grid over named keys,
 explicit lists, and start states that move the kick-off from near the target back to the
-base's own. Each variant is the keys that differ from the base, with where it came from."""
+base's own; any of them may go on by interpolation to further fields (`then`), so one staged
+run can take an agent from a close start to the hardest field. Each variant is the keys that
+differ from the base, with where it came from."""
 
 from __future__ import annotations
 
@@ -13,6 +15,8 @@ import yaml
 
 from fieldgen.curriculum.folder import CurriculumError, layout_key
 from fieldgen.schema import FieldSpec, SpecError, geometry, load_spec
+from fieldgen.schema.loader import validate
+from fieldgen.schema.source import Source
 from fieldgen.suggest import did_you_mean
 
 IGNORED = ("name", "description", "extends")  # never interpolated
@@ -20,10 +24,12 @@ IGNORED = ("name", "description", "extends")  # never interpolated
 
 def variants(base: Path, *, to: Path | None = None, stages: int = 5, geometric: tuple[str, ...] = (),
              switch_at: int | None = None, vary: list[str] = (), listed: list[str] = (),
-             start_near: float | None = None, agent_near: float | None = None) -> tuple[str, list[tuple[dict, str]]]:
+             start_near: float | None = None, agent_near: float | None = None, then: tuple[Path, ...] = (),
+             then_stages: int | None = None) -> tuple[str, list[tuple[dict, str]]]:
     """The kind and variants of the one curriculum asked for: an interpolation to `to`, a grid over `vary`
     axes ('KEY=V1,V2'), the `listed` variants ('KEY=V KEY=V' each) or start states `start_near` the target
-    (the agent `agent_near` the ball at first, if given)."""
+    (the agent `agent_near` the ball at first, if given); then on to each field of `then` in turn, in
+    `then_stages` stages each (default: one fewer than `stages`)."""
     asked = [kind for kind, given in (("interpolation", to is not None), ("grid", vary), ("list", listed),
                                       ("start_states", start_near is not None)) if given]
     if len(asked) != 1:
@@ -31,13 +37,19 @@ def variants(base: Path, *, to: Path | None = None, stages: int = 5, geometric: 
                               "--stage 'KEY=V' (list) or --start-near DISTANCE (start states)")
     if agent_near is not None and start_near is None:
         raise CurriculumError("--agent-near belongs to a start-state curriculum: give --start-near too")
+    if then_stages is not None and not then:
+        raise CurriculumError("--then-stages belongs to --then: give the field to go on to")
     if start_near is not None:
-        return asked[0], start_states(base, start_near, stages, agent_near)
-    if to is not None:
-        return asked[0], interpolate(base, to, stages, geometric, switch_at)
-    if vary:
-        return asked[0], grid(base, dict(parse_axis(v) for v in vary))
-    return asked[0], explicit(base, [parse_assignments(split_assignments(s), "--stage") for s in listed])
+        out = start_states(base, start_near, stages, agent_near)
+    elif to is not None:
+        out = interpolate(base, to, stages, geometric, switch_at)
+    elif vary:
+        out = grid(base, dict(parse_axis(v) for v in vary))
+    else:
+        out = explicit(base, [parse_assignments(split_assignments(s), "--stage") for s in listed])
+    for target in then:
+        out = out + go_on(base, out, target, stages - 1 if then_stages is None else then_stages, geometric)
+    return asked[0] + ", then interpolation" * len(then), out
 
 
 def interpolate(base: Path, target: Path, stages: int, geometric: tuple[str, ...] = (),
@@ -56,16 +68,40 @@ def interpolate(base: Path, target: Path, stages: int, geometric: tuple[str, ...
     switch = switch_at if switch_at is not None else stages // 2 + 1
     if not 1 <= switch <= stages:
         raise CurriculumError(f"--switch-at {switch_at}: choose a stage from 1 to {stages}")
-    known = set(_leaf_keys(a)) | set(_leaf_keys(b))
-    for key in geometric:
-        if key not in known:
-            raise CurriculumError(f"--geometric {key}: no such key{did_you_mean(key, sorted(known))}")
+    _check_geometric(geometric, a, b)
     out = []
     for k in range(stages):
         t = k / (stages - 1)
         variant = _blend(a, b, t, k + 1 >= switch, geometric, ())
         out.append((_diff(a, variant), f"stage {k + 1} of {stages}, t = {t:.3f}, from {base} to {target} "
                                        f"(switches at stage {switch})"))
+    return out
+
+
+def go_on(base: Path, before: list[tuple[dict, str]], target: Path, stages: int,
+          geometric: tuple[str, ...] = ()) -> list[tuple[dict, str]]:
+    """`stages` more variants of base, from the field of the last variant `before` on to target (the last):
+    the stages after the first of an interpolation of stages + 1 (numbers move linearly or geometrically,
+    booleans and choices switch halfway), each still written as its changes from base."""
+    if stages < 1:
+        raise CurriculumError(f"--then-stages {stages}: going on to another field takes at least 1 stage")
+    spec_a, spec_b = _spec(base), _spec(target)
+    _check_compatible(base, spec_a, target, spec_b)
+    a = spec_a.model_dump(mode="json")
+    try:
+        last = validate(Source(_apply(a, before[-1][0]))).model_dump(mode="json")
+    except SpecError as exc:
+        problems = "; ".join(f"{p.path}: {p.message}" for p in exc.problems)
+        raise CurriculumError(f"stage {len(before)}, which --then goes on from, is not a valid field ({problems}); "
+                              "nothing was written") from None
+    b = spec_b.model_dump(mode="json")
+    _check_geometric(geometric, last, b)
+    out = []
+    for k in range(1, stages + 1):
+        t = k / stages
+        variant = _blend(last, b, t, k >= (stages + 1) // 2, geometric, ())
+        out.append((_diff(a, variant), f"stage {len(before) + k}: {k} of {stages} from stage {len(before)} on "
+                                       f"to {target}, t = {t:.3f} (switches at {(stages + 1) // 2} of {stages})"))
     return out
 
 
@@ -148,6 +184,13 @@ def _check_compatible(a_path: Path, sa: FieldSpec, b_path: Path, sb: FieldSpec) 
                               "a curriculum needs one observation layout")
 
 
+def _check_geometric(keys: tuple[str, ...], a: dict, b: dict) -> None:
+    known = set(_leaf_keys(a)) | set(_leaf_keys(b))
+    for key in keys:
+        if key not in known:
+            raise CurriculumError(f"--geometric {key}: no such key{did_you_mean(key, sorted(known))}")
+
+
 def _resolved(path: Path) -> dict:
     return _spec(path).model_dump(mode="json")
 
@@ -222,6 +265,19 @@ def _mix(a, b, t: float, geometric: bool, key: str):
     if isinstance(a, int) and isinstance(b, int):
         return int(round(value))
     return float(f"{value:.6g}") if t not in (0.0, 1.0) else (a if t == 0.0 else b)
+
+
+def _apply(base: dict, changes: dict) -> dict:
+    """base with a variant's changes (as `_diff` writes them: null deletes a key) applied."""
+    out = dict(base)
+    for k, v in changes.items():
+        if v is None:
+            out.pop(k, None)
+        elif isinstance(v, dict) and isinstance(out.get(k), dict):
+            out[k] = _apply(out[k], v)
+        else:
+            out[k] = v
+    return out
 
 
 def _diff(base: dict, variant: dict) -> dict:

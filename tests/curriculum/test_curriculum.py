@@ -65,6 +65,11 @@ def test_grid_has_the_product_size(tmp_path):
     (["--vary", "goal.distance=[8"], "--vary goal.distance: the value '[8' is not valid YAML"),
     (["--to", "soccer_v2", "--stages", "1"], "at least 2 stages"),
     (["--start-near", "9"], "--start-near 9: choose a distance between 0 and 7.00"),
+    (["--start-near", "3", "--then", "point_nav"], "drives the ant agent and"),
+    (["--start-near", "3", "--then", "soccer_v2", "--then-stages", "0"], "--then-stages 0: going on to another"),
+    (["--start-near", "3", "--then-stages", "2"], "--then-stages belongs to --then"),
+    (["--start-near", "3", "--then", "soccer_v2", "--geometric", "goal.distanse"], "did you mean 'goal.distance'?"),
+    (["--stage", "goal.distance=abc", "--then", "soccer_v2"], "stage 1, which --then goes on from, is not a valid field (goal.distance: 'abc' is text"),
     ([], "give exactly one of"),
 ])
 def test_bad_curriculum_input_writes_nothing(tmp_path, args, phrase):
@@ -163,6 +168,26 @@ def test_the_cli_writes_a_start_state_curriculum(tmp_path):
     said = " ".join(result.output.split())
     assert "stage 1: obstacle 'goalie' stands between the agent's start (0, 12) and the ball" in said
     assert "stage 2:" not in said and "stage 4:" not in said
+
+
+def test_a_curriculum_goes_on_to_further_fields(tmp_path):
+    """--then appends the stages after the first of an interpolation from the last stage on to a field: after
+    soccer_v1's start states, those of soccer_v1 -> soccer_v2; a second --then goes on from there."""
+    out = tmp_path / "close_to_wide"
+    result = runner.invoke(app, ["curriculum", "soccer_v1", "--start-near", "3", "--stages", "3", "--then", "soccer_v2",
+                                 "--then-stages", "3", "--then", "v2_wide_goalie", "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    c = curriculum.load(out)
+    assert c.kind == "start_states, then interpolation, then interpolation" and len(c.stages) == 3 + 3 + 3
+    to_v2 = curriculum.write(tmp_path / "v1_to_v2", "soccer_v1", FIELDS["soccer_v1"], "interpolation",
+                             curriculum.interpolate(FIELDS["soccer_v1"], FIELDS["soccer_v2"], 4), curriculum.Promotion())
+    paths = c.spec_paths()
+    assert [resolved(p) for p in paths[2:6]] == [resolved(p) for p in to_v2.spec_paths()]
+    assert resolved(paths[0]) != resolved(paths[2])  # the start states come first
+    assert resolved(paths[-1]) == resolved(FIELDS["v2_wide_goalie"])
+    assert [load_spec(p).obstacles["goalie"].width for p in paths[5:]] == pytest.approx([1.5, 2.0, 2.5, 3.0])
+    assert "stage 7: 1 of 3 from stage 6 on to" in paths[6].read_text()
+    compile_spec(load_spec(paths[-2]))
 
 
 def test_start_states_can_begin_with_the_agent_next_to_the_ball(tmp_path):
