@@ -95,6 +95,8 @@ def go_on(base: Path, before: list[tuple[dict, str]], target: Path, stages: int,
         raise CurriculumError(f"stage {len(before)}, which --then goes on from, is not a valid field ({problems}); "
                               "nothing was written") from None
     b = spec_b.model_dump(mode="json")
+    if not _diff(last, b):
+        raise CurriculumError(f"--then {target}: stage {len(before)} is that field already; there is nothing to go on to")
     _check_geometric(geometric, last, b)
     out = []
     for k in range(1, stages + 1):

@@ -68,6 +68,7 @@ def test_grid_has_the_product_size(tmp_path):
     (["--start-near", "3", "--then", "point_nav"], "drives the ant agent and"),
     (["--start-near", "3", "--then", "soccer_v2", "--then-stages", "0"], "--then-stages 0: going on to another"),
     (["--start-near", "3", "--then-stages", "2"], "--then-stages belongs to --then"),
+    (["--to", "soccer_v2", "--stages", "2", "--then", "soccer_v2"], "stage 2 is that field already"),
     (["--start-near", "3", "--then", "soccer_v2", "--geometric", "goal.distanse"], "did you mean 'goal.distance'?"),
     (["--stage", "goal.distance=abc", "--then", "soccer_v2"], "stage 1, which --then goes on from, is not a valid field (goal.distance: 'abc' is text"),
     ([], "give exactly one of"),
