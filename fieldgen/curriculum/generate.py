@@ -15,7 +15,7 @@ import yaml
 
 from fieldgen.curriculum.folder import CurriculumError, layout_key
 from fieldgen.schema import FieldSpec, SpecError, geometry, load_spec
-from fieldgen.schema.loader import validate
+from fieldgen.schema.loader import merge, validate
 from fieldgen.schema.source import Source
 from fieldgen.suggest import did_you_mean
 
@@ -69,27 +69,24 @@ def interpolate(base: Path, target: Path, stages: int, geometric: tuple[str, ...
     if not 1 <= switch <= stages:
         raise CurriculumError(f"--switch-at {switch_at}: choose a stage from 1 to {stages}")
     _check_geometric(geometric, a, b)
-    out = []
-    for k in range(stages):
-        t = k / (stages - 1)
-        variant = _blend(a, b, t, k + 1 >= switch, geometric, ())
-        out.append((_diff(a, variant), f"stage {k + 1} of {stages}, t = {t:.3f}, from {base} to {target} "
-                                       f"(switches at stage {switch})"))
-    return out
+    return [(_diff(a, variant), f"stage {k + 1} of {stages}, t = {t:.3f}, from {base} to {target} "
+                                f"(switches at stage {switch})")
+            for k, (t, variant) in enumerate(_blends(a, b, stages, switch, geometric))]
 
 
 def go_on(base: Path, before: list[tuple[dict, str]], target: Path, stages: int,
           geometric: tuple[str, ...] = ()) -> list[tuple[dict, str]]:
     """`stages` more variants of base, from the field of the last variant `before` on to target (the last):
     the stages after the first of an interpolation of stages + 1 (numbers move linearly or geometrically,
-    booleans and choices switch halfway), each still written as its changes from base."""
+    booleans and choices switch halfway), each still written as its changes from base. The last variant's
+    field is base merged with its changes, as its stage file will be loaded."""
     if stages < 1:
         raise CurriculumError(f"--then-stages {stages}: going on to another field takes at least 1 stage")
     spec_a, spec_b = _spec(base), _spec(target)
     _check_compatible(base, spec_a, target, spec_b)
     a = spec_a.model_dump(mode="json")
     try:
-        last = validate(Source(_apply(a, before[-1][0]))).model_dump(mode="json")
+        last = validate(merge(Source(a), Source(before[-1][0]))).model_dump(mode="json")
     except SpecError as exc:
         problems = "; ".join(f"{p.path}: {p.message}" for p in exc.problems)
         raise CurriculumError(f"stage {len(before)}, which --then goes on from, is not a valid field ({problems}); "
@@ -98,13 +95,16 @@ def go_on(base: Path, before: list[tuple[dict, str]], target: Path, stages: int,
     if not _diff(last, b):
         raise CurriculumError(f"--then {target}: stage {len(before)} is that field already; there is nothing to go on to")
     _check_geometric(geometric, last, b)
-    out = []
-    for k in range(1, stages + 1):
-        t = k / stages
-        variant = _blend(last, b, t, k >= (stages + 1) // 2, geometric, ())
-        out.append((_diff(a, variant), f"stage {len(before) + k}: {k} of {stages} from stage {len(before)} on "
-                                       f"to {target}, t = {t:.3f} (switches at {(stages + 1) // 2} of {stages})"))
-    return out
+    switch = (stages + 1) // 2 + 1  # the interpolation's default: halfway
+    return [(_diff(a, variant), f"stage {len(before) + k}: {k} of {stages} from stage {len(before)} on to {target}, "
+                                f"t = {t:.3f} (switches at {switch - 1} of {stages})")
+            for k, (t, variant) in enumerate(_blends(last, b, stages + 1, switch, geometric)) if k > 0]
+
+
+def _blends(a: dict, b: dict, stages: int, switch: int, geometric: tuple[str, ...]) -> list[tuple[float, dict]]:
+    """(t, the field at t) for `stages` evenly spaced steps from a (t = 0) to b (t = 1), booleans and choices
+    switching to b's from stage `switch` (1-based) on."""
+    return [(k / (stages - 1), _blend(a, b, k / (stages - 1), k + 1 >= switch, geometric, ())) for k in range(stages)]
 
 
 def grid(base: Path, axes: dict[str, list]) -> list[tuple[dict, str]]:
@@ -267,19 +267,6 @@ def _mix(a, b, t: float, geometric: bool, key: str):
     if isinstance(a, int) and isinstance(b, int):
         return int(round(value))
     return float(f"{value:.6g}") if t not in (0.0, 1.0) else (a if t == 0.0 else b)
-
-
-def _apply(base: dict, changes: dict) -> dict:
-    """base with a variant's changes (as `_diff` writes them: null deletes a key) applied."""
-    out = dict(base)
-    for k, v in changes.items():
-        if v is None:
-            out.pop(k, None)
-        elif isinstance(v, dict) and isinstance(out.get(k), dict):
-            out[k] = _apply(out[k], v)
-        else:
-            out[k] = v
-    return out
 
 
 def _diff(base: dict, variant: dict) -> dict:

@@ -50,7 +50,7 @@ def load_spec(path: str | Path | FieldSpec, backend: str | None = None) -> Field
     else:
         source = _load_merged(Path(path), ())
     if backend is not None:
-        source = _merge(source, Source({"sim": {"backend": backend}}))
+        source = merge(source, Source({"sim": {"backend": backend}}))
     return validate(source)
 
 
@@ -81,7 +81,7 @@ def _load_merged(path: Path, chain: tuple[Path, ...]) -> Source:
     if len(chain) >= MAX_EXTENDS:
         raise SpecError([source.problem(("extends",), f"the 'extends' chain is longer than {MAX_EXTENDS} files")])
     parent = _load_merged(parent_path, chain)
-    return _merge(parent, source)
+    return merge(parent, source)
 
 
 def _extended(source: Source, ref, path: Path) -> Path:
@@ -108,7 +108,8 @@ def _extended(source: Source, ref, path: Path) -> Path:
     return parent
 
 
-def _merge(base: Source, child: Source) -> Source:
+def merge(base: Source, child: Source) -> Source:
+    """child's keys over base's, as `extends` merges a spec over its parent: null deletes a key."""
     data = _deep_merge(base.data, child.data)
     positions = dict(base.positions)
     for parts in list(positions):
