@@ -11,7 +11,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import time
-from typing import Callable, Sequence
+from typing import Callable, Protocol, Sequence
 
 import flax.struct
 import jax
@@ -21,6 +21,29 @@ import numpy as np
 from .programs import Programs
 
 EVAL_STREAM = 0x5EED  # evaluation keys: fold_in(fold_in(seed key, EVAL_STREAM), evaluation index)
+
+
+class Schedule(Protocol):
+    """What the loop asks a curriculum after each evaluation (fieldgen.curriculum.schedule answers);
+    the loop itself knows no curriculum. Schedules are hashable: compiled programs are kept by them."""
+
+    def next_stage(self, history: list[dict], stage: int, stages: int) -> int:
+        """The stage (an index into the loop's trainers) the next chunk trains on, given every row so far."""
+
+    def variant_weights(self, success: jax.Array) -> jax.Array:
+        """How often each variant of an environment of several starts an episode, from an evaluation's
+        success_any on each; pure and jittable."""
+
+
+@dataclasses.dataclass(frozen=True)
+class OneStage:
+    """The schedule of a run on one environment: it never moves, and its variants (if any) are drawn evenly."""
+
+    def next_stage(self, history: list[dict], stage: int, stages: int) -> int:
+        return stage
+
+    def variant_weights(self, success: jax.Array) -> jax.Array:
+        return jnp.full_like(success, 1.0 / success.shape[-1])
 
 
 @dataclasses.dataclass(frozen=True)
@@ -79,7 +102,7 @@ def evaluate_policy(env, act: Callable, key: jax.Array, n_envs: int, film: Calla
     with several); without, None.
     """
     keys = jax.random.split(key, n_envs)
-    count = getattr(env, "variant_count", 1)
+    count = env.variant_count
     if count > 1:
         env_state = jax.vmap(env.reset_variant)(keys, jnp.arange(n_envs) % count)
     else:
@@ -140,19 +163,19 @@ def evaluate(trainer: Trainer, state, key: jax.Array, film: Callable | None = No
     return evaluate_policy(trainer.env, functools.partial(trainer.act, state), key, trainer.config.eval_envs, film)
 
 
-def adapt(trainer: Trainer, state, variants: VariantResults) -> tuple[object, VariantResults]:
-    """Let an environment of several variants re-weight them from an evaluation's results on each
-    (`env.adapt(env_state, success_any per variant) -> (env_state, weights)`); the results come back
-    with the weights recorded."""
-    env_state, weights = trainer.env.adapt(state.env_state, variants.success_any)
-    return state.replace(env_state=env_state), variants.replace(weight=weights)
+def adapt(trainer: Trainer, state, variants: VariantResults, weigh: Callable) -> tuple[object, VariantResults]:
+    """Re-weight the variants of an environment of several by `weigh` (a schedule's `variant_weights`) of an
+    evaluation's success on each; the results come back with the weights recorded."""
+    weights = weigh(variants.success_any)
+    return state.replace(env_state=trainer.env.with_variant_weights(state.env_state, weights)), \
+        variants.replace(weight=weights)
 
 
 def eval_key(seed_key: jax.Array, index) -> jax.Array:
     return jax.random.fold_in(jax.random.fold_in(seed_key, EVAL_STREAM), index)
 
 
-def pure_train(trainer: Trainer, num_evals: int) -> Callable:
+def pure_train(trainer: Trainer, num_evals: int, schedule: Schedule = OneStage()) -> Callable:
     """train(key) -> (final state, metrics stacked over the num_evals evaluations); jit- and vmap-able."""
 
     def train(key):
@@ -160,7 +183,7 @@ def pure_train(trainer: Trainer, num_evals: int) -> Callable:
             state, metrics = trainer.chunk(state)
             metrics.update(evaluate(trainer, state, eval_key(key, index))[0])
             if "variants" in metrics:
-                state, metrics["variants"] = adapt(trainer, state, metrics["variants"])
+                state, metrics["variants"] = adapt(trainer, state, metrics["variants"], schedule.variant_weights)
             return state, metrics
 
         return jax.lax.scan(interval, trainer.start(key), jnp.arange(1, num_evals + 1))
@@ -182,21 +205,21 @@ def run(trainer: Trainer, seeds: Sequence[int], num_evals: int,
     Returns (state, rows).
     """
     staged_resume = None if resume is None else (*resume, 0)
-    return run_staged([trainer], seeds, num_evals, lambda history, stage: False, progress,
+    return run_staged([trainer], seeds, num_evals, OneStage(), progress,
                       lambda state, index, stage, episode: on_eval(state, index), staged_resume)
 
 
-def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int,
-               promote: Callable[[list[dict], int], bool],
+def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int, schedule: Schedule,
                progress: Callable[[int, list[dict]], None] = lambda index, rows: None,
                on_eval: Callable = lambda state, index, stage, episode: None, resume: tuple | None = None,
                film: Callable | None = None):
-    """`run` through a sequence of environments (a curriculum's stages) that share one observation layout.
+    """`run` through a sequence of trainers (a curriculum's stages) whose environments share one observation
+    layout, as `schedule` says.
 
-    Training starts on stage 0; after each evaluation for which `promote(history, stage)` (every row
-    so far, and the current stage) is true it moves on, keeping everything it learned (networks,
-    optimizers, replay buffer, normalizer) and starting fresh episodes of the next stage. The rule is
-    the caller's (a curriculum states it). With several stages every row also holds
+    Training starts on stage 0; after each evaluation it goes on with `schedule.next_stage(history, stage,
+    stages)` (every row so far), keeping everything it learned (networks, optimizers, replay buffer,
+    normalizer) and starting fresh episodes of the next stage; an environment of several variants is
+    re-weighted by `schedule.variant_weights` of its results on each. With several stages every row also holds
     `stage` and `last_stage_success_any` (the same policy evaluated on the last stage), and
     a promoting row `promoted_to`. `on_eval(state, index, stage, episode)` gets the stage the next
     chunk trains on and, with `film`, the first seed's episode filmed by the evaluation just done
@@ -212,9 +235,11 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
     def programs(k: int) -> Programs:
         """Stage k's programs, compiled once."""
         trainer = trainers[k]
-        if (len(seeds), film) not in trainer.compiled:
-            trainer.compiled[len(seeds), film] = Programs(trainer, keys, film, evaluate, adapt)
-        return trainer.compiled[len(seeds), film]
+        kept = (len(seeds), film, schedule)
+        if kept not in trainer.compiled:
+            weighed = functools.partial(adapt, weigh=schedule.variant_weights)
+            trainer.compiled[kept] = Programs(trainer, keys, film, evaluate, weighed)
+        return trainer.compiled[kept]
 
     def judge(k: int, state, index: int) -> tuple[dict, object]:
         """Metrics per seed, and the first seed's episode filmed on stage k (None without `film`)."""
@@ -232,7 +257,7 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
     refilling = resume is not None and not trainers[stage].holds_environments(resume[0])
     # every program the first evaluations need compiles at once, in the order they run
     programs(stage).prepare(*(("start",) if resume is None else ("refill",) if refilling else ()), "evaluate", "chunk",
-                            *(("adapt",) if getattr(trainers[stage].env, "variant_count", 1) > 1 else ()))
+                            *(("adapt",) if trainers[stage].env.variant_count > 1 else ()))
     if staged and stage != last:
         programs(last).prepare("evaluate")
     if resume is None:
@@ -252,8 +277,7 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
         seconds = time.perf_counter() - began
         judged, episode = judge(stage, state, index)
         metrics.update(judged)
-        count = getattr(trainers[stage].env, "variant_count", 1)
-        if count > 1:  # a mixed run: judged on its last variant, and re-weighted
+        if trainers[stage].env.variant_count > 1:  # a mixed run: judged on its last variant, and re-weighted
             state, variants = programs(stage).adapt(state, metrics["variants"])
             metrics["variants"] = jax.device_get(variants)
             metrics["last_stage_success_any"] = metrics["variants"].success_any[:, -1]
@@ -273,8 +297,9 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
             rows.append(row)
         previous = steps
         history.extend(rows)
-        if staged and stage < last and index > 0 and promote(history, stage):
-            stage += 1
+        following = schedule.next_stage(history, stage, len(trainers)) if index > 0 else stage
+        if following != stage:
+            stage = following
             state = jax.device_put(_with_env(trainers[stage], state, index), programs(stage).placement)
             for row in rows:
                 row["promoted_to"] = stage

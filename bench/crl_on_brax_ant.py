@@ -27,6 +27,7 @@ class GoalAnt:
     """brax `ant` (terminating when the torso leaves z 0.2..1.0) + a target 10 away; obs = q, qd, target."""
 
     state_dim, goal_indices = 29, jnp.array([0, 1])
+    variant_count = 1  # one field: the contract's variants part
 
     def __init__(self, backend: str, episode_length: int = 1001, radius: float = 10.0):
         self.base = envs.get_environment("ant", backend=backend, exclude_current_positions_from_observation=False)

@@ -73,7 +73,7 @@ def main() -> None:
 
     mark["t"] = time.perf_counter()
     try:
-        loop.run_staged([trainer], [config.seed], config.num_evals, lambda history, stage: False, progress, on_eval,
+        loop.run_staged([trainer], [config.seed], config.num_evals, loop.OneStage(), progress, on_eval,
                         film=videos.EpisodeRecorder.film)
     finally:
         written.unlink(missing_ok=True)

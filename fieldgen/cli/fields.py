@@ -205,10 +205,11 @@ def make_curriculum(
 
     base_path = spec_path(base)
     try:
-        kind, variants = curriculum.variants(base_path, to=spec_path(to) if to is not None else None, stages=stages,
-                                             geometric=tuple(geometric or ()), switch_at=switch_at, vary=vary or [],
-                                             listed=stage or [], start_near=start_near, agent_near=agent_near,
-                                             then=tuple(spec_path(s) for s in then or ()), then_stages=then_stages)
+        asked = curriculum.Asked(to=spec_path(to) if to is not None else None, stages=stages,
+                                 geometric=tuple(geometric or ()), switch_at=switch_at, vary=tuple(vary or ()),
+                                 listed=tuple(stage or ()), start_near=start_near, agent_near=agent_near,
+                                 then=tuple(spec_path(s) for s in then or ()), then_stages=then_stages)
+        kind, variants = curriculum.variants(base_path, asked)
         c = curriculum.write(output, base, base_path, kind, variants, curriculum.Promotion(threshold, window), force)
     except curriculum.CurriculumError as exc:
         fail(str(exc))

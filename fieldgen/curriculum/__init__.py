@@ -1,9 +1,13 @@
-"""Curricula, in one place: variants generated between easy and hard fields, the folder that lists
-them, the rule that promotes a run from one stage to the next, and how a mixed run weights them."""
+"""Curricula, in one place: everything that chooses what an environment plays. Variants generated
+between easy and hard fields, one generator per kind (generate.py), the folder that lists them
+(folder.py), the rule that promotes a staged run (promotion.py), how a run moves through the
+stages, staged or mixed, and how a mixed run weights them (schedule.py), a sheet of the stages
+(sheet.py)."""
 
 from fieldgen.curriculum.folder import INDEX, Curriculum, CurriculumError, Promotion, Stage, is_curriculum, load, write
-from fieldgen.curriculum.generate import (explicit, grid, interpolate, parse_assignments, parse_axis, start_states,
-                                          variants)
+from fieldgen.curriculum.generate import (KINDS, Asked, explicit, grid, interpolate, parse_assignments, parse_axis,
+                                          start_states, variants)
 
-__all__ = ["INDEX", "Curriculum", "CurriculumError", "Promotion", "Stage", "explicit", "grid", "interpolate",
-           "is_curriculum", "load", "parse_assignments", "parse_axis", "start_states", "variants", "write"]
+__all__ = ["INDEX", "KINDS", "Asked", "Curriculum", "CurriculumError", "Promotion", "Stage", "explicit", "grid",
+           "interpolate", "is_curriculum", "load", "parse_assignments", "parse_axis", "start_states", "variants",
+           "write"]

@@ -7,9 +7,11 @@ differ from the base, with where it came from."""
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import re
 from pathlib import Path
+from typing import Callable
 
 import yaml
 
@@ -22,34 +24,88 @@ from fieldgen.suggest import did_you_mean
 IGNORED = ("name", "description", "extends")  # never interpolated
 
 
-def variants(base: Path, *, to: Path | None = None, stages: int = 5, geometric: tuple[str, ...] = (),
-             switch_at: int | None = None, vary: list[str] = (), listed: list[str] = (),
-             start_near: float | None = None, agent_near: float | None = None, then: tuple[Path, ...] = (),
-             then_stages: int | None = None) -> tuple[str, list[tuple[dict, str]]]:
-    """The kind and variants of the one curriculum asked for: an interpolation to `to`, a grid over `vary`
-    axes ('KEY=V1,V2'), the `listed` variants ('KEY=V KEY=V' each) or start states `start_near` the target
-    (the agent `agent_near` the ball at first, if given); then on to each field of `then` in turn, in
-    `then_stages` stages each (default: one fewer than `stages`)."""
-    asked = [kind for kind, given in (("interpolation", to is not None), ("grid", vary), ("list", listed),
-                                      ("start_states", start_near is not None)) if given]
-    if len(asked) != 1:
-        raise CurriculumError("give exactly one of --to FIELD (interpolation), --vary KEY=V1,V2 (grid), "
-                              "--stage 'KEY=V' (list) or --start-near DISTANCE (start states)")
-    if agent_near is not None and start_near is None:
-        raise CurriculumError("--agent-near belongs to a start-state curriculum: give --start-near too")
-    if then_stages is not None and not then:
+@dataclasses.dataclass(frozen=True)
+class Asked:
+    """What a curriculum was asked for (`fieldgen curriculum`'s options): one kind's options, then the fields
+    to go on to (`then`, in `then_stages` stages each; default one fewer than `stages`)."""
+
+    to: Path | None = None  # interpolation: the field of the last stage
+    stages: int = 5
+    geometric: tuple[str, ...] = ()  # dotted keys interpolated geometrically
+    switch_at: int | None = None
+    vary: tuple[str, ...] = ()  # grid axes, 'KEY=V1,V2'
+    listed: tuple[str, ...] = ()  # listed variants, 'KEY=V KEY=V' each
+    start_near: float | None = None  # start states: the first stage's ball this far from the target
+    agent_near: float | None = None  # ... and its agent this far from the ball
+    then: tuple[Path, ...] = ()
+    then_stages: int | None = None
+
+
+@dataclasses.dataclass(frozen=True)
+class Kind:
+    """One way of generating a curriculum's variants: its name (recorded in curriculum.yaml), how it is asked
+    for, the options only it takes, and its generator."""
+
+    name: str
+    asked_by: str  # the option that asks for it, with what it takes
+    noun: str  # "a NOUN curriculum"
+    is_asked: Callable[[Asked], bool]
+    generate: Callable[[Path, Asked], list[tuple[dict, str]]]
+    own_options: dict[str, str] = dataclasses.field(default_factory=dict)  # Asked field -> its option
+
+
+KINDS: dict[str, Kind] = {}
+
+
+def kind(name: str, asked_by: str, noun: str, is_asked: Callable[[Asked], bool],
+         own_options: dict[str, str] | None = None):
+    """Register a generator of variants (base, asked) -> [(changes, origin)] as a curriculum kind."""
+
+    def register(generate):
+        KINDS[name] = Kind(name, asked_by, noun, is_asked, generate, own_options or {})
+        return generate
+
+    return register
+
+
+def variants(base: Path, asked: Asked) -> tuple[str, list[tuple[dict, str]]]:
+    """The kind and variants of the one curriculum asked for, then on to each field of `asked.then` in turn."""
+    chosen = [k for k in KINDS.values() if k.is_asked(asked)]
+    if len(chosen) != 1:
+        choices = [f"{k.asked_by} ({k.name.replace('_', ' ')})" for k in KINDS.values()]
+        raise CurriculumError(f"give exactly one of {', '.join(choices[:-1])} or {choices[-1]}")
+    for other in KINDS.values():
+        for field, option in other.own_options.items():
+            if other is not chosen[0] and getattr(asked, field) is not None:
+                raise CurriculumError(f"{option} belongs to a {other.noun} curriculum: "
+                                      f"give {other.asked_by.split()[0]} too")
+    if asked.then_stages is not None and not asked.then:
         raise CurriculumError("--then-stages belongs to --then: give the field to go on to")
-    if start_near is not None:
-        out = start_states(base, start_near, stages, agent_near)
-    elif to is not None:
-        out = interpolate(base, to, stages, geometric, switch_at)
-    elif vary:
-        out = grid(base, dict(parse_axis(v) for v in vary))
-    else:
-        out = explicit(base, [parse_assignments(split_assignments(s), "--stage") for s in listed])
-    for target in then:
-        out = out + go_on(base, out, target, stages - 1 if then_stages is None else then_stages, geometric)
-    return asked[0] + ", then interpolation" * len(then), out
+    out = chosen[0].generate(base, asked)
+    for target in asked.then:
+        out = out + go_on(base, out, target, asked.stages - 1 if asked.then_stages is None else asked.then_stages,
+                          asked.geometric)
+    return chosen[0].name + ", then interpolation" * len(asked.then), out
+
+
+@kind("interpolation", "--to FIELD", "interpolation", lambda a: a.to is not None)
+def _interpolation(base: Path, asked: Asked) -> list[tuple[dict, str]]:
+    return interpolate(base, asked.to, asked.stages, asked.geometric, asked.switch_at)
+
+
+@kind("grid", "--vary KEY=V1,V2", "grid", lambda a: bool(a.vary))
+def _grid(base: Path, asked: Asked) -> list[tuple[dict, str]]:
+    return grid(base, dict(parse_axis(v) for v in asked.vary))
+
+
+@kind("list", "--stage 'KEY=V'", "listed", lambda a: bool(a.listed))
+def _list(base: Path, asked: Asked) -> list[tuple[dict, str]]:
+    return explicit(base, [parse_assignments(split_assignments(s), "--stage") for s in asked.listed])
+
+
+@kind("start_states", "--start-near DISTANCE", "start-state", lambda a: a.start_near is not None, {"agent_near": "--agent-near"})
+def _start_states(base: Path, asked: Asked) -> list[tuple[dict, str]]:
+    return start_states(base, asked.start_near, asked.stages, asked.agent_near)
 
 
 def interpolate(base: Path, target: Path, stages: int, geometric: tuple[str, ...] = (),

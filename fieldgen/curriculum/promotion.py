@@ -1,7 +1,8 @@
 """When a staged run moves on: the rule a curriculum states, applied to the run's history.
 
-The trainers only ask "move on now?" (agents.loop.run_staged's `promote`); the rule is the
-curriculum's, written in its curriculum.yaml and kept in the run's run.json."""
+The trainers only ask which stage comes next (agents.loop.Schedule, answered by
+fieldgen.curriculum.schedule.Staged); the rule is the curriculum's, written in its curriculum.yaml
+and kept in the run's run.json."""
 
 from __future__ import annotations
 

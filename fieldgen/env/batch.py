@@ -15,12 +15,13 @@ from mujoco import mjx
 from fieldgen.compile.layout import observation_layout
 
 if TYPE_CHECKING:
-    from fieldgen.env.variant import Variant
+    from fieldgen.env.rules import EpisodeRules
 
-def check_compatible(variants: list[Variant], models, layout) -> None:
+
+def check_compatible(rules: list[EpisodeRules], models, layout) -> None:
     """Variants batched together must share the observation layout, the control period and the structure."""
-    first = variants[0].spec
-    for v, model in zip(variants[1:], models[1:]):
+    first = rules[0].spec
+    for v, model in zip(rules[1:], models[1:]):
         if observation_layout(v.spec, model).to_json() != layout.to_json():
             raise ValueError(f"{v.spec.name} and {first.name} observe different things; "
                              "variants trained in one batch need one observation layout")

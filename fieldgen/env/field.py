@@ -26,10 +26,9 @@ from mujoco import mjx
 
 from fieldgen.compile.artifact import Artifact
 from fieldgen.compile.layout import observation_layout
-from fieldgen.curriculum.weights import sampling_weights
 from fieldgen.env.batch import batched_model, check_compatible
 from fieldgen.env.task import Transition
-from fieldgen.env.variant import Variant
+from fieldgen.env.rules import EpisodeRules
 from fieldgen.schema import geometry
 
 
@@ -49,24 +48,26 @@ class FieldEnv:
 
     Given several variants of a field (built to one structure by fieldgen.compile.variants),
     every environment carries its own variant (`info["variant"]`), all stepped in one
-    batched simulation; each new episode draws its variant from `info["variant_weights"]`.
+    batched simulation; each new episode draws its variant from `info["variant_weights"]`,
+    which whoever trains sets (`with_variant_weights`): the environment plays the variants it
+    is given and knows nothing of why they were chosen.
     """
 
     def __init__(self, artifacts: Artifact | Sequence[Artifact], episode_length: int | None = None,
                  auto_reset: bool = True):
         artifacts = [artifacts] if isinstance(artifacts, Artifact) else list(artifacts)
         self.artifacts = artifacts
-        self.artifact = artifacts[-1]  # a mixed environment is judged on its last variant
+        self.artifact = artifacts[-1]  # an environment of several variants is judged on its last
         self.spec = spec = self.artifact.spec
         models = [a.model() for a in artifacts]
         self.mj_model = models[-1]
         self.layout = observation_layout(spec, self.mj_model)
-        self.variants = [Variant(a.spec, m, self.layout, episode_length) for a, m in zip(artifacts, models)]
-        check_compatible(self.variants, models, self.layout)
-        self.task = self.variants[-1].task
+        self.rules = [EpisodeRules(a.spec, m, self.layout, episode_length) for a, m in zip(artifacts, models)]
+        check_compatible(self.rules, models, self.layout)
+        self.task = self.rules[-1].task
         self.sys, self._varying = batched_model(models, [a.spec.name for a in artifacts])
-        self.episode_length = max(v.episode_length for v in self.variants)
-        self._ball_radii = jnp.asarray([v.spec.ball.radius for v in self.variants])
+        self.episode_length = max(r.episode_length for r in self.rules)
+        self._ball_radii = jnp.asarray([r.spec.ball.radius for r in self.rules])
         self.auto_reset = auto_reset
         self.n_substeps = spec.episode.substeps
         self.dt = spec.episode.control_dt
@@ -77,7 +78,7 @@ class FieldEnv:
         self.success_goal_entries = np.array(self.layout.success_goal_entries)
         self.observation_names = self.layout.names
         self.action_names = tuple(self.mj_model.actuator(i).name for i in range(self.mj_model.nu))  # = joint names
-        self.terms = tuple(dict.fromkeys(n for v in self.variants for n in v.task.terms))
+        self.terms = tuple(dict.fromkeys(n for r in self.rules for n in r.task.terms))
         self.metric_names = ("success", *self.terms)
         self._agent_qpos = jnp.asarray(self.layout.agent_qpos)
         self._agent_qvel = jnp.asarray(self.layout.agent_qvel)
@@ -110,24 +111,19 @@ class FieldEnv:
 
     @property
     def variant_count(self) -> int:
-        return len(self.variants)
+        """How many variants this environment batches (1 for a plain field)."""
+        return len(self.rules)
 
-    @property
-    def mixed(self) -> bool:
-        return len(self.variants) > 1
+    def with_variant_weights(self, env_state: State, weights: jax.Array) -> State:
+        """`env_state` (environments batched on axis 0) drawing its next episodes' variants from `weights`."""
+        shape = env_state.info["variant_weights"].shape
+        return env_state.replace(info=dict(env_state.info, variant_weights=jnp.broadcast_to(weights, shape)))
 
-    def adapt(self, env_state: State, success: jax.Array) -> tuple[State, jax.Array]:
-        """New variant weights for the episodes to come (envs batched on axis 0), from an evaluation's
-        success_any on each variant: `sampling_weights`. Returns the state and the weights."""
-        weights = sampling_weights(success)
-        info = dict(env_state.info, variant_weights=jnp.broadcast_to(weights, env_state.info["variant_weights"].shape))
-        return env_state.replace(info=info), weights
-
-    def _each(self, variant: jax.Array, fn):
-        """fn(the variant's rules), for a traced variant index (every branch runs under vmap: all are cheap)."""
-        if not self.mixed:
-            return fn(self.variants[0])
-        return jax.lax.switch(variant, [lambda v=v: fn(v) for v in self.variants])
+    def _by_variant(self, variant: jax.Array, fn):
+        """fn(the variant's episode rules), for a traced variant index (every branch runs under vmap: all are cheap)."""
+        if self.variant_count == 1:
+            return fn(self.rules[0])
+        return jax.lax.switch(variant, [lambda r=r: fn(r) for r in self.rules])
 
     def _model(self, variant: jax.Array):
         if not self._varying:
@@ -138,11 +134,11 @@ class FieldEnv:
     # -- reset -------------------------------------------------------------
 
     def reset(self, rng: jax.Array) -> State:
-        """A fresh episode; a mixed environment draws its variant uniformly."""
-        if not self.mixed:
+        """A fresh episode; with several variants, of one drawn uniformly."""
+        if self.variant_count == 1:
             return self.reset_variant(rng, 0)
         rng, k_variant = jax.random.split(rng)
-        return self.reset_variant(rng, jax.random.randint(k_variant, (), 0, len(self.variants)))
+        return self.reset_variant(rng, jax.random.randint(k_variant, (), 0, self.variant_count))
 
     def reset_variant(self, rng: jax.Array, variant) -> State:
         rng, episode_key = jax.random.split(rng)
@@ -153,8 +149,8 @@ class FieldEnv:
                 "down_steps": jnp.zeros((), jnp.int32),
                 "truncation": zero,
                 "episode": jnp.zeros((), jnp.int32)}
-        if self.mixed:
-            n = len(self.variants)
+        if self.variant_count > 1:
+            n = self.variant_count
             info.update(variant=variant, variant_weights=jnp.full(n, 1.0 / n))
         metrics = {name: zero for name in self.metric_names}
         return State(data, self._obs(data, goal), zero, zero, metrics, info)
@@ -177,8 +173,8 @@ class FieldEnv:
         if "steps" in state.info:  # brax's EpisodeWrapper counts too, and reads 0 once its wrapper has reset
             steps, down_steps = (jnp.where(state.info["steps"] == 0, 0, x) for x in (steps, down_steps))
         steps = steps + 1
-        metrics, reward, (truncated, fell, down) = self._each(
-            variant, lambda v: (*v.score(t, self.terms), v.ended(data, steps, down_steps)))
+        metrics, reward, (truncated, fell, down) = self._by_variant(
+            variant, lambda r: (*r.score(t, self.terms), r.ended(data, steps, down_steps)))
         if "steps" in state.info:  # brax's EpisodeWrapper ends episodes on time, and says so in its truncation
             truncated = jnp.zeros_like(truncated)
         broken = diverged(data)
@@ -189,7 +185,7 @@ class FieldEnv:
         obs = self._obs(data, goal)
         if self.auto_reset:
             rng, key = jax.random.split(state.info["rng"])
-            if self.mixed:
+            if self.variant_count > 1:
                 key, k_variant = jax.random.split(key)
                 drawn = jax.random.categorical(k_variant, jnp.log(state.info["variant_weights"]))
                 variant = jnp.where(done, drawn, variant).astype(jnp.int32)
@@ -209,7 +205,7 @@ class FieldEnv:
         """The field's success predicate (0/1) of an observation's state part and any goal: what
         hindsight relabelling scores a stored state against a goal taken from its future. Judged by
         `variant`'s own rule and ball, as `step` judges it; by default the last variant's, the one a
-        mixed environment is judged on."""
+        environment of several variants is judged on."""
         variant = jnp.asarray(self.variant_count - 1 if variant is None else variant, jnp.int32)
         goal = self._target(goal)
         agent = state[:3] if self._is_ant else jnp.append(state[:2], self._agent_z)
@@ -218,13 +214,13 @@ class FieldEnv:
             start, stop = self.layout.slices["ball_pos"]
             ball = state[start:stop] if stop - start == 3 else jnp.append(state[start:stop], self._ball_radii[variant])
         t = Transition(ball, ball, agent, agent, goal, jnp.zeros(self.action_size), self.dt)
-        return self._each(variant, lambda v: v.task.success(t))
+        return self._by_variant(variant, lambda r: r.task.success(t))
 
     # -- physics (brax_pipeline.BraxFieldEnv steps brax's pipelines instead) --
 
     def _fresh(self, variant: jax.Array, key: jax.Array):
         """(physics state, goal) of a new episode of `variant`, drawn from `key`."""
-        return self._each(variant, lambda v: v.fresh_episode(key))
+        return self._by_variant(variant, lambda r: r.fresh_episode(key))
 
     def _advance(self, sys, data: mjx.Data, action: jax.Array) -> mjx.Data:
         """The physics steps of one control step."""

@@ -23,7 +23,7 @@ class Evaluation:
 
 def evaluate(run: Run, episodes: int, seed: int = 0, film: bool = True) -> Evaluation:
     """`episodes` evaluation episodes per seed of the run's policy, on `run.env`."""
-    trainer = dataclasses.replace(run, config=run.config.model_copy(update={"eval_envs": episodes})).judge()
+    trainer = dataclasses.replace(run, config=run.config.model_copy(update={"eval_envs": episodes})).judged_trainer
     filming = EpisodeRecorder.film if film else None
     judged = jax.vmap(functools.partial(loop.evaluate, trainer, film=filming), in_axes=(0, None))
     metrics, frames = jax.device_get(jax.jit(judged)(run.state, jax.random.PRNGKey(seed)))

@@ -30,7 +30,7 @@ def export(run_dir: Path, out: Path, seed: int | None = None) -> Exported:
     if seed not in run.seeds:
         raise record.RunError(f"{run_dir} trained seeds {', '.join(map(str, run.seeds))}, not {seed}; "
                               "pick one of them with --seed")
-    trainer = run.judge()
+    trainer = run.judged_trainer
     state = loop.seed_slice(run.state, run.seeds.index(seed))
     policy = trainer.export(state)
     env = run.env

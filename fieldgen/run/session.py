@@ -17,10 +17,9 @@ from fieldgen import curriculum
 from fieldgen.agents import checkpoint, loop, registry, sharding
 from fieldgen.agents.config import ConfigError
 from fieldgen.compile.artifact import ArtifactError, load_artifact, write_artifact
-from fieldgen.compile.variants import VariantError, compile_variants
+from fieldgen.compile.variants import VariantError
 from fieldgen.curriculum.promotion import Promotion
-from fieldgen.env.brax_pipeline import check_batchable
-from fieldgen.env.make import environment
+from fieldgen.curriculum.schedule import Mixed, Staged, schedule
 from fieldgen.files import remove_leftovers, write_atomic
 from fieldgen.run import record
 from fieldgen.schema import load_spec
@@ -56,17 +55,22 @@ class Run:
         """The field a run is judged on: its only one, or a curriculum's last stage."""
         return self.envs[-1]
 
+    @property
+    def schedule(self) -> Staged | Mixed:
+        """How the run moves through its stages (the curriculum's; a plain run has one stage)."""
+        return schedule(self.mixed, self.promotion)
+
     @functools.cached_property
     def trainers(self) -> list[loop.Trainer]:
-        """What trains: one trainer per stage, or for a mixed run one on all stages batched together."""
+        """What trains: the trainers of the environments the schedule trains on (a trainer per stage, or
+        for a mixed run one on every stage batched together)."""
         make_train = registry.trainer(self.algo).make_train
-        if self.mixed:
-            return [make_train(self.config, environment([e.artifact for e in self.envs]))]
-        return [make_train(self.config, env) for env in self.envs]
+        return [make_train(self.config, env) for env in self.schedule.environments(self.envs)]
 
-    def judge(self) -> loop.Trainer:
-        """The trainer evaluated on the field the run is judged on."""
-        if not self.mixed:
+    @property
+    def judged_trainer(self) -> loop.Trainer:
+        """A trainer on the field the run is judged on (its only one, or a curriculum's last stage alone)."""
+        if len(self.trainers) == len(self.envs):
             return self.trainers[-1]
         return registry.trainer(self.algo).make_train(self.config, self.env)
 
@@ -97,13 +101,7 @@ def new_run(source: Path, algo: str, seeds: list[int], config, out: Path, mixed:
     if curriculum.is_curriculum(source):
         try:
             c = curriculum.load(source)
-            specs = c.specs()
-            if mixed:
-                artifacts = compile_variants(specs)
-                check_batchable(artifacts)
-                envs = [environment(a) for a in artifacts]
-            else:
-                envs = [fieldgen.make(s) for s in specs]
+            envs = schedule(mixed, c.promotion).stage_environments(c.specs())
         except (curriculum.CurriculumError, VariantError, ValueError) as exc:
             raise record.RunError(str(exc)) from None
         promotion, name = c.promotion, source.name + ("-mixed" if mixed else "")

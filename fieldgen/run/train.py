@@ -74,7 +74,7 @@ def train(run: Run, console: Console, videos: bool = True, logger: str = "none",
         # a run started from another's networks (--init-from) goes on from "evaluation -1": it evaluates them first
         resume = (run.state, run.rows[-1]["eval"] if run.rows else -1, run.stage) if run.state is not None else None
         try:
-            loop.run_staged(trainers, run.seeds, config.num_evals, run.promotion.ready, progress, on_eval, resume,
+            loop.run_staged(trainers, run.seeds, config.num_evals, run.schedule, progress, on_eval, resume,
                             film=EpisodeRecorder.film if videos else None)
             done = run.rows[-1]["env_steps"]  # whole iterations can stop short of --steps
             bar.update(task, total=done, rate=rate(run.rows, done))

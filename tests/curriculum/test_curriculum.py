@@ -204,7 +204,7 @@ def test_start_states_can_begin_with_the_agent_next_to_the_ball(tmp_path):
     with pytest.raises(curriculum.CurriculumError, match="between 0 and 3.00"):
         curriculum.start_states(FIELDS["soccer_v1"], 1.5, 3, agent_near=3.5)
     with pytest.raises(curriculum.CurriculumError, match="give --start-near too"):
-        curriculum.variants(FIELDS["soccer_v1"], listed=["ball.radius=0.4"], agent_near=1.75)
+        curriculum.variants(FIELDS["soccer_v1"], curriculum.Asked(listed=("ball.radius=0.4",), agent_near=1.75))
 
 
 def test_start_states_need_a_fixed_target_and_a_reachable_distance():

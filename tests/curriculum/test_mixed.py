@@ -13,7 +13,7 @@ from typer.testing import CliRunner
 from fieldgen import curriculum
 from fieldgen.cli import app
 from fieldgen.compile.variants import PARK_DEPTH, VariantError, compile_variants
-from fieldgen.curriculum.weights import sampling_weights
+from fieldgen.curriculum.schedule import Mixed, Staged, sampling_weights
 from fieldgen.env import FieldEnv
 from fieldgen.schema import bundled_fields
 
@@ -89,11 +89,28 @@ def test_sampling_weights_favour_variants_being_learnt():
     np.testing.assert_allclose(sampling_weights(jnp.zeros(4)), 0.25)
 
 
+def test_schedules_answer_what_the_loop_asks():
+    """A mixed run re-weights its variants and never moves on; a staged run moves on once its promotion rule
+    is met on the stage it trains, and never past its last stage."""
+    from fieldgen.agents import loop
+    from fieldgen.curriculum.promotion import Promotion
+
+    success = jnp.array([0.0, 0.5, 1.0])
+    np.testing.assert_allclose(Mixed().variant_weights(success), sampling_weights(success))
+    assert Mixed().next_stage([{"eval": 1, "stage": 0, "success_any": 1.0}], 0, 3) == 0
+    staged = Staged(Promotion(threshold=0.5, window=1))
+    assert staged.next_stage([{"eval": 1, "stage": 0, "success_any": 0.4}], 0, 3) == 0
+    assert staged.next_stage([{"eval": 1, "stage": 0, "success_any": 0.6}], 0, 3) == 1
+    assert staged.next_stage([{"eval": 1, "stage": 2, "success_any": 0.9}], 2, 3) == 2
+    assert loop.OneStage().next_stage([{"eval": 1, "stage": 0, "success_any": 1.0}], 0, 1) == 0
+    np.testing.assert_allclose(loop.OneStage().variant_weights(success), 1 / 3)
+
+
 def test_new_episodes_draw_their_variant_from_the_weights(walled):
     env = FieldEnv(walled.artifacts, episode_length=1)
     state = jax.vmap(env.reset)(jax.random.split(jax.random.PRNGKey(1), 512))
     weights = jnp.array([0.7, 0.0, 0.3])
-    state = state.replace(info=dict(state.info, variant_weights=jnp.broadcast_to(weights, (512, 3))))
+    state = env.with_variant_weights(state, weights)
     state = jax.jit(jax.vmap(env.step))(state, jnp.zeros((512, env.action_size)))  # every episode ends and restarts
     share = np.bincount(np.asarray(state.info["variant"]), minlength=3) / 512
     np.testing.assert_allclose(share, weights, atol=0.07)

@@ -143,17 +143,17 @@ def test_fall_rules_on_hand_set_torso_poses(env_cache, rule):
     """Each rule judges a torso set by hand: `flipped` only once it is turned over, however high or low
     a hop lands it; `height_band` (the study's) whenever it leaves the band; `never` not at all.
     The environment reads the pose from the simulation's own torso position and quaternion."""
-    from fieldgen.env.variant import Variant
+    from fieldgen.env.rules import EpisodeRules
 
     env = env_cache("ant_nav")
     spec = env.spec.model_copy(update={"episode": env.spec.episode.model_validate(
         {**env.spec.episode.model_dump(), "fall": FALL_RULES[rule]})})
-    variant = Variant(spec, env.mj_model, env.layout)
+    rules = EpisodeRules(spec, env.mj_model, env.layout)
     data = env.reset(jax.random.PRNGKey(0)).pipeline_state
     fell = set()
     for name, (z, quat) in POSES.items():
         qpos = data.qpos.at[2].set(z).at[3:7].set(jnp.asarray(quat))
-        time_up, fallen, _ = variant.ended(data.replace(qpos=qpos), jnp.asarray(1), jnp.asarray(0))
+        time_up, fallen, _ = rules.ended(data.replace(qpos=qpos), jnp.asarray(1), jnp.asarray(0))
         assert not bool(time_up)
         if bool(fallen):
             fell.add(name)
@@ -187,16 +187,16 @@ def test_ant_fields_end_on_time_unless_they_name_a_rule():
 
 def test_a_flipped_ant_with_grace_falls_only_once_it_stays_over(env_cache):
     """With grace_steps 2 an ant may lie turned over for two steps and right itself; the third ends it."""
-    from fieldgen.env.variant import Variant
+    from fieldgen.env.rules import EpisodeRules
 
     env = env_cache("ant_nav")
     spec = env.spec.model_copy(update={"episode": env.spec.episode.model_validate(
         {**env.spec.episode.model_dump(), "fall": {"kind": "flipped", "grace_steps": 2}})})
-    variant = Variant(spec, env.mj_model, env.layout)
+    rules = EpisodeRules(spec, env.mj_model, env.layout)
     data = env.reset(jax.random.PRNGKey(0)).pipeline_state
     over = data.replace(qpos=data.qpos.at[3:7].set(jnp.asarray(UPSIDE_DOWN)))
     down, fell = jnp.asarray(0), []
     for pose in (over, over, data, over, over, over):
-        _, fallen, down = variant.ended(pose, jnp.asarray(1), down)
+        _, fallen, down = rules.ended(pose, jnp.asarray(1), down)
         fell.append(bool(fallen))
     assert fell == [False, False, False, False, False, True]

@@ -1,5 +1,5 @@
-"""One field's episode rules inside a batched environment: how episodes start, how a step scores,
-when an episode ends."""
+"""One variant's episode rules inside a batched environment: how episodes start, how a step scores,
+when an episode ends. A field of one variant has one set; a batch of variants, one set each."""
 
 from __future__ import annotations
 
@@ -10,8 +10,8 @@ from mujoco import mjx
 from fieldgen.env.falls import fall_fn
 from fieldgen.env.task import Transition, task_fns
 
-class Variant:
-    """One field's episode rules: how episodes start, how a step scores, when an episode ends."""
+class EpisodeRules:
+    """One variant's episode rules: how episodes start, how a step scores, when an episode ends."""
 
     def __init__(self, spec, mj_model, layout, episode_length: int | None = None):
         self.spec = spec
