@@ -9,9 +9,15 @@ interrupted build nor a scene from another spec is ever taken for a cache hit.
 
 from __future__ import annotations
 
+import ast
+import functools
 import hashlib
+import importlib.util
 import json
+import pkgutil
+import sys
 from dataclasses import dataclass
+from importlib.machinery import ModuleSpec
 from pathlib import Path
 
 import mujoco
@@ -26,20 +32,79 @@ from fieldgen.schema.models import FieldSpec
 # Bump when field.json or scene.xml change shape in a way loaders must know about.
 ARTIFACT_FORMAT = 1
 SCENE, META, PREVIEW = "scene.xml", "field.json", "preview.png"
-# The modules whose code decides the scene: a change to any of them invalidates cached builds.
-_COMPILER_MODULES = ("compile/agents.py", "compile/artifact.py", "compile/contacts.py", "compile/scene.py",
-                     "compile/layout.py", "compile/pipelines.py", "schema/geometry.py", "schema/models.py")
+# The compiler: this package, and every module of fieldgen its modules import. Their sources are part of
+# every build's hash, so a change to any of them invalidates cached builds.
+_COMPILER_PACKAGE = "fieldgen.compile"
 
 
-def _compiler_digest() -> str:
-    root = Path(__file__).resolve().parents[1]
+def _find_spec(name: str) -> ModuleSpec | None:
+    """Where `name` is imported from, found as the import system finds it but without running any module
+    (importlib.util.find_spec imports the parent packages; reading the compiler's imports must load nothing)."""
+    loaded = sys.modules.get(name)
+    if loaded is not None and loaded.__spec__ is not None:
+        return loaded.__spec__
+    parent, _, _ = name.rpartition(".")
+    locations = None
+    if parent:
+        parent_spec = _find_spec(parent)
+        if parent_spec is None or parent_spec.submodule_search_locations is None:
+            return None
+        locations = parent_spec.submodule_search_locations
+    for finder in sys.meta_path:
+        spec = finder.find_spec(name, locations) if hasattr(finder, "find_spec") else None
+        if spec is not None:
+            return spec
+    return None
+
+
+def _imported_modules(name: str, spec: ModuleSpec) -> set[str]:
+    """The fieldgen modules `name`'s import statements name, a function's included, read without running it.
+
+    `from P import n` names the submodule P.n where there is one, else P (whose code defines n). A package
+    only passed through (fieldgen in `import fieldgen.render`) is not named: its code decides nothing here,
+    and fieldgen/__init__.py imports fieldgen.env lazily, for `fieldgen.make`."""
+    package = name if spec.submodule_search_locations is not None else name.rpartition(".")[0]
+    named = set()
+    for node in ast.walk(ast.parse(Path(spec.origin).read_bytes(), spec.origin)):
+        if isinstance(node, ast.Import):
+            named.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            base = importlib.util.resolve_name("." * node.level + (node.module or ""), package)
+            for alias in node.names:
+                submodule = f"{base}.{alias.name}"
+                named.add(submodule if _is_fieldgen(base) and _find_spec(submodule) else base)
+    return {n for n in named if _is_fieldgen(n)}
+
+
+def _is_fieldgen(name: str) -> bool:
+    return name == "fieldgen" or name.startswith("fieldgen.")
+
+
+@functools.cache
+def compiler_modules() -> dict[str, Path]:
+    """The source file of each module whose code decides a build, by name: the compiler package's modules
+    and, transitively, the fieldgen modules they import."""
+    package = _find_spec(_COMPILER_PACKAGE)
+    pending = [_COMPILER_PACKAGE] + [f"{_COMPILER_PACKAGE}.{module.name}"
+                                     for module in pkgutil.iter_modules(package.submodule_search_locations)]
+    found: dict[str, Path] = {}
+    while pending:
+        name = pending.pop()
+        spec = None if name in found else _find_spec(name)
+        if spec is not None and spec.has_location:
+            found[name] = Path(spec.origin)
+            pending.extend(_imported_modules(name, spec))
+    return dict(sorted(found.items()))
+
+
+@functools.cache
+def compiler_digest() -> str:
+    """The digest of the compiler's sources, found and read once per process (a build's hash includes it)."""
     digest = hashlib.sha256()
-    for name in _COMPILER_MODULES:
-        digest.update((root / name).read_bytes())
+    for name, path in compiler_modules().items():
+        source = path.read_bytes()
+        digest.update(f"{name}\n{len(source)}\n".encode() + source)
     return digest.hexdigest()[:16]
-
-
-COMPILER_DIGEST = _compiler_digest()
 
 
 class ArtifactError(Exception):
@@ -62,7 +127,7 @@ class Artifact:
         return {
             "fieldgen_version": VERSION,
             "artifact_format": ARTIFACT_FORMAT,
-            "compiler_digest": COMPILER_DIGEST,
+            "compiler_digest": compiler_digest(),
             "hash": self.hash,
             "scene_sha256": scene_digest(self.xml),
             "name": self.spec.name,
@@ -82,7 +147,7 @@ class Artifact:
 def spec_hash(spec: FieldSpec) -> str:
     """Content hash of the resolved spec and the compiler code that reads it."""
     canonical = json.dumps(spec.model_dump(mode="json"), sort_keys=True, separators=(",", ":"))
-    return hashlib.sha256(f"{COMPILER_DIGEST}\n{canonical}".encode()).hexdigest()[:16]
+    return hashlib.sha256(f"{compiler_digest()}\n{canonical}".encode()).hexdigest()[:16]
 
 
 def compile_spec(spec: FieldSpec) -> Artifact:

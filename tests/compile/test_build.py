@@ -2,13 +2,19 @@
 
 from __future__ import annotations
 
+import importlib.util
 import json
+import os
+import shutil
 import subprocess
 import sys
+from pathlib import Path
 
 import mujoco
 import pytest
 
+import fieldgen
+from fieldgen.compile import artifact
 from fieldgen.compile.artifact import ArtifactError, compile_spec, load_artifact
 from fieldgen.compile.build import build
 from fieldgen.compile.contacts import candidate_pairs
@@ -49,6 +55,67 @@ def test_build_writes_artifact_then_hits_cache(tmp_path):
     assert second.cache_hit and (second.out_dir / "scene.xml").read_bytes() == xml
     forced = build("fields/point_soccer.yaml", tmp_path, preview=False, force=True)
     assert not forced.cache_hit and (forced.out_dir / "scene.xml").read_bytes() == xml
+
+
+def test_the_digest_covers_every_fieldgen_module_a_build_loads(tmp_path):
+    """What building a field and its variants loads of fieldgen (but fieldgen/__init__.py, only passed
+    through), seen in a fresh process, is all read by the digest, fieldgen/render.py among it; nothing of the
+    environment, the runs or the trainers is."""
+    code = ("import pathlib, sys\n"
+            "from fieldgen.compile.build import build\n"
+            "from fieldgen.compile.variants import compile_variants\n"
+            "from fieldgen.schema import load_spec\n"
+            f"build('fields/point_nav.yaml', pathlib.Path({str(tmp_path)!r}), preview=False)\n"
+            "compile_variants([load_spec('fields/point_nav.yaml')])\n"
+            "print(*sorted(m for m in sys.modules if m.startswith('fieldgen.')))\n")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    loaded = set(done.stdout.split())
+    covered = set(artifact.compiler_modules())
+    assert {"fieldgen.render", "fieldgen.compile.scene", "fieldgen.compile.variants"} <= loaded <= covered
+    assert not [m for m in covered if m.startswith(("fieldgen.env", "fieldgen.run", "fieldgen.agents"))]
+
+
+def test_the_digest_reads_every_form_of_import(tmp_path):
+    """Relative imports, a package's submodule and imports inside functions all name what they run; a name
+    that is no submodule names its package, whose code defines it; modules not of fieldgen are left out."""
+    probe = tmp_path / "probe.py"
+    probe.write_text("from . import scene\nfrom .layout import Layout\nfrom ..schema.models import FieldSpec\n"
+                     "from fieldgen.schema import geometry, load_spec\nimport fieldgen.files\nimport numpy\n\n\n"
+                     "def later():\n    from fieldgen import render\n")
+    spec = importlib.util.spec_from_file_location("fieldgen.compile.probe", probe)
+    assert artifact._imported_modules("fieldgen.compile.probe", spec) == {
+        "fieldgen.compile.scene", "fieldgen.compile.layout", "fieldgen.schema.models", "fieldgen.schema.geometry",
+        "fieldgen.schema", "fieldgen.files", "fieldgen.render"}
+
+
+def test_an_edit_to_a_module_the_compiler_imports_is_a_rebuild(tmp_path):
+    """The stale cache a hand-kept list of modules allowed: scene.py takes the markings' geom group from
+    fieldgen/render.py, which the list left out, so a build made before an edit there was still served. The
+    edit is made to a copy of the package, which a fresh process builds from."""
+    source = tmp_path / "source"
+    shutil.copytree(Path(fieldgen.__file__).parent, source / "fieldgen", ignore=shutil.ignore_patterns("__pycache__"))
+    out = tmp_path / "build"
+    spec = Path("fields/point_nav.yaml").resolve()
+    marker = 'name="target" class="/" type="cylinder" contype="0" conaffinity="0" group="{}"'
+    built = build(spec, out, preview=False)
+    assert not built.cache_hit and marker.format(1) in built.artifact.xml
+
+    def build_from_copy() -> bool:
+        code = ("import pathlib\nfrom fieldgen.compile import build\n"
+                f"result = build.build({str(spec)!r}, pathlib.Path({str(out)!r}), preview=False)\n"
+                "print(build.__file__, result.cache_hit)\n")
+        env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(source), os.environ.get("PYTHONPATH")]))}
+        done = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, env=env, capture_output=True, text=True,
+                              check=True)
+        module, hit = done.stdout.split()[-2:]
+        assert module.startswith(str(source))
+        return hit == "True"
+
+    assert build_from_copy()  # the same code, copied: the build is current
+    render = source / "fieldgen" / "render.py"
+    render.write_text(render.read_text().replace("MARKINGS, SIDE_VIEW = 1, 2", "MARKINGS, SIDE_VIEW = 3, 2"))
+    assert not build_from_copy()
+    assert marker.format(3) in (out / "point_nav" / "scene.xml").read_text()
 
 
 def test_build_with_preview_writes_png(tmp_path):
