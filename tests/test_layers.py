@@ -4,10 +4,11 @@ through its contract. A module that breaks a rule fails here, naming the import.
 
 from __future__ import annotations
 
-import ast
 from pathlib import Path
 
 import pytest
+
+from fieldgen import source_imports
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = {"fieldgen": ROOT / "fieldgen", "fieldgen.agents": ROOT / "agents"}
@@ -22,19 +23,12 @@ def _module_name(path: Path) -> str:
 
 
 def imports(path: Path) -> set[str]:
-    """Every module `path` imports, anywhere in it, with relative imports resolved."""
+    """Every module `path` imports, anywhere in it, with relative imports resolved; `from m import n` names
+    both m and m.n (n may be a submodule)."""
     name = _module_name(path)
     package = name if path.name == "__init__.py" else name.rpartition(".")[0]
-    out = set()
-    for node in ast.walk(ast.parse(path.read_text())):
-        if isinstance(node, ast.Import):
-            out.update(alias.name for alias in node.names)
-        elif isinstance(node, ast.ImportFrom):
-            base = package.split(".")[: len(package.split(".")) - node.level + 1] if node.level else []
-            module = ".".join([*base, *([node.module] if node.module else [])])
-            out.add(module)
-            out.update(f"{module}.{alias.name}" for alias in node.names)
-    return out
+    return {f"{module}.{member}" if member else module for module, member in source_imports.imports(path, package)} | \
+        {module for module, _ in source_imports.imports(path, package)}
 
 
 def _files(folder: Path):

@@ -9,10 +9,8 @@ interrupted build nor a scene from another spec is ever taken for a cache hit.
 
 from __future__ import annotations
 
-import ast
 import functools
 import hashlib
-import importlib.util
 import json
 import pkgutil
 import sys
@@ -28,6 +26,7 @@ from fieldgen.version import VERSION
 from fieldgen.compile.contacts import candidate_pairs
 from fieldgen.compile.layout import Layout, observation_layout
 from fieldgen.schema.models import FieldSpec
+from fieldgen.source_imports import imports
 
 # Bump when field.json or scene.xml change shape in a way loaders must know about.
 ARTIFACT_FORMAT = 1
@@ -65,14 +64,9 @@ def _imported_modules(name: str, spec: ModuleSpec) -> set[str]:
     and fieldgen/__init__.py imports fieldgen.env lazily, for `fieldgen.make`."""
     package = name if spec.submodule_search_locations is not None else name.rpartition(".")[0]
     named = set()
-    for node in ast.walk(ast.parse(Path(spec.origin).read_bytes(), spec.origin)):
-        if isinstance(node, ast.Import):
-            named.update(alias.name for alias in node.names)
-        elif isinstance(node, ast.ImportFrom):
-            base = importlib.util.resolve_name("." * node.level + (node.module or ""), package)
-            for alias in node.names:
-                submodule = f"{base}.{alias.name}"
-                named.add(submodule if _is_fieldgen(base) and _find_spec(submodule) else base)
+    for module, member in imports(Path(spec.origin), package):
+        submodule = f"{module}.{member}"
+        named.add(submodule if member and _is_fieldgen(module) and _find_spec(submodule) else module)
     return {n for n in named if _is_fieldgen(n)}
 
 
