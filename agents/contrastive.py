@@ -10,7 +10,6 @@ import jax
 import jax.numpy as jnp
 
 ENERGIES = ("norm", "l2", "dot", "cosine")
-LOSSES = ("fwd_infonce", "bwd_infonce", "sym_infonce")
 
 
 def energy(kind: str, phi: jax.Array, psi: jax.Array, log_temperature: jax.Array | None = None) -> jax.Array:
@@ -51,19 +50,25 @@ def _unit(x: jax.Array) -> jax.Array:
     return x / (jnp.linalg.norm(x, axis=-1, keepdims=True) + 1e-12)
 
 
+def _forward(logits: jax.Array) -> jax.Array:
+    return -diagonal(jax.nn.log_softmax(logits, axis=1))
+
+
+def _backward(logits: jax.Array) -> jax.Array:
+    return -diagonal(jax.nn.log_softmax(logits, axis=0))
+
+
+# each contrastive loss by name: its value per row of the logits
+PER_ROW = {"fwd_infonce": _forward, "bwd_infonce": _backward,
+           "sym_infonce": lambda logits: 0.5 * (_forward(logits) + _backward(logits))}
+LOSSES = tuple(PER_ROW)
+
+
 def infonce(kind: str, logits: jax.Array, weight: jax.Array) -> jax.Array:
     """Cross-entropy of the diagonal: over goals (forward), over state-actions (backward), or both."""
-    def forward():
-        return -diagonal(jax.nn.log_softmax(logits, axis=1))
-
-    def backward():
-        return -diagonal(jax.nn.log_softmax(logits, axis=0))
-
-    per_row = {"fwd_infonce": forward, "bwd_infonce": backward,
-               "sym_infonce": lambda: 0.5 * (forward() + backward())}
-    if kind not in per_row:
+    if kind not in PER_ROW:
         raise ValueError(f"unknown contrastive loss {kind!r}; choose one of {', '.join(LOSSES)}")
-    return weighted_mean(per_row[kind](), weight)
+    return weighted_mean(PER_ROW[kind](logits), weight)
 
 
 def diagonal(x: jax.Array) -> jax.Array:

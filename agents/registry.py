@@ -1,14 +1,27 @@
-"""The trainers by the names `--algo`, config files and a run's run.json call them."""
+"""The trainers by the names `--algo`, config files and a run's run.json call them.
+
+The names are all this module holds until a trainer is looked up: its module, and JAX with it, loads
+then, so the command line lists and checks the names (--algo's choices) without importing JAX.
+"""
 
 from __future__ import annotations
 
 import dataclasses
-from typing import Callable
+import functools
+import importlib
+from typing import TYPE_CHECKING, Callable
 
 from ..suggest import did_you_mean
-from . import crl, icrl, ppo, sac, td3
-from .config import ConfigError, RunConfig
-from .loop import Trainer
+
+if TYPE_CHECKING:
+    from .config import RunConfig
+    from .loop import Trainer
+
+# each algorithm's name -> the name of its config class in agents/config.py; its trainer is the
+# make_train of the module agents/<name>.py
+CONFIG_CLASSES = {"crl": "CRLConfig", "icrl": "ICRLConfig", "ppo": "PPOConfig", "sac": "SACConfig",
+                  "td3": "TD3Config"}
+ALGORITHMS: tuple[str, ...] = tuple(CONFIG_CLASSES)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -17,14 +30,18 @@ class Entry:
     make_train: Callable[..., Trainer]  # (config, env) -> the run as pure functions
 
 
-TRAINERS: dict[str, Entry] = {entry.config.algo: entry for entry in (
-    Entry(crl.CRLConfig, crl.make_train), Entry(icrl.ICRLConfig, icrl.make_train),
-    Entry(ppo.PPOConfig, ppo.make_train), Entry(sac.SACConfig, sac.make_train),
-    Entry(td3.TD3Config, td3.make_train))}
-
-
 def trainer(name: str) -> Entry:
-    if name not in TRAINERS:
-        raise ConfigError(f"unknown algorithm '{name}'{did_you_mean(name, TRAINERS)} "
-                          f"Available: {', '.join(TRAINERS)}.")
-    return TRAINERS[name]
+    from .config import ConfigError
+
+    if name not in CONFIG_CLASSES:
+        raise ConfigError(f"unknown algorithm '{name}'{did_you_mean(name, ALGORITHMS)} "
+                          f"Available: {', '.join(ALGORITHMS)}.")
+    return _load(name)
+
+
+@functools.cache
+def _load(name: str) -> Entry:
+    config = getattr(importlib.import_module(".config", __package__), CONFIG_CLASSES[name])
+    if config.algo != name:
+        raise TypeError(f"{config.__name__}.algo is '{config.algo}', but the registry lists it as '{name}'")
+    return Entry(config, importlib.import_module(f".{name}", __package__).make_train)

@@ -10,7 +10,8 @@ import imageio.v3 as iio
 import mujoco
 import numpy as np
 
-CAMERAS = ("top", "follow")
+from fieldgen.compile.cameras import CAMERAS
+
 HEIGHT = 480  # of a still; videos are drawn half as high
 PERSPECTIVE_ASPECT = 4 / 3
 # Geom groups beside the bodies' 0: floor markings (lines, the goal area, the target) are drawn in every

@@ -176,13 +176,15 @@ def test_help_reads_as_command_lines_do():
     """No Python types beside parameters: flags alone, values by metavar, choices listed."""
     import re
 
+    from fieldgen.agents.registry import ALGORITHMS
+
     for command in ([], ["train"], ["eval"], ["render"], ["build"], ["curriculum"], ["compare"], ["bench"],
                     ["validate"], ["videos"]):
         result = runner.invoke(app, [*command, "--help"], env={"COLUMNS": "200"})
         assert result.exit_code == 0, result.output
         assert not re.search(r"<(bool|str|int|float|path|list\[\w+\])>", result.output), result.output
     train = runner.invoke(app, ["train", "--help"], env={"COLUMNS": "200"}).output
-    assert re.search(r"--algo +crl\|icrl\|ppo\|sac\|td3 ", train) and re.search(r"--set +KEY=VALUE ", train)
+    assert re.search(rf"--algo +{re.escape('|'.join(ALGORITHMS))} ", train) and re.search(r"--set +KEY=VALUE ", train)
     assert re.search(r"--seed +SEED ", train) and re.search(r"--videos +--no-videos +write", train)
     assert "[SPEC]" in train
     render = runner.invoke(app, ["render", "--help"], env={"COLUMNS": "200"}).output
@@ -196,10 +198,10 @@ def test_choices_are_checked_before_anything_loads_and_complete_in_the_shell():
     import sys
 
     from fieldgen import render
-    from fieldgen.agents import registry
-    from fieldgen.cli.app import ALGORITHMS, CAMERAS
+    from fieldgen.agents.registry import ALGORITHMS
+    from fieldgen.cli.training import CAMERAS
 
-    assert ALGORITHMS == tuple(registry.TRAINERS) and CAMERAS == render.CAMERAS
+    assert CAMERAS == render.CAMERAS
     bad = runner.invoke(app, ["eval", "no/such/run", "--camera", "side"])
     assert bad.exit_code == 1 and "unknown camera 'side'. Choose one of: top, follow." in bad.output
     assert "no/such/run" not in bad.output  # refused before the run folder is looked at
@@ -208,6 +210,42 @@ def test_choices_are_checked_before_anything_loads_and_complete_in_the_shell():
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
                           env={**__import__("os").environ, **env})
     assert proc.stdout.split() == list(ALGORITHMS), proc.stderr
+
+
+def test_the_algorithm_choices_are_the_trainers_registry():
+    """--algo offers, completes and checks exactly the algorithms the registry can load."""
+    from fieldgen.agents import registry
+    from fieldgen.agents.config import RunConfig
+
+    def subclasses(cls):
+        return [c for sub in cls.__subclasses__() for c in (sub, *subclasses(sub))]
+
+    import typing
+
+    train = next(c for c in app.registered_commands if c.callback.__name__ == "train").callback
+    (option,) = typing.get_type_hints(train, include_extras=True)["algo"].__metadata__
+    assert option.metavar == "|".join(registry.ALGORITHMS)
+    configs = {c.algo: c for c in subclasses(RunConfig) if "algo" in vars(c)}
+    assert sorted(registry.ALGORITHMS) == sorted(configs)
+    for name in registry.ALGORITHMS:
+        assert registry.trainer(name).config is configs[name] and callable(registry.trainer(name).make_train)
+    bad = runner.invoke(app, ["train", "point_nav", "--algo", "tdd3"])
+    assert bad.exit_code == 1 and "unknown algorithm 'tdd3'; did you mean 'td3'? Choose one of: " \
+        f"{', '.join(registry.ALGORITHMS)}." in " ".join(bad.output.split()), bad.output
+
+
+def test_the_command_line_starts_without_jax():
+    """--help, completion and the choices need no trainer, physics or renderer: none of them is imported."""
+    import subprocess
+    import sys
+
+    code = ("import sys\nfrom fieldgen.cli import app\n"
+            "for args in (['--help'], ['train', '--help'], ['compare', '--help'], ['render', '--help']):\n"
+            "    try:\n        app(args, prog_name='fieldgen')\n    except SystemExit:\n        pass\n"
+            "print(' '.join(m for m in ('jax', 'mujoco', 'dm_control', 'brax') if m in sys.modules) or 'none')\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.splitlines()[-1] == "none", proc.stdout[-500:]
 
 
 def test_a_video_format_this_machine_cannot_write_is_refused_before_anything_loads(tmp_path, monkeypatch):

@@ -28,11 +28,6 @@ out = Console(markup=False)
 err = Console(stderr=True, soft_wrap=True, markup=False)  # messages wrap in the terminal, not mid-phrase here
 
 SpecArg = Annotated[str, typer.Argument(help="a YAML file, a bundled field name, or (render, bench) a build directory")]
-# the choices of --algo and --camera (the trainers' registry and the renderer own them, but take a second
-# or more to import)
-ALGORITHMS = ("crl", "icrl", "ppo", "sac", "td3")
-CAMERAS = ("top", "follow")
-VIDEO_FORMATS = ("mp4", "gif")
 
 
 def choice(what: str, choices: tuple[str, ...]) -> dict:

@@ -11,7 +11,8 @@ import typer
 from rich.table import Table
 from rich.text import Text
 
-from fieldgen.cli.app import CAMERAS, SpecArg, app, choice, err, fail, field_source, out, spec_path
+from fieldgen.cli.app import SpecArg, app, choice, err, fail, field_source, out, spec_path
+from fieldgen.compile.cameras import CAMERAS
 from fieldgen.schema import SpecError, bundled_fields, geometry, load_spec
 
 

@@ -9,13 +9,17 @@ import typer
 from rich.table import Table
 from rich.text import Text
 
-from fieldgen.cli.app import ALGORITHMS, CAMERAS, VIDEO_FORMATS, app, choice, count, err, fail, field_source, out, video_format
+from fieldgen.agents.registry import ALGORITHMS
+from fieldgen.cli.app import app, choice, count, err, fail, field_source, out, video_format
+from fieldgen.compile.cameras import CAMERAS
 from fieldgen.run.loggers import LOGGERS
 from fieldgen.schema import SpecError
+from fieldgen.video import FORMATS as VIDEO_FORMATS
 
 
 VideoFormat = Annotated[Optional[str], typer.Option(
-    "--video-format", help="videos as mp4 (the default where imageio-ffmpeg's encoder is installed) or gif",
+    "--video-format", help=f"videos as {' or '.join(VIDEO_FORMATS)}; by default mp4 where imageio-ffmpeg's encoder "
+                           "is installed",
     **choice("video format", VIDEO_FORMATS))]
 
 
@@ -120,7 +124,7 @@ def train(
 def compare(
     spec: Annotated[str, typer.Argument(help="a YAML file, bundled field name or build folder")],
     algos: Annotated[str, typer.Option(metavar="A,B,...",
-                                       help="comma-separated algorithms: crl, icrl, ppo, sac, td3")] = "crl,ppo",
+                                       help=f"comma-separated algorithms: {', '.join(ALGORITHMS)}")] = "crl,ppo",
     steps: Annotated[Optional[int], typer.Option(parser=count, metavar="N",
                                                  help="total env steps of each run: 40000, 50M, 1.5k")] = None,
     envs: Annotated[Optional[int], typer.Option(parser=count, metavar="N",

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from dm_control import mjcf
 
+from fieldgen.compile.cameras import FOLLOW
 from fieldgen.compile.contacts import bits
 from fieldgen.schema.geometry import POINT_RADIUS
 from fieldgen.schema.models import FieldSpec
@@ -15,7 +16,7 @@ from fieldgen.schema.models import FieldSpec
 AGENT_RGBA = (0.8, 0.475, 0.655, 1.0)  # Okabe and Ito's reddish purple (see fieldgen.compile.scene)
 # Behind the agent, pitched down 20 degrees: looking along the field, the goal's posts stand upright
 # instead of leaning outward as they do under a steeper, wider view.
-FOLLOW_CAMERA = dict(name="follow", mode="trackcom", pos=(0, -8, 3.2), xyaxes=(1, 0, 0, 0, 0.342, 0.94), fovy=40)
+FOLLOW_CAMERA = dict(name=FOLLOW, mode="trackcom", pos=(0, -8, 3.2), xyaxes=(1, 0, 0, 0, 0.342, 0.94), fovy=40)
 
 
 # The ant's legs: (name, hip direction in the xy plane, ankle axis, ankle range, home ankle angle).

@@ -13,7 +13,7 @@ from itertools import combinations
 
 import mujoco
 
-from fieldgen.schema.models import FieldSpec
+from fieldgen.schema.models import AGENT_CONTACTS, FieldSpec
 
 ROLES = ("floor", "ball", "foot", "torso", "wall", "obstacle", "post")
 BIT = {role: 1 << i for i, role in enumerate(ROLES)}
@@ -27,8 +27,7 @@ def relation(spec: FieldSpec) -> set[frozenset[str]]:
         if ball_touches_floor(spec):
             pairs.add(frozenset(("ball", "floor")))
         pairs |= {frozenset(("ball", s)) for s in STATIC}
-    agent_parts = {"none": (), "torso": ("torso",), "torso_and_feet": ("torso", "foot")}[spec.sim.agent_contacts]
-    pairs |= {frozenset((a, s)) for a in agent_parts for s in STATIC}
+    pairs |= {frozenset((a, s)) for a in AGENT_CONTACTS[spec.sim.agent_contacts] for s in STATIC}
     return pairs
 
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 from dm_control import mjcf
 
 from fieldgen.compile.agents import BUILDERS
+from fieldgen.compile.cameras import TOP
 from fieldgen.compile.contacts import ball_touches_floor, bits, contact_limit
 from fieldgen.compile.pipelines import brax_parameters
 from fieldgen.render import MARKINGS, SIDE_VIEW
@@ -123,7 +124,7 @@ def _top_camera(root: mjcf.RootElement, spec: FieldSpec) -> None:
     width = max(16, 16 * round(TOP_HEIGHT_PX * span_x / span_y / 16))  # what video encoders take
     height_m = max(span_y, span_x * TOP_HEIGHT_PX / width)
     getattr(root.visual, "global").offwidth = max(640, width)
-    root.worldbody.add("camera", name="top", pos=((x0 + x1) / 2, (y0 + y1) / 2, 2 * max(span_x, span_y)),
+    root.worldbody.add("camera", name=TOP, pos=((x0 + x1) / 2, (y0 + y1) / 2, 2 * max(span_x, span_y)),
                        xyaxes=(1, 0, 0, 0, 1, 0), projection="orthographic", fovy=height_m,
                        resolution=(width, TOP_HEIGHT_PX))
 

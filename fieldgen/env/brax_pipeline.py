@@ -1,4 +1,4 @@
-"""A built field stepped by one of brax's physics pipelines (spring, positional, generalized).
+"""A built field stepped by one of brax's physics pipelines (fieldgen.schema.backends.BRAX).
 
 The soccer study trained on brax's positional pipeline and the CRL reference on its spring
 pipeline; fieldgen runs the same scene.xml on them for like-for-like comparisons. Everything but
@@ -10,22 +10,21 @@ and so q and qd, keep MuJoCo's order, and the marker's position rides beside the
 
 from __future__ import annotations
 
+import importlib
 import warnings
 from typing import Any, Sequence
 
 import jax
 import jax.numpy as jnp
 import mujoco
-from brax.generalized import pipeline as generalized
 from brax.io import mjcf
-from brax.positional import pipeline as positional
-from brax.spring import pipeline as spring
 from flax import struct
 
 from fieldgen.compile.artifact import Artifact
 from fieldgen.env.field import FieldEnv
+from fieldgen.schema.backends import BRAX
 
-PIPELINES = {"spring": spring, "positional": positional, "generalized": generalized}
+PIPELINES = {name: importlib.import_module(f"brax.{name}.pipeline") for name in BRAX}
 
 
 @struct.dataclass

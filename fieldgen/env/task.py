@@ -1,9 +1,10 @@
 """Reward terms and success predicates, generated from the spec as JAX functions.
 
-Terms live in one registry; each takes a `Transition` (positions before and
-after one control step, the action, the target) and returns a scalar. Values
-are signed so that larger is better: `control_cost` is -|a|^2, and a spec
-weights it with a positive number. The reward is sum(weight * term).
+The terms are named in fieldgen/schema/terms.py; here each name gets its implementation, a
+function of a `Transition` (positions before and after one control step, the action, the target)
+that returns a scalar, and this module refuses to import unless the two cover the same names.
+Values are signed so that larger is better: `control_cost` is -|a|^2, and a spec weights it with a
+positive number. The reward is sum(weight * term).
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ import jax.numpy as jnp
 
 from fieldgen.schema import geometry
 from fieldgen.schema.models import FieldSpec, RewardTerm
+from fieldgen.schema.terms import TERMS
 
 MIN_SCALE_DISTANCE = 0.1  # scaled_ball_progress divides by max(distance, this)
 
@@ -33,13 +35,30 @@ class Transition:
     dt: float
 
 
-TermFn = Callable[[Transition, RewardTerm], jax.Array]
-TERMS: dict[str, TermFn] = {}
+TermFn = Callable[[Transition], jax.Array]
+BuildTerm = Callable[[FieldSpec, RewardTerm], TermFn]  # (the spec, the term's entry in it) -> the term
+IMPLEMENTATIONS: dict[str, BuildTerm] = {}  # by the names of TERMS, each once
+
+
+def builds(name: str):
+    """Registers a function that builds the term `name` for a spec, refusing a name TERMS lacks."""
+
+    def register(build: BuildTerm) -> BuildTerm:
+        if name not in TERMS:
+            raise ValueError(f"'{name}' is no reward term of fieldgen/schema/terms.py; name it there first")
+        if name in IMPLEMENTATIONS:
+            raise ValueError(f"reward term '{name}' is implemented twice")
+        IMPLEMENTATIONS[name] = build
+        return build
+
+    return register
 
 
 def term(name: str):
-    def register(fn: TermFn) -> TermFn:
-        TERMS[name] = fn
+    """Registers fn(transition, the term's entry in the spec) as the term `name`."""
+
+    def register(fn: Callable[[Transition, RewardTerm], jax.Array]):
+        builds(name)(lambda spec, cfg: lambda t: fn(t, cfg))
         return fn
 
     return register
@@ -90,7 +109,7 @@ def _control_cost(t: Transition, cfg: RewardTerm) -> jax.Array:
     return -jnp.sum(jnp.square(t.action))
 
 
-def success_fn(spec: FieldSpec) -> Callable[[Transition], jax.Array]:
+def success_fn(spec: FieldSpec) -> TermFn:
     """The spec's success predicate, as a float 0/1."""
     kind, radius = spec.task.success.kind, spec.task.success.radius
     if kind == "ball_near_target":
@@ -100,7 +119,7 @@ def success_fn(spec: FieldSpec) -> Callable[[Transition], jax.Array]:
     return ball_in_goal_fn(spec)
 
 
-def ball_in_goal_fn(spec: FieldSpec) -> Callable[[Transition], jax.Array]:
+def ball_in_goal_fn(spec: FieldSpec) -> TermFn:
     """The ball's centre inside the goal box."""
     region = geometry.goal_region(spec)
     if region is None:
@@ -115,10 +134,22 @@ def ball_in_goal_fn(spec: FieldSpec) -> Callable[[Transition], jax.Array]:
     return inside
 
 
+@builds("success")
+def _success(spec: FieldSpec, cfg: RewardTerm) -> TermFn:
+    """The success predicate as a term: the sparse reward."""
+    return success_fn(spec)
+
+
+@builds("ball_in_goal")
+def _ball_in_goal(spec: FieldSpec, cfg: RewardTerm) -> TermFn:
+    """The ball in the goal box, whatever the success predicate judges."""
+    return ball_in_goal_fn(spec)
+
+
 @dataclass(frozen=True)
 class TaskFns:
-    success: Callable[[Transition], jax.Array]
-    terms: dict[str, Callable[[Transition], jax.Array]]  # metric name -> unweighted value
+    success: TermFn
+    terms: dict[str, TermFn]  # metric name -> unweighted value
     weights: dict[str, float]
 
     def reward(self, values: dict[str, jax.Array]) -> jax.Array:
@@ -126,18 +157,23 @@ class TaskFns:
 
 
 def task_fns(spec: FieldSpec) -> TaskFns:
-    success = success_fn(spec)
-    in_goal = ball_in_goal_fn(spec)
     terms, weights = {}, {}
     for cfg in spec.task.reward:
         name, n = cfg.term, 2
         while name in terms:  # the same term twice (say, two upright bands) keeps both
             name, n = f"{cfg.term}_{n}", n + 1
-        if cfg.term == "success":
-            terms[name] = success
-        elif cfg.term == "ball_in_goal":
-            terms[name] = in_goal
-        else:
-            terms[name] = (lambda fn, c: (lambda t: fn(t, c)))(TERMS[cfg.term], cfg)
+        terms[name] = IMPLEMENTATIONS[cfg.term](spec, cfg)
         weights[name] = cfg.weight
-    return TaskFns(success, terms, weights)
+    return TaskFns(success_fn(spec), terms, weights)
+
+
+def _check_every_term_implemented() -> None:
+    """Called as this module loads, so that a term named in TERMS but implemented nowhere fails at once,
+    not when a spec first uses it."""
+    missing = [name for name in TERMS if name not in IMPLEMENTATIONS]
+    if missing:
+        raise ImportError(f"reward terms named in fieldgen/schema/terms.py without an implementation in "
+                          f"{__name__}: {', '.join(missing)}")
+
+
+_check_every_term_implemented()

@@ -38,7 +38,7 @@ def runs(source: Path, algos: list[str], seeds: list[int], folder: Path | None, 
     folder = folder or Path("runs") / f"compare-{env.spec.name}"
     configs = {}
     for algo, entry in entries.items():
-        others = tuple(a for a in registry.TRAINERS if a != algo)
+        others = tuple(a for a in registry.ALGORITHMS if a != algo)
         configs[algo] = entry.config.layered(config_file, sets, others, env.spec.agent.kind, **fixed)
         configs[algo].validate_env(env, sharding.device_count(), len(seeds))
     result = []
@@ -58,15 +58,15 @@ def runs(source: Path, algos: list[str], seeds: list[int], folder: Path | None, 
 
 
 def curves(run: session.Run) -> dict:
-    """Per evaluation: env steps, wall seconds, and success_any / time_at_goal / closest_distance over the
-    seeds (closest_distance NaN in rows written before it was logged)."""
+    """Per evaluation: env steps, wall seconds, and each metric success.png plots (success_any, time_at_goal,
+    closest_distance) over the seeds (NaN in rows written before the metric was logged)."""
     evals = sorted({r["eval"] for r in run.rows})
-    out = {"env_steps": [], "wall_seconds": [], "success_any": [], "time_at_goal": [], "closest_distance": []}
+    out = {"env_steps": [], "wall_seconds": [], **{metric: [] for metric in plots.PANELS}}
     for e in evals:
         rows = [r for r in run.rows if r["eval"] == e]
         out["env_steps"].append(rows[0]["env_steps"])
         out["wall_seconds"].append(rows[0].get("wall_seconds", np.nan))
-        for metric in ("success_any", "time_at_goal", "closest_distance"):
+        for metric in plots.PANELS:
             out[metric].append([r.get(metric, np.nan) for r in rows])
     return out
 

@@ -15,6 +15,7 @@ from scipy import ndimage
 from fieldgen.schema import geometry
 from fieldgen.schema.backends import backend_problems
 from fieldgen.schema.models import FieldSpec
+from fieldgen.schema.terms import TERMS
 
 GRID = 0.05  # metres per cell of the reachability grid
 MAX_CELLS = 2000  # cells a side at most: a 500 x 500 field is judged on 0.25 m cells
@@ -73,14 +74,14 @@ def _task_needs(spec: FieldSpec) -> Found:
                     f"name it: add {subject!r}"))
     if "ball" in positions and not spec.ball.enabled:
         out.append((("task", "goal_positions"), "'ball' needs a ball, but ball.enabled is false"))
-    ball_terms = {"ball_progress", "scaled_ball_progress", "agent_approaches_ball", "ball_in_goal"}
     for i, term in enumerate(spec.task.reward):
-        if term.term in ball_terms and not spec.ball.enabled:
-            out.append((("task", "reward", i, "term"), f"the '{term.term}' term needs a ball, but ball.enabled is false"))
-        if term.term == "ball_in_goal" and not spec.goal.enabled:
-            out.append((("task", "reward", i, "term"), "the 'ball_in_goal' term needs a goal, but goal.enabled is false"))
-        if term.term == "upright" and spec.agent.kind != "ant":
-            out.append((("task", "reward", i, "term"), "the 'upright' term needs an agent with a torso (kind: ant)"))
+        needs, where = TERMS[term.term], ("task", "reward", i, "term")
+        if needs.ball and not spec.ball.enabled:
+            out.append((where, f"the '{term.term}' term needs a ball, but ball.enabled is false"))
+        if needs.goal and not spec.goal.enabled:
+            out.append((where, f"the '{term.term}' term needs a goal, but goal.enabled is false"))
+        if needs.torso and spec.agent.kind != "ant":
+            out.append((where, f"the '{term.term}' term needs an agent with a torso (kind: ant)"))
     if spec.ball.spawn.mode == "toward_target" and spec.task.target.kind == "goal":
         out.append((("ball", "spawn", "mode"), "'toward_target' needs a ring or point target; use 'region' with a goal"))
     return out

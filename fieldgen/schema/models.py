@@ -14,6 +14,9 @@ from typing import Annotated, Literal, Union
 from pydantic import (AfterValidator, BaseModel, BeforeValidator, ConfigDict, Discriminator, Field, Tag, WithJsonSchema,
                       model_validator)
 
+from fieldgen.schema.backends import BACKENDS, backend_description
+from fieldgen.schema.terms import TERMS
+
 MAX_EXTENT = 500.0  # metres; anything larger is a typo, not a field
 MAX_OBJECT = 50.0  # metres; the largest single body (ball, goal, obstacle)
 MAX_OBSTACLES = 1000  # a spec of this many validates in half a second; a field needs a few
@@ -255,16 +258,7 @@ class Success(Section):
 
 
 class RewardTerm(Section):
-    term: Literal[
-        "success",
-        "ball_progress",
-        "scaled_ball_progress",
-        "agent_approaches_ball",
-        "agent_progress",
-        "upright",
-        "control_cost",
-        "ball_in_goal",
-    ] = Field(description="a term from the registry (README: reward terms)")
+    term: Literal[tuple(TERMS)] = Field(description="a term from the registry (README: reward terms)")
     weight: float = Field(1.0, ge=-1e4, le=1e4, description="the term's factor in the reward sum")
     band: Span | None = Field(None, description="upright only: torso height band that earns the bonus")
 
@@ -339,18 +333,19 @@ class EpisodeSection(Section):
         return round(self.control_dt / self.physics_dt)
 
 
+# sim.agent_contacts: each choice, and the agent's parts (contact roles, fieldgen/compile/contacts.py) it lets
+# collide with walls, obstacles and posts
+AGENT_CONTACTS = {"none": (), "torso": ("torso",), "torso_and_feet": ("torso", "foot")}
+
+
 class SimSection(Section):
-    backend: Literal["mjx", "spring", "positional", "generalized"] = Field(
-        "mjx",
-        description="physics pipeline: mjx (MuJoCo MJX), or one of brax's: spring (the CRL reference's ant), "
-        "positional (the soccer study's CRL runs) or generalized; spring and positional step 0.005 s by default",
-    )
+    backend: Literal[tuple(BACKENDS)] = Field("mjx", description=backend_description())
     solver: Literal["newton", "cg"] = Field("newton", description="constraint solver")
     iterations: int = Field(1, ge=1, le=100, description="solver iterations")
     ls_iterations: int = Field(4, ge=1, le=100, description="line-search iterations")
     euler_damping: bool = Field(False, description="implicit joint damping in the Euler integrator (slow in MJX)")
     cone: Literal["pyramidal", "elliptic"] = Field("pyramidal", description="friction cone")
-    agent_contacts: Literal["none", "torso", "torso_and_feet"] = Field(
+    agent_contacts: Literal[tuple(AGENT_CONTACTS)] = Field(
         "torso", description="which agent geoms collide with walls, obstacles and posts"
     )
     max_contacts: Annotated[int, Field(ge=1, le=10_000)] | Literal["auto", "all"] = Field(
@@ -368,15 +363,6 @@ class SimSection(Section):
         description="matrix-multiply precision of the physics: highest (float32, the same on every device), or "
         "default, which on recent NVIDIA GPUs is TF32 (1-2% faster on ant_nav, H200)",
     )
-
-
-# brax's pipelines as its reference ant sets them: spring and positional step 0.005 s (10 steps per
-# 0.05 s control step), generalized 0.01 s with 4 solver iterations.
-BACKEND_DEFAULTS = {
-    "spring": {("episode", "physics_dt"): 0.005},
-    "positional": {("episode", "physics_dt"): 0.005},
-    "generalized": {("sim", "iterations"): 4},
-}
 
 
 class ObservationSection(Section):
@@ -404,7 +390,7 @@ class FieldSpec(Section):
     @model_validator(mode="after")
     def _backend_defaults(self):
         """The physics step each pipeline was tuned for, where the spec leaves it out."""
-        for (section, key), value in BACKEND_DEFAULTS.get(self.sim.backend, {}).items():
+        for (section, key), value in BACKENDS[self.sim.backend].defaults.items():
             part = getattr(self, section)
             if key not in part.model_fields_set:
                 setattr(part, key, value)

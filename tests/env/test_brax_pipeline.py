@@ -12,11 +12,10 @@ import pytest
 
 import fieldgen
 from fieldgen.compile.artifact import compile_spec
-from fieldgen.env.brax_pipeline import BraxFieldEnv, check_batchable, load_system
+from fieldgen.env.brax_pipeline import PIPELINES, BraxFieldEnv, check_batchable, load_system
 from fieldgen.env.make import environment
 from fieldgen.schema import FieldSpec, bundled_fields, load_spec
-
-BACKENDS = ("mjx", "spring", "positional", "generalized")
+from fieldgen.schema.backends import BACKENDS, BRAX
 
 
 def pusher(backend: str) -> FieldSpec:
@@ -40,6 +39,10 @@ def rollouts():
         run = jax.jit(lambda s, env=env, a=action: jax.lax.scan(lambda s, _: (env.step(s, a), None), s, None, length=20)[0])
         out[backend] = env, env.reset(jax.random.PRNGKey(0)), run
     return out
+
+
+def test_each_brax_backend_of_the_registry_steps_on_its_pipeline():
+    assert tuple(PIPELINES) == BRAX and all(callable(p.step) and callable(p.init) for p in PIPELINES.values())
 
 
 def test_brax_q_is_mujoco_qpos():

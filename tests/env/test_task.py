@@ -122,6 +122,36 @@ def test_every_term_the_schema_accepts_has_a_function(write_spec):
     assert set(v) == set(names) and all(np.isfinite(x) for x in v.values())
 
 
+def test_the_implementations_are_keyed_by_the_registry():
+    from fieldgen.env import task
+    from fieldgen.schema.terms import TERMS
+
+    assert sorted(task.IMPLEMENTATIONS) == sorted(TERMS)
+
+
+def test_a_registered_term_without_an_implementation_fails_the_import():
+    import subprocess
+    import sys
+
+    code = ("from fieldgen.schema.terms import TERMS, Term\n"
+            "TERMS['ball_spin'] = Term('the ball turning', ball=True)\n"
+            "import fieldgen.env.task\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 1 and proc.stderr.strip().splitlines()[-1] == (
+        "ImportError: reward terms named in fieldgen/schema/terms.py without an implementation in "
+        "fieldgen.env.task: ball_spin"), proc.stderr[-2000:]
+
+
+def test_an_implementation_needs_a_registered_name_and_gets_one_only(monkeypatch):
+    from fieldgen.env import task
+
+    monkeypatch.setattr(task, "IMPLEMENTATIONS", dict(task.IMPLEMENTATIONS))
+    with pytest.raises(ValueError, match="'ball_spin' is no reward term of fieldgen/schema/terms.py"):
+        task.term("ball_spin")(lambda t, cfg: t.ball[2])
+    with pytest.raises(ValueError, match="reward term 'upright' is implemented twice"):
+        task.term("upright")(lambda t, cfg: t.agent[2])
+
+
 @pytest.mark.parametrize("field,progress_weight", [("soccer_v1_shaped", 5.0), ("soccer_v2_shaped", 10.0)])
 def test_the_study_shaped_soccer_rewards(field, progress_weight):
     """10 x ball-in-goal + upright(0.3..1) + 2 x approach + w / ||B-G|| x ball progress, term by term."""

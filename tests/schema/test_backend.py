@@ -3,11 +3,16 @@ by `fieldgen validate` with the key named, before anything compiles."""
 
 from __future__ import annotations
 
+import dataclasses
+import typing
+
 import pytest
 from typer.testing import CliRunner
 
 from fieldgen.cli import app
 from fieldgen.schema import SpecError, load_spec, resolve_spec_path
+from fieldgen.schema.backends import BACKENDS, BRAX
+from fieldgen.schema.models import SimSection
 
 runner = CliRunner()
 
@@ -60,3 +65,30 @@ def test_an_unknown_backend_lists_the_choices(write_spec):
         load_spec(write_spec("name: x\nsim: {backend: bullet}\n"))
     message = info.value.problems[0].message
     assert all(name in message for name in ("mjx", "spring", "positional", "generalized"))
+
+
+def test_the_schema_offers_exactly_the_registered_backends():
+    assert typing.get_args(SimSection.model_fields["backend"].annotation) == tuple(BACKENDS)
+    assert "mjx" not in BRAX and set(BRAX) < set(BACKENDS)
+
+
+POINT_ON = "name: x\nagent: {kind: point}\nball: {enabled: false}\ntask: {success: {kind: agent_near_target}}\n"
+
+
+def test_a_point_agent_is_sent_to_the_backends_the_registry_says_damp_joints(write_spec, monkeypatch):
+    def message(backend):
+        with pytest.raises(SpecError) as info:
+            load_spec(write_spec(POINT_ON + f"sim: {{backend: {backend}}}\n"))
+        return info.value.problems[0].message
+
+    assert message("spring") == ("brax's spring pipeline ignores joint damping, which is what slows the point agent "
+                                 "(agent.kind: point) on its slides; use backend mjx or generalized, or agent.kind: ant")
+    monkeypatch.setitem(BACKENDS, "generalized", dataclasses.replace(BACKENDS["generalized"], joint_damping=False))
+    assert message("generalized").endswith("use backend mjx, or agent.kind: ant")
+
+
+def test_the_defaults_a_backend_brings_are_the_registry_s(write_spec, monkeypatch):
+    monkeypatch.setitem(BACKENDS, "generalized", dataclasses.replace(
+        BACKENDS["generalized"], defaults={("sim", "ls_iterations"): 7}))
+    spec = load_spec(write_spec("name: x\nsim: {backend: generalized}\n"))
+    assert (spec.sim.ls_iterations, spec.sim.iterations) == (7, 1)

@@ -1,0 +1,30 @@
+"""The reward terms a spec's `task.reward` may name, each with what the field must have for it.
+
+This table is the one place a term is named: the schema's choices for `term`, the checks of what a
+term needs and fieldgen/env/task.py's implementations (which refuse to import unless they cover
+exactly these names) all read it. It imports nothing, so the schema reads it without JAX.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Term:
+    description: str  # one line, as README's "Reward terms" table gives it
+    ball: bool = False  # needs a ball (ball.enabled)
+    goal: bool = False  # needs a goal (goal.enabled)
+    torso: bool = False  # needs an agent with a torso (agent.kind: ant)
+
+
+TERMS: dict[str, Term] = {
+    "success": Term("1 while the success predicate holds (the sparse reward)"),
+    "ball_progress": Term("decrease of the ball's distance to the target, per second", ball=True),
+    "scaled_ball_progress": Term("ball_progress / max(distance, 0.1)", ball=True),
+    "agent_approaches_ball": Term("decrease of the agent's distance to the ball, per second", ball=True),
+    "agent_progress": Term("decrease of the agent's distance to the target, per second"),
+    "upright": Term("1 while the torso height is inside band (default [0.2, 1.0])", torso=True),
+    "control_cost": Term("-sum(action^2): give it a positive weight"),
+    "ball_in_goal": Term("1 while the ball's centre is inside the goal box", ball=True, goal=True),
+}
