@@ -16,9 +16,9 @@ def energy(kind: str, phi: jax.Array, psi: jax.Array, log_temperature: jax.Array
     """Pairwise energies between rows of phi [B, d] and psi [B, d] -> [B, B].
 
     Every pair comes from one matrix product (distances as |a|^2 + |b|^2 - 2 a.b), not from the
-    [B, B, d] differences, whose reduction is the slower (bench/energy_matrix.py at batch 1,024:
-    1.34x on an H100, 75x on a CPU; at 256 on the H100 0.86x). The diagonal, the positive pairs, whose small distances that form would round
-    away, is `paired_energy`'s own."""
+    [B, B, d] differences: reducing those over d is the slower at the batches CRL trains with, on a GPU
+    and far more on a CPU (bench/energy_matrix.py; its timings in bench/results/). The diagonal, the
+    positive pairs, whose small distances that form would round away, is `paired_energy`'s own."""
     if kind not in ENERGIES:
         raise ValueError(f"unknown energy {kind!r}; choose one of {', '.join(ENERGIES)}")
     if kind == "cosine":

@@ -6,7 +6,7 @@ the caller's thread and compiled on a worker, so the compiles overlap one anothe
 of the next program, and the start runs while the chunk is still compiling. On a CPU backend the
 programs compile one after another in the caller's thread instead: there the programs run on the
 same cores, and XLA already spreads one compile over them (side by side, two test workers on two
-cores ran 13% slower).
+cores ran slower: bench/results/README.md).
 """
 
 from __future__ import annotations

@@ -1,10 +1,9 @@
 """XLA options every `fieldgen` command starts with, unless the user's own XLA_FLAGS names them.
 
 XLA's fusion autotuner times large reductions on the GPU with each of its code generators. For CRL
-at batch 2,048 on the ant it did not finish within 7.5 minutes on an H100; without it the same run
-reached its first evaluation in 58 s, and the ant preset (batch 1,024) starts and trains as fast
-either way (bench/results/README.md). XLA reads XLA_FLAGS when JAX first starts a backend, so this
-runs before."""
+on the ant at a large batch it kept compiling long past the time the whole run takes without it, and
+the ant preset starts and trains as fast either way (bench/results/README.md). XLA reads XLA_FLAGS
+when JAX first starts a backend, so this runs before."""
 
 from __future__ import annotations
 

@@ -267,10 +267,6 @@ def videos(
     out.print(table)
 
 
-if __name__ == "__main__":
-    app()
-
-
 @app.command()
 def export(
     run_dir: Annotated[Path, typer.Argument(metavar="RUN", help="a run folder written by fieldgen train")],

@@ -325,8 +325,8 @@ class EpisodeSection(Section):
     control_dt: float = Field(0.05, ge=1e-4, le=10, description="seconds per control step")
     physics_dt: float = Field(0.01, ge=1e-4, le=1, description="seconds per physics step")
     fall: Fall = Field(default_factory=lambda: FallNever(kind="never"),
-                       description="when the ant has fallen, which ends its episode early; by default never, the "
-                       "one rule under which CRL learns the MJX ant; a point agent never falls")
+                       description="when the ant has fallen, which ends its episode early; by default never: "
+                       "with episodes ended at a fall, CRL did not learn the MJX ant; a point agent never falls")
 
     @property
     def substeps(self) -> int:
@@ -361,7 +361,7 @@ class SimSection(Section):
     precision: Literal["highest", "default"] = Field(
         "highest",
         description="matrix-multiply precision of the physics: highest (float32, the same on every device), or "
-        "default, which on recent NVIDIA GPUs is TF32 (1-2% faster on ant_nav, H200)",
+        "default, which on recent NVIDIA GPUs is TF32: a little faster, but no longer the same on every device",
     )
 
 

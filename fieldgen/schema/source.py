@@ -51,8 +51,8 @@ class Source:
 
 
 class SpecLoader(yaml.CSafeLoader if yaml.__with_libyaml__ else yaml.SafeLoader):
-    """YAML as PyYAML's safe loader reads it (through libyaml where PyYAML has it: a 1,000-obstacle spec
-    in a tenth of the time), and floats as YAML 1.2 writes them: `1e-7` and `2e6` are numbers (YAML 1.1
+    """YAML as PyYAML's safe loader reads it (through libyaml where PyYAML has it: large specs load much
+    faster), and floats as YAML 1.2 writes them: `1e-7` and `2e6` are numbers (YAML 1.1
     wants a dot, `1.0e-7`, and would read them as text)."""
 
 
