@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from dm_control import mjcf
 
-from fieldgen.compile.agents import BUILDERS
+from fieldgen.compile.bodies import BUILDERS
 from fieldgen.compile.cameras import TOP
 from fieldgen.compile.contacts import ball_touches_floor, bits, contact_limit
 from fieldgen.compile.pipelines import brax_parameters
@@ -21,7 +21,7 @@ from fieldgen.schema.models import FieldSpec
 TOP_HEIGHT_PX = 480  # the top view's frame height; its width follows the field's aspect
 TOP_MARGIN = 0.05  # of the framed extent's longer side, on every side of the top view
 # Okabe and Ito's colour-blind-safe palette on a neutral floor: the target (vermillion), goal (blue),
-# ball (yellow) and agent (reddish purple, in fieldgen.compile.agents) differ in hue and lightness alike.
+# ball (yellow) and agent (reddish purple, in fieldgen.compile.bodies) differ in hue and lightness alike.
 RGBA = {
     "wall": (0.72, 0.72, 0.74, 1.0),
     "obstacle": (0.12, 0.12, 0.14, 1.0),

@@ -1,6 +1,7 @@
-"""Agents built in code with dm_control.mjcf: the ant quadruped and a planar point.
+"""The bodies a field's agent can have, built in code with dm_control.mjcf: the ant quadruped and a
+planar point.
 
-Each builder adds the agent to a scene and returns its home qpos, which the
+Each builder adds the agent's body to a scene and returns its home qpos, which the
 scene records as the `home` keyframe that every reset starts from.
 """
 
