@@ -7,9 +7,9 @@ coefficient tuned to a target entropy. Defaults follow the reference
 implementation (JaxGCRL) so results compare.
 
 `make_train(config, env, team)` returns the run as pure functions (agents.loop.Trainer).
-With a team of several agents (agents.team, used by agents.icrl) every network, loss
-and entropy coefficient gains a leading agent axis and is vmapped over it; the default
-team is one agent that sees and drives everything.
+With a team of several controllers (agents.team, used by agents.icrl) every network, loss
+and entropy coefficient gains a leading controller axis and is vmapped over it; the default
+team is one controller that sees and drives everything.
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ from .contrastive import energy, infonce, logsumexp_penalty, paired_energy, weig
 from .loop import Trainer
 from .networks import Stacked, gaussian_head, sample_tanh_gaussian
 from .optim import adam_by_group
-from .policy import Policy
+from .actor import Policy
 from .team import Team, whole
 
 
@@ -45,9 +45,9 @@ class TrainState:
 
 
 def make_train(config: CRLConfig, env, team: Team | None = None, shared: bool = False) -> Trainer:
-    """CRL for one agent that sees and drives everything, or for a team of independent agents (ICRL):
-    each with its own actor, critic and entropy coefficient, all vmapped over a leading agent axis
-    (with `shared`, one actor and one critic that every agent applies)."""
+    """CRL for one controller that sees and drives everything, or for a team of independent controllers
+    (ICRL): each with its own actor, critic and entropy coefficient, all vmapped over a leading controller
+    axis (with `shared`, one actor and one critic that every controller applies)."""
     c = config
     team = team or whole(env)
     prefill_iters, iters_per_eval = replay.iterations(config)
@@ -77,14 +77,14 @@ def make_train(config: CRLConfig, env, team: Team | None = None, shared: bool = 
                           env_state, replay.init(c.max_replay_rows, c.num_envs, example), key,
                           jnp.zeros((), jnp.int32), jnp.zeros((), jnp.int32))
 
-    def agent_obs(state, goal):
+    def controller_obs(state, goal):
         mine, goals = team.observe(state, goal)
         return jnp.concatenate([mine, goals], -1), mine, goals
 
     def policy(actor, obs, key=None):
         """A sampled action, or the mean action when key is None; `actor`: the stack's member 0."""
-        agent_input, _, _ = agent_obs(obs[:, :state_dim], obs[:, state_dim:])
-        mean, log_std = gaussian_head(nets.apply_member(actor, 0, agent_input))
+        controller_input, _, _ = controller_obs(obs[:, :state_dim], obs[:, state_dim:])
+        mean, log_std = gaussian_head(nets.apply_member(actor, 0, controller_input))
         if key is None:
             return team.joint_action(jnp.tanh(mean))
         return team.joint_action(sample_tanh_gaussian(key, mean, log_std)[0])
@@ -109,30 +109,30 @@ def make_train(config: CRLConfig, env, team: Team | None = None, shared: bool = 
         return ts, jax.tree.map(jnp.mean, stats)
 
     def losses(learner: tuple, batch: dict, key: jax.Array) -> tuple[jax.Array, dict]:
-        """Critic, actor and entropy-coefficient losses, summed over agents and over the three.
+        """Critic, actor and entropy-coefficient losses, summed over controllers and over the three.
 
         Each part reads the others' parameters through stop_gradient, so the one gradient equals the
         three separate ones taken at the same parameters, while the goals are encoded once. The critic
-        is each agent's InfoNCE on its own view and actions; the actor maximises the energy of its own
+        is each controller's InfoNCE on its own view and actions; the actor maximises the energy of its own
         sampled action towards the goal; alpha grows while a policy is below its target entropy."""
         params, log_temperature, log_alpha = learner
-        agent_input, mine, goals = agent_obs(batch["state"], batch["goal"])
+        controller_input, mine, goals = controller_obs(batch["state"], batch["goal"])
         w = batch["weight"]
         mean_w = jax.vmap(lambda x: weighted_mean(x, w))
         taken = jnp.concatenate([mine, team.own_actions(batch["action"])], -1)
-        actor_out, phi, psi = nets.apply(params, [agent_input, taken, goals])
-        energy_ = energies(phi, psi, log_temperature)  # [agents, batch, batch]
+        actor_out, phi, psi = nets.apply(params, [controller_input, taken, goals])
+        energy_ = energies(phi, psi, log_temperature)  # [controllers, batch, batch]
         contrastive = jax.vmap(lambda x: infonce(c.contrastive_loss, x, w))(energy_)
         penalty = jax.vmap(lambda x: logsumexp_penalty(x, w))(energy_)
         critic = contrastive + c.logsumexp_penalty * penalty
         accuracy = mean_w((jnp.argmax(energy_, axis=2) == jnp.arange(len(w))).astype(jnp.float32))
 
-        # [agents, batch, own], [agents, batch]
+        # [controllers, batch, own], [controllers, batch]
         action, log_prob = sample_tanh_gaussian(key, *gaussian_head(actor_out))
         # the whole stack again, frozen, for phi of the actor's own action: a stack call costs the
         # same kernels as one network, and slicing phi's weights out would cost copies
         frozen = jax.lax.stop_gradient(params)
-        phi_pi = nets.apply(frozen, [agent_input, jnp.concatenate([mine, action], -1), goals])[1]
+        phi_pi = nets.apply(frozen, [controller_input, jnp.concatenate([mine, action], -1), goals])[1]
         q = paired_energies(phi_pi, jax.lax.stop_gradient(psi), jax.lax.stop_gradient(log_temperature))
         alpha = jnp.exp(log_alpha)[:, None]
         actor_ = mean_w(jax.lax.stop_gradient(alpha) * log_prob - q)
@@ -188,14 +188,14 @@ def make_train(config: CRLConfig, env, team: Team | None = None, shared: bool = 
         return policy(nets.member(ts.nets, 0), obs)
 
     def export(ts: TrainState) -> Policy:
-        """The actor alone: each agent reads its own entries of the state, then the goal."""
+        """The actor alone: each controller reads its own entries of the state, then the goal."""
         actor = nets.alone(ts.nets, 0)
-        per_agent = team.size > 1 and not shared
+        per_controller = team.size > 1 and not shared
         if team.size == 1 and not shared:
-            actor = jax.tree.map(lambda w: w[0], actor)  # the agent axis of one
+            actor = jax.tree.map(lambda w: w[0], actor)  # the controller axis of one
         goal = tuple(range(state_dim, state_dim + goal_size))
         observes = tuple(tuple(o) + goal for o in team.observed.tolist())
         return Policy(actor, observes, tuple(map(tuple, team.actions.tolist())), tuple(c.hidden), 2 * own,
-                      layer_norm=c.layer_norm, skip_every=c.skip_every, per_agent=per_agent)
+                      layer_norm=c.layer_norm, skip_every=c.skip_every, per_controller=per_controller)
 
     return Trainer(config, env, init, prefill, chunk, act, {"env_state": 0, "buffer": 1}, export)

@@ -57,7 +57,7 @@ class Trainer:
     chunk: Callable  # state -> (state, mean training metrics): the iterations between two evaluations
     act: Callable  # (state, obs [batch, observation_size]) -> deterministic actions [batch, action_size]
     env_axes: dict  # state field -> the axis of its leaves that runs over environments (sharded)
-    export: Callable  # state -> the deterministic actor alone (agents.policy.Policy): what `act` computes
+    export: Callable  # state -> the deterministic actor alone (agents.actor.Policy): what `act` computes
     # jitted programs by seed count, kept here so that later runs of this trainer in the same
     # process (a resume, an evaluation) reuse them instead of compiling again
     compiled: dict = dataclasses.field(default_factory=dict, init=False, compare=False, repr=False)

@@ -27,7 +27,7 @@ from .config import OffPolicyConfig
 from .contrastive import weighted_mean
 from .loop import Trainer
 from .networks import MLP, Actor
-from .policy import Policy
+from .actor import Policy
 
 
 @flax.struct.dataclass

@@ -23,7 +23,7 @@ import optax
 from .config import PPOConfig
 from .loop import Trainer
 from .networks import MLP, tanh_log_slope
-from .policy import Policy
+from .actor import Policy
 
 
 @flax.struct.dataclass

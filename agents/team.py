@@ -1,10 +1,13 @@
-"""Splitting one body's actuators among independent agents, and what each agent observes.
+"""Splitting one body's actuators among independent controllers, and what each controller observes.
+
+A controller is one actor (with its critic and entropy coefficient) that drives a part of the body:
+a leg or a joint (agents.icrl).
 
 Observation entries and actions are matched by name (`env.observation_names`,
 `env.action_names`: the joint each action drives), never by position, so a change of
-layout cannot silently shift what an agent sees. Every agent observes the entries
+layout cannot silently shift what a controller sees. Every controller observes the entries
 that belong to no actuated joint (the torso, the ball, the goal) and those of its own
-joints (their angles and velocities); the joints of other agents stay hidden.
+joints (their angles and velocities); the joints of other controllers stay hidden.
 """
 
 from __future__ import annotations
@@ -20,9 +23,9 @@ GROUPINGS = ("leg", "joint")
 
 @dataclasses.dataclass(frozen=True)
 class Team:
-    observed: np.ndarray  # [agents, entries]: the state entries each agent sees (all of them see the goal)
-    actions: np.ndarray  # [agents, actions per agent]: the action indices each agent drives
-    names: tuple[str, ...]  # one per agent
+    observed: np.ndarray  # [controllers, entries]: the state entries each controller sees (all of them see the goal)
+    actions: np.ndarray  # [controllers, actions per controller]: the action indices each controller drives
+    names: tuple[str, ...]  # one per controller
 
     @property
     def size(self) -> int:
@@ -30,21 +33,21 @@ class Team:
 
     @property
     def plain(self) -> bool:
-        """One agent seeing and driving everything in order: nothing to gather or scatter."""
+        """One controller seeing and driving everything in order: nothing to gather or scatter."""
         return self.size == 1 and (self.observed[0] == np.arange(self.observed.shape[1])).all() and \
             (self.actions[0] == np.arange(self.actions.shape[1])).all()
 
     def observe(self, state: jax.Array, goal: jax.Array) -> tuple[jax.Array, jax.Array]:
-        """([agents, batch, seen], [agents, batch, goal]) from a batch of states and goals."""
+        """([controllers, batch, seen], [controllers, batch, goal]) from a batch of states and goals."""
         mine = state[None] if self.plain else jnp.moveaxis(state[:, self.observed], 1, 0)
         return mine, jnp.broadcast_to(goal, (self.size,) + goal.shape)
 
     def own_actions(self, action: jax.Array) -> jax.Array:
-        """[batch, actions] -> [agents, batch, actions per agent]."""
+        """[batch, actions] -> [controllers, batch, actions per controller]."""
         return action[None] if self.plain else jnp.moveaxis(action[:, self.actions], 1, 0)
 
     def joint_action(self, actions: jax.Array) -> jax.Array:
-        """[agents, batch, actions per agent] -> [batch, actions], each agent's in its own slots."""
+        """[controllers, batch, actions per controller] -> [batch, actions], each controller's in its own slots."""
         if self.plain:
             return actions[0]
         batch = actions.shape[1]
@@ -53,12 +56,12 @@ class Team:
 
 
 def whole(env) -> Team:
-    """One agent that sees everything and drives every actuator: plain single-agent RL."""
+    """One controller that sees everything and drives every actuator: plain single-agent RL."""
     return Team(np.arange(env.state_dim)[None], np.arange(env.action_size)[None], ("all",))
 
 
 def split(env, grouping: str) -> Team:
-    """An agent per leg (actuators `<leg>_<joint>` grouped by `<leg>`) or one per actuated joint."""
+    """A controller per leg (actuators `<leg>_<joint>` grouped by `<leg>`) or one per actuated joint."""
     if grouping not in GROUPINGS:
         raise ValueError(f"unknown grouping {grouping!r}; choose one of {', '.join(GROUPINGS)}")
     actions = list(env.action_names)
@@ -74,8 +77,8 @@ def split(env, grouping: str) -> Team:
     actuated = set(actions)
     common = [i for i, joint in enumerate(owner) if joint not in actuated]
     observed = []
-    for members in groups.values():
-        own = {actions[i] for i in members}
+    for driven in groups.values():
+        own = {actions[i] for i in driven}
         mine = [i for i, joint in enumerate(owner) if joint in own]
         observed.append(sorted(common + mine))
     return Team(np.array(observed), np.array(list(groups.values())), tuple(groups))

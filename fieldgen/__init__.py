@@ -32,7 +32,7 @@ def __getattr__(name):
 
         return getattr(env, name)
     if name == "load_policy":
-        from fieldgen.policy import load_policy
+        from fieldgen.policy_folder import load_policy
 
         return load_policy
     raise AttributeError(f"module 'fieldgen' has no attribute {name!r}")

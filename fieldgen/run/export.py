@@ -1,5 +1,5 @@
 """A run's policy taken out of its run folder: one seed's actor, at the last checkpoint, written as an
-exported policy folder (fieldgen.policy) that `fieldgen.load_policy` calls without fieldgen's trainers."""
+exported policy folder (fieldgen.policy_folder) that `fieldgen.load_policy` calls without fieldgen's trainers."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import jax
 
 from fieldgen.agents import loop
 from fieldgen.files import WriteError
-from fieldgen.policy import Description, describe, save_policy
+from fieldgen.policy_folder import Description, describe, save_policy
 from fieldgen.run import record, session
 
 

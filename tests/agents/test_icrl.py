@@ -1,4 +1,4 @@
-"""ICRL: agents built from the observation layout by name, each driving only its own actuators;
+"""ICRL: controllers built from the observation layout by name, each driving only its own actuators;
 and success counted by the environment alone, the same for every algorithm."""
 
 from __future__ import annotations
@@ -16,23 +16,23 @@ from fieldgen.agents import crl, icrl, loop, ppo, sac, team
 LEGS = ("front_left", "front_right", "back_left", "back_right")
 
 
-@pytest.mark.parametrize("grouping,agents", [("leg", 4), ("joint", 8)])
-def test_each_agent_sees_the_torso_the_goal_and_its_own_joints(env_cache, grouping, agents):
+@pytest.mark.parametrize("grouping,controllers", [("leg", 4), ("joint", 8)])
+def test_each_controller_sees_the_torso_the_goal_and_its_own_joints(env_cache, grouping, controllers):
     env = env_cache("ant_nav")
     t = team.split(env, grouping)
-    assert t.size == agents
+    assert t.size == controllers
     assert sorted(t.actions.reshape(-1).tolist()) == list(range(env.action_size))  # every actuator, once
     names = env.observation_names
-    for agent, (observed, actions) in enumerate(zip(t.observed, t.actions)):
+    for controller, (observed, actions) in enumerate(zip(t.observed, t.actions)):
         seen = {names[i] for i in observed}
         own = {env.action_names[a] for a in actions}
         assert {n for n in names[:env.state_dim] if n.startswith("root.")} <= seen  # the whole torso
         assert seen - {n for n in seen if n.startswith("root.")} == {f"{j}.{c}" for j in own for c in ("pos", "vel")}
         if grouping == "leg":
-            assert len({j.rpartition("_")[0] for j in own}) == 1 and t.names[agent] in LEGS
+            assert len({j.rpartition("_")[0] for j in own}) == 1 and t.names[controller] in LEGS
 
 
-def test_soccer_agents_also_see_the_ball(env_cache):
+def test_soccer_controllers_also_see_the_ball(env_cache):
     env = env_cache("soccer_v1")
     t = team.split(env, "leg")
     for observed in t.observed:
@@ -41,7 +41,7 @@ def test_soccer_agents_also_see_the_ball(env_cache):
 
 @pytest.fixture(scope="module")
 def ant_icrl(env_cache):
-    """ICRL with one agent per joint on ant_nav, and random (untrained) network weights of its own shapes."""
+    """ICRL with one controller per joint on ant_nav, and random (untrained) network weights of its own shapes."""
     config = icrl.ICRLConfig(total_steps=4000, num_envs=2, unroll_length=10, min_replay_rows=10, max_replay_rows=2000,
                              batch_size=32, windows=2, hidden=(16,), repr_dim=4, num_evals=1, agents="joint")
     env = env_cache("ant_nav")
@@ -53,18 +53,18 @@ def ant_icrl(env_cache):
     return env, algo, team.split(env, "joint"), actor
 
 
-def test_each_agent_drives_only_its_own_actuator(ant_icrl):
+def test_each_controller_drives_only_its_own_actuator(ant_icrl):
     env, algo, t, actor = ant_icrl
     obs = jax.random.normal(jax.random.PRNGKey(2), (3, env.observation_size))
     act = jax.jit(lambda a, o: algo.act(types.SimpleNamespace(nets=a), o))
     base = np.asarray(act(actor, obs))
-    for agent in range(t.size):
-        changed = jax.tree.map(lambda x: x.at[0, agent].add(1.0), actor)  # agent k's own actor weights only
+    for controller in range(t.size):
+        changed = jax.tree.map(lambda x: x.at[0, controller].add(1.0), actor)  # controller k's own actor weights only
         moved = np.abs(np.asarray(act(changed, obs)) - base).max(axis=0) > 1e-6
-        assert moved.tolist() == [i in t.actions[agent] for i in range(env.action_size)]
+        assert moved.tolist() == [i in t.actions[controller] for i in range(env.action_size)]
 
 
-def test_an_agent_ignores_the_joints_of_the_others(ant_icrl):
+def test_a_controller_ignores_the_joints_of_the_others(ant_icrl):
     env, algo, t, actor = ant_icrl
     obs = jax.random.normal(jax.random.PRNGKey(2), (3, env.observation_size))
     act = jax.jit(lambda o: algo.act(types.SimpleNamespace(nets=actor), o))
@@ -116,8 +116,8 @@ def test_success_is_counted_by_the_environment_for_every_algorithm(env_cache):
 
 
 @pytest.mark.slow
-def test_icrl_learns_point_nav_with_an_agent_per_axis(env_cache):
-    """Two agents, one per motor, each seeing only its own axis and the goal, learn to reach the target."""
+def test_icrl_learns_point_nav_with_a_controller_per_axis(env_cache):
+    """Two controllers, one per motor, each seeing only its own axis and the goal, learn to reach the target."""
     config = icrl.ICRLConfig(total_steps=40_000, num_envs=16, unroll_length=25, batch_size=64, windows=64,
                              min_replay_rows=100, max_replay_rows=2000, hidden=(64, 64), repr_dim=16, num_evals=3,
                              eval_envs=32, agents="joint")

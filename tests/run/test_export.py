@@ -12,7 +12,7 @@ from typer.testing import CliRunner
 import fieldgen
 from fieldgen.agents import loop
 from fieldgen.cli import app
-from fieldgen.policy import DESCRIPTION, PARAMS, PolicyError
+from fieldgen.policy_folder import DESCRIPTION, PARAMS, PolicyError
 from fieldgen.run import session
 
 runner = CliRunner()

@@ -14,7 +14,7 @@ REPLAY = {"windows": 2, "min_replay_rows": 10}
 CASES = {
     "crl": ("crl", REPLAY),
     "crl residual layer-norm": ("crl", {**REPLAY, "hidden": (8, 8, 8), "skip_every": 2, "layer_norm": True}),
-    "icrl an actor per agent": pytest.param("icrl", {**REPLAY, "agents": "joint"}, marks=pytest.mark.slow),
+    "icrl an actor per controller": pytest.param("icrl", {**REPLAY, "agents": "joint"}, marks=pytest.mark.slow),
     "icrl one shared actor": ("icrl", {**REPLAY, "agents": "joint", "share_parameters": True}),
     "ppo normalised": ("ppo", {"num_minibatches": 2}),
     "ppo global spread": ("ppo", {"num_minibatches": 2, "spread": "global", "normalize_observations": False}),

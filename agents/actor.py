@@ -1,10 +1,11 @@
 """A trained actor as a plain network: what a policy needs to act once training is over.
 
-Every trainer's deterministic action has one form: observations (normalised, for PPO), each agent's
-entries of them picked, an MLP per agent (agents.networks.MLP, one shared by all, or each agent's
-own stacked on a leading axis), the tanh of its first outputs, written into the actions that agent
-drives. A `Policy` holds exactly that, so it can be saved and called without the trainer, its
-optimizer states or its replay buffer.
+Every trainer's deterministic action has one form: observations (normalised, for PPO), each
+controller's entries of them picked (agents.team: ICRL's one per leg or joint, every other
+algorithm's one for the whole body), an MLP per controller (agents.networks.MLP, one shared by all,
+or each one's own stacked on a leading axis), the tanh of its first outputs, written into the actions
+that controller drives. A `Policy` holds exactly that, so it can be saved and called without the
+trainer, its optimizer states or its replay buffer.
 """
 
 from __future__ import annotations
@@ -20,8 +21,9 @@ from .team import Team
 
 @flax.struct.dataclass
 class Policy:
-    params: dict  # the MLP's variables; with a leading agent axis where `per_agent`
-    # per agent: the observation entries its network reads, in order, and the action each of its first outputs drives
+    params: dict  # the MLP's variables; with a leading controller axis where `per_controller`
+    # per controller: the observation entries its network reads, in order, and the action each of its first
+    # outputs drives
     observes: tuple[tuple[int, ...], ...] = flax.struct.field(pytree_node=False)
     drives: tuple[tuple[int, ...], ...] = flax.struct.field(pytree_node=False)
     hidden: tuple[int, ...] = flax.struct.field(pytree_node=False)
@@ -30,7 +32,7 @@ class Policy:
     obs_std: jax.Array | None = None
     layer_norm: bool = flax.struct.field(pytree_node=False, default=False)
     skip_every: int = flax.struct.field(pytree_node=False, default=0)
-    per_agent: bool = flax.struct.field(pytree_node=False, default=False)
+    per_controller: bool = flax.struct.field(pytree_node=False, default=False)
     clip: float = flax.struct.field(pytree_node=False, default=10.0)
 
     @property
@@ -50,6 +52,6 @@ class Policy:
         if self.obs_mean is not None:
             obs = jnp.clip((obs - self.obs_mean) / self.obs_std, -self.clip, self.clip)
         team = Team(np.array(self.observes), np.array(self.drives), ())
-        inputs = jnp.moveaxis(obs[:, team.observed], 1, 0)  # [agents, batch, inputs]
-        out = jax.vmap(self.network.apply, in_axes=(0 if self.per_agent else None, 0))(self.params, inputs)
+        inputs = jnp.moveaxis(obs[:, team.observed], 1, 0)  # [controllers, batch, inputs]
+        out = jax.vmap(self.network.apply, in_axes=(0 if self.per_controller else None, 0))(self.params, inputs)
         return team.joint_action(jnp.tanh(out[..., :team.actions.shape[1]]))

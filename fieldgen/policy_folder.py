@@ -3,6 +3,9 @@ outputs drive; `params.msgpack` holds its weights (flax's msgpack serialization)
 
 `load_policy(folder)` gives a jit-able `act(obs) -> action` from these two files alone: no trainer,
 run folder, field or simulator is needed, so the policy can go wherever JAX and flax run.
+
+The file's `agents` (and `network.per_agent`) are the actor's controllers (fieldgen.agents.team:
+ICRL's one per leg or joint, one for every other algorithm), named as exported folders already say.
 """
 
 from __future__ import annotations
@@ -16,7 +19,7 @@ import numpy as np
 from flax import serialization
 from pydantic import BaseModel, ConfigDict, ValidationError
 
-from fieldgen.agents.policy import Policy
+from fieldgen.agents.actor import Policy
 from fieldgen.files import replace_folder, write_atomic
 
 DESCRIPTION, PARAMS = "policy.json", "params.msgpack"
@@ -41,7 +44,7 @@ class Network(_Strict):
     outputs: int
     layer_norm: bool
     skip_every: int
-    per_agent: bool  # each agent has its own weights, stacked on a leading axis of params.msgpack
+    per_agent: bool  # each controller has its own weights, stacked on a leading axis of params.msgpack
 
 
 class Agent(_Strict):
@@ -75,7 +78,7 @@ class Description(_Strict):
 def describe(policy: Policy, observation_names, action_names, **about) -> Description:
     """The description of `policy` for an environment's names; `about`: algorithm, field, seed, env_steps."""
     network = Network(hidden=list(policy.hidden), outputs=policy.outputs, layer_norm=policy.layer_norm,
-                      skip_every=policy.skip_every, per_agent=policy.per_agent)
+                      skip_every=policy.skip_every, per_agent=policy.per_controller)
     agents = [Agent(observes=[observation_names[i] for i in seen], drives=[action_names[i] for i in driven])
               for seen, driven in zip(policy.observes, policy.drives)]
     normalizer = None
@@ -142,14 +145,15 @@ def _policy(d: Description, params: dict) -> Policy:
                      obs_std=jnp.asarray(d.normalizer.std, jnp.float32), clip=d.normalizer.clip)
     n = d.network
     return Policy(params, observes, drives, tuple(n.hidden), n.outputs, layer_norm=n.layer_norm,
-                  skip_every=n.skip_every, per_agent=n.per_agent, **stats)
+                  skip_every=n.skip_every, per_controller=n.per_agent, **stats)
 
 
 def _check_shapes(policy: Policy, path: Path) -> None:
     """The weights are those of the network the description builds, layer by layer."""
     inputs = jnp.zeros((1, len(policy.observes[0])))
-    init = jax.vmap(policy.network.init, in_axes=(0, None)) if policy.per_agent else policy.network.init
-    key = jax.random.split(jax.random.PRNGKey(0), len(policy.observes)) if policy.per_agent else jax.random.PRNGKey(0)
+    init, key = policy.network.init, jax.random.PRNGKey(0)
+    if policy.per_controller:
+        init, key = jax.vmap(init, in_axes=(0, None)), jax.random.split(key, len(policy.observes))
     want, got = _shapes(jax.eval_shape(init, key, inputs)), _shapes(policy.params)
     for name in sorted(want.keys() | got.keys()):
         if want.get(name) != got.get(name):
