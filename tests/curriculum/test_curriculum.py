@@ -32,8 +32,9 @@ def test_interpolation_ends_are_the_two_specs_and_every_stage_builds(tmp_path):
     middle = load_spec(paths[1])
     assert 10 < middle.goal.distance < 20 and middle.goal.distance == pytest.approx(10 + 10 / 3, rel=1e-5)
     assert not middle.walls.enabled and load_spec(paths[2]).walls.enabled  # switches at stage 3 of 4
-    for spec in c.specs():
-        assert compile_spec(spec).model().ngeom > 0
+    # every stage builds: the field's 15 geoms, the ant's 17, ball and target; the walls (4) and the goalie come
+    # in with stage 3
+    assert [compile_spec(spec).model().ngeom for spec in c.specs()] == [34, 34, 39, 39]
     text = paths[1].read_text()
     modeline, origin = text.splitlines()[:2]
     assert modeline.startswith("# yaml-language-server: $schema=") and origin.startswith("# stage 2 of 4")

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 import fieldgen
+from fieldgen.agents import buffer as replay
 from fieldgen.agents import crl, loop
 
 FIELD = """name: {name}
@@ -67,9 +68,31 @@ def test_hindsight_success_reads_the_balls_entries_of_a_goal(envs):
 
 
 def test_crl_trains_on_goals_of_agent_and_ball(envs, tiny_crl):
+    """CRL's positive pairs, drawn from the steps it stored as it trained: each step whose episode goes on is
+    paired with the agent's and the ball's x, y at a later step of that episode; the episode's last step with
+    none. Its losses stay finite, and its actor reads all four goal entries."""
     _, both = envs
-    algo = crl.make_train(tiny_crl(), both)
+    config = tiny_crl()
+    algo = crl.make_train(config, both)
     state, rows = loop.run(algo, [0], 2)
     assert all(np.isfinite(r["critic_loss"]) for r in rows if r["eval"])
-    policy = algo.export(loop.seed_slice(state, 0))
+    trained = loop.seed_slice(state, 0)
+    policy = algo.export(trained)
     assert policy.observes[0][-4:] == tuple(range(both.state_dim, both.state_dim + 4))
+
+    length, windows = both.episode_length, config.num_envs
+    # TINY_CRL stored 100 rows of prefill and 2 x 6 iterations of 10: whole windows, every row a stored step
+    assert int(trained.buffer.size) == 220
+    sampled = jax.device_get(replay.hindsight_batch(trained.buffer, jax.random.PRNGKey(3), windows, length,
+                                                    config.discount, jnp.asarray(both.goal_indices)))
+    named = [both.observation_names.index(n) for n in ("agent_x.pos", "agent_y.pos", "ball.x", "ball.y")]
+    states = sampled["state"].reshape(windows, length, -1)[..., named]
+    episodes, positive = (sampled[k].reshape(windows, length) for k in ("episode", "has_future"))
+    goals = sampled["future_goal"].reshape(windows, length, 4)
+    for w in range(windows):
+        for i in range(length):
+            later = [j for j in range(i + 1, length) if episodes[w, j] == episodes[w, i]]
+            assert positive[w, i] == bool(later), (w, i)
+            if later:
+                assert any(np.array_equal(goals[w, i], states[w, j]) for j in later), (w, i, goals[w, i])
+    assert (episodes[:, 1:] != episodes[:, :-1]).any()  # some windows cross an episode's end
