@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from typing import Sequence
 
+import fieldgen.env.quiet  # noqa: F401  (before MJX and brax)
 import jax
 import jax.numpy as jnp
 import mujoco
@@ -78,6 +79,8 @@ class FieldEnv:
         self.success_goal_entries = np.array(self.layout.success_goal_entries)
         self.observation_names = self.layout.names
         self.action_names = tuple(self.mj_model.actuator(i).name for i in range(self.mj_model.nu))  # = joint names
+        self.name = spec.name
+        self.success_depends_on_goal = spec.task.success.kind != "ball_in_goal"  # the goal box, wherever the goal is
         self.terms = tuple(dict.fromkeys(n for r in self.rules for n in r.task.terms))
         self.metric_names = ("success", *self.terms)
         self._agent_qpos = jnp.asarray(self.layout.agent_qpos)
