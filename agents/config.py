@@ -19,6 +19,7 @@ from typing import Annotated, ClassVar, Literal, Sequence
 import yaml
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, StrictBool, ValidationError
 
+from ..env.contract import Environment
 from ..suggest import did_you_mean
 from .buffer import gradient_steps, iterations
 from .contrastive import ENERGIES, LOSSES
@@ -169,7 +170,7 @@ class RunConfig(BaseModel):
             raise ConfigError(f"{where}: {cls.algo}.{key} {_allowed(exc.errors()[0], fields[key])}, "
                               f"not {value!r}") from None
 
-    def validate_env(self, env, devices: int = 1, seeds: int = 1) -> None:
+    def validate_env(self, env: Environment, devices: int = 1, seeds: int = 1) -> None:
         """Problems a run would hit after compiling, reported before. `seeds` trained at once on `devices`
         local devices split by seed when they can, and otherwise split each seed's environments."""
         if self.num_envs % devices and not by_seed(seeds, devices):
@@ -203,7 +204,7 @@ class PPOConfig(RunConfig):
     reward: Reward = "dense"  # dense: the field's weighted terms; sparse: its success metric
     normalize_observations: StrictBool = True
 
-    def validate_env(self, env, devices: int = 1, seeds: int = 1) -> None:
+    def validate_env(self, env: Environment, devices: int = 1, seeds: int = 1) -> None:
         super().validate_env(env, devices, seeds)
         per_iter = self.per_iteration
         if per_iter % self.num_minibatches:
@@ -230,7 +231,7 @@ class ReplayConfig(RunConfig):
     hidden: Hidden = (256, 256)
     layer_norm: StrictBool = False
 
-    def validate_env(self, env, devices: int = 1, seeds: int = 1) -> None:
+    def validate_env(self, env: Environment, devices: int = 1, seeds: int = 1) -> None:
         """Also: steps to prefill the buffer and train, room for an episode, a batch's worth of
         transitions in the windows it samples."""
         super().validate_env(env, devices, seeds)
@@ -261,7 +262,7 @@ class CRLConfig(ReplayConfig):
     logsumexp_penalty: Annotated[Float, Field(ge=0)] = 0.1
     target_entropy_per_action: Float = -0.5
 
-    def validate_env(self, env, devices: int = 1, seeds: int = 1) -> None:
+    def validate_env(self, env: Environment, devices: int = 1, seeds: int = 1) -> None:
         super().validate_env(env, devices, seeds)
         if self.skip_every:
             try:
@@ -277,7 +278,7 @@ class ICRLConfig(CRLConfig):
     agents: Grouping = "leg"
     share_parameters: StrictBool = False  # one actor and one critic applied by every agent
 
-    def validate_env(self, env, devices: int = 1, seeds: int = 1) -> None:
+    def validate_env(self, env: Environment, devices: int = 1, seeds: int = 1) -> None:
         super().validate_env(env, devices, seeds)
         try:
             split(env, self.agents)
@@ -294,16 +295,16 @@ class OffPolicyConfig(ReplayConfig):
     reward_scale: Rate = 1.0
     her: Share = 0.0  # share of goals relabelled from the episode's future (needs reward: sparse)
 
-    def validate_env(self, env, devices: int = 1, seeds: int = 1) -> None:
+    def validate_env(self, env: Environment, devices: int = 1, seeds: int = 1) -> None:
         super().validate_env(env, devices, seeds)
         algo = self.algo
         if self.her and self.reward != "sparse":
             raise ConfigError(f"{algo}.her relabels goals and rescores them by the field's success; "
                               f"set {algo}.reward=sparse")
-        if self.her and env.spec.task.success.kind == "ball_in_goal":  # a fieldgen field's own spec
-            raise ConfigError(f"{algo}.her needs a success that depends on the goal; {env.spec.name}'s is "
-                              "ball_in_goal (the goal box, wherever the goal is); use ball_near_target or "
-                              "agent_near_target")
+        if self.her and not env.success_depends_on_goal:
+            raise ConfigError(f"{algo}.her needs a success that depends on the goal; {env.name}'s does not "
+                              "(a field's ball_in_goal judges the goal box, wherever the goal is); use "
+                              "ball_near_target or agent_near_target")
 
 
 class SACConfig(OffPolicyConfig):

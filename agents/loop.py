@@ -18,6 +18,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..env.contract import Environment
+from .config import RunConfig
 from .programs import Programs
 
 EVAL_STREAM = 0x5EED  # evaluation keys: fold_in(fold_in(seed key, EVAL_STREAM), evaluation index)
@@ -50,8 +52,8 @@ class OneStage:
 class Trainer:
     """One run of one algorithm on one environment, as pure functions of a training state."""
 
-    config: object
-    env: object
+    config: RunConfig
+    env: Environment
     init: Callable  # key -> state before any env step: fresh episodes, an empty replay buffer
     prefill: Callable  # state -> state ready for a chunk: its replay buffer filled by its own policy (or as it is)
     chunk: Callable  # state -> (state, mean training metrics): the iterations between two evaluations

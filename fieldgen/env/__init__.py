@@ -2,16 +2,19 @@
 success and fall terms generated from the spec; variants of a field stepped in one batch.
 
 Needs mujoco, mjx, jax and brax, never dm_control: a machine without it trains from build folders.
+Importing the package itself loads none of them but JAX: the trainers read the environment contract
+(contract.py) without the physics; `FieldEnv`, and `make` when called, load it.
 """
 
-import contextlib
-import io
+from fieldgen.env.contract import Environment, State
+from fieldgen.env.make import make
 
-with contextlib.redirect_stdout(io.StringIO()):  # mjx (also via brax) prints about its optional warp backend
-    import brax.envs.base  # noqa: F401
-    from mujoco import mjx  # noqa: F401
+__all__ = ["Environment", "FieldEnv", "State", "make"]
 
-from fieldgen.env.field import FieldEnv  # noqa: E402
-from fieldgen.env.make import make  # noqa: E402
 
-__all__ = ["FieldEnv", "make"]
+def __getattr__(name):
+    if name == "FieldEnv":
+        from fieldgen.env.field import FieldEnv
+
+        return FieldEnv
+    raise AttributeError(f"module 'fieldgen.env' has no attribute {name!r}")

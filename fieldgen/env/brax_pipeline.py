@@ -14,6 +14,7 @@ import importlib
 import warnings
 from typing import Any, Sequence
 
+import fieldgen.env.quiet  # noqa: F401  (before MJX and brax)
 import jax
 import jax.numpy as jnp
 import mujoco

@@ -4,11 +4,9 @@
 carries its own random key in `info["rng"]`; when an episode ends (the agent
 falls or time runs out) `step` returns a fresh episode drawn from that key, so
 auto-reset never replays an earlier start. `done` still reads 1 on that step.
-The control steps of an episode are counted in `info["episode_step"]`, clear of
-the `steps` that brax's EpisodeWrapper counts (under it, ending an episode on time
-is left to it, so that its `truncation` is right); under brax's AutoResetWrapper,
-which swaps in the state it keeps in `info["first_pipeline_state"]` and
-`info["first_obs"]`, every step leaves the next fresh episode there.
+The control steps of an episode are counted in `info["episode_step"]`. Inside
+brax's and MuJoCo Playground's wrappers a field runs through an adapter
+(fieldgen.brax.BraxField), which `step_restarting` serves.
 A physics state that has diverged also ends its episode, as a fall, so that one
 blown-up simulation never reaches a learner's batch.
 """
@@ -17,6 +15,7 @@ from __future__ import annotations
 
 from typing import Sequence
 
+import fieldgen.env.quiet  # noqa: F401  (before MJX and brax)
 import jax
 import jax.numpy as jnp
 import mujoco
@@ -78,6 +77,8 @@ class FieldEnv:
         self.success_goal_entries = np.array(self.layout.success_goal_entries)
         self.observation_names = self.layout.names
         self.action_names = tuple(self.mj_model.actuator(i).name for i in range(self.mj_model.nu))  # = joint names
+        self.name = spec.name
+        self.success_depends_on_goal = spec.task.success.kind != "ball_in_goal"  # the goal box, wherever the goal is
         self.terms = tuple(dict.fromkeys(n for r in self.rules for n in r.task.terms))
         self.metric_names = ("success", *self.terms)
         self._agent_qpos = jnp.asarray(self.layout.agent_qpos)
@@ -158,6 +159,12 @@ class FieldEnv:
     # -- step --------------------------------------------------------------
 
     def step(self, state: State, action: jax.Array) -> State:
+        return self.step_restarting(state, action)[0]
+
+    def step_restarting(self, state: State, action: jax.Array, ends_on_time: bool = True) -> tuple[State, tuple | None]:
+        """`step`, and the start of the fresh episode it drew (physics state, obs), which a done step restarts
+        from: what an auto-reset wrapper outside should swap in (None without auto_reset). With
+        `ends_on_time=False` episodes end only by a fall, a wrapper outside ending them on time."""
         action = jnp.clip(action, -1.0, 1.0)
         before = state.pipeline_state
         variant = state.info.get("variant", jnp.zeros((), jnp.int32))
@@ -165,17 +172,13 @@ class FieldEnv:
         with jax.default_matmul_precision(self.spec.sim.precision):
             data = self._advance(sys, before, action)
         goal = state.info["goal"]
-        if "first_obs" in state.info:  # brax's AutoResetWrapper swaps observations, not info: the goal is the obs'
-            goal = self._target(state.obs[self.state_dim:])
         t = Transition(self._ball_pos(before, variant), self._ball_pos(data, variant), self._agent_pos(before),
                        self._agent_pos(data), goal, action, self.dt)
         steps, down_steps = state.info["episode_step"], state.info["down_steps"]
-        if "steps" in state.info:  # brax's EpisodeWrapper counts too, and reads 0 once its wrapper has reset
-            steps, down_steps = (jnp.where(state.info["steps"] == 0, 0, x) for x in (steps, down_steps))
         steps = steps + 1
         metrics, reward, (truncated, fell, down) = self._by_variant(
             variant, lambda r: (*r.score(t, self.terms), r.ended(data, steps, down_steps)))
-        if "steps" in state.info:  # brax's EpisodeWrapper ends episodes on time, and says so in its truncation
+        if not ends_on_time:
             truncated = jnp.zeros_like(truncated)
         broken = diverged(data)
         metrics, reward = jax.tree.map(lambda x: jnp.where(broken, jnp.zeros_like(x), x), (metrics, reward))
@@ -183,6 +186,7 @@ class FieldEnv:
         done = truncated | fell
         info = dict(state.info, episode_step=steps, down_steps=down, truncation=(truncated & ~fell).astype(jnp.float32))
         obs = self._obs(data, goal)
+        start = None
         if self.auto_reset:
             rng, key = jax.random.split(state.info["rng"])
             if self.variant_count > 1:
@@ -197,9 +201,8 @@ class FieldEnv:
             obs = jnp.where(done, fresh_obs, obs)
             info.update(rng=rng, goal=goal, episode_step=jnp.where(done, 0, steps), down_steps=jnp.where(done, 0, down),
                         episode=state.info["episode"] + done.astype(jnp.int32))
-            if "first_obs" in info:  # under brax's AutoResetWrapper: what it swaps in is a fresh episode
-                info.update(first_pipeline_state=self._restart(jnp.ones_like(done), fresh, data), first_obs=fresh_obs)
-        return State(data, obs, reward, done.astype(jnp.float32), metrics, info)
+            start = self._restart(jnp.ones_like(done), fresh, data), fresh_obs
+        return State(data, obs, reward, done.astype(jnp.float32), metrics, info), start
 
     def goal_reached(self, state: jax.Array, goal: jax.Array, variant=None) -> jax.Array:
         """The field's success predicate (0/1) of an observation's state part and any goal: what
@@ -238,6 +241,11 @@ class FieldEnv:
         parts = [data.qpos[self._agent_qpos], data.qvel[self._agent_qvel], data.qpos[self._ball_qpos],
                  data.qvel[self._ball_qvel], goal]
         return jnp.concatenate(parts)
+
+    def obs_target(self, obs: jax.Array) -> jax.Array:
+        """The target an observation's goal names: all that is left of an episode's goal where a wrapper swaps in
+        another episode's observation and keeps the info (brax's auto-reset)."""
+        return self._target(obs[self.state_dim:])
 
     def _target(self, goal: jax.Array) -> jax.Array:
         """The target point in a goal: the entries the success predicate reads."""

@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from fieldgen.env.field import FieldEnv
+if TYPE_CHECKING:  # the physics loads when an environment is made, not with fieldgen.env
+    from fieldgen.env.field import FieldEnv
 
 
 def make(source, backend: str | None = None, **kwargs) -> FieldEnv:
@@ -33,6 +35,7 @@ def make(source, backend: str | None = None, **kwargs) -> FieldEnv:
 def environment(artifacts, **kwargs) -> FieldEnv:
     """The environment of built fields, on the physics their spec names."""
     from fieldgen.env.brax_pipeline import BraxFieldEnv, check_batchable
+    from fieldgen.env.field import FieldEnv
 
     if isinstance(artifacts, (list, tuple)):
         check_batchable(artifacts)

@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import jax.numpy as jnp
 import pytest
 
-from fieldgen.agents import loop, sac
+from fieldgen.agents import loop, sac, td3
+from fieldgen.agents.config import ConfigError
 
 
 def test_goal_reached_is_the_fields_success_on_any_goal(env_cache):
@@ -19,6 +22,18 @@ def test_goal_reached_is_the_fields_success_on_any_goal(env_cache):
     assert float(soccer.goal_reached(state, jnp.array([0.0, 10.0]))) == 1.0
     ant_there_ball_not = state.at[0:2].set(jnp.array([0.0, 10.0])).at[start:start + 2].set(jnp.array([3.0, 3.0]))
     assert float(soccer.goal_reached(ant_there_ball_not, jnp.array([0.0, 10.0]))) == 0.0
+
+
+@pytest.mark.parametrize("algo", [sac.SACConfig, td3.TD3Config])
+def test_hindsight_is_refused_where_the_success_ignores_the_goal(algo):
+    """Told by the environment contract (`success_depends_on_goal`, `name`), not by a fieldgen spec."""
+    config = algo(reward="sparse", her=0.5)
+    field = SimpleNamespace(name="point_soccer", episode_length=200, success_depends_on_goal=False)
+    with pytest.raises(ConfigError, match=f"{config.algo}.her needs a success that depends on the goal; "
+                                          "point_soccer's does not"):
+        config.validate_env(field)
+    config.validate_env(SimpleNamespace(**{**vars(field), "success_depends_on_goal": True}))
+    algo(reward="sparse").validate_env(field)  # without hindsight the success may ignore the goal
 
 
 @pytest.mark.slow

@@ -1,13 +1,31 @@
 """The environment contract on every bundled field, on MJX and on brax's pipelines: reset and step pure under
-jit+vmap, observations of the layout's size with the goal in place, finite numbers, every metric named."""
+jit+vmap, observations of the layout's size with the goal in place, finite numbers, every metric named; and the
+contract as the trainers type it (fieldgen.env.contract) on every kind of environment: a field on MJX and on
+each of brax's pipelines, several fields batched, the adapters to brax's and Playground's wrappers."""
 
 from __future__ import annotations
 
+import functools
+import inspect
+import subprocess
+import sys
+from types import SimpleNamespace
+
 import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
+from brax import envs
+from typing_extensions import get_protocol_members
 
-from fieldgen.schema import bundled_fields, load_spec
+import fieldgen.brax
+from fieldgen.brax import BraxField
+from fieldgen.compile.variants import compile_variants
+from fieldgen.env.brax_pipeline import BraxFieldEnv
+from fieldgen.env.contract import Environment, State
+from fieldgen.env.make import environment
+from fieldgen.playground import PlaygroundField
+from fieldgen.schema import FieldSpec, bundled_fields, load_spec
 
 
 def distinct_scenes(names: list[str]) -> list[str]:
@@ -65,3 +83,121 @@ def test_ant_fields_step_under_jit_and_vmap(env_cache, name):
     state = rollout(env, n_envs=2, steps=3)
     assert_contract(env, state, 2)
     assert env.action_size == 8
+
+
+# -- the contract as trainers type it (fieldgen.env.contract), on every kind of environment -------------------
+
+def on_backend(backend: str) -> tuple[str, dict]:
+    """A bundled field on `backend`, or point_nav moved onto it where no bundled field runs there."""
+    bundled = [n for n in sorted(bundled_fields()) if load_spec(bundled_fields()[n]).sim.backend == backend]
+    return (bundled[0], {}) if bundled else ("point_nav", {"backend": backend})
+
+
+@functools.cache
+def batched_fields():
+    """Two fields built to one structure and stepped in one batch; the environment is named after the last."""
+    first = load_spec(bundled_fields()["point_nav"])
+    last = first.model_dump()
+    last["name"], last["task"]["success"]["radius"] = "point_nav_wide", 1.0
+    return environment(compile_variants([first, FieldSpec.model_validate(last)]))
+
+
+def brax_adapter(env_cache):
+    """What brax's registry gives."""
+    fieldgen.brax.register()
+    env = envs.get_environment("point_nav")
+    assert isinstance(env, BraxField)
+    return env
+
+
+KINDS = {
+    "mjx": lambda cache: cache("point_nav"),
+    **{backend: lambda cache, b=backend: cache(on_backend(b)[0], **on_backend(b)[1])
+       for backend in ("spring", "positional", "generalized")},
+    "batched": lambda cache: batched_fields(),
+    "playground": lambda cache: PlaygroundField(cache("point_nav")),
+    "brax": brax_adapter,
+}
+CHEAP_TO_STEP = ("mjx", "generalized", "batched", "playground", "brax")  # point agents; the ant fields step in
+# test_ant_fields_step_under_jit_and_vmap
+
+
+def check_members(env) -> None:
+    """Every member of the contract, found without calling the instance's __getattr__ (as Python 3.12's
+    isinstance looks them up), of the type and size it promises."""
+    assert isinstance(env, Environment)
+    for member in get_protocol_members(Environment):
+        inspect.getattr_static(env, member)
+    sizes = (env.observation_size, env.action_size, env.state_dim, env.episode_length)
+    assert all(isinstance(n, int) and n > 0 for n in sizes)
+    assert isinstance(env.name, str) and env.name
+    assert isinstance(env.success_depends_on_goal, bool)
+    goal, judged = np.asarray(env.goal_indices), np.asarray(env.success_goal_entries)
+    assert goal.dtype.kind == judged.dtype.kind == "i" and goal.ndim == judged.ndim == 1 and len(judged) >= 2
+    assert np.all((goal >= 0) & (goal < env.state_dim)) and np.all((judged >= 0) & (judged < len(goal)))
+    assert env.observation_size == env.state_dim + len(goal)
+    for names, size in ((env.observation_names, env.observation_size), (env.action_names, env.action_size)):
+        assert len(names) == len(set(names)) == size and all(isinstance(n, str) for n in names)
+
+
+def check_one_step(env) -> None:
+    """reset and one step under jit: the state the contract describes, and a success that goal_reached agrees
+    with; where the success depends on the goal, a state reaches the goal read from itself (hindsight's)."""
+    state = jax.jit(env.reset)(jax.random.PRNGKey(0))
+    state = jax.jit(env.step)(state, jnp.full(env.action_size, 0.5))
+    assert isinstance(state, State) and float(state.done) == 0.0
+    assert state.obs.shape == (env.observation_size,) and state.reward.shape == ()
+    assert "success" in state.metrics
+    assert {"goal", "rng", "truncation", "episode", "episode_step"} <= set(state.info)
+    reached = env.goal_reached(state.obs[:env.state_dim], state.obs[env.state_dim:])
+    assert reached.shape == () and float(reached) == float(state.metrics["success"])
+    if env.success_depends_on_goal:
+        achieved = state.obs[np.asarray(env.goal_indices)]
+        assert float(env.goal_reached(state.obs[:env.state_dim], achieved)) == 1.0
+        assert float(env.goal_reached(state.obs[:env.state_dim], achieved + 100.0)) == 0.0
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_every_kind_of_environment_keeps_the_contract(env_cache, kind):
+    env = KINDS[kind](env_cache)
+    check_members(env)
+    if kind in CHEAP_TO_STEP:
+        check_one_step(env)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kind", [k for k in KINDS if k not in CHEAP_TO_STEP])
+def test_every_kind_of_environment_steps_as_the_contract_says(env_cache, kind):
+    check_one_step(KINDS[kind](env_cache))
+
+
+def test_each_brax_pipeline_kind_is_what_its_name_says(env_cache):
+    for backend in ("spring", "positional", "generalized"):
+        env = KINDS[backend](env_cache)
+        assert isinstance(env, BraxFieldEnv) and env.backend == backend
+
+
+def test_a_batch_of_fields_is_named_and_judged_after_its_last(env_cache):
+    env = KINDS["batched"](env_cache)
+    assert env.name == "point_nav_wide" and len(env.artifacts) == 2
+
+
+def test_a_missing_member_fails_the_contract(env_cache):
+    env = env_cache("point_nav")
+    members = {m: getattr(env, m) for m in get_protocol_members(Environment)}
+    assert isinstance(SimpleNamespace(**members), Environment)
+    for member in members:
+        assert not isinstance(SimpleNamespace(**{m: v for m, v in members.items() if m != member}), Environment)
+
+
+def test_success_depends_on_goal_unless_it_is_the_goal_box(env_cache):
+    assert env_cache("point_nav").success_depends_on_goal  # agent_near_target
+    assert not env_cache("point_soccer").success_depends_on_goal  # ball_in_goal
+
+
+def test_the_contract_and_the_trainers_load_neither_mujoco_nor_brax():
+    check = ("import sys, fieldgen.env.contract, fieldgen.agents.registry; "
+             "print(sorted({'mujoco', 'brax'} & set(sys.modules)))")
+    done = subprocess.run([sys.executable, "-c", check], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "[]"

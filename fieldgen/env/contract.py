@@ -1,0 +1,108 @@
+"""The environment contract: all that fieldgen's trainers (fieldgen.agents) may rely on of an environment.
+
+Any environment with these members trains; fieldgen's own (a field on MJX or on one of brax's pipelines,
+several fields batched in one simulation, a field adapted to brax's or MuJoCo Playground's wrappers) are
+free to change everything else. The trainers import this module, so it imports neither mujoco nor brax.
+What an environment of several levels adds for the trainers that draw and re-weight them is a part of
+its own, asked for only where present.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Mapping, Protocol, Sequence, runtime_checkable
+
+import jax
+import numpy as np
+
+
+@runtime_checkable
+class State(Protocol):
+    """One environment's state as trainers read it: a JAX pytree (brax's `State`, or MuJoCo Playground's,
+    whose physics state is named differently and is none of a trainer's business). Under vmap every leaf
+    gains a leading environment axis."""
+
+    @property
+    def obs(self) -> jax.Array:
+        """concat(state part [state_dim], goal [observation_size - state_dim])."""
+
+    @property
+    def reward(self) -> jax.Array:
+        """The step's reward: the environment's weighted reward terms."""
+
+    @property
+    def done(self) -> jax.Array:
+        """1.0 on the step that ended an episode, by a fall or by time. The environment restarts on its own:
+        the obs of that step is already the next episode's first."""
+
+    @property
+    def metrics(self) -> Mapping[str, jax.Array]:
+        """`success` (1.0 on a step where the success holds) and every reward term, unweighted, by name."""
+
+    @property
+    def info(self) -> Mapping[str, Any]:
+        """Holds at least `goal` (the target the success is judged against), `rng` (the episode's key, which
+        the next episode's start is drawn from), `truncation` (1.0 where an episode ended because time ran
+        out, not by a fall), `episode` (episodes ended so far: a replay buffer tells episodes apart by it)
+        and `episode_step` (control steps of the current episode)."""
+
+    def replace(self, **changes: Any) -> State:
+        """The state with the named fields changed (a trainer swaps `info`, or whole episodes)."""
+
+
+@runtime_checkable
+class Environment(Protocol):
+    """A goal-conditioned environment, batched by the caller (jax.vmap over `reset` and `step`)."""
+
+    def reset(self, rng: jax.Array) -> State:
+        """A fresh episode drawn from `rng`; pure, jit- and vmap-able."""
+
+    def step(self, state: State, action: jax.Array) -> State:
+        """One control step with `action` [action_size] in [-1, 1]; pure, jit- and vmap-able."""
+
+    def goal_reached(self, state: jax.Array, goal: jax.Array) -> jax.Array:
+        """The success predicate (0.0 or 1.0) of an observation's state part and any goal: what hindsight
+        relabelling scores a stored state with, against a goal taken from its future."""
+
+    @property
+    def name(self) -> str:
+        """The environment's name, as messages to a user call it."""
+
+    @property
+    def observation_size(self) -> int:
+        """Entries of `State.obs`."""
+
+    @property
+    def action_size(self) -> int:
+        """Entries of an action."""
+
+    @property
+    def state_dim(self) -> int:
+        """Entries of the obs' state part; the goal follows them."""
+
+    @property
+    def goal_indices(self) -> np.ndarray:
+        """For each goal entry, the state entry (an index into the state part) it is compared with: the
+        state a trajectory reached, read as a goal, is `state[goal_indices]`."""
+
+    @property
+    def success_goal_entries(self) -> np.ndarray:
+        """The goal entries (indices into the goal) that the success reads; all of them unless the goal
+        names more than the target (a target for the agent and for the ball, say)."""
+
+    @property
+    def success_depends_on_goal(self) -> bool:
+        """Whether the success changes with the goal: false where it judges a fixed region (a ball in the
+        goal box, wherever the goal is), which hindsight relabelling cannot use."""
+
+    @property
+    def episode_length(self) -> int:
+        """Control steps after which an episode ends on time."""
+
+    @property
+    def observation_names(self) -> Sequence[str]:
+        """One name per obs entry (`root.z`, `front_left_hip.vel`, `goal.x`...): trainers that split a body
+        among agents pick entries by name, never by position."""
+
+    @property
+    def action_names(self) -> Sequence[str]:
+        """One name per action entry: the joint its motor drives."""
