@@ -53,6 +53,9 @@ class FieldAdapter:
     observation_names = _read_through("observation_names")
     action_names = _read_through("action_names")
     goal_reached = _read_through("goal_reached")
+    variant_count = _read_through("variant_count")
+    reset_variant = _read_through("reset_variant")
+    with_variant_weights = _read_through("with_variant_weights")
 
 
 class BraxField(FieldAdapter):

@@ -3,8 +3,10 @@
 Any environment with these members trains; fieldgen's own (a field on MJX or on one of brax's pipelines,
 several fields batched in one simulation, a field adapted to brax's or MuJoCo Playground's wrappers) are
 free to change everything else. The trainers import this module, so it imports neither mujoco nor brax.
-What an environment of several levels adds for the trainers that draw and re-weight them is a part of
-its own, asked for only where present.
+An environment may batch several variants of a field, each environment of the batch playing its own: its
+last three members say how many, start an episode of a given one, and set how often each starts the
+episodes to come (a plain field is one variant). Why a variant is played is the caller's business (a
+curriculum's schedule); the environment only plays what it is given.
 """
 
 from __future__ import annotations
@@ -106,3 +108,14 @@ class Environment(Protocol):
     @property
     def action_names(self) -> Sequence[str]:
         """One name per action entry: the joint its motor drives."""
+
+    @property
+    def variant_count(self) -> int:
+        """How many variants of a field the environment batches: 1 for a plain field."""
+
+    def reset_variant(self, rng: jax.Array, variant: jax.Array) -> State:
+        """A fresh episode of variant `variant` (an index below `variant_count`), drawn from `rng`."""
+
+    def with_variant_weights(self, state: State, weights: jax.Array) -> State:
+        """`state` (a batch, environments on axis 0) drawing the variants of its next episodes from `weights`
+        [variant_count], which sum to 1."""

@@ -116,7 +116,10 @@ class FieldEnv:
         return len(self.rules)
 
     def with_variant_weights(self, env_state: State, weights: jax.Array) -> State:
-        """`env_state` (environments batched on axis 0) drawing its next episodes' variants from `weights`."""
+        """`env_state` (environments batched on axis 0) drawing its next episodes' variants from `weights`;
+        a field of one variant plays it whatever the weights."""
+        if self.variant_count == 1:
+            return env_state
         shape = env_state.info["variant_weights"].shape
         return env_state.replace(info=dict(env_state.info, variant_weights=jnp.broadcast_to(weights, shape)))
 

@@ -132,6 +132,7 @@ def check_members(env) -> None:
     assert all(isinstance(n, int) and n > 0 for n in sizes)
     assert isinstance(env.name, str) and env.name
     assert isinstance(env.success_depends_on_goal, bool)
+    assert isinstance(env.variant_count, int) and env.variant_count >= 1
     goal, judged = np.asarray(env.goal_indices), np.asarray(env.success_goal_entries)
     assert goal.dtype.kind == judged.dtype.kind == "i" and goal.ndim == judged.ndim == 1 and len(judged) >= 2
     assert np.all((goal >= 0) & (goal < env.state_dim)) and np.all((judged >= 0) & (judged < len(goal)))
@@ -151,6 +152,12 @@ def check_one_step(env) -> None:
     assert {"goal", "rng", "truncation", "episode", "episode_step"} <= set(state.info)
     reached = env.goal_reached(state.obs[:env.state_dim], state.obs[env.state_dim:])
     assert reached.shape == () and float(reached) == float(state.metrics["success"])
+    last = env.variant_count - 1
+    first = jax.jit(env.reset_variant)(jax.random.PRNGKey(1), last)
+    assert first.obs.shape == (env.observation_size,)
+    batch = jax.vmap(env.reset_variant, in_axes=(0, None))(jax.random.split(jax.random.PRNGKey(2), 3), last)
+    weights = jnp.full(env.variant_count, 1.0 / env.variant_count)
+    assert jax.tree.structure(env.with_variant_weights(batch, weights)) == jax.tree.structure(batch)
     if env.success_depends_on_goal:
         achieved = state.obs[np.asarray(env.goal_indices)]
         assert float(env.goal_reached(state.obs[:env.state_dim], achieved)) == 1.0
