@@ -122,6 +122,7 @@ def train(
 
 @app.command()
 def compare(
+    ctx: typer.Context,
     spec: Annotated[str, typer.Argument(help="a YAML file, bundled field name or build folder")],
     algos: Annotated[str, typer.Option(metavar="A,B,...",
                                        help=f"comma-separated algorithms: {', '.join(ALGORITHMS)}")] = "crl,ppo",
@@ -144,7 +145,8 @@ def compare(
     """Train several algorithms on one field and plot success against env steps and wall-clock time.
 
     Runs train one after another (the seeds of each at once); rerunning the same comparison
-    resumes unfinished runs and redraws compare.png and compare.json.
+    resumes unfinished runs and redraws compare.png and compare.json. Over several seeds, the plot and
+    table give the interquartile mean with its 95% bootstrap interval.
 
     Example: fieldgen compare point_nav --algos crl,icrl,sac --steps 40000 --envs 16 --seeds 2
     """
@@ -171,57 +173,103 @@ def compare(
             continue
         out.print(Text.assemble((run.algo, "bold"), f" -> {run.folder}"))
         _train(run, videos, logger)
-    comparing.report(todo, folder, out)
+    comparing.report(todo, folder, out, _command_line(ctx))
 
 
 @app.command("eval")
 def evaluate(
-    run_dir: Annotated[Path, typer.Argument(metavar="RUN", help="a run folder written by fieldgen train")],
+    ctx: typer.Context,
+    run_dirs: Annotated[list[Path], typer.Argument(
+        metavar="RUN...", help="run folders written by fieldgen train: one (all its seeds), or several of one "
+                               "field and algorithm, e.g. one per seed")],
     episodes: Annotated[int, typer.Option(parser=count, metavar="N",
                                           help="evaluation episodes per seed, one per parallel env")] = 128,
-    video: Annotated[bool, typer.Option(help="write eval.mp4 of one episode of the run's first seed")] = True,
+    video: Annotated[bool, typer.Option(help="write eval.mp4 of one episode of the first run's first seed")] = True,
     video_fmt: VideoFormat = None,
     camera: Annotated[str, typer.Option(help="video camera", **choice("camera", CAMERAS))] = "follow",
     seed: Annotated[int, typer.Option(help="evaluation seed")] = 0,
     field: Annotated[Optional[str], typer.Option(metavar="SPEC",
         help="judge the policy on this field instead (YAML file, bundled name or build folder) with the "
-             "run's observations and actions; the video is eval_<field>.mp4")] = None,
+             "run's observations and actions; the video is eval_<field>.mp4, the summary summary_<field>.json")] = None,
+    summary_file: Annotated[Optional[Path], typer.Option(
+        "--summary", metavar="PATH", help="where to write the summary over seeds (default: RUN/summary.json; "
+                                          "for several runs, summary.json in the first one's parent folder)")] = None,
 ) -> None:
-    """Evaluate a run's last checkpoint (on a curriculum's last stage, or --field): success rate, time at goal,
-    return, video.
+    """Evaluate runs' last checkpoints (on a curriculum's last stage, or --field): each seed's success rate, time
+    at goal, return, and over the seeds the interquartile mean with a 95% bootstrap interval (summary.json); video.
 
-    Example: fieldgen eval runs/point_nav-crl-0 --episodes 256
+    Example: fieldgen eval runs/point_nav-crl-0to4 --episodes 256
+    Example: fieldgen eval runs/point_nav-crl-0 runs/point_nav-crl-1 runs/point_nav-crl-2 --summary runs/crl.json
     """
     fmt = video_format(video_fmt) if video else None
     from fieldgen.agents.config import ConfigError
-    from fieldgen.run import record, session
-    from fieldgen.run.evaluate import evaluate as judge
-    from fieldgen.run.evaluate import video_path
+    from fieldgen.files import WriteError
+    from fieldgen.run import evaluate as judging
+    from fieldgen.run import record, summary
     from fieldgen.run.videos import EpisodeRecorder
 
+    if summary_file is not None and summary_file.is_dir():
+        fail(f"--summary {summary_file} is a folder; name the file to write, such as {summary_file / summary.SUMMARY}")
+    if summary_file is not None and not summary_file.parent.is_dir():
+        fail(f"--summary {summary_file}: there is no folder {summary_file.parent} to write it in")
     try:
-        run = session.open_run(run_dir)
-        if field is not None:
-            run = session.on_field(run, field_source(field))
+        runs = judging.open_runs(run_dirs, None if field is None else field_source(field))
     except (SpecError, ConfigError, record.RunError) as exc:
         fail(str(exc))
-    if run.state is None:
-        fail(f"{run_dir} has not started training yet; start it with: fieldgen train --resume {run_dir}")
-    evaluation = judge(run, episodes, seed, video)
-    result, steps = evaluation.metrics, evaluation.env_steps
-    table = Table("seed", "success_any", "time_at_goal", "closest", "length", "return",
-                  title=f"{run_dir} at {steps:,} env steps on {run.env.spec.name}, {episodes} episodes per seed")
-    for i, s in enumerate(run.seeds):
-        table.add_row(str(s), f"{result['success_any'][i]:.3f}",
-                      f"{result['time_at_goal'][i]:.1f} of {run.env.episode_length} steps",
-                      f"{result['closest_distance'][i]:.2f}", f"{result['episode_length'][i]:.0f}",
-                      f"{result['episode_return'][i]:.2f}")
+    path = summary_file or judging.summary_path(run_dirs, runs[0], field is not None)
+    evaluations = [judging.evaluate(run, episodes, seed, video and k == 0) for k, run in enumerate(runs)]
+    result = judging.summarize(runs, evaluations, episodes, _command_line(ctx))
+    length = runs[0].env.episode_length
+    steps = sorted({e.env_steps for e in evaluations})
+    several = len(runs) > 1
+    judged = f"{len(runs)} runs of {result.algo}" if several else str(run_dirs[0])
+    at = f"{steps[0]:,}" if len(steps) == 1 else f"{steps[0]:,} to {steps[-1]:,}"
+    table = Table(*["run"] * several, "seed", "success_any", "time_at_goal", "closest", "length", "return",
+                  title=f"{judged} at {at} env steps on {runs[0].env.spec.name}, {episodes} episodes per seed")
+    for run, evaluation in zip(runs, evaluations):
+        metrics = evaluation.metrics
+        for i, s in enumerate(run.seeds):
+            table.add_row(*[run.folder.name] * several, str(s), f"{metrics['success_any'][i]:.3f}",
+                          f"{metrics['time_at_goal'][i]:.1f} of {length} steps",
+                          f"{metrics['closest_distance'][i]:.2f}", f"{metrics['episode_length'][i]:.0f}",
+                          f"{metrics['episode_return'][i]:.2f}")
+    table.add_section()
+    table.add_row(*[""] * several, result.label, result.success_any.text(3),
+                  f"{result.time_at_goal.text(1)} of {length} steps", "", "", "")
     out.print(table)
-    if video:  # the first seed's first evaluation episode
-        name = video_path(run, run_dir, field is not None)
-        drawn = EpisodeRecorder(run.env, camera, fmt).save(run_dir, name, evaluation.episode, err)
+    out.print("one seed: its value, and its interval the value alone" if len(result.seeds) == 1 else
+              f"IQM: the interquartile mean of the {len(result.seeds)} seeds [its 95% bootstrap interval]")
+    try:
+        summary.write(result, path)
+    except WriteError as exc:
+        fail(str(exc))
+    out.print(f"summary: {path}")
+    if video:  # the first run's first seed's first evaluation episode
+        name = judging.video_path(runs[0], run_dirs[0], field is not None)
+        drawn = EpisodeRecorder(runs[0].env, camera, fmt).save(run_dirs[0], name, evaluations[0].episode, err)
         if drawn is not None:
             out.print(f"video: {name.with_suffix('.' + fmt)} ({drawn} frames, {camera} camera)")
+
+
+def _command_line(ctx: typer.Context) -> str:
+    """The command being run, as a summary records it: each argument and option given (typer keeps no raw
+    command line), options in their first spelling, values as read."""
+    import shlex
+
+    arguments, options = [], []
+    for param in ctx.command.params:
+        value = ctx.params.get(param.name)
+        source = ctx.get_parameter_source(param.name)
+        if source is None or source.name == "DEFAULT" or value is None:
+            continue
+        values = list(value) if isinstance(value, (list, tuple)) else [value]
+        if param.param_type_name == "argument":
+            arguments += map(str, values)
+        elif getattr(param, "is_flag", False) and param.secondary_opts:
+            options.append(param.opts[0] if value else param.secondary_opts[0])
+        else:
+            options += [word for v in values for word in (param.opts[0], str(v))]
+    return shlex.join(["fieldgen", ctx.info_name, *arguments, *options])
 
 
 @app.command()

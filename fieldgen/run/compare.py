@@ -1,5 +1,6 @@
 """Comparing algorithms on one field: a run per algorithm (every seed of it vmapped), then one
-plot of success against env steps and against wall-clock time, and a table.
+plot of success against env steps and against wall-clock time, and a table, each over the seeds as
+an interquartile mean with its bootstrap interval (fieldgen.run.summary).
 
 The runs are ordinary run folders under the comparison's folder, so an interrupted
 comparison resumes where it stopped, a run prepared here can train elsewhere
@@ -19,7 +20,7 @@ import fieldgen
 from fieldgen.agents import registry, sharding
 from fieldgen.compile.artifact import ArtifactError
 from fieldgen.files import write_atomic
-from fieldgen.run import plots, record, session
+from fieldgen.run import plots, record, session, summary
 
 PLOT, TABLE = "compare.png", "compare.json"
 
@@ -71,19 +72,27 @@ def curves(run: session.Run) -> dict:
     return out
 
 
-def summary(runs_: list[session.Run]) -> list[dict]:
-    """One row per algorithm: the last evaluation (mean and spread over seeds), the best one, the speed
-    (the median over chunks, as the first one also compiles)."""
+def over_seeds(values: list) -> tuple[float, float, float]:
+    """(IQM, low, high) of one evaluation's values over the seeds; NaN where a seed's row lacks the metric."""
+    if not np.all(np.isfinite(values)):
+        return np.nan, np.nan, np.nan
+    return (summary.iqm(values), *summary.interval(values))
+
+
+def summary_rows(runs_: list[session.Run], command: str) -> list[dict]:
+    """One row per algorithm: its last evaluation over the seeds (a SeedSummary), the best evaluation's
+    success IQM, the closest approach's IQM, the speed (the median over chunks, as the first one also compiles)."""
     table = []
     for run in runs_:
         c = curves(run)
-        last = np.asarray(c["success_any"][-1])
+        last = {metric: dict(zip(run.seeds, c[metric][-1])) for metric in summary.METRICS}
+        seeds = summary.summarize([run.env.spec.name], run.algo, [run.folder], run.config.eval_envs,
+                                  dict.fromkeys(run.seeds, c["env_steps"][-1]), last, command)
         rates = [r["steps_per_second"] for r in run.rows if "steps_per_second" in r]
         table.append({"algo": run.algo, "seeds": len(run.seeds), "env_steps": c["env_steps"][-1],
-                      "success_any": float(last.mean()), "success_any_std": float(last.std()),
-                      "best_success_any": float(max(np.mean(s) for s in c["success_any"])),
-                      "time_at_goal": float(np.mean(c["time_at_goal"][-1])),
-                      "closest_distance": _finite(np.mean(c["closest_distance"][-1])),
+                      "summary": seeds.model_dump(mode="json"),
+                      "best_success_any": float(np.nanmax([over_seeds(v)[0] for v in c["success_any"]])),
+                      "closest_distance": _finite(over_seeds(c["closest_distance"][-1])[0]),
                       "steps_per_second": float(np.median(rates)) if rates else None,  # the first chunk compiles
                       "wall_seconds": c["wall_seconds"][-1], "folder": str(run.folder)})
     return table
@@ -95,7 +104,7 @@ def _finite(x: float) -> float | None:
 
 def plot(runs_: list[session.Run], path: Path, title: str) -> None:
     """success_any against env steps and against wall-clock seconds, time at goal and the closest approach
-    to the goal against env steps: the mean over seeds, with the seeds' range shaded."""
+    to the goal against env steps: the interquartile mean over seeds, with its 95% bootstrap interval shaded."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -106,30 +115,33 @@ def plot(runs_: list[session.Run], path: Path, title: str) -> None:
         c = curves(run)
         for ax, x, metric in ((axes[0], "env_steps", "success_any"), (axes[1], "wall_seconds", "success_any"),
                               (axes[2], "env_steps", "time_at_goal"), (axes[3], "env_steps", "closest_distance")):
-            values = np.asarray(c[metric])
-            line, = ax.plot(c[x], values.mean(1), marker="o", ms=3, label=run.algo)
-            if values.shape[1] > 1:
-                ax.fill_between(c[x], values.min(1), values.max(1), color=line.get_color(), alpha=0.2)
-    axes[0].set(xlabel="env steps", ylabel="success_any", ylim=(-0.02, 1.02), title="episodes with a success")
-    axes[1].set(xlabel="wall-clock seconds (compiling, training, evaluating)", ylabel="success_any", ylim=(-0.02, 1.02),
-                title="against time")
-    axes[2].set(xlabel="env steps", ylabel="steps at goal per episode", title="time at goal")
-    axes[3].set(xlabel="env steps", ylabel="distance", title="closest approach to the goal")
+            centre, low, high = np.array([over_seeds(v) for v in c[metric]]).T
+            line, = ax.plot(c[x], centre, marker="o", ms=3, label=run.algo)
+            if len(run.seeds) > 1:
+                ax.fill_between(c[x], low, high, color=line.get_color(), alpha=0.2)
+    axes[0].set(xlabel="env steps", ylabel="success_any (IQM)", ylim=(-0.02, 1.02), title="episodes with a success")
+    axes[1].set(xlabel="wall-clock seconds (compiling, training, evaluating)", ylabel="success_any (IQM)",
+                ylim=(-0.02, 1.02), title="against time")
+    axes[2].set(xlabel="env steps", ylabel="steps at goal per episode (IQM)", title="time at goal")
+    axes[3].set(xlabel="env steps", ylabel="distance (IQM)", title="closest approach to the goal")
     plots.save_figure(fig, axes, title, path)
 
 
-def report(runs_: list[session.Run], folder: Path, console: Console) -> None:
+def report(runs_: list[session.Run], folder: Path, console: Console, command: str) -> None:
     """compare.png, compare.json and the table in the terminal."""
     field = runs_[0].env.spec.name
-    rows, seeds = summary(runs_), len(runs_[0].seeds)
+    rows, seeds = summary_rows(runs_, command), len(runs_[0].seeds)
     write_atomic(folder / TABLE, (json.dumps(rows, indent=1) + "\n").encode())
-    plot(runs_, folder / PLOT, f"{field}: {', '.join(r.algo for r in runs_)} ({seeds} seed{'s' * (seeds > 1)} each)")
+    each = f"{seeds} seeds each, IQM, 95% bootstrap interval shaded" if seeds > 1 else "one seed each"
+    plot(runs_, folder / PLOT, f"{field}: {', '.join(r.algo for r in runs_)} ({each})")
     table = Table("algo", "env steps", "success_any (last)", "best", "time_at_goal", "closest", "steps/s", "wall s",
-                  title=f"{field}: {folder}")
+                  title=f"{field}: {folder}",
+                  caption=f"over {seeds} seeds each: interquartile mean [95% bootstrap interval]"
+                  if seeds > 1 else "one seed each: its value [an interval of one seed is the value alone]")
     for r in rows:
-        spread = f" ± {r['success_any_std']:.2f}" if r["seeds"] > 1 else ""
-        table.add_row(r["algo"], f"{r['env_steps']:,}", f"{r['success_any']:.2f}{spread}",
-                      f"{r['best_success_any']:.2f}", f"{r['time_at_goal']:.1f}",
+        last = summary.SeedSummary.model_validate(r["summary"])
+        table.add_row(r["algo"], f"{r['env_steps']:,}", last.success_any.text(2), f"{r['best_success_any']:.2f}",
+                      last.time_at_goal.text(1),
                       "" if r["closest_distance"] is None else f"{r['closest_distance']:.2f}",
                       "" if r["steps_per_second"] is None else f"{r['steps_per_second']:,.0f}",
                       f"{r['wall_seconds']:,.0f}")

@@ -1,5 +1,6 @@
-"""Judging a run's last checkpoint after training: its policy's episodes on the field it is judged on
-(or another of the same layout), every seed at once, with one episode filmed."""
+"""Judging runs' last checkpoints after training: their policies' episodes on the field they are judged on
+(or another of the same layout), every seed of a run at once, with one episode filmed; and the runs of one
+field and algorithm judged together, summarized over their seeds."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ from pathlib import Path
 import jax
 
 from fieldgen.agents import loop
+from fieldgen.run import record, session, summary
 from fieldgen.run.session import Run
 from fieldgen.run.videos import EpisodeRecorder
 
@@ -35,3 +37,46 @@ def evaluate(run: Run, episodes: int, seed: int = 0, film: bool = True) -> Evalu
 def video_path(run: Run, run_dir: Path, other_field: bool) -> Path:
     """Where an evaluation's video goes, without its suffix: eval, or eval_<field> on another field."""
     return run_dir / ("eval" if not other_field else f"eval_{run.env.spec.name}")
+
+
+def _trained_on(run: Run) -> str:
+    return " then ".join(env.spec.name for env in run.envs)
+
+
+def open_runs(folders: list[Path], field: Path | None = None) -> list[Run]:
+    """The runs to judge together, each with its last checkpoint (its policy put on `field` where given).
+    Refused before any checkpoint loads: a folder that is not a run or has not trained, runs of another
+    field or algorithm than the first's, a seed in two of them; a summary is over the seeds of one recipe."""
+    first, owners = None, {}
+    for folder in folders:
+        run = session.open_run(folder, load_state=False)
+        if not record.has_trained(folder):
+            raise record.RunError(f"{folder} has no checkpoint: it has not trained yet; train it with "
+                                  f"fieldgen train --resume {folder}, then evaluate it")
+        first = first or run
+        if (run.algo, _trained_on(run)) != (first.algo, _trained_on(first)):
+            raise record.RunError(f"{folder} trained {run.algo} on {_trained_on(run)}, {first.folder} {first.algo} "
+                                  f"on {_trained_on(first)}: runs evaluated together are seeds of one field and "
+                                  "algorithm; evaluate them separately")
+        for s in run.seeds:
+            if s in owners:
+                raise record.RunError(f"seed {s} is in both {owners[s]} and {folder}: each seed counts once in a "
+                                      "summary; leave one of them out")
+            owners[s] = folder
+    runs = [session.open_run(folder) for folder in folders]
+    return runs if field is None else [session.on_field(run, field) for run in runs]
+
+
+def summary_path(folders: list[Path], run: Run, other_field: bool) -> Path:
+    """Where a summary goes by default: into the run folder for one run, beside the first for several;
+    summary_<field>.json on another field, as its video is eval_<field>."""
+    name = summary.SUMMARY if not other_field else f"summary_{run.env.spec.name}.json"
+    return (folders[0] if len(folders) == 1 else folders[0].absolute().parent) / name
+
+
+def summarize(runs: list[Run], evaluations: list[Evaluation], episodes: int, command: str) -> summary.SeedSummary:
+    """The runs' evaluations, seed by seed and over every seed."""
+    seeds = [(s, evaluation, i) for run, evaluation in zip(runs, evaluations) for i, s in enumerate(run.seeds)]
+    per_seed = {metric: {s: float(e.metrics[metric][i]) for s, e, i in seeds} for metric in summary.METRICS}
+    return summary.summarize([runs[0].env.spec.name], runs[0].algo, [run.folder for run in runs], episodes,
+                             {s: e.env_steps for s, e, _ in seeds}, per_seed, command)

@@ -1,0 +1,123 @@
+"""Results over seeds as Agarwal et al. ("Deep RL at the Edge of the Statistical Precipice", NeurIPS 2021)
+report them: the interquartile mean of the seeds' values with a 95% stratified percentile-bootstrap interval,
+because a single seed, or a mean and range over a few, says little about how an algorithm does.
+
+The interquartile mean is rliable's (`aggregate_iqm`: scipy.stats.trim_mean over every run of every task,
+a quarter cut from each end): whole runs are cut, so with up to three seeds it is their mean and with
+five the mean of the middle three. rliable itself is not used: it brings pandas, seaborn, statsmodels
+and arch, none of them among fieldgen's pinned requirements. The bootstrap draws from a generator of a
+fixed seed, so the same values always give the same interval.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated, Sequence
+
+import numpy as np
+import scipy.stats
+from pydantic import BaseModel, Field
+
+from fieldgen.files import write_atomic
+
+SUMMARY = "summary.json"
+METRICS = ("success_any", "time_at_goal")  # what a summary holds, per seed and over them
+CONFIDENCE, RESAMPLES, BOOTSTRAP_SEED = 0.95, 2000, 0  # rliable's default count of bootstrap resamples
+
+
+def _tasks(tasks: Sequence[Sequence[float]]) -> list[np.ndarray]:
+    arrays = [np.asarray(t, dtype=float).ravel() for t in tasks]
+    if not arrays or any(a.size == 0 for a in arrays):
+        raise ValueError("an interquartile mean needs at least one value of every task")
+    return arrays
+
+
+def _trimmed(values: np.ndarray, axis: int = -1) -> np.ndarray:
+    return scipy.stats.trim_mean(values, 0.25, axis=axis)
+
+
+def iqm(*tasks: Sequence[float]) -> float:
+    """The interquartile mean of every value of every task (each task: one value per seed)."""
+    return float(_trimmed(np.concatenate(_tasks(tasks))))
+
+
+def interval(*tasks: Sequence[float], confidence: float = CONFIDENCE, resamples: int = RESAMPLES,
+             seed: int = BOOTSTRAP_SEED) -> tuple[float, float]:
+    """(low, high): the percentile-bootstrap interval of `iqm(*tasks)`, each task's seeds resampled on their
+    own (stratified), so that every resample holds as many runs of each task as the data. A task of one
+    seed resamples to itself: with one seed in all, the interval is the value."""
+    arrays = _tasks(tasks)
+    varied = [a for a in arrays if a.size > 1]
+    if not varied:
+        value = iqm(*arrays)
+        return value, value
+    fixed = np.concatenate([a for a in arrays if a.size == 1] or [np.empty(0)])
+
+    def statistic(*samples: np.ndarray, axis: int) -> np.ndarray:
+        constant = np.broadcast_to(fixed, samples[0].shape[:-1] + fixed.shape)
+        return _trimmed(np.concatenate([*samples, constant], axis=-1))
+
+    result = scipy.stats.bootstrap(varied, statistic, n_resamples=resamples, confidence_level=confidence,
+                                   method="percentile", vectorized=True, axis=-1, rng=np.random.default_rng(seed))
+    low, high = result.confidence_interval
+    return float(low), float(high)
+
+
+class MetricSummary(BaseModel):
+    """One metric over seeds: each seed's value, their interquartile mean and its interval."""
+
+    per_seed: dict[int, float]  # seed -> value
+    iqm: float
+    low: float
+    high: float
+
+    @classmethod
+    def of(cls, per_seed: dict[int, float]) -> MetricSummary:
+        values = list(per_seed.values())
+        low, high = interval(values)
+        return cls(per_seed=per_seed, iqm=iqm(values), low=low, high=high)
+
+    def text(self, digits: int) -> str:
+        """'IQM [low, high]', as the tables print it."""
+        return f"{self.iqm:.{digits}f} [{self.low:.{digits}f}, {self.high:.{digits}f}]"
+
+
+Count = Annotated[int, Field(ge=1)]
+
+
+class SeedSummary(BaseModel):
+    """What summary.json (and each algorithm of compare.json) holds: success_any and time_at_goal of every
+    seed of one algorithm on its fields, over the seeds, and how they were measured."""
+
+    fields: list[str]
+    algo: str
+    runs: list[str]  # the run folders the seeds come from
+    episodes: Count  # evaluation episodes per seed
+    env_steps: dict[int, int]  # seed -> env steps its checkpoint had trained
+    success_any: MetricSummary
+    time_at_goal: MetricSummary
+    confidence: float = CONFIDENCE
+    command: str  # the command line that produced it
+
+    @property
+    def seeds(self) -> list[int]:
+        return list(self.success_any.per_seed)
+
+    @property
+    def label(self) -> str:
+        """'IQM (K seeds)', or a word that a single seed's interval is the value alone."""
+        count = len(self.seeds)
+        return "IQM (one seed)" if count == 1 else f"IQM ({count} seeds)"
+
+
+def summarize(fields: list[str], algo: str, runs: list[Path], episodes: int, env_steps: dict[int, int],
+              per_seed: dict[str, dict[int, float]], command: str) -> SeedSummary:
+    """A SeedSummary of `per_seed` (metric -> seed -> value, for each of METRICS)."""
+    return SeedSummary(fields=fields, algo=algo, runs=[str(r) for r in runs], episodes=episodes,
+                       env_steps=env_steps, command=command,
+                       **{metric: MetricSummary.of(per_seed[metric]) for metric in METRICS})
+
+
+def write(summary: SeedSummary, path: Path) -> None:
+    write_atomic(path, (json.dumps(summary.model_dump(mode="json"), indent=1) + "\n").encode())

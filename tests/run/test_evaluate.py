@@ -1,0 +1,137 @@
+"""`fieldgen eval` over seeds: every seed of a run of several, or of several runs of one field and
+algorithm, in a table and summary.json (the interquartile mean with its bootstrap interval); bad input
+refused in one line before anything is written."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import jax
+import pytest
+from typer.testing import CliRunner
+
+from fieldgen.agents import checkpoint
+from fieldgen.cli import app
+from fieldgen.run import record, session
+from fieldgen.run.summary import SeedSummary, interval, iqm
+
+runner = CliRunner()
+WIDE = {"COLUMNS": "200"}  # a table's cells whole on their lines
+
+
+def said(phrase: str, output: str) -> bool:
+    """Whether the output says the phrase, wherever the console broke its lines (long paths, narrow cells)."""
+    return "".join(phrase.split()) in "".join(output.split())
+
+
+@pytest.fixture(scope="module")
+def trained(tmp_path_factory, tiny_crl_args):
+    """A tiny CRL run of three seeds on point_nav, the one the file trains."""
+    out = tmp_path_factory.mktemp("runs")
+    result = runner.invoke(app, ["train", "point_nav", "--seeds", "3", "--out", str(out), "--no-videos",
+                                 *tiny_crl_args])
+    assert result.exit_code == 0, result.output
+    return out / "point_nav-crl-0to2"
+
+
+def single_seed_run(run_dir: Path, i: int, out: Path) -> Path:
+    """A run folder of seed i of `run_dir` alone, as `fieldgen train --seed S` would have written it: the
+    same field, config and rows of that seed, and that seed's slice of the checkpoint."""
+    saved = json.loads((run_dir / record.RUN).read_text())
+    seed = saved["seeds"][i]
+    folder = out / f"point_nav-crl-{seed}"
+    shutil.copytree(run_dir / session.FIELD, folder / session.FIELD)
+    record.write_run(folder, saved["field"], saved["algo"], session.open_run(run_dir, load_state=False).config,
+                     saved["observation"], [seed], {"fields": saved["fields"]})
+    record.write_metrics(folder, [r for r in record.read_metrics(run_dir) if r["seed"] == seed])
+    state = session.open_run(run_dir).state
+    (folder / record.CHECKPOINT).write_bytes(checkpoint.to_bytes(jax.tree.map(lambda x: x[i:i + 1], state)))
+    return folder
+
+
+EASY = "extends: point_nav\nname: point_nav_easy\ntask: {success: {kind: agent_near_target, radius: 2.6}}\n"
+
+
+@pytest.mark.slow
+def test_eval_summarizes_every_seed_alike_from_one_run_or_one_run_per_seed(trained, tmp_path):
+    """On a field where a barely trained policy succeeds now and then, so that the seeds differ."""
+    easy = tmp_path / "easy.yaml"
+    easy.write_text(EASY)
+    judged = ["--episodes", "8", "--no-video", "--field", str(easy)]
+    result = runner.invoke(app, ["eval", str(trained), *judged], env=WIDE)
+    assert result.exit_code == 0, result.output
+    assert said("IQM (3 seeds)", result.output) and said("interquartile mean of the 3 seeds", result.output)
+    written = trained / "summary_point_nav_easy.json"
+    assert said(f"summary: {written}", result.output)
+    together = SeedSummary.model_validate_json(written.read_text())
+    assert together.seeds == [0, 1, 2] and together.episodes == 8 and together.env_steps == dict.fromkeys(range(3), 1760)
+    assert together.fields == ["point_nav_easy"] and together.algo == "crl" and together.runs == [str(trained)]
+    assert together.command == f"fieldgen eval {trained} --episodes 8 --no-video --field {easy}"
+    for metric in (together.success_any, together.time_at_goal):
+        values = list(metric.per_seed.values())
+        assert metric.iqm == pytest.approx(iqm(values)) and (metric.low, metric.high) == interval(values)
+        assert min(values) <= metric.low <= metric.iqm <= metric.high <= max(values)
+    assert len(set(together.time_at_goal.per_seed.values())) > 1, together  # the seeds' policies differ
+    success = together.success_any
+    assert said(f"{success.iqm:.3f} [{success.low:.3f}, {success.high:.3f}]", result.output)
+
+    # each seed's checkpoint in a run of its own, the three evaluated together, one seed per run: the same
+    # per-seed values, so the same summary
+    singles = [single_seed_run(trained, i, tmp_path) for i in range(3)]
+    apart = runner.invoke(app, ["eval", *map(str, singles), *judged], env=WIDE)
+    assert apart.exit_code == 0, apart.output
+    assert said("3 runs of crl at 1,760 env steps on point_nav_easy", apart.output), apart.output
+    alone = SeedSummary.model_validate_json((tmp_path / "summary_point_nav_easy.json").read_text())  # beside them
+    assert alone.runs == list(map(str, singles))
+    assert alone.success_any == together.success_any and alone.time_at_goal == together.time_at_goal
+
+    one = runner.invoke(app, ["eval", str(singles[1]), *judged, "--summary", str(tmp_path / "one.json")], env=WIDE)
+    assert one.exit_code == 0, one.output
+    assert said("IQM (one seed)", one.output) and said("one seed: its value", one.output)
+    single = SeedSummary.model_validate_json((tmp_path / "one.json").read_text())
+    value = together.time_at_goal.per_seed[1]
+    assert single.time_at_goal.per_seed == {1: value} and single.time_at_goal.low == single.time_at_goal.high == value
+    assert not list(singles[1].glob("summary*.json"))
+
+
+def prepared(out: Path, field: str, *args: str) -> Path:
+    """A run folder set up without training (`fieldgen train --prepare`)."""
+    result = runner.invoke(app, ["train", field, "--out", str(out), "--prepare", *args])
+    assert result.exit_code == 0, result.output
+    return next(p for p in out.iterdir() if p.is_dir())
+
+
+def looks_trained(run: Path) -> Path:
+    """The run with a file where its checkpoint goes: checks of what is given together come before any loads."""
+    (run / record.CHECKPOINT).write_bytes(b"never read")
+    return run
+
+
+def test_bad_evaluations_are_one_line_and_write_nothing(tmp_path):
+    untrained = prepared(tmp_path / "a", "point_nav")
+    nav = looks_trained(prepared(tmp_path / "b", "point_nav", "--seed", "1"))
+    soccer = looks_trained(prepared(tmp_path / "c", "point_soccer", "--seed", "2"))
+    other_algo = looks_trained(prepared(tmp_path / "d", "point_nav", "--algo", "td3", "--seed", "3"))
+    (tmp_path / "empty").mkdir()
+    before = sorted(tmp_path.rglob("*"))
+    cases = [
+        ([str(tmp_path / "empty")], f"{tmp_path / 'empty'} is not a training run: run.json is missing"),
+        ([str(untrained)], f"{untrained} has no checkpoint: it has not trained yet"),
+        ([str(nav), str(untrained)], f"{untrained} has no checkpoint"),
+        ([str(nav), str(soccer)], f"{soccer} trained crl on point_soccer, {nav} crl on point_nav: runs evaluated "
+                                  "together are seeds of one field and algorithm"),
+        ([str(nav), str(other_algo)], f"{other_algo} trained td3 on point_nav, {nav} crl on point_nav"),
+        ([str(nav), str(nav)], f"seed 1 is in both {nav} and {nav}: each seed counts once"),
+        ([str(nav), "--summary", str(tmp_path / "no" / "s.json")], f"there is no folder {tmp_path / 'no'}"),
+        ([str(nav), "--summary", str(tmp_path)], f"--summary {tmp_path} is a folder"),
+    ]
+    for args, phrase in cases:
+        result = runner.invoke(app, ["eval", *args, "--no-video"])
+        message = " ".join(result.output.split())
+        assert result.exit_code == 1 and phrase in message and "Traceback" not in message, result.output
+        assert message.startswith("error:") and message.count("error:") == 1
+    zero = runner.invoke(app, ["eval", str(nav), "--episodes", "0"])
+    assert zero.exit_code == 2 and "'0' is not a positive whole count" in " ".join(zero.output.split())
+    assert sorted(tmp_path.rglob("*")) == before

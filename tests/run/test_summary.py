@@ -1,0 +1,88 @@
+"""The statistics over seeds: the interquartile mean and its stratified bootstrap interval, on numbers whose
+answers are worked out by hand, and the summary record."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import scipy.stats
+
+from fieldgen.run.summary import MetricSummary, SeedSummary, interval, iqm, summarize
+
+
+@pytest.mark.parametrize("values,expected", [
+    ([0.7], 0.7),  # one seed: its value
+    ([0.2, 0.6], 0.4),  # up to three seeds a quarter of a run is cut from neither end: the mean
+    ([0.0, 0.3, 0.9], 0.4),
+    ([0.9, 0.1, 0.5, 0.3], 0.4),  # four: 0.1 and 0.9 cut, the mean of 0.3 and 0.5
+    ([0.0, 1.0, 0.2, 0.4, 0.9], 0.5),  # five: one cut from each end (int(5 / 4)), the mean of 0.2, 0.4, 0.9
+    ([0.5, 0.5, 0.5, 1.0], 0.5),  # ties: one 0.5 and the 1.0 cut
+    ([100.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, -100.0], 0.5),  # eight: the outliers and a 0 and a 1 cut
+])
+def test_iqm_is_the_mean_of_the_middle_half(values, expected):
+    assert iqm(values) == pytest.approx(expected, abs=1e-12)
+    assert iqm(values) == pytest.approx(scipy.stats.trim_mean(values, 0.25))  # rliable's aggregate_iqm
+
+
+def test_iqm_of_several_tasks_is_over_every_run_of_every_task():
+    assert iqm([1.0, 2.0], [3.0, 4.0]) == 2.5  # four runs: 1 and 4 cut
+    assert iqm([0.0, 0.0, 0.0], [9.0]) == 0.0  # 0 and 9 cut: the outlier of a task of one seed goes too
+    assert iqm([0.0, 0.0], [9.0]) == 3.0  # three runs: the mean
+
+
+def test_no_values_is_refused():
+    with pytest.raises(ValueError, match="at least one value"):
+        iqm([])
+    with pytest.raises(ValueError, match="at least one value"):
+        interval([0.5], [])
+
+
+@pytest.mark.parametrize("tasks,expected", [
+    ([[0.3]], (0.3, 0.3)),  # one seed: the interval is the value
+    ([[0.5, 0.5, 0.5]], (0.5, 0.5)),  # ties: every resample is the same
+    ([[0.0, 1.0]], (0.0, 1.0)),  # resamples 0, 0.5 or 1, a quarter of them at each end
+    # stratified: every resample keeps four 5s and two of {0, 1}; of the six a run is cut from each end:
+    # mean(0, 5, 5, 5) = 3.75 where both are 0 (a quarter of resamples), else mean(1, 5, 5, 5) = 4
+    ([[5.0, 5.0, 5.0, 5.0], [0.0, 1.0]], (3.75, 4.0)),
+    # a task of one seed resamples to itself: 0.5 and two of {0, 1}, the mean of three
+    ([[0.5], [0.0, 1.0]], (0.5 / 3, 2.5 / 3)),
+    # five seeds, one success: resamples with 0 or 1 successes have an IQM of 0; 2 of 5 (p 0.20) give 1/3,
+    # 3 (p 0.05) 2/3, 4 or 5 (p 0.007, under the top 2.5%) 1
+    ([[0.0, 0.0, 0.0, 0.0, 1.0]], (0.0, 2 / 3)),
+])
+def test_interval_on_numbers_worked_out_by_hand(tasks, expected):
+    assert interval(*tasks) == pytest.approx(expected, abs=1e-12)
+
+
+def test_the_interval_is_reproducible_and_stratified():
+    values = [0.1, 0.35, 0.4, 0.55, 0.9]
+    low, high = interval(values)
+    assert interval(values) == (low, high)  # a generator of a fixed seed
+    assert min(values) <= low < iqm(values) < high <= max(values)
+    assert interval(values, seed=1) != (low, high)
+    assert interval(values, confidence=0.5)[0] > low  # a narrower interval at a lower confidence
+    # pooled, the same six values could resample to six 0s or six 5s; stratified they cannot
+    assert interval([5.0] * 4, [0.0, 1.0]) != interval([5.0] * 4 + [0.0, 1.0])
+
+
+def test_a_summary_round_trips_through_json():
+    summary = summarize(["point_nav"], "crl", ["runs/point_nav-crl-0to2"], 8, {0: 1760, 1: 1760, 2: 1760},
+                        {"success_any": {0: 0.25, 1: 0.5, 2: 1.0}, "time_at_goal": {0: 3.0, 1: 4.5, 2: 9.0}},
+                        "fieldgen eval runs/point_nav-crl-0to2 --episodes 8")
+    assert summary.success_any.iqm == pytest.approx(1.75 / 3) and summary.time_at_goal.iqm == pytest.approx(5.5)
+    assert (summary.success_any.low, summary.success_any.high) == pytest.approx(interval([0.25, 0.5, 1.0]))
+    assert summary.seeds == [0, 1, 2] and summary.label == "IQM (3 seeds)" and summary.confidence == 0.95
+    written = json.loads(summary.model_dump_json())
+    assert written["success_any"]["per_seed"] == {"0": 0.25, "1": 0.5, "2": 1.0}  # JSON keys are text
+    assert SeedSummary.model_validate(written) == summary
+
+
+def test_one_seed_says_so():
+    summary = MetricSummary.of({4: 0.625})
+    assert (summary.iqm, summary.low, summary.high) == (0.625, 0.625, 0.625)
+    assert summary.text(2) == "0.62 [0.62, 0.62]"
+    one = summarize(["point_nav"], "crl", ["r"], 8, {4: 800}, {"success_any": {4: 0.5}, "time_at_goal": {4: 2.0}}, "")
+    assert one.label == "IQM (one seed)"
+    assert np.isclose(one.time_at_goal.low, 2.0) and np.isclose(one.time_at_goal.high, 2.0)
