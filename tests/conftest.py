@@ -93,3 +93,25 @@ def tiny_crl_args():
     sets = {k: v for k, v in TINY_CRL.items() if k not in ("total_steps", "num_envs")}
     return ["--steps", str(TINY_CRL["total_steps"]), "--envs", str(TINY_CRL["num_envs"]),
             *[x for k, v in sets.items() for x in ("--set", f"crl.{k}={json.dumps(v, separators=(',', ':'))}")]]
+
+
+@pytest.fixture(scope="session")
+def train_point_nav(tmp_path_factory, tiny_crl_args):
+    """train_point_nav(seeds) -> the folder of a tiny CRL run of that many seeds on point_nav, trained with
+    `fieldgen train` once per seed count for the whole session (each costs minutes on two CPU cores)."""
+    from typer.testing import CliRunner
+
+    from fieldgen.cli import app
+
+    trained: dict[int, Path] = {}
+
+    def train(seeds: int) -> Path:
+        if seeds not in trained:
+            out = tmp_path_factory.mktemp("runs")
+            result = CliRunner().invoke(app, ["train", "point_nav", "--seeds", str(seeds), "--out", str(out),
+                                              "--no-videos", *tiny_crl_args])
+            assert result.exit_code == 0, result.output
+            trained[seeds] = out / f"point_nav-crl-0to{seeds - 1}"
+        return trained[seeds]
+
+    return train

@@ -27,13 +27,9 @@ def said(phrase: str, output: str) -> bool:
 
 
 @pytest.fixture(scope="module")
-def trained(tmp_path_factory, tiny_crl_args):
+def trained(train_point_nav):
     """A tiny CRL run of three seeds on point_nav, the one the file trains."""
-    out = tmp_path_factory.mktemp("runs")
-    result = runner.invoke(app, ["train", "point_nav", "--seeds", "3", "--out", str(out), "--no-videos",
-                                 *tiny_crl_args])
-    assert result.exit_code == 0, result.output
-    return out / "point_nav-crl-0to2"
+    return train_point_nav(3)
 
 
 def single_seed_run(run_dir: Path, i: int, out: Path) -> Path:

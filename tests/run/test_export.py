@@ -22,13 +22,9 @@ pytestmark = pytest.mark.slow  # training the run they share takes minutes on tw
 
 
 @pytest.fixture(scope="module")
-def trained(tmp_path_factory, tiny_crl_args):
+def trained(train_point_nav):
     """A tiny CRL run of two seeds on point_nav."""
-    out = tmp_path_factory.mktemp("runs")
-    result = runner.invoke(app, ["train", "point_nav", "--seeds", "2", "--out", str(out), "--no-videos",
-                                 *tiny_crl_args])
-    assert result.exit_code == 0, result.output
-    return out / "point_nav-crl-0to1"
+    return train_point_nav(2)
 
 
 def test_exported_policy_acts_as_the_run(trained, tmp_path):
