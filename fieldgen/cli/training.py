@@ -237,8 +237,11 @@ def evaluate(
     table.add_row(*[""] * several, result.label, result.success_any.text(3),
                   f"{result.time_at_goal.text(1)} of {length} steps", "", "", "")
     out.print(table)
-    out.print("one seed: its value, and its interval the value alone" if len(result.seeds) == 1 else
-              f"IQM: the interquartile mean of the {len(result.seeds)} seeds [its 95% bootstrap interval]")
+    # the headline again as a line of its own, which a terminal too narrow for the table still shows whole
+    out.print(f"{result.label}: success_any {result.success_any.text(3)}, time at goal "
+              f"{result.time_at_goal.text(1)} of {length} steps; " +
+              ("one seed: its value, and its interval the value alone" if len(result.seeds) == 1 else
+               f"the interquartile mean of the {len(result.seeds)} seeds [its 95% bootstrap interval]"))
     try:
         summary.write(result, path)
     except WriteError as exc:

@@ -71,7 +71,7 @@ def test_eval_summarizes_every_seed_alike_from_one_run_or_one_run_per_seed(train
         assert min(values) <= metric.low <= metric.iqm <= metric.high <= max(values)
     assert len(set(together.time_at_goal.per_seed.values())) > 1, together  # the seeds' policies differ
     success = together.success_any
-    assert said(f"{success.iqm:.3f} [{success.low:.3f}, {success.high:.3f}]", result.output)
+    assert said(f"{success.iqm:.3f} [{success.low:.3f}, {success.high:.3f}]", result.output), result.output
 
     # each seed's checkpoint in a run of its own, the three evaluated together, one seed per run: the same
     # per-seed values, so the same summary
