@@ -102,14 +102,14 @@ def _problems(exc: ValidationError) -> str:
 def read_run(run_dir: Path) -> RunRecord:
     if not run_dir.is_dir():
         what = "a file" if run_dir.exists() else "missing"
-        raise RunError(f"{run_dir} is {what}, not a run folder; --resume takes the folder fieldgen train wrote "
+        raise RunError(f"{run_dir} is {what}, not a run folder; name the folder fieldgen train wrote "
                        "(runs/<field>-<algo>-<seed>)")
     try:
         saved = json.loads((run_dir / RUN).read_bytes())
     except FileNotFoundError:
-        raise RunError(f"{run_dir} is not a training run: {RUN} is missing; --resume takes the folder fieldgen "
-                       "train wrote, and one whose setup was cut short is set up again by the same fieldgen train "
-                       "command") from None
+        raise RunError(f"{run_dir} is not a training run: {RUN} is missing; name the folder fieldgen train "
+                       "wrote (runs/<field>-<algo>-<seed>); one whose setup was cut short is set up again by the "
+                       "same fieldgen train command") from None
     except (OSError, ValueError) as exc:
         raise RunError(f"{run_dir / RUN} cannot be read as a run record ({exc})") from None
     try:

@@ -114,6 +114,8 @@ def test_bad_evaluations_are_one_line_and_write_nothing(tmp_path):
     before = sorted(tmp_path.rglob("*"))
     cases = [
         ([str(tmp_path / "empty")], f"{tmp_path / 'empty'} is not a training run: run.json is missing"),
+        ([str(tmp_path / "nowhere")], f"{tmp_path / 'nowhere'} is missing, not a run folder; name the folder "
+                                      "fieldgen train wrote"),
         ([str(untrained)], f"{untrained} has no checkpoint: it has not trained yet"),
         ([str(nav), str(untrained)], f"{untrained} has no checkpoint"),
         ([str(nav), str(soccer)], f"{soccer} trained crl on point_soccer, {nav} crl on point_nav: runs evaluated "
@@ -128,6 +130,7 @@ def test_bad_evaluations_are_one_line_and_write_nothing(tmp_path):
         message = " ".join(result.output.split())
         assert result.exit_code == 1 and phrase in message and "Traceback" not in message, result.output
         assert message.startswith("error:") and message.count("error:") == 1
+        assert "--resume takes" not in message  # eval's errors speak of what eval was given
     zero = runner.invoke(app, ["eval", str(nav), "--episodes", "0"])
     assert zero.exit_code == 2 and "'0' is not a positive whole count" in " ".join(zero.output.split())
     assert sorted(tmp_path.rglob("*")) == before

@@ -181,7 +181,7 @@ TORN = '{"eval": 1, "se'
 
 
 @pytest.mark.parametrize("damage,phrase", [
-    (lambda run: run / "run.json", "is a file, not a run folder; --resume takes the folder fieldgen train wrote"),
+    (lambda run: run / "run.json", "is a file, not a run folder; name the folder fieldgen train wrote"),
     (lambda run: (run / "run.json").write_text("{}"), "run.json is not a run record: it lacks algo, config, observation"),
     (lambda run: (run / "run.json").write_text("[]"), "run.json is not a run record: it lacks algo, config, observation"),
     (lambda run: edit_record(run, config=[]), "run.json is not a run record: config should be a valid dictionary, not []"),
@@ -213,9 +213,9 @@ TORN = '{"eval": 1, "se'
     (lambda run: shutil.rmtree(run / "field"), "point_nav-crl-0/field is missing: the run's own copy of its field "
      "(a setup cut short, or a copy of the run that left it out); set the run up again with the fieldgen train "
      "command that made it"),
-    (lambda run: (run / "run.json").unlink(), "point_nav-crl-0 is not a training run: run.json is missing; --resume "
-     "takes the folder fieldgen train wrote, and one whose setup was cut short is set up again by the same fieldgen "
-     "train command"),
+    (lambda run: (run / "run.json").unlink(), "point_nav-crl-0 is not a training run: run.json is missing; name the "
+     "folder fieldgen train wrote (runs/<field>-<algo>-<seed>); one whose setup was cut short is set up again by the "
+     "same fieldgen train command"),
 ], ids=["file", "empty", "list", "config", "seeds", "seeds_mixed", "fields", "promotion", "middle", "bytes",
         "eval_text", "stage", "no_rows", "folder", "field", "field_missing", "record_missing"])
 def test_damaged_run_folders_are_clear_errors(tmp_path, damage, phrase, tiny_crl_args):
