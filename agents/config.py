@@ -12,6 +12,7 @@ hashable: trainers close over them inside jitted code.
 from __future__ import annotations
 
 import dataclasses
+import json
 import typing
 from pathlib import Path
 from typing import Annotated, ClassVar, Literal, Sequence
@@ -125,7 +126,7 @@ class RunConfig(BaseModel):
             if section in others:
                 continue
             if not sep or not dot or section != cls.algo:
-                raise ConfigError(f"--set {item!r}: write {cls.algo}.KEY=VALUE, e.g. {cls.algo}.repr_dim=128")
+                raise ConfigError(f"--set {item!r}: write {cls.algo}.KEY=VALUE, e.g. {cls.example()}")
             try:
                 value = yaml.safe_load(raw)
             except yaml.YAMLError:
@@ -133,6 +134,14 @@ class RunConfig(BaseModel):
             values[key] = cls._checked(key, value, f"--set {item}")
         values.update({key: cls._checked(key, value, key) for key, value in options.items() if value is not None})
         return cls(**values)
+
+    @classmethod
+    def example(cls) -> str:
+        """A --set assignment this trainer takes: its own first key (not one every trainer shares), at its default."""
+        key = next((k for k in cls.model_fields if k not in RunConfig.model_fields), "num_envs")
+        default = cls.model_fields[key].default
+        value = json.dumps(list(default) if isinstance(default, tuple) else default, separators=(",", ":"))
+        return f"{cls.algo}.{key}={value}"
 
     @classmethod
     def _section(cls, file: Path | None, others: tuple[str, ...]) -> tuple[dict, dict[str, int]]:
@@ -159,7 +168,7 @@ class RunConfig(BaseModel):
         """`value` as the field `key` holds it; a ConfigError that says `where` it came from if it cannot be."""
         fields = cls.model_fields
         if key not in fields:
-            raise ConfigError(f"{where}: unknown config key '{key}'{did_you_mean(key, fields)} "
+            raise ConfigError(f"{where}: unknown config key '{key}'{did_you_mean(key, fields) or '.'} "
                               f"Keys: {', '.join(fields)}.")
         try:
             return getattr(cls.model_validate({key: value}), key)

@@ -269,6 +269,8 @@ def test_bundled_config_files_hold_only_known_keys(path):
     (["--algo", "sac", "--set", "sac.her=0.8"], "set sac.reward=sparse"),
     (["--algo", "td3", "--set", "td3.her=1.5"], "td3.her must be at most 1, not 1.5"),
     (["--algo", "icrl", "--set", "icrl.agents=arm"], "icrl.agents: unknown grouping 'arm'"),
+    (["--algo", "ppo", "--set", "num_minibatches=3"], "write ppo.KEY=VALUE, e.g. ppo.num_minibatches=32"),
+    (["--set", "crl.zzzzqq=3"], "unknown config key 'zzzzqq'. Keys: total_steps,"),
 ])
 def test_bad_training_input_is_reported_before_compiling(tmp_path, args, phrase):
     result = runner.invoke(app, ["train", "point_nav", "--envs", "8", "--out", str(tmp_path), *args])
