@@ -32,7 +32,7 @@ class LevelError(Exception):
 
 @dataclasses.dataclass(frozen=True)
 class Axis:
-    """One way a level differs from the spec: `path` names the keys it moves; a switch is off below 0.5."""
+    """One way a level differs from the spec, named for what it moves; a switch is off below 0.5."""
 
     name: str
     switch: bool = False

@@ -14,6 +14,7 @@ from typing import Sequence
 import jax
 import jax.numpy as jnp
 
+from fieldgen.agents.loop import OneStage
 from fieldgen.curriculum.promotion import Promotion
 
 WEIGHT_FLOOR = 0.1  # every variant keeps at least this share of the weight mass (before normalising)
@@ -26,10 +27,6 @@ def sampling_weights(success: jax.Array) -> jax.Array:
     return score / jnp.sum(score)
 
 
-def _uniform(success: jax.Array) -> jax.Array:
-    return jnp.full_like(success, 1.0 / success.shape[-1])
-
-
 @dataclasses.dataclass(frozen=True)
 class Staged:
     """One stage after another: move on once `promotion` is met on the stage being trained."""
@@ -39,8 +36,7 @@ class Staged:
     def next_stage(self, history: list[dict], stage: int, stages: int) -> int:
         return stage + 1 if stage < stages - 1 and self.promotion.ready(history, stage) else stage
 
-    def variant_weights(self, success: jax.Array) -> jax.Array:
-        return _uniform(success)
+    variant_weights = staticmethod(OneStage().variant_weights)  # one variant per stage: drawn evenly
 
     def stage_environments(self, specs: Sequence) -> list:
         """Each stage's environment, built as its spec alone says."""
