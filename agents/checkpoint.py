@@ -4,7 +4,7 @@ The state's structure comes from a template built the same way as the saved
 run (same config, same environment), so loading checks that every leaf's shape
 and dtype match and says which one does not. The last entry is the SHA-256 of
 every byte before it, so damage on disk or in a copy is found at load, not
-mistaken later for training that diverged. Writing the bytes to disk (and doing
+mistaken later for training that diverged; a checkpoint without it is refused too. Writing the bytes to disk (and doing
 it atomically) is the caller's business.
 """
 
@@ -77,9 +77,13 @@ def load(path: Path, template):
                "restore it from a copy, or start the run again in a new folder")
     try:
         saved = serialization.msgpack_restore(blob)
-        if DIGEST in saved and saved[DIGEST] != hashlib.sha256(blob[:-_TRAILER]).hexdigest():
+        if DIGEST not in saved:
+            raise CheckpointError(f"{path} holds no {DIGEST} entry, so it cannot be told from a damaged one (cut "
+                                  "short, edited, or written by another program): restore it from a copy, or start "
+                                  "the run again in a new folder")
+        if saved[DIGEST] != hashlib.sha256(blob[:-_TRAILER]).hexdigest():
             raise CheckpointError(corrupt)
-        leaves = [_joined(saved[str(i)]) for i in range(len(saved) - (DIGEST in saved))]
+        leaves = [_joined(saved[str(i)]) for i in range(len(saved) - 1)]
     except CheckpointError:
         raise
     except Exception:  # msgpack raises many types on damaged input

@@ -1,22 +1,46 @@
-"""Files and folders replaced whole: everything fieldgen writes appears complete or not at all.
+"""Files and folders fieldgen writes: each appears complete or not at all, is written by one process at a
+time, and replaces only what fieldgen itself wrote.
 
 A write that fails (a full disk, a read-only folder) raises `WriteError`, an OSError whose message
 names the path and the reason, and leaves what was there before untouched. A write killed midway
 can leave only hidden `.NAME.*.tmp` files or folders behind, which `remove_leftovers` clears.
+
+Every folder fieldgen writes as a whole (a build, an exported policy, a curriculum) or sets up (a run)
+holds an ownership record, `.fieldgen`, saying which command wrote it. `replace_folder` replaces a folder
+only where that record says it is one of its kind, or where the folder holds nothing but the files its
+kind is made of (one written before these records were kept); anything else is refused with `NotOurs`.
+Each such folder is also locked while it is written (`locked`): a second process is refused with `InUse`,
+saying which process holds it since when; the operating system drops the lock of a process that dies.
 """
 
 from __future__ import annotations
 
+import atexit
 import contextlib
+import ctypes
+import dataclasses
 import errno
+import fcntl
+import fnmatch
+import json
 import os
+import shlex
 import shutil
+import signal
+import socket
+import sys
 import tempfile
-from collections.abc import Iterable
+import time
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Callable
 
+from fieldgen.version import VERSION
+
 TMP_SUFFIX = ".tmp"
+OWNER = ".fieldgen"  # the ownership record in each folder fieldgen wrote
+_OLD = ".old"  # a replaced folder moved aside, `.NAME.*.old.tmp`, until the new one stands in its place
+_SIGNALS = {signal.SIGINT, signal.SIGTERM, signal.SIGHUP}  # held back while a folder is swapped in
 
 
 class WriteError(OSError):
@@ -24,6 +48,30 @@ class WriteError(OSError):
 
     def __str__(self) -> str:
         return f"cannot write {self.filename}: {self.strerror}"
+
+
+class FolderError(Exception):
+    """A folder fieldgen may not write now, or not at all; `str()` is the whole message, with what to do."""
+
+
+class NotOurs(FolderError):
+    """A folder fieldgen did not write, where it was asked to write one."""
+
+
+class InUse(FolderError):
+    """A folder another fieldgen process is writing."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Output:
+    """A kind of folder fieldgen writes: the command that writes it, and what it is made of (fnmatch
+    patterns of its entries; a folder replaced whole may hold nothing else). `record` is the entry that
+    marks one written before ownership records were kept; `option` is how the command is told where."""
+
+    command: str
+    made_of: tuple[str, ...]
+    record: str
+    option: str = "--out"
 
 
 def write_atomic(path: Path, data: bytes | Iterable[bytes]) -> None:
@@ -49,43 +97,236 @@ def write_atomic(path: Path, data: bytes | Iterable[bytes]) -> None:
         raise
 
 
-def replace_folder(folder: Path, fill: Callable[[Path], None]) -> None:
-    """Make `folder` anew: `fill(staging)` writes a hidden sibling folder, which then takes `folder`'s
-    place. A reader sees the old folder or the new one, never a mix; a kill between the two renames
-    leaves no folder (and the old one hidden, for `remove_leftovers`), never a wrong one."""
+# -- ownership ------------------------------------------------------------------------------------
+
+def claim(folder: Path, output: Output) -> None:
+    """Refuse (NotOurs) to write `folder` unless it is absent, empty, or an `output` fieldgen wrote. A folder
+    replaced whole must also hold nothing but what `output` is made of, so that no file of the user's that
+    was put in it is deleted with it."""
+    if not folder.exists() and not folder.is_symlink():
+        return
+    where = f"choose another {output.option}"
+    if folder.is_symlink() or not folder.is_dir():
+        what = "a link" if folder.is_symlink() else "a file"
+        raise NotOurs(f"{folder} is {what}, not a folder {output.command} wrote; fieldgen replaces only what it wrote "
+                      f"itself: move it aside or {where}")
+    entries = sorted(p.name for p in folder.iterdir() if p.name != OWNER and not _is_leftover(p.name))
+    record = _record(folder)
+    if record is None and entries and output.record not in entries:
+        raise NotOurs(f"{folder} is not a folder {output.command} wrote (it holds {_some(entries)}); fieldgen "
+                      f"replaces only what it wrote itself: move it aside or {where}")
+    if record is not None and record.get("written_by") != output.command:
+        raise NotOurs(f"{folder} was written by {record.get('written_by')!s}, not {output.command}; move it aside "
+                      f"or {where}")
+    foreign = [name for name in entries if output.made_of and not _matches(name, output.made_of)]
+    if foreign:
+        raise NotOurs(f"{folder} holds {_some(foreign)}, which {output.command} did not write; it replaces the "
+                      f"folder whole, so move {'that' if len(foreign) == 1 else 'those'} out of it or {where}")
+
+
+def mark(folder: Path, output: Output) -> None:
+    """Record in `folder` that `output.command` wrote it (claim reads it back)."""
+    record = {"written_by": output.command, "fieldgen_version": VERSION}
+    write_atomic(folder / OWNER, (json.dumps(record) + "\n").encode())
+
+
+def _record(folder: Path) -> dict | None:
+    try:
+        record = json.loads((folder / OWNER).read_bytes()[:4096])
+    except (OSError, ValueError):
+        return None
+    return record if isinstance(record, dict) else None
+
+
+def _matches(name: str, patterns: tuple[str, ...]) -> bool:
+    return any(fnmatch.fnmatchcase(name, p) for p in patterns)
+
+
+def _some(names: list[str]) -> str:
+    shown = ", ".join(names[:3])
+    return shown + (f" and {len(names) - 3} more" if len(names) > 3 else "")
+
+
+# -- one writer at a time -------------------------------------------------------------------------
+
+_held: dict[Path, list] = {}  # lock file -> [its descriptor, how many times this process took it]
+
+
+def take(folder: Path) -> None:
+    """Lock `folder` for this process until `release` (or the process ends); taking it again nests. The lock
+    is a hidden file beside the folder, `.NAME.lock`, so that it outlives the folder being swapped; a lock
+    left by a process that died is no lock (the system drops it), and the file goes with its last holder."""
+    path = _lock_path(folder)
+    if path in _held:
+        _held[path][1] += 1
+        return
     try:
         folder.parent.mkdir(parents=True, exist_ok=True)
-        staging = Path(tempfile.mkdtemp(dir=folder.parent, prefix=f".{folder.name}.", suffix=TMP_SUFFIX))
-    except FileExistsError:  # mkdir's word for a file where a folder should be
-        in_the_way = next(p for p in (folder.parent, *folder.parent.parents) if p.exists() and not p.is_dir())
-        raise WriteError(errno.ENOTDIR, "a file is in the way of the folder", str(in_the_way)) from None
+        while True:
+            fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666 & ~_umask())
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                holder = os.read(fd, 4096)
+                os.close(fd)
+                raise InUse(_in_use(folder, holder)) from None
+            with contextlib.suppress(FileNotFoundError):
+                if os.fstat(fd).st_ino == os.stat(path).st_ino:
+                    break  # else its last holder removed the file between our open and our lock: open the new one
+            os.close(fd)
+    except FileExistsError:
+        raise WriteError(errno.ENOTDIR, "a file is in the way of the folder", str(_in_the_way(folder))) from None
     except OSError as exc:
         raise WriteError(exc.errno, exc.strerror, str(folder)) from None
+    holder = {"pid": os.getpid(), "host": socket.gethostname(), "since": time.strftime("%Y-%m-%d %H:%M:%S"),
+              "command": shlex.join([Path(sys.argv[0]).name, *sys.argv[1:]])}
+    os.ftruncate(fd, 0)
+    os.write(fd, json.dumps(holder).encode())
+    _held[path] = [fd, 1]
+
+
+def release(folder: Path) -> None:
+    """Undo one `take` of `folder`; the last removes the lock file and unlocks."""
+    _release(_lock_path(folder))
+
+
+def _release(path: Path, whole: bool = False) -> None:
+    entry = _held.get(path)
+    if entry is None:
+        return
+    entry[1] = 0 if whole else entry[1] - 1
+    if entry[1] == 0:
+        del _held[path]
+        with contextlib.suppress(OSError):
+            path.unlink()  # while locked: a process waiting on this file finds it gone and opens a new one
+        os.close(entry[0])
+
+
+@atexit.register
+def release_all() -> None:
+    """Every lock this process holds (a command that ends, whatever it left held)."""
+    for path in list(_held):
+        _release(path, whole=True)
+
+
+@contextlib.contextmanager
+def locked(folder: Path) -> Iterator[None]:
+    take(folder)
     try:
-        os.chmod(staging, 0o777 & ~_umask())
-        fill(staging)
-        old = None
-        if folder.exists():
-            old = Path(tempfile.mkdtemp(dir=folder.parent, prefix=f".{folder.name}.", suffix=TMP_SUFFIX))
-            os.replace(folder, old / folder.name)
+        yield
+    finally:
+        release(folder)
+
+
+def _lock_path(folder: Path) -> Path:
+    folder = Path(os.path.abspath(folder))
+    return folder.parent / f".{folder.name}.lock"
+
+
+def _in_use(folder: Path, holder: bytes) -> str:
+    try:
+        info = json.loads(holder)
+        who = f"process {int(info['pid'])}"
+        if info.get("host") != socket.gethostname():
+            who += f" on {info.get('host')}"
+        who += f" since {info['since']} ({info['command']})"
+    except (ValueError, KeyError, TypeError):
+        who = "another process"
+    return (f"{folder} is in use by {who}; one fieldgen command writes a folder at a time: wait for that one to "
+            "end (or stop it), then run this again")
+
+
+# -- replacing whole ------------------------------------------------------------------------------
+
+def replace_folder(folder: Path, fill: Callable[[Path], None], output: Output) -> None:
+    """Make `folder` anew: `fill(staging)` writes a hidden sibling folder, which then takes `folder`'s
+    place in one exchange of names. A reader sees the old folder or the new one, never a mix, and a process
+    stopped at any moment (SIGKILL included) leaves the old one or the new one in place, with at most
+    hidden leftovers that the next replace of the same folder clears. Refused (NotOurs) where `folder` is
+    not an `output` fieldgen wrote, and (InUse) while another process writes it."""
+    with locked(folder):
+        remove_leftovers(folder.parent, folder.name)
+        claim(folder, output)
+        try:
+            staging = Path(tempfile.mkdtemp(dir=folder.parent, prefix=f".{folder.name}.", suffix=TMP_SUFFIX))
+        except OSError as exc:
+            raise WriteError(exc.errno, exc.strerror, str(folder)) from None
+        try:
+            os.chmod(staging, 0o777 & ~_umask())
+            fill(staging)
+            mark(staging, output)
+            _swap(staging, folder)
+        except OSError as exc:
+            shutil.rmtree(staging, ignore_errors=True)
+            raise WriteError(exc.errno, exc.strerror, str(folder)) from None
+        except BaseException:
+            shutil.rmtree(staging, ignore_errors=True)
+            raise
+        shutil.rmtree(staging, ignore_errors=True)  # the old folder, now under the staging name
+
+
+def _swap(staging: Path, folder: Path) -> None:
+    """Put `staging` at `folder`, and what was at `folder` (if anything) at `staging`. Where the system can
+    exchange two names at once (Linux), nothing else is needed; elsewhere the old folder is first moved to
+    an `.old.tmp` name that `remove_leftovers` puts back if the process dies before the new one is in."""
+    if not folder.exists():
         os.replace(staging, folder)
-    except OSError as exc:
-        shutil.rmtree(staging, ignore_errors=True)
-        raise WriteError(exc.errno, exc.strerror, str(folder)) from None
-    except BaseException:
-        shutil.rmtree(staging, ignore_errors=True)
-        raise
-    if old is not None:
-        shutil.rmtree(old, ignore_errors=True)
+        return
+    if _exchange(staging, folder):
+        return
+    old = staging.with_name(staging.name.removesuffix(TMP_SUFFIX) + _OLD + TMP_SUFFIX)
+    mask = signal.pthread_sigmask(signal.SIG_BLOCK, _SIGNALS)  # Ctrl-C, kill or a closed terminal waits
+    try:
+        os.replace(folder, old)
+        os.replace(staging, folder)
+        os.replace(old, staging)
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, mask)
+
+
+_RENAME_EXCHANGE = 2
+
+
+def _exchange(a: Path, b: Path) -> bool:
+    """Swap two paths' names in one step (Linux renameat2 with RENAME_EXCHANGE); False where the system or its
+    file system cannot."""
+    renameat2 = getattr(_libc(), "renameat2", None)
+    if renameat2 is None:
+        return False
+    at_cwd = -100
+    if renameat2(at_cwd, os.fsencode(a), at_cwd, os.fsencode(b), _RENAME_EXCHANGE) == 0:
+        return True
+    code = ctypes.get_errno()
+    if code in (errno.EINVAL, errno.ENOSYS, errno.ENOTSUP):
+        return False
+    raise OSError(code, os.strerror(code), str(b))
+
+
+_LIBC: list = []
+
+
+def _libc():
+    if not _LIBC:
+        try:
+            _LIBC.append(ctypes.CDLL(None, use_errno=True))
+        except OSError:
+            _LIBC.append(None)
+    return _LIBC[0]
 
 
 def remove_leftovers(folder: Path, name: str | None = None) -> list[Path]:
     """Delete what killed writes left behind (hidden `.*.tmp` files and folders): in `folder` and below, or
-    with `name` only those of `folder/name` (a build beside others that may be written at the same time)."""
+    with `name` only those of `folder/name` (a build beside others that may be written at the same time).
+    A replaced folder moved aside by a replace that was stopped before the new one came in is put back."""
     if name is None:
         found = sorted(p for p in folder.rglob(f".*{TMP_SUFFIX}") if p.name.startswith("."))
     else:
         found = sorted(folder.glob(f".{name}.*{TMP_SUFFIX}"))
+        aside = [p for p in found if p.name.endswith(_OLD + TMP_SUFFIX) and p.is_dir()]
+        if aside and not (folder / name).exists():
+            with contextlib.suppress(OSError):
+                os.replace(aside[0], folder / name)
+                found.remove(aside[0])
     for path in found:  # best effort: a folder we may not write keeps them, and says so when written to
         if path.is_dir() and not path.is_symlink():
             shutil.rmtree(path, ignore_errors=True)
@@ -93,6 +334,14 @@ def remove_leftovers(folder: Path, name: str | None = None) -> list[Path]:
             with contextlib.suppress(OSError):
                 path.unlink()
     return found
+
+
+def _is_leftover(name: str) -> bool:
+    return name.startswith(".") and name.endswith(TMP_SUFFIX)
+
+
+def _in_the_way(folder: Path) -> Path:
+    return next(p for p in (folder.parent, *folder.parent.parents) if p.exists() and not p.is_dir())
 
 
 def _umask() -> int:

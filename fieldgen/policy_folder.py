@@ -20,9 +20,10 @@ from flax import serialization
 from pydantic import BaseModel, ConfigDict, ValidationError
 
 from fieldgen.agents.actor import Policy
-from fieldgen.files import replace_folder, write_atomic
+from fieldgen.files import Output, replace_folder, write_atomic
 
 DESCRIPTION, PARAMS = "policy.json", "params.msgpack"
+POLICY = Output("fieldgen export", (DESCRIPTION, PARAMS), DESCRIPTION, "-o")
 ACTION = "tanh of each agent's first network outputs, one per action it drives, in order"
 
 
@@ -97,7 +98,7 @@ def save_policy(policy: Policy, description: Description, folder: Path) -> None:
         write_atomic(staging / DESCRIPTION, (description.model_dump_json(indent=1) + "\n").encode())
         write_atomic(staging / PARAMS, params)
 
-    replace_folder(folder, fill)
+    replace_folder(folder, fill, POLICY)
 
 
 def load_policy(folder: str | Path) -> jax.tree_util.Partial:

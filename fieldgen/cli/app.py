@@ -11,7 +11,7 @@ import typer
 from rich.console import Console
 from rich.text import Text
 
-from fieldgen import xla_cache, xla_flags
+from fieldgen import files, xla_cache, xla_flags
 from fieldgen.cli.helptext import ReadableTyper
 from fieldgen.schema import bundled_fields, resolve_spec_path
 from fieldgen.suggest import did_you_mean
@@ -89,9 +89,11 @@ def _print_version(given: bool) -> None:
 
 
 @app.callback()
-def main(version: Annotated[bool, typer.Option("--version", callback=_print_version, is_eager=True,
+def main(ctx: typer.Context,
+         version: Annotated[bool, typer.Option("--version", callback=_print_version, is_eager=True,
                                                help="print fieldgen's version and exit")] = False) -> None:
     """Robot-soccer fields from YAML specs, compiled to GPU-batched MJX environments."""
+    ctx.call_on_close(files.release_all)  # the folders a command locked are free once it ends
     xla_cache.enable()
     xla_flags.apply()
 

@@ -51,6 +51,7 @@ def build(
     """
     from fieldgen import curriculum
     from fieldgen.compile.build import build as run_build
+    from fieldgen.files import FolderError
     from fieldgen.render import RenderError
 
     failed = 0
@@ -66,6 +67,8 @@ def build(
             continue
         except RenderError as exc:
             fail(f"{exc}; or build without preview.png: fieldgen build {' '.join(specs)} --no-preview")
+        except FolderError as exc:
+            fail(str(exc))
         except OSError as exc:
             fail(f"{exc}; any earlier build there is unchanged: free some space, fix the folder's permissions "
                   "or choose another --out")
@@ -203,6 +206,7 @@ def make_curriculum(
     Example: fieldgen curriculum soccer_v1 --start-near 1.5 --stages 5 --then soccer_v2 --then-stages 3 -o curricula/v1_close_to_v2
     """
     from fieldgen import curriculum
+    from fieldgen.files import FolderError
 
     base_path = spec_path(base)
     try:
@@ -212,7 +216,7 @@ def make_curriculum(
                                  then=tuple(spec_path(s) for s in then or ()), then_stages=then_stages)
         kind, variants = curriculum.variants(base_path, asked)
         c = curriculum.write(output, base, base_path, kind, variants, curriculum.Promotion(threshold, window), force)
-    except curriculum.CurriculumError as exc:
+    except (curriculum.CurriculumError, FolderError) as exc:
         fail(str(exc))
     except OSError as exc:
         fail(f"cannot write {output}: {exc.strerror}; nothing was written: fix the folder's permissions or choose "

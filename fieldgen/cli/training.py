@@ -26,6 +26,7 @@ VideoFormat = Annotated[Optional[str], typer.Option(
 def _train(run, videos: bool, logger: str, fmt: str | None = None) -> None:
     """Train a run; Ctrl-C exits with 130, and a failed write or a diverged run says what to do (training.train
     says how to go on)."""
+    from fieldgen.files import FolderError
     from fieldgen.run import record
     from fieldgen.run.train import train as train_run
 
@@ -33,7 +34,7 @@ def _train(run, videos: bool, logger: str, fmt: str | None = None) -> None:
         train_run(run, out, videos, logger, fmt)
     except KeyboardInterrupt:
         raise typer.Exit(130) from None
-    except record.RunError as exc:  # training diverged
+    except (record.RunError, FolderError) as exc:  # training diverged, or another process trains the run
         fail(str(exc))
     except OSError as exc:  # every file of a run is replaced atomically, so the last good ones remain
         fail(f"could not write {exc.filename or run.folder}: {exc.strerror or exc}; the files already there are "
@@ -82,6 +83,7 @@ def train(
     """
     fmt = video_format(video_fmt) if videos else None
     from fieldgen.agents import registry
+    from fieldgen.files import FolderError
     from fieldgen.run import loggers, record, session
     from fieldgen.agents.config import ConfigError
 
@@ -112,7 +114,7 @@ def train(
         if run.init_from and not run.rows:
             out.print(f"starts from what {run.init_from['run']} learned in {run.init_from['env_steps']:,} env steps "
                       f"(evaluation {run.init_from['eval']}), with fresh episodes and a replay buffer filled anew")
-    except (SpecError, ConfigError, record.RunError) as exc:
+    except (SpecError, ConfigError, record.RunError, FolderError) as exc:
         fail(str(exc))
     if prepare:
         out.print(f"prepared {run.folder}; start it with: fieldgen train --resume {run.folder}")
@@ -151,6 +153,7 @@ def compare(
     Example: fieldgen compare point_nav --algos crl,icrl,sac --steps 40000 --envs 16 --seeds 2
     """
     from fieldgen.agents.config import ConfigError
+    from fieldgen.files import FolderError
     from fieldgen.run import compare as comparing
     from fieldgen.run import record
 
@@ -161,7 +164,7 @@ def compare(
     try:
         folder, todo = comparing.runs(source, names, list(range(seeds)), runs, config, sets or [],
                                       total_steps=steps, num_envs=envs)
-    except (SpecError, ConfigError, record.RunError) as exc:
+    except (SpecError, ConfigError, record.RunError, FolderError) as exc:
         fail(str(exc))
     if prepare:
         out.print(f"prepared {len(todo)} runs in {folder}; train each with fieldgen train --resume RUN, "
@@ -330,12 +333,13 @@ def export(
     Example: fieldgen export runs/point_nav-crl-0 -o policies/point_nav
     """
     from fieldgen.agents.config import ConfigError
+    from fieldgen.files import FolderError
     from fieldgen.run import record
     from fieldgen.run.export import export as write_policy
 
     try:
         d = write_policy(run_dir, folder, seed).description
-    except (SpecError, ConfigError, record.RunError) as exc:
+    except (SpecError, ConfigError, record.RunError, FolderError) as exc:
         fail(str(exc))
     out.print(f"exported {d.algorithm} seed {d.seed} at {d.env_steps:,} env steps ({d.field}: "
               f"{len(d.observation_names)} observations -> {len(d.action_names)} actions) to {folder}; "

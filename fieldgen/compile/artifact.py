@@ -3,8 +3,9 @@
 Loading an artifact needs mujoco and pydantic only, never dm_control, so a
 machine without dm_control can run fields built elsewhere. A build is written
 as a whole folder and swapped in (fieldgen.files.replace_folder), and field.json
-carries the input hash and the digest of the scene.xml beside it, so neither an
-interrupted build nor a scene from another spec is ever taken for a cache hit.
+carries the input hash, the digest of the scene.xml beside it and the digest of its own
+other keys, so neither an interrupted build, a scene from another spec nor an edited
+field.json is ever taken for a cache hit or loaded.
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ from pathlib import Path
 import mujoco
 from pydantic import ValidationError
 
-from fieldgen.files import replace_folder, write_atomic
+from fieldgen.files import Output, replace_folder, write_atomic
 from fieldgen.version import VERSION
 from fieldgen.compile.contacts import candidate_pairs
 from fieldgen.compile.layout import Layout, observation_layout
@@ -29,8 +30,9 @@ from fieldgen.schema.models import FieldSpec
 from fieldgen.source_imports import imports
 
 # Bump when field.json or scene.xml change shape in a way loaders must know about.
-ARTIFACT_FORMAT = 1
+ARTIFACT_FORMAT = 2  # 2: field.json holds record_sha256
 SCENE, META, PREVIEW = "scene.xml", "field.json", "preview.png"
+BUILD = Output("fieldgen build", (SCENE, META, PREVIEW), META)
 # The compiler: this package, and every module of fieldgen its modules import. Their sources are part of
 # every build's hash, so a change to any of them invalidates cached builds.
 _COMPILER_PACKAGE = "fieldgen.compile"
@@ -115,10 +117,11 @@ class Artifact:
         return mujoco.MjModel.from_xml_string(self.xml)
 
     def metadata(self) -> dict:
+        """field.json: what the build is, sealed by the digest of all of it (record_digest)."""
         model = self.model()
         layout: Layout = observation_layout(self.spec, model)
         pairs = candidate_pairs(model)
-        return {
+        meta = {
             "fieldgen_version": VERSION,
             "artifact_format": ARTIFACT_FORMAT,
             "compiler_digest": compiler_digest(),
@@ -136,6 +139,17 @@ class Artifact:
             "contact_pairs": [list(p) for p in pairs],
             "spec": self.spec.model_dump(mode="json"),
         }
+        meta = json.loads(json.dumps(meta))  # as it reads back: tuples as lists
+        return {**meta, RECORD_DIGEST: record_digest(meta)}
+
+
+RECORD_DIGEST = "record_sha256"
+
+
+def record_digest(meta: dict) -> str:
+    """The SHA-256 of field.json's keys other than RECORD_DIGEST, written canonically (sorted keys, no spaces)."""
+    rest = {k: v for k, v in meta.items() if k != RECORD_DIGEST}
+    return hashlib.sha256(json.dumps(rest, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
 
 
 def spec_hash(spec: FieldSpec) -> str:
@@ -155,14 +169,14 @@ def scene_digest(xml: str | bytes) -> str:
     return hashlib.sha256(xml.encode() if isinstance(xml, str) else xml).hexdigest()
 
 
-def is_current(out_dir: Path, digest: str) -> bool:
-    """Whether out_dir holds the build of inputs hashing to `digest`, its scene.xml the one field.json names."""
+def current_build(out_dir: Path, digest: str) -> Artifact | None:
+    """The build in out_dir if it is whole (load_artifact's checks) and of inputs hashing to `digest`, its
+    spec included: the hash it records is no proof of the spec beside it."""
     try:
-        meta = json.loads((out_dir / META).read_text())
-        xml = (out_dir / SCENE).read_text()
-    except (OSError, ValueError):
-        return False
-    return isinstance(meta, dict) and meta.get("hash") == digest and meta.get("scene_sha256") == scene_digest(xml)
+        artifact = load_artifact(out_dir)
+    except ArtifactError:
+        return None
+    return artifact if artifact.hash == digest == spec_hash(artifact.spec) else None
 
 
 def write_artifact(artifact: Artifact, out_dir: Path, preview: bytes | None = None) -> None:
@@ -174,7 +188,7 @@ def write_artifact(artifact: Artifact, out_dir: Path, preview: bytes | None = No
             write_atomic(folder / PREVIEW, preview)
         write_atomic(folder / META, (json.dumps(artifact.metadata(), indent=1) + "\n").encode())
 
-    replace_folder(out_dir, fill)
+    replace_folder(out_dir, fill, BUILD)
 
 
 def load_artifact(out_dir: str | Path) -> Artifact:
@@ -196,13 +210,16 @@ def load_artifact(out_dir: str | Path) -> Artifact:
                             f"this fieldgen reads format {ARTIFACT_FORMAT}; rebuild the field")
     mismatch = (f"{out_dir / SCENE} is not the scene {out_dir / META} describes (an interrupted, mixed-up or "
                 "damaged build); rebuild the field with `fieldgen build --force`")
-    if "scene_sha256" in meta and meta["scene_sha256"] != scene_digest(scene):
+    damaged = f"{out_dir / META} was edited or damaged ({{}}); rebuild the field with `fieldgen build --force`"
+    if meta.get(RECORD_DIGEST) != record_digest(meta):
+        raise ArtifactError(damaged.format(f"its {RECORD_DIGEST} is not the digest of the rest of it"
+                                           if RECORD_DIGEST in meta else f"it lacks {RECORD_DIGEST}"))
+    if meta.get("scene_sha256") != scene_digest(scene):
         raise ArtifactError(mismatch)
     try:
         xml = scene.decode()
     except UnicodeDecodeError:
         raise ArtifactError(mismatch) from None
-    damaged = f"{out_dir / META} was edited or damaged ({{}}); rebuild the field with `fieldgen build --force`"
     if not isinstance(meta.get("hash"), str) or "spec" not in meta:
         raise ArtifactError(damaged.format("it lacks the spec or its hash"))
     try:

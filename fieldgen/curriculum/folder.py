@@ -6,17 +6,17 @@ from __future__ import annotations
 
 import dataclasses
 import os
-import shutil
-import tempfile
 from pathlib import Path
 
 import yaml
 
 from fieldgen.curriculum.promotion import Promotion
+from fieldgen.files import Output, claim, replace_folder
 from fieldgen.schema import FieldSpec, SpecError, load_spec
 from fieldgen.schema.editor import SCHEMA_FILE
 
 INDEX = "curriculum.yaml"
+CURRICULUM = Output("fieldgen curriculum", (INDEX, "stage_*.yaml"), INDEX, "-o")
 
 
 class CurriculumError(Exception):
@@ -49,6 +49,7 @@ class Curriculum:
 def write(folder: Path, base_ref: str, base: Path, kind: str, variants: list[tuple[dict, str]],
           promotion: Promotion, force: bool = False) -> Curriculum:
     """Validate every variant, then write the folder at once (nothing is written if one fails)."""
+    claim(folder, CURRICULUM)
     if folder.exists() and not force:
         raise CurriculumError(f"{folder} exists; pass --force to replace it")
     if not 0.0 < promotion.threshold <= 1.0 or promotion.window < 1:
@@ -60,21 +61,16 @@ def write(folder: Path, base_ref: str, base: Path, kind: str, variants: list[tup
     schema = os.path.relpath(SCHEMA_FILE, folder.resolve())
     stages = [Stage(f"{prefix}_s{i + 1:02d}", f"stage_{i + 1:02d}.yaml", changes, origin)
               for i, (changes, origin) in enumerate(variants)]
-    folder.parent.mkdir(parents=True, exist_ok=True)
-    staging = Path(tempfile.mkdtemp(prefix=f".{folder.name}.", dir=folder.parent))
-    try:
+    curriculum = Curriculum(folder, kind, extends, stages, promotion)
+
+    def fill(staging: Path) -> None:
         for stage in stages:
             (staging / stage.file).write_text(_stage_text(stage, extends, schema))
-        curriculum = Curriculum(staging, kind, extends, stages, promotion)
         (staging / INDEX).write_text(_index_text(curriculum))
-        _validate_all(curriculum)
-        if folder.exists():
-            shutil.rmtree(folder)
-        os.replace(staging, folder)
-    finally:
-        if staging.exists():
-            shutil.rmtree(staging)
-    return dataclasses.replace(curriculum, folder=folder)
+        _validate_all(dataclasses.replace(curriculum, folder=staging))
+
+    replace_folder(folder, fill, CURRICULUM)
+    return curriculum
 
 
 # -- reading -------------------------------------------------------------------------------------

@@ -20,10 +20,11 @@ from typing import Annotated
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, StrictBool, StrictInt, StrictStr, ValidationError
 
 from fieldgen.curriculum.promotion import Promotion
-from fieldgen.files import write_atomic
+from fieldgen.files import Output, write_atomic
 
 RUN, METRICS, CSV, CHECKPOINT, PLOT = "run.json", "metrics.jsonl", "metrics.csv", "checkpoint.msgpack", "success.png"
 LEARNER, INITIAL, VIDEOS = "learner.msgpack", "initial.msgpack", "videos"
+RUN_FOLDER = Output("fieldgen train", (), RUN)  # written into file by file, never replaced whole
 
 
 def has_trained(run_dir: Path) -> bool:

@@ -20,7 +20,7 @@ from fieldgen.compile.artifact import ArtifactError, load_artifact, write_artifa
 from fieldgen.compile.variants import VariantError
 from fieldgen.curriculum.promotion import Promotion
 from fieldgen.curriculum.schedule import Mixed, Staged, schedule
-from fieldgen.files import remove_leftovers, write_atomic
+from fieldgen import files
 from fieldgen.run import record
 from fieldgen.schema import load_spec
 
@@ -122,17 +122,20 @@ def new_run(source: Path, algo: str, seeds: list[int], config, out: Path, mixed:
     run = Run(folder, algo, envs, config, seeds, [], promotion, mixed=mixed)
     if init_from is not None:
         run.state, run.init_from = started_from(run, init_from)
+    files.claim(folder, record.RUN_FOLDER)
     try:
+        files.take(folder)  # held until the command ends: the run is trained by the process that set it up
         # a folder without a checkpoint holds no training (prepared, or stopped before its first
         # checkpoint): it is set up anew
         folder.mkdir(parents=True, exist_ok=True)
-        remove_leftovers(folder)
+        files.mark(folder, record.RUN_FOLDER)
+        files.remove_leftovers(folder)
         for stale in (record.METRICS, record.CSV, record.PLOT, record.INITIAL):
             (folder / stale).unlink(missing_ok=True)
         for env, sub in zip(envs, dirs):
             write_artifact(env.artifact, folder / sub)
         if run.state is not None:
-            write_atomic(folder / record.INITIAL, checkpoint.pieces(jax.device_get(run.state)))
+            files.write_atomic(folder / record.INITIAL, checkpoint.pieces(jax.device_get(run.state)))
         record.write_run(folder, envs[-1].spec.model_dump(mode="json"), algo, config, envs[0].layout.to_json(),
                          seeds, {"fields": dirs, "promotion": dataclasses.asdict(promotion), "mixed": mixed,
                                  **({"init_from": run.init_from} if run.init_from else {})})

@@ -12,7 +12,7 @@ import jax
 from rich.console import Console
 
 from fieldgen.agents import checkpoint, loop
-from fieldgen.files import remove_leftovers, write_atomic
+from fieldgen.files import locked, remove_leftovers, write_atomic
 from fieldgen.run import background, record
 from fieldgen.run.loggers import open_logger
 from fieldgen.run.plots import plot_success
@@ -23,7 +23,13 @@ from fieldgen.run.videos import EpisodeRecorder, video_name
 
 def train(run: Run, console: Console, videos: bool = True, logger: str = "none", video_format: str | None = None) -> None:
     """Train until the run's last evaluation, filming each in `video_format` (fieldgen.video.choose) and logging
-    to `logger` (loggers.LOGGERS) too; Ctrl-C leaves the last checkpoint intact."""
+    to `logger` (loggers.LOGGERS) too; Ctrl-C leaves the last checkpoint intact. The run folder is locked
+    meanwhile: a second process training it is refused."""
+    with locked(run.folder):
+        _train(run, console, videos, logger, video_format)
+
+
+def _train(run: Run, console: Console, videos: bool, logger: str, video_format: str | None) -> None:
     remove_leftovers(run.folder)  # of writes killed midway; here, not on opening, which `fieldgen eval` does mid-run
     config, env = run.config, run.env
     if run.state is not None and run.finished:

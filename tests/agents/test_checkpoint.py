@@ -22,14 +22,26 @@ def test_a_large_leaf_goes_in_row_blocks_and_comes_back_whole(tmp_path, monkeypa
     saved = serialization.msgpack_restore(path.read_bytes())  # still flax's msgpack
     assert sorted(saved) == ["0", "1", "2", checkpoint.DIGEST] and len(saved["0"]) == 12 and isinstance(saved["1"], np.ndarray)
 
-    # and a checkpoint written whole, as before row blocks, reads the same
+    restored = checkpoint.load(path, template)
+    for got, want in zip(jax.tree.leaves(restored), jax.tree.leaves(state)):
+        assert got.dtype == want.dtype
+        np.testing.assert_array_equal(np.asarray(got), want)
+
+
+def test_a_checkpoint_without_its_checksum_is_refused(tmp_path):
+    """Written whole by flax without the sha256 entry (as before checksums, or by another program), or with the
+    entry cut off: nothing says the arrays are those written, so it is refused rather than trusted."""
+    state = {"weights": np.linspace(0, 1, 40, dtype=np.float32), "step": np.int32(7)}
+    template = jax.tree.map(lambda x: jax.ShapeDtypeStruct(np.shape(x), np.asarray(x).dtype), state)
     whole = tmp_path / "whole.msgpack"
     whole.write_bytes(serialization.msgpack_serialize({str(i): np.asarray(x) for i, x in enumerate(jax.tree.leaves(state))}))
-    for written in (path, whole):
-        restored = checkpoint.load(written, template)
-        for got, want in zip(jax.tree.leaves(restored), jax.tree.leaves(state)):
-            assert got.dtype == want.dtype
-            np.testing.assert_array_equal(np.asarray(got), want)
+    with pytest.raises(checkpoint.CheckpointError, match=f"{whole} holds no sha256 entry"):
+        checkpoint.load(whole, template)
+    saved = serialization.msgpack_restore(checkpoint.to_bytes(state))
+    del saved[checkpoint.DIGEST]
+    whole.write_bytes(serialization.msgpack_serialize(saved))
+    with pytest.raises(checkpoint.CheckpointError, match="holds no sha256 entry"):
+        checkpoint.load(whole, template)
 
 
 def test_flipped_bytes_or_a_folder_are_reported_as_such(tmp_path):

@@ -52,7 +52,7 @@ def test_build_writes_artifact_then_hits_cache(tmp_path):
     first = build("fields/point_soccer.yaml", tmp_path, preview=False)
     assert not first.cache_hit
     files = sorted(p.name for p in first.out_dir.iterdir())
-    assert files == ["field.json", "scene.xml"]  # no temporary files left behind
+    assert files == [".fieldgen", "field.json", "scene.xml"]  # its ownership record; no temporary files left behind
     xml = (first.out_dir / "scene.xml").read_bytes()
     second = build("fields/point_soccer.yaml", tmp_path, preview=False)
     assert second.cache_hit and (second.out_dir / "scene.xml").read_bytes() == xml
@@ -161,11 +161,49 @@ def test_an_edited_field_json_is_a_clear_error(tmp_path, edit, phrase):
     result = build("fields/point_nav.yaml", tmp_path, preview=False)
     meta = json.loads((result.out_dir / "field.json").read_text())
     edit(meta)
+    meta[artifact.RECORD_DIGEST] = artifact.record_digest(meta)  # sealed again, as a careful hand would
     (result.out_dir / "field.json").write_text(json.dumps(meta))
     with pytest.raises(ArtifactError) as caught:
         load_artifact(result.out_dir)
     assert str(caught.value) == (f"{result.out_dir / 'field.json'} was edited or damaged ({phrase}); rebuild the "
                                  "field with `fieldgen build --force`")
+
+
+@pytest.mark.parametrize("edit,phrase", [
+    (lambda meta: meta["spec"]["episode"].update(length=50), "its record_sha256 is not the digest of the rest of it"),
+    (lambda meta: meta.update(state_dim=3), "its record_sha256 is not the digest of the rest of it"),
+    (lambda meta: meta.pop("record_sha256"), "it lacks record_sha256"),
+], ids=["spec", "derived", "no_digest"])
+def test_an_edited_build_is_never_a_cache_hit(tmp_path, edit, phrase):
+    """field.json edited to a spec still valid (a longer episode), or a value derived from it, or stripped of
+    a digest: the build is refused as damaged, and `fieldgen build` builds it again instead of serving it."""
+    result = build("fields/point_nav.yaml", tmp_path, preview=False)
+    meta = json.loads((result.out_dir / "field.json").read_text())
+    edit(meta)
+    (result.out_dir / "field.json").write_text(json.dumps(meta))
+    with pytest.raises(ArtifactError) as caught:
+        load_artifact(result.out_dir)
+    assert str(caught.value) == (f"{result.out_dir / 'field.json'} was edited or damaged ({phrase}); rebuild the "
+                                 "field with `fieldgen build --force`")
+    again = build("fields/point_nav.yaml", tmp_path, preview=False)
+    assert not again.cache_hit and again.artifact.spec.episode.length == load_spec("fields/point_nav.yaml").episode.length
+    assert load_artifact(result.out_dir).spec == again.artifact.spec
+
+
+def test_a_scene_missing_its_digest_or_a_hash_that_is_not_the_specs_is_rebuilt(tmp_path):
+    """Sealed, but recording no digest of its scene, or a hash its spec does not give: refused, or rebuilt."""
+    result = build("fields/point_nav.yaml", tmp_path, preview=False)
+    path = result.out_dir / "field.json"
+    good = json.loads(path.read_text())
+    meta = {k: v for k, v in good.items() if k != "scene_sha256"}
+    path.write_text(json.dumps({**meta, artifact.RECORD_DIGEST: artifact.record_digest(meta)}))
+    with pytest.raises(ArtifactError, match="scene.xml is not the scene .*field.json describes"):
+        load_artifact(result.out_dir)
+    meta = {**good, "spec": {**good["spec"], "episode": {**good["spec"]["episode"], "length": 50}}}
+    path.write_text(json.dumps({**meta, artifact.RECORD_DIGEST: artifact.record_digest(meta)}))
+    assert load_artifact(result.out_dir).spec.episode.length == 50  # whole as a record, yet not of its hash
+    again = build("fields/point_nav.yaml", tmp_path, preview=False)
+    assert not again.cache_hit and load_artifact(result.out_dir).spec.episode.length != 50
 
 
 def test_a_build_interrupted_after_its_scene_never_serves_the_wrong_one(tmp_path, write_spec):

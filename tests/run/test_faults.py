@@ -209,7 +209,7 @@ TORN = '{"eval": 1, "se'
      "cannot read the checkpoint"),
     (lambda run: (run / "field" / "field.json").write_text(
         (run / "field" / "field.json").read_text().replace('"length": 100', '"length": -3')),
-     "field/field.json was edited or damaged (spec.episode.length: Input should be greater than or equal to 1)"),
+     "field/field.json was edited or damaged (its record_sha256 is not the digest of the rest of it)"),
     (lambda run: shutil.rmtree(run / "field"), "point_nav-crl-0/field is missing: the run's own copy of its field "
      "(a setup cut short, or a copy of the run that left it out); set the run up again with the fieldgen train "
      "command that made it"),
