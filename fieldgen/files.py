@@ -30,6 +30,7 @@ import signal
 import socket
 import sys
 import tempfile
+import threading
 import time
 from collections.abc import Iterable, Iterator
 from pathlib import Path
@@ -275,13 +276,29 @@ def _swap(staging: Path, folder: Path) -> None:
     if _exchange(staging, folder):
         return
     old = staging.with_name(staging.name.removesuffix(TMP_SUFFIX) + _OLD + TMP_SUFFIX)
-    mask = signal.pthread_sigmask(signal.SIG_BLOCK, _SIGNALS)  # Ctrl-C, kill or a closed terminal waits
-    try:
+    with _signals_deferred():
         os.replace(folder, old)
         os.replace(staging, folder)
         os.replace(old, staging)
+
+
+@contextlib.contextmanager
+def _signals_deferred() -> Iterator[None]:
+    """Ctrl-C, kill and a closed terminal (SIGINT, SIGTERM, SIGHUP) wait until the block is done, then act as
+    they would have. Handlers, not a signal mask: a mask holds for one thread, and the system may hand the
+    signal to any other."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    caught: list[int] = []
+    previous = {sig: signal.signal(sig, lambda number, frame: caught.append(number)) for sig in _SIGNALS}
+    try:
+        yield
     finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, mask)
+        for sig, handler in previous.items():
+            signal.signal(sig, signal.SIG_DFL if handler is None else handler)
+        for sig in dict.fromkeys(caught):
+            os.kill(os.getpid(), sig)
 
 
 _RENAME_EXCHANGE = 2
