@@ -29,6 +29,8 @@ from .sharding import by_seed
 from .team import GROUPINGS, split
 
 PRESETS = Path(__file__).with_name("presets")
+COUNTER_MAX = 2**31 - 1  # env steps are counted on the device in int32, up to the last iteration's end
+SEED_MAX = 2**32 - 1  # a random key takes 32 bits of seed: 2**32 would give seed 0's key
 REWARDS = ("dense", "sparse")
 SPREADS = ("global", "state")
 
@@ -100,7 +102,7 @@ class RunConfig(BaseModel):
     unroll_length: Count = 62  # env steps per environment between updates
     num_evals: Count = 10
     eval_envs: Count = 128
-    seed: Annotated[Int, Field(ge=0)] = 0
+    seed: Annotated[Int, Field(ge=0, le=SEED_MAX)] = 0
 
     @classmethod
     def preset(cls, agent: str | None) -> Path | None:
@@ -182,6 +184,13 @@ class RunConfig(BaseModel):
     def validate_env(self, env: Environment, devices: int = 1, seeds: int = 1) -> None:
         """Problems a run would hit after compiling, reported before. `seeds` trained at once on `devices`
         local devices split by seed when they can, and otherwise split each seed's environments."""
+        if self.total_steps + self.per_iteration > COUNTER_MAX:
+            raise ConfigError(f"--steps {self.total_steps:,} with {self.num_envs:,} envs x unroll "
+                              f"{self.unroll_length:,} per iteration: a run counts its env steps in 32-bit "
+                              f"integers, which reach {COUNTER_MAX:,}; train fewer steps or use fewer --envs")
+        if self.seed + seeds - 1 > SEED_MAX:
+            raise ConfigError(f"--seed {self.seed} with --seeds {seeds:,} runs past seed {SEED_MAX:,}, the largest "
+                              "a random key takes; train fewer --seeds or start from a lower --seed")
         if self.num_envs % devices and not by_seed(seeds, devices):
             raise ConfigError(f"num_envs {self.num_envs} does not split evenly over the {devices} local devices; "
                               f"use a multiple of {devices}, or train a multiple of {devices} seeds at once")

@@ -11,7 +11,7 @@ import typer
 from rich.table import Table
 from rich.text import Text
 
-from fieldgen.cli.app import SpecArg, app, choice, err, fail, field_source, out, spec_path
+from fieldgen.cli.app import SpecArg, app, choice, count, err, fail, field_source, out, spec_path
 from fieldgen.compile.cameras import CAMERAS
 from fieldgen.schema import SpecError, bundled_fields, geometry, load_spec
 
@@ -270,21 +270,25 @@ def schema() -> None:
 @app.command()
 def bench(
     spec: SpecArg,
-    envs: Annotated[Optional[list[int]], typer.Option("--envs", metavar="N",
+    envs: Annotated[Optional[list[int]], typer.Option("--envs", parser=count, metavar="N",
                                                       help="batch sizes; repeat the option")] = None,
-    steps: Annotated[int, typer.Option(metavar="N", help="steps per timed rollout")] = 200,
+    steps: Annotated[int, typer.Option(parser=count, metavar="N", help="steps per timed rollout")] = 200,
 ) -> None:
     """Measure env-steps per second of a field at several batch sizes (random actions, lax.scan).
 
     Example: fieldgen bench fields/soccer_v2.yaml --envs 1024 --envs 8192
     """
     import fieldgen
+    from fieldgen.agents import memory
+    from fieldgen.agents.config import ConfigError
     from fieldgen.compile.artifact import ArtifactError
     from fieldgen.env.throughput import measure
 
     try:
         env = fieldgen.make(field_source(spec))
-    except (SpecError, ArtifactError) as exc:
+        for n in envs or []:
+            memory.check(memory.episodes(env, n), f"benchmarking {n:,} envs", {memory.EPISODES: "--envs"})
+    except (SpecError, ArtifactError, ConfigError) as exc:
         fail(str(exc))
     table = Table("envs", "steps/s", "seconds per rollout", title=f"{env.spec.name}, {steps}-step rollouts")
     for n in envs or [64]:

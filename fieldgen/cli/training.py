@@ -93,7 +93,7 @@ def train(
             if init_from is not None:
                 fail(f"--init-from sets up a new run; {resume} goes on from its own checkpoint (or from what it "
                      "was set up to start from): drop --init-from, or train into another --out")
-            run = session.open_run(resume)
+            run = session.open_run(resume, to_train=True)
             if run.refills and run.rows:
                 out.print(f"{resume} holds no {record.CHECKPOINT}: it goes on from {record.LEARNER} with fresh "
                           "episodes and a replay buffer filled anew by its policy (those env steps count)")
@@ -110,7 +110,7 @@ def train(
             if preset:
                 out.print(f"{algo} on {agent} fields starts from {preset.name} (a --config file or --set "
                           "overrides it)")
-            run = session.new_run(source, algo, list(range(seed, seed + seeds)), algo_config, runs, mixed, init_from)
+            run = session.new_run(source, algo, range(seed, seed + seeds), algo_config, runs, mixed, init_from)
         if run.init_from and not run.rows:
             out.print(f"starts from what {run.init_from['run']} learned in {run.init_from['env_steps']:,} env steps "
                       f"(evaluation {run.init_from['eval']}), with fresh episodes and a replay buffer filled anew")
@@ -162,7 +162,7 @@ def compare(
     source = field_source(spec)
     names = [a.strip() for a in algos.split(",") if a.strip()]
     try:
-        folder, todo = comparing.runs(source, names, list(range(seeds)), runs, config, sets or [],
+        folder, todo = comparing.runs(source, names, range(seeds), runs, config, sets or [],
                                       total_steps=steps, num_envs=envs)
     except (SpecError, ConfigError, record.RunError, FolderError) as exc:
         fail(str(exc))
@@ -217,6 +217,8 @@ def evaluate(
         fail(f"--summary {summary_file}: there is no folder {summary_file.parent} to write it in")
     try:
         runs = judging.open_runs(run_dirs, None if field is None else field_source(field))
+        for run in runs:
+            judging.check_memory(run, episodes)
     except (SpecError, ConfigError, record.RunError) as exc:
         fail(str(exc))
     path = summary_file or judging.summary_path(run_dirs, runs[0], field is not None)

@@ -47,11 +47,12 @@ def runs(source: Path, algos: list[str], seeds: list[int], folder: Path | None, 
         existing = folder / session.run_name(env.spec.name, algo, seeds)
         if (existing / record.RUN).exists():
             run = session.open_run(existing, load_state=False)  # a finished run needs no checkpoint to be reported
-            if run.config.model_dump() != configs[algo].model_dump() or run.seeds != seeds:
+            if run.config.model_dump() != configs[algo].model_dump() or len(run.seeds) != len(seeds) \
+                    or run.seeds != list(seeds):
                 raise record.RunError(f"{existing} holds a {algo} run with other settings (config or seeds); "
                                         "compare into another --out, or delete it")
             if not run.finished:
-                run = session.open_run(existing)
+                run = session.open_run(existing, to_train=True)
         else:
             run = session.new_run(source, algo, seeds, configs[algo], folder)
         result.append(run)

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import jax
 
-from fieldgen.agents import loop
+from fieldgen.agents import loop, memory
 from fieldgen.run import record, session, summary
 from fieldgen.run.session import Run
 from fieldgen.run.videos import EpisodeRecorder
@@ -32,6 +32,14 @@ def evaluate(run: Run, episodes: int, seed: int = 0, film: bool = True) -> Evalu
     steps = int(jax.device_get(run.state.env_steps)[0])
     episode = EpisodeRecorder(run.env).episode(loop.seed_slice(frames, 0)) if film else None
     return Evaluation(metrics, steps, episode)
+
+
+def check_memory(run: Run, episodes: int) -> None:
+    """Refuse (ConfigError) an evaluation whose episodes, `episodes` for each seed at once, the machine cannot hold."""
+    seeds = len(run.seeds)
+    memory.check(memory.episodes(run.env, episodes * seeds),
+                 f"evaluating {episodes:,} episodes of each of {seeds:,} seed{'s' * (seeds > 1)} at once",
+                 {memory.EPISODES: "--episodes"})
 
 
 def video_path(run: Run, run_dir: Path, other_field: bool) -> Path:

@@ -7,6 +7,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import json
+from collections.abc import Sequence
 from pathlib import Path
 
 import jax
@@ -14,7 +15,7 @@ import jax.numpy as jnp
 
 import fieldgen
 from fieldgen import curriculum
-from fieldgen.agents import checkpoint, loop, registry, sharding
+from fieldgen.agents import checkpoint, loop, memory, registry, sharding
 from fieldgen.agents.config import ConfigError
 from fieldgen.compile.artifact import ArtifactError, load_artifact, write_artifact
 from fieldgen.compile.variants import VariantError
@@ -93,10 +94,12 @@ def agent_kind(source: Path) -> str:
     return load_spec(source).agent.kind
 
 
-def new_run(source: Path, algo: str, seeds: list[int], config, out: Path, mixed: bool = False,
+def new_run(source: Path, algo: str, seeds: Sequence[int], config, out: Path, mixed: bool = False,
             init_from: Path | None = None) -> Run:
     """A run folder for a field (a YAML file or a build folder) or a curriculum folder (staged, or mixed:
-    every stage in one batch, built to one structure); with `init_from`, starting from what that run learned."""
+    every stage in one batch, built to one structure); with `init_from`, starting from what that run learned.
+    Nothing is written before every setting is known good, the memory the run needs included; `seeds` may be
+    a range, listed only once it is known to fit."""
     promotion, name = Promotion(), None
     if curriculum.is_curriculum(source):
         try:
@@ -120,6 +123,8 @@ def new_run(source: Path, algo: str, seeds: list[int], config, out: Path, mixed:
         config.validate_env(env, sharding.device_count(), len(seeds))
     dirs = [FIELD] if len(envs) == 1 else [f"{STAGES}/{k + 1:02d}" for k in range(len(envs))]
     run = Run(folder, algo, envs, config, seeds, [], promotion, mixed=mixed)
+    check_memory(run)
+    run.seeds = seeds = list(seeds)
     if init_from is not None:
         run.state, run.init_from = started_from(run, init_from)
     files.claim(folder, record.RUN_FOLDER)
@@ -143,6 +148,19 @@ def new_run(source: Path, algo: str, seeds: list[int], config, out: Path, mixed:
         raise record.RunError(f"cannot set up the run folder {folder}: {exc.strerror}; free some space, fix the "
                               "folder's permissions or choose another --out") from None
     return run
+
+
+def check_memory(run: Run) -> None:
+    """Refuse (ConfigError) a run whose training state and batches need more memory than the machine has."""
+    seeds, algo, keys = len(run.seeds), run.algo, type(run.config).model_fields
+    more = " or --seeds" if seeds > 1 else ""
+    lower = {memory.BUFFER: f"--envs or {algo}.max_replay_rows{more}", memory.EPISODES: f"--envs{more}",
+             memory.NETWORKS: f"{algo}.hidden{more}",
+             memory.BATCH: (f"{algo}.windows_per_env or --envs" if "windows_per_env" in keys
+                            else f"--envs or {algo}.unroll_length") + more}
+    for trainer in run.trainers:
+        memory.check(memory.training(trainer, seeds),
+                     f"training {seeds:,} seed{'s' * (seeds > 1)} of {algo} with {run.config.num_envs:,} envs", lower)
 
 
 def learned_template(run: Run):
@@ -186,9 +204,10 @@ def started_from(run: Run, source: Path) -> tuple[object, dict]:
     return state, {"run": str(source), "env_steps": int(last["env_steps"]), "eval": int(last["eval"])}
 
 
-def open_run(folder: Path, load_state: bool = True) -> Run:
+def open_run(folder: Path, load_state: bool = True, to_train: bool = False) -> Run:
     """A run folder with its fields loaded from the run's own copies and (with load_state) its last
-    checkpoint; without, the run's record and metrics alone, enough to report on a finished run."""
+    checkpoint; without, the run's record and metrics alone, enough to report on a finished run. To train it
+    further, it is refused first where this machine's memory cannot hold its training (set up elsewhere)."""
     saved = record.read_run(folder)
     envs = []
     for sub in saved.fields or [FIELD]:
@@ -212,6 +231,11 @@ def open_run(folder: Path, load_state: bool = True) -> Run:
     run = Run(folder, saved.algo, envs, config, seeds, rows, saved.promotion, mixed=saved.mixed)
     if not load_state:
         return run  # only reported on
+    if to_train:
+        try:
+            check_memory(run)
+        except ConfigError as exc:
+            raise record.RunError(str(exc)) from None
     run.init_from = saved.init_from.model_dump() if saved.init_from else None
     if not record.has_trained(folder):
         run.rows = []  # prepared, or stopped before its first checkpoint: it starts from the beginning
