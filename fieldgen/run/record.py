@@ -71,6 +71,7 @@ class RunRecord(BaseModel):
     algo: StrictStr
     config: dict
     observation: dict
+    field: dict  # the resolved spec of the field the run is judged on, as its own copy of it holds it
     seeds: Annotated[list[Index], Field(min_length=1)] = []  # [] (left out): the config's seed
     fields: Annotated[list[Annotated[StrictStr, AfterValidator(_inside)]], Field(min_length=1)] = []  # []: field/
     promotion: Promotion = Promotion()

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import jax
 import jax.numpy as jnp
+from pydantic import ValidationError
 
 import fieldgen
 from fieldgen import curriculum
@@ -23,7 +24,7 @@ from fieldgen.curriculum.promotion import Promotion
 from fieldgen.curriculum.schedule import Mixed, Staged, schedule
 from fieldgen import files
 from fieldgen.run import record
-from fieldgen.schema import load_spec
+from fieldgen.schema import FieldSpec, load_spec
 
 FIELD, STAGES = "field", "stages"  # the run's own copies of its built fields: resuming needs no compiler
 
@@ -222,6 +223,15 @@ def open_run(folder: Path, load_state: bool = True, to_train: bool = False) -> R
     if any(saved.observation != env.layout.to_json() for env in envs):
         raise record.RunError(f"{folder} was trained on a different observation layout than its fields give now")
     try:
+        described = FieldSpec.model_validate(saved.field).model_dump(mode="json")
+    except ValidationError:
+        described = None
+    if described != envs[-1].spec.model_dump(mode="json"):
+        raise record.RunError(f"{folder / record.RUN} describes another field than the run's own copy of it, "
+                              f"{folder / (saved.fields or [FIELD])[-1]} ({envs[-1].spec.name}): the two disagree, "
+                              "as after an edit or a copy put together from two runs; restore the run from a copy, "
+                              "or start it again in a new folder")
+    try:
         config = registry.trainer(saved.algo).config.layered(**saved.config)
     except (KeyError, ConfigError) as exc:
         raise record.RunError(f"{folder / record.RUN} holds no usable config ({exc}); it was edited or damaged, "
@@ -263,7 +273,11 @@ def open_run(folder: Path, load_state: bool = True, to_train: bool = False) -> R
     except checkpoint.CheckpointError as exc:
         raise record.RunError(str(exc)) from None
     done = int(jax.device_get(run.state.env_steps)[0])
-    run.rows = [r for r in run.rows if r["env_steps"] <= done]
+    run.rows = [r for r in run.rows if r["env_steps"] <= done]  # a kill between an evaluation's metrics and its
+    if not run.rows or run.rows[-1]["env_steps"] != done:  # checkpoint leaves rows after it; none may be missing
+        last = f"its last evaluation at or before them is at {run.rows[-1]['env_steps']:,}" if run.rows else "none is at or before them"
+        raise record.RunError(f"{path} holds the run at {done:,} env steps, but {folder / record.METRICS} has no "
+                              f"evaluation there ({last}): the two disagree; {damaged}")
     return run
 
 

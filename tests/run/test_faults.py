@@ -210,6 +210,10 @@ TORN = '{"eval": 1, "se'
     (lambda run: (run / "field" / "field.json").write_text(
         (run / "field" / "field.json").read_text().replace('"length": 100', '"length": -3')),
      "field/field.json was edited or damaged (its record_sha256 is not the digest of the rest of it)"),
+    (lambda run: edit_record(run, field={**json.loads((run / "run.json").read_text())["field"], "name": "other"}),
+     "run.json describes another field than the run's own copy of it, "),
+    (lambda run: edit_record(run, field="point_nav"), "run.json is not a run record: field should be a valid "
+     "dictionary, not 'point_nav'"),
     (lambda run: shutil.rmtree(run / "field"), "point_nav-crl-0/field is missing: the run's own copy of its field "
      "(a setup cut short, or a copy of the run that left it out); set the run up again with the fieldgen train "
      "command that made it"),
@@ -217,7 +221,8 @@ TORN = '{"eval": 1, "se'
      "folder fieldgen train wrote (runs/<field>-<algo>-<seed>); one whose setup was cut short is set up again by the "
      "same fieldgen train command"),
 ], ids=["file", "empty", "list", "config", "seeds", "seeds_mixed", "fields", "promotion", "middle", "bytes",
-        "eval_text", "stage", "no_rows", "folder", "field", "field_missing", "record_missing"])
+        "eval_text", "stage", "no_rows", "folder", "field", "other_field", "field_text", "field_missing",
+        "record_missing"])
 def test_damaged_run_folders_are_clear_errors(tmp_path, damage, phrase, tiny_crl_args):
     """What a kill, an editor or a copy can leave in a run folder: one sentence naming the file and the key,
     never a traceback."""
@@ -251,3 +256,31 @@ def test_a_run_folder_that_cannot_be_written_is_one_sentence(tmp_path, monkeypat
     assert result.exit_code == 1 and "Traceback" not in result.output
     assert "".join(f"cannot set up the run folder {tmp_path / 'point_nav-crl-0'}: Permission denied; free some "
                    "space, fix the folder's permissions or choose another --out".split()) in "".join(result.output.split())
+
+
+def test_a_checkpoint_and_metrics_that_disagree_are_refused(tmp_path, tiny_crl_args):
+    """The checkpoint is written after its evaluation's metrics, so its env steps are those of the last row kept;
+    metrics.jsonl with that row removed (or from another moment of the run) would resume from the wrong evaluation."""
+    import jax
+    import numpy as np
+
+    from fieldgen.agents import checkpoint
+    from fieldgen.files import write_atomic
+    from fieldgen.run import session
+
+    prepared = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path), "--prepare", *tiny_crl_args])
+    assert prepared.exit_code == 0, prepared.output
+    run = tmp_path / "point_nav-crl-0"
+    trainer = session.open_run(run).trainers[0]
+    template = jax.eval_shape(jax.vmap(trainer.start), loop.seed_keys([0]))
+    state = jax.tree.map(lambda s: np.zeros(s.shape, s.dtype), template).replace(env_steps=np.array([1280], np.int32))
+    write_atomic(run / "checkpoint.msgpack", checkpoint.pieces(state))
+    rows = [json.dumps({"eval": e, "seed": 0, "env_steps": steps}) for e, steps in enumerate((800, 1280, 1760))]
+    (run / "metrics.jsonl").write_text("\n".join(rows) + "\n")  # the third: written before a kill, dropped
+    assert [r["eval"] for r in session.open_run(run).rows] == [0, 1]
+    for kept, said in ((rows[:1], "its last evaluation at or before them is at 800"), (rows[2:], "none is at or before them")):
+        (run / "metrics.jsonl").write_text("\n".join(kept) + "\n")
+        result = runner.invoke(app, ["train", "--resume", str(run)])
+        assert result.exit_code == 1 and "Traceback" not in result.output, result.output
+        assert "".join(f"checkpoint.msgpack holds the run at 1,280 env steps, but {run / 'metrics.jsonl'} has no "
+                       f"evaluation there ({said}): the two disagree".split()) in "".join(result.output.split())
