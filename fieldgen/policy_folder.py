@@ -11,18 +11,19 @@ ICRL's one per leg or joint, one for every other algorithm), named as exported f
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Literal
+from typing import Annotated, Literal
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 from flax import serialization
-from pydantic import BaseModel, ConfigDict, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from fieldgen.agents.actor import Policy
 from fieldgen.files import Output, replace_folder, write_atomic
 
 DESCRIPTION, PARAMS = "policy.json", "params.msgpack"
+MAX_DESCRIPTION_BYTES = 10_000_000  # a description names each observation and action: kilobytes
 POLICY = Output("fieldgen export", (DESCRIPTION, PARAMS), DESCRIPTION, "-o")
 ACTION = "tanh of each agent's first network outputs, one per action it drives, in order"
 
@@ -35,30 +36,34 @@ class _Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
 
+Count = Annotated[int, Field(ge=1)]
+Names = Annotated[list[str], Field(min_length=1)]
+
+
 class Network(_Strict):
     """agents.networks.MLP: Dense -> (LayerNorm) -> swish per hidden layer, residual blocks of `skip_every`
     layers after the first, then a linear layer of `outputs`."""
 
     kind: Literal["mlp"] = "mlp"
     activation: Literal["swish"] = "swish"
-    hidden: list[int]
-    outputs: int
+    hidden: Annotated[list[Count], Field(min_length=1)]
+    outputs: Count
     layer_norm: bool
-    skip_every: int
+    skip_every: Annotated[int, Field(ge=0)]
     per_agent: bool  # each controller has its own weights, stacked on a leading axis of params.msgpack
 
 
 class Agent(_Strict):
-    observes: list[str]  # the observation entries its network reads, in order
-    drives: list[str]  # the action each of its first outputs drives
+    observes: Names  # the observation entries its network reads, in order
+    drives: Names  # the action each of its first outputs drives
 
 
 class Normalizer(_Strict):
     """Observations enter the network as clip((obs - mean) / std, -clip, clip)."""
 
-    mean: list[float]
-    std: list[float]
-    clip: float
+    mean: list[Annotated[float, Field(allow_inf_nan=False)]]
+    std: list[Annotated[float, Field(gt=0, allow_inf_nan=False)]]
+    clip: Annotated[float, Field(gt=0, allow_inf_nan=False)]
 
 
 class Description(_Strict):
@@ -66,14 +71,30 @@ class Description(_Strict):
     version: Literal[1] = 1
     algorithm: str
     field: str
-    seed: int
-    env_steps: int
-    observation_names: list[str]
-    action_names: list[str]
+    seed: Annotated[int, Field(ge=0)]
+    env_steps: Annotated[int, Field(ge=0)]
+    observation_names: Names
+    action_names: Names
     network: Network
-    agents: list[Agent]
+    agents: Annotated[list[Agent], Field(min_length=1)]
     normalizer: Normalizer | None
     action: Literal[ACTION] = ACTION
+
+    @model_validator(mode="after")
+    def _consistent(self):
+        """What the network is built from agrees: every agent's network reads as many entries and drives as many
+        actions as the others (one stacked network), and has an output for each; the normalizer has a mean and
+        a spread for each observation."""
+        if len({len(a.observes) for a in self.agents}) > 1 or len({len(a.drives) for a in self.agents}) > 1:
+            raise ValueError("agents: every agent observes as many entries, and drives as many actions, as the others")
+        if len(self.agents[0].drives) > self.network.outputs:
+            raise ValueError(f"agents drive {len(self.agents[0].drives)} actions each, but network.outputs is "
+                             f"{self.network.outputs}")
+        n = self.normalizer
+        if n is not None and not len(n.mean) == len(n.std) == len(self.observation_names):
+            raise ValueError(f"normalizer: mean and std need one value per observation "
+                             f"({len(self.observation_names)}), not {len(n.mean)} and {len(n.std)}")
+        return self
 
 
 def describe(policy: Policy, observation_names, action_names, **about) -> Description:
@@ -123,6 +144,9 @@ def read_description(folder: Path) -> Description:
     if not folder.is_dir():
         raise PolicyError(f"{folder} is not a folder; export a run's policy there with: fieldgen export RUN -o {folder}")
     try:
+        if path.stat().st_size > MAX_DESCRIPTION_BYTES:
+            raise PolicyError(f"{path} has {path.stat().st_size:,} bytes, more than a policy's description ever "
+                              f"needs ({MAX_DESCRIPTION_BYTES:,}); export the policy again")
         return Description.model_validate_json(path.read_bytes())
     except OSError as exc:
         raise PolicyError(f"cannot read {path}: {exc.strerror}; is {folder} a folder written by fieldgen export?") \
@@ -130,6 +154,8 @@ def read_description(folder: Path) -> Description:
     except ValidationError as exc:
         problem = exc.errors()[0]
         where = ".".join(str(p) for p in problem["loc"]) or "(the file)"
+        if problem["type"] == "value_error" and not problem["loc"]:  # the file's parts disagree: it says which
+            raise PolicyError(f"{path}: {problem['msg'].removeprefix('Value error, ')}") from None
         raise PolicyError(f"{path}: {where}: {problem['msg']}") from None
 
 

@@ -7,16 +7,20 @@ from __future__ import annotations
 import dataclasses
 import os
 from pathlib import Path
+from typing import Annotated
 
 import yaml
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, StrictInt, StrictStr, ValidationError
 
 from fieldgen.curriculum.promotion import Promotion
 from fieldgen.files import Output, claim, replace_folder
-from fieldgen.schema import FieldSpec, SpecError, load_spec
+from fieldgen.schema import FieldSpec, SpecError, load_spec, messages
 from fieldgen.schema.editor import SCHEMA_FILE
+from fieldgen.schema.source import Document, read_yaml
 
 INDEX = "curriculum.yaml"
 CURRICULUM = Output("fieldgen curriculum", (INDEX, "stage_*.yaml"), INDEX, "-o")
+MAX_STAGES = 1000  # stages of one curriculum, written or read
 
 
 class CurriculumError(Exception):
@@ -52,8 +56,11 @@ def write(folder: Path, base_ref: str, base: Path, kind: str, variants: list[tup
     claim(folder, CURRICULUM)
     if folder.exists() and not force:
         raise CurriculumError(f"{folder} exists; pass --force to replace it")
-    if not 0.0 < promotion.threshold <= 1.0 or promotion.window < 1:
-        raise CurriculumError(f"promotion threshold must be in (0, 1] and window >= 1, got {promotion}")
+    if not 0.0 < promotion.threshold <= 1.0 or not 1 <= promotion.window <= MAX_STAGES:
+        raise CurriculumError(f"promotion threshold must be in (0, 1] and window from 1 to {MAX_STAGES}, got "
+                              f"{promotion}")
+    if len(variants) > MAX_STAGES:
+        raise CurriculumError(f"{len(variants):,} stages asked for; a curriculum has at most {MAX_STAGES:,}")
     prefix = _slug(folder.name)
     bundled = "/" not in base_ref and not base_ref.endswith((".yaml", ".yml"))
     # stage files sit in `folder`; the staging folder beside it has the same parent, so the path holds for both
@@ -75,38 +82,79 @@ def write(folder: Path, base_ref: str, base: Path, kind: str, variants: list[tup
 
 # -- reading -------------------------------------------------------------------------------------
 
+def _stage_file(name: str) -> str:
+    """A stage's file: a .yaml file in the curriculum's own folder, so that a curriculum copied in from elsewhere
+    never makes fieldgen read a file outside it."""
+    if "/" in name or "\\" in name or name in ("", ".", "..") or not name.endswith((".yaml", ".yml")):
+        raise ValueError("should name a .yaml file in the curriculum's folder, such as stage_01.yaml")
+    return name
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+class _Promotion(_Strict):
+    threshold: Annotated[float, Field(gt=0, le=1, allow_inf_nan=False)] = 0.5
+    window: Annotated[StrictInt, Field(ge=1, le=MAX_STAGES)] = 2
+
+
+class _Stage(_Strict):
+    name: StrictStr
+    file: Annotated[StrictStr, AfterValidator(_stage_file)]
+    origin: StrictStr = ""
+
+
+class _Index(_Strict):
+    """What curriculum.yaml holds, each value of the type `write` gives it."""
+
+    kind: StrictStr = "list"
+    base: StrictStr = ""
+    promotion: _Promotion = _Promotion()
+    stages: Annotated[list[_Stage], Field(min_length=1, max_length=MAX_STAGES)]
+
+
+INDEX_FILE = Document("curriculum.yaml", "it lists the stages under 'stages:'",
+                      "curriculum.yaml is a mapping of kind, base, promotion and stages")
+
+
 def load(folder: Path) -> Curriculum:
-    """A curriculum folder, checked: every listed stage exists, validates and has the base's layout."""
+    """A curriculum folder, checked: curriculum.yaml read as specs are (bounded, every problem at its line),
+    every listed stage a file of the folder that exists, validates and has the base's layout."""
     index = folder / INDEX
-    try:
-        raw = yaml.safe_load(index.read_text())
-    except FileNotFoundError:
+    if not index.exists():
         raise CurriculumError(f"{folder} is not a curriculum: {INDEX} is missing "
-                              "(make one with `fieldgen curriculum`)") from None
-    except yaml.YAMLError as exc:
-        raise CurriculumError(f"{index} is not valid YAML: {exc}") from None
-    if not isinstance(raw, dict) or not isinstance(raw.get("stages"), list) or not raw["stages"]:
-        raise CurriculumError(f"{index}: expected a mapping with a non-empty 'stages:' list")
+                              "(make one with `fieldgen curriculum`)")
     try:
-        promotion = Promotion(**(raw.get("promotion") or {}))
-    except TypeError as exc:
-        raise CurriculumError(f"{index}: promotion: {exc}; keys are threshold and window") from None
+        source = read_yaml(index, INDEX_FILE)
+        raw = _Index.model_validate(source.data)
+    except SpecError as exc:
+        raise CurriculumError(_problems(index, exc.problems)) from None
+    except ValidationError as exc:
+        raise CurriculumError(_problems(index, messages.problems(source, exc.errors(), _Index))) from None
     stages = []
-    for i, entry in enumerate(raw["stages"], 1):
-        if not isinstance(entry, dict) or not {"name", "file"} <= set(entry):
-            raise CurriculumError(f"{index}: stages[{i}] needs 'name' and 'file'")
-        if not (folder / entry["file"]).exists():
-            raise CurriculumError(f"{index}: stage {i} ('{entry['name']}') lists {entry['file']}, which is missing")
-        stages.append(Stage(entry["name"], entry["file"], {}, entry.get("origin", "")))
+    for i, entry in enumerate(raw.stages, 1):
+        path = folder / entry.file
+        if not path.exists():
+            raise CurriculumError(f"{index}: stage {i} ('{entry.name}') lists {entry.file}, which is missing")
+        if path.is_symlink() and not path.resolve().is_relative_to(folder.resolve()):
+            raise CurriculumError(f"{index}: stage {i} ('{entry.name}') lists {entry.file}, a link to "
+                                  f"{path.resolve()} outside the curriculum's folder; copy the file in instead")
+        stages.append(Stage(entry.name, entry.file, {}, entry.origin))
     listed = {s.file for s in stages}
     stray = sorted(p.name for p in folder.glob("stage_*.yaml") if p.name not in listed)
     if stray:
         raise CurriculumError(f"{index} does not list {', '.join(stray)}; add them to 'stages:' or delete them")
     if len(listed) != len(stages) or len({s.name for s in stages}) != len(stages):
         raise CurriculumError(f"{index}: a stage file or name appears twice")
-    curriculum = Curriculum(folder, raw.get("kind", "list"), raw.get("base", ""), stages, promotion)
+    curriculum = Curriculum(folder, raw.kind, raw.base, stages, Promotion(**raw.promotion.model_dump()))
     _validate_all(curriculum)
     return curriculum
+
+
+def _problems(index: Path, problems: list) -> str:
+    """A file's problems in one paragraph, each at its line."""
+    return f"{index} is not a curriculum index: " + "; ".join(str(p) for p in problems)
 
 
 def is_curriculum(path: Path) -> bool:

@@ -226,3 +226,66 @@ def test_a_curriculum_renders_as_a_sheet_of_its_stages(tmp_path):
     assert result.exit_code == 0 and f"3 stages of {folder}, camera top" in " ".join(result.output.split())
     image = iio.imread(sheet)
     assert image.ndim == 3 and image.std() > 10
+
+
+@pytest.mark.parametrize("edit,phrase", [
+    (lambda t: t.replace("file: stage_01.yaml", "file: ../../outside.yaml"), "curriculum.yaml:10:3: stages[0].file: "
+     "should name a .yaml file in the curriculum's folder, such as stage_01.yaml (got '../../outside.yaml')"),
+    (lambda t: t.replace("file: stage_01.yaml", "file: /etc/hosts"), "stages[0].file: should name a .yaml file in "
+     "the curriculum's folder, such as stage_01.yaml (got '/etc/hosts')"),
+    (lambda t: t.replace("file: stage_01.yaml", "file: sub/stage_01.yaml"), "(got 'sub/stage_01.yaml')"),
+    (lambda t: t.replace("file: stage_01.yaml", "file: 7"), "stages[0].file: expected text (got 7)"),
+    (lambda t: t.replace("threshold: 0.5", "threshold: 7"), "curriculum.yaml:6:3: promotion.threshold: Input should "
+     "be less than or equal to 1 (got 7)"),
+    (lambda t: t.replace("threshold: 0.5", "threshold: .nan"), "promotion.threshold: Input should be a finite number"),
+    (lambda t: t.replace("window: 2", "window: two"), "promotion.window: expected a whole number (got 'two')"),
+    (lambda t: t.replace("window: 2", "window: 0"), "promotion.window: Input should be greater than or equal to 1"),
+    (lambda t: t.replace("window: 2", "windw: 2"), "promotion.windw: unknown key 'windw'; did you mean 'window'?"),
+    (lambda t: t.replace("- name: c_s01\n  file", "- file"), "stages[0].name: the key 'name' is required"),
+    (lambda t: t.split("stages:")[0] + "stages: []\n", "stages: at least 1 item here (got 0)"),
+    (lambda t: "", "curriculum.yaml:1:1: the file is empty; it lists the stages under 'stages:'"),
+    (lambda t: "- a\n- b\n", "the document is a list; curriculum.yaml is a mapping of kind, base, promotion and stages"),
+    (lambda t: "a: &a [*a]\n", "an alias refers to the collection it stands in, so the curriculum.yaml would nest "
+     "without end"),
+    (lambda t: t + "stages: []\n", "duplicate key 'stages' (first given on line 8)"),
+    (lambda t: t + "#" * 1_000_001, "the file has 1,00"),
+], ids=["outside", "absolute", "subfolder", "number", "threshold", "nan", "window_text", "window_zero", "unknown_key",
+        "no_name", "no_stages", "empty", "list", "alias_loop", "duplicate", "huge"])
+def test_a_damaged_or_hostile_curriculum_index_is_one_paragraph_at_its_line(tmp_path, edit, phrase):
+    """curriculum.yaml is read as specs are: bounded, typed, each problem at its file, line and key; a stage's file
+    stays in the curriculum's folder. Before: '../' paths were read, 7 and NaN thresholds taken, and an
+    alias loop or a wrong type a traceback."""
+    out = tmp_path / "c"
+    result = runner.invoke(app, ["curriculum", "point_nav", "-o", str(out), "--stage", "task.target.radius=1",
+                                 "--stage", "task.target.radius=2"])
+    assert result.exit_code == 0, result.output
+    (tmp_path / "outside.yaml").write_text((out / "stage_01.yaml").read_text())
+    index = out / "curriculum.yaml"
+    index.write_text(edit(index.read_text()))
+    with pytest.raises(curriculum.CurriculumError) as caught:
+        curriculum.load(out)
+    assert str(caught.value).startswith(f"{index} is not a curriculum index: {index}:")
+    assert phrase in str(caught.value) and "\n" not in str(caught.value)
+    built = runner.invoke(app, ["build", str(out), "--no-preview"])
+    assert built.exit_code == 1 and "Traceback" not in built.output and phrase[:40] in " ".join(built.output.split())
+
+
+def test_a_stage_linked_from_outside_its_folder_is_refused(tmp_path):
+    out = tmp_path / "c"
+    result = runner.invoke(app, ["curriculum", "point_nav", "-o", str(out), "--stage", "task.target.radius=1",
+                                 "--stage", "task.target.radius=2"])
+    assert result.exit_code == 0, result.output
+    (tmp_path / "elsewhere.yaml").write_text((out / "stage_01.yaml").read_text())
+    (out / "stage_01.yaml").unlink()
+    (out / "stage_01.yaml").symlink_to(tmp_path / "elsewhere.yaml")
+    with pytest.raises(curriculum.CurriculumError, match="lists stage_01.yaml, a link to .*elsewhere.yaml outside the "
+                                                         "curriculum's folder; copy the file in instead"):
+        curriculum.load(out)
+
+
+def test_a_curriculum_of_more_stages_than_fieldgen_reads_is_refused_before_it_is_written(tmp_path):
+    """Before: --stages 100000 ran for minutes writing a folder no run could use."""
+    result = runner.invoke(app, ["curriculum", "point_nav", "--to", "point_nav", "--stages", "100000", "-o",
+                                 str(tmp_path / "c")])
+    assert result.exit_code == 1 and "100,000 stages asked for; a curriculum has at most 1,000" in result.output
+    assert list(tmp_path.iterdir()) == []

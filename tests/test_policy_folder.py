@@ -1,0 +1,78 @@
+"""An exported policy's policy.json read as fieldgen's other records are: typed, range-checked, consistent with
+itself and bounded in size, each problem one sentence naming the key."""
+
+from __future__ import annotations
+
+import json
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import fieldgen
+from fieldgen.agents.actor import Policy
+from fieldgen.policy_folder import DESCRIPTION, PolicyError, describe, save_policy
+
+
+@pytest.fixture
+def exported(tmp_path):
+    """A small policy of three observations and two actions, with a normalizer, exported to a folder."""
+    policy = Policy(None, ((0, 1, 2),), ((0, 1),), (4,), 4, obs_mean=jnp.zeros(3), obs_std=jnp.ones(3))
+    policy = policy.replace(params=policy.network.init(jax.random.PRNGKey(0), jnp.zeros((1, 3))))
+    description = describe(policy, ["a", "b", "c"], ["x", "y"], algorithm="crl", field="f", seed=0, env_steps=0)
+    folder = tmp_path / "policy"
+    save_policy(policy, description, folder)
+    return folder
+
+
+def test_an_exported_policy_loads_and_acts(exported):
+    actions = np.asarray(fieldgen.load_policy(exported)(jnp.ones((5, 3))))
+    assert actions.shape == (5, 2) and np.all(np.abs(actions) <= 1)
+
+
+def edited(**changes):
+    def edit(d: dict) -> dict:
+        return {**d, **{k: (v(d) if callable(v) else v) for k, v in changes.items()}}
+    return edit
+
+
+@pytest.mark.parametrize("edit,phrase", [
+    (edited(agents=[]), "agents: List should have at least 1 item after validation, not 0"),
+    (edited(agents=lambda d: [d["agents"][0], {"observes": ["a"], "drives": ["x", "y"]}]),
+     "agents: every agent observes as many entries, and drives as many actions, as the others"),
+    (edited(agents=[{"observes": [], "drives": ["x"]}]), "agents.0.observes: List should have at least 1 item"),
+    (edited(network=lambda d: {**d["network"], "outputs": 1}), "agents drive 2 actions each, but network.outputs is 1"),
+    (edited(network=lambda d: {**d["network"], "hidden": []}), "network.hidden: List should have at least 1 item"),
+    (edited(network=lambda d: {**d["network"], "hidden": [0]}), "network.hidden.0: Input should be greater than or "
+     "equal to 1"),
+    (edited(network=lambda d: {**d["network"], "skip_every": -1}), "network.skip_every: Input should be greater than "
+     "or equal to 0"),
+    (edited(normalizer=lambda d: {**d["normalizer"], "mean": [0.0]}), "normalizer: mean and std need one value per "
+     "observation (3), not 1 and 3"),
+    (edited(normalizer=lambda d: {**d["normalizer"], "std": [1.0, 0.0, 1.0]}), "normalizer.std.1: Input should be "
+     "greater than 0"),
+    (edited(normalizer=lambda d: {**d["normalizer"], "clip": -1}), "normalizer.clip: Input should be greater than 0"),
+    (edited(observation_names=[]), "observation_names: List should have at least 1 item"),
+    (edited(seed=-4), "seed: Input should be greater than or equal to 0"),
+    (lambda d: [d], "(the file): Input should be an object"),
+], ids=["no_agents", "uneven_agents", "observes_nothing", "outputs", "no_layers", "empty_layer", "skip", "mean",
+        "std", "clip", "no_observations", "seed", "list"])
+def test_a_damaged_or_edited_policy_json_is_one_sentence(exported, edit, phrase):
+    """Before: an empty agent list was an IndexError traceback, a zero std gave infinite actions, a short mean a
+    broadcasting error at the first call."""
+    path = exported / DESCRIPTION
+    path.write_text(json.dumps(edit(json.loads(path.read_text()))))
+    with pytest.raises(PolicyError) as caught:
+        fieldgen.load_policy(exported)
+    assert str(caught.value).startswith(f"{path}: {phrase}")
+    assert "\n" not in str(caught.value)
+
+
+def test_a_policy_json_too_large_to_be_one_is_refused_unread(exported):
+    path = exported / DESCRIPTION
+    with path.open("ab") as f:
+        f.truncate(20_000_000)
+    with pytest.raises(PolicyError, match="policy.json has 20,000,000 bytes, more than a policy's description ever "
+                                          "needs"):
+        fieldgen.load_policy(exported)
