@@ -23,6 +23,20 @@ VideoFormat = Annotated[Optional[str], typer.Option(
     **choice("video format", VIDEO_FORMATS))]
 
 
+def _read_config(config: Path | None) -> None:
+    """A --config file is read first as specs are (fieldgen.schema.source: bounded in size, depth and aliases,
+    duplicate keys refused, every problem at its line), before its values are checked (ConfigError)."""
+    from fieldgen.agents.config import ConfigError
+    from fieldgen.schema.source import Document, read_yaml
+
+    if config is not None:
+        try:
+            read_yaml(config, Document("config file", "it holds a section per algorithm, e.g. 'crl:'",
+                                       "a config file is a mapping with a section per algorithm"))
+        except SpecError as exc:
+            raise ConfigError(f"{config} is not a config file: " + "; ".join(map(str, exc.problems))) from None
+
+
 def _train(run, videos: bool, logger: str, fmt: str | None = None) -> None:
     """Train a run; Ctrl-C exits with 130, and a failed write or a diverged run says what to do (training.train
     says how to go on)."""
@@ -103,6 +117,7 @@ def train(
             if seeds < 1:
                 fail(f"--seeds {seeds}: train at least one seed")
             source = field_source(spec)
+            _read_config(config)
             trainer_config, agent = registry.trainer(algo).config, session.agent_kind(source)
             algo_config = trainer_config.layered(config, sets or [], agent=agent, total_steps=steps,
                                                  num_envs=envs, seed=seed)
@@ -162,6 +177,7 @@ def compare(
     source = field_source(spec)
     names = [a.strip() for a in algos.split(",") if a.strip()]
     try:
+        _read_config(config)
         folder, todo = comparing.runs(source, names, range(seeds), runs, config, sets or [],
                                       total_steps=steps, num_envs=envs)
     except (SpecError, ConfigError, record.RunError, FolderError) as exc:

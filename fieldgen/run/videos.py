@@ -62,6 +62,32 @@ class EpisodeRecorder:
         return None
 
 
+def _check_episode(path: Path, episode: dict, model, camera: str) -> None:
+    """A kept episode is of the field it names: a frame of that model's joint positions and targets per step,
+    finite, at a frame rate above zero, for one of fieldgen's cameras (EpisodeRecorder.episode writes it so)."""
+    from fieldgen.compile.cameras import CAMERAS
+    from fieldgen.run.record import RunError
+
+    qpos, mocap, fps = (np.asarray(episode.get(k)) for k in ("qpos", "mocap_pos", "fps"))
+    problem = None
+    if qpos.ndim != 2 or qpos.shape[1] != model.nq or not 1 <= len(qpos) <= MAX_FRAMES:
+        problem = f"qpos should be [frames, {model.nq}] with 1 to {MAX_FRAMES} frames, not {list(qpos.shape)}"
+    elif mocap.shape != (len(qpos), model.nmocap, 3):
+        problem = f"mocap_pos should be {[len(qpos), model.nmocap, 3]}, not {list(mocap.shape)}"
+    elif not (np.issubdtype(qpos.dtype, np.floating) and np.isfinite(qpos).all() and np.isfinite(mocap).all()):
+        problem = "its positions are not all finite numbers"
+    elif fps.shape != () or not np.issubdtype(fps.dtype, np.number) or not 0 < float(fps) < 1e4:
+        problem = f"fps should be one number above 0, not {fps.tolist()!r}"
+    elif camera not in CAMERAS:
+        problem = f"camera should be one of {', '.join(CAMERAS)}, not {camera!r}"
+    if problem:
+        raise RunError(f"{path} is not an episode kept by fieldgen train: {problem} (edited or damaged); delete it "
+                       "or train again")
+
+
+MAX_FRAMES = 100_000  # a kept episode holds at most an episode's steps, cut to about 300 frames
+
+
 def draw_episode(model, episode, camera: str, fmt: str) -> tuple[bytes, int]:
     """The video (`fmt`: mp4 or gif) of a recorded episode ({qpos, mocap_pos, fps}) and its frame count."""
     from fieldgen.render import render_rollout
@@ -92,6 +118,7 @@ def draw_kept(path: Path, models: dict, fmt: str) -> tuple[str, int | None]:
                        f"({', '.join(models)}); pass its YAML file, bundled name or build folder: "
                        f"fieldgen videos {path.parent if path.parent.name != VIDEOS else path.parent.parent} "
                        "--field SPEC")
+    _check_episode(path, episode, models[played], camera)
     video = path.with_suffix(f".{fmt}")
     if video.exists():
         return played, None

@@ -184,7 +184,7 @@ def test_cli_run_folder_and_resume_of_a_finished_run(tmp_path, monkeypatch, tiny
     result = runner.invoke(app, args)
     assert result.exit_code == 0, result.output
     run = tmp_path / "point_nav-crl-0"
-    assert {p.name for p in run.iterdir()} == {"run.json", "metrics.jsonl", "metrics.csv", "checkpoint.msgpack",
+    assert {p.name for p in run.iterdir()} == {".fieldgen", "run.json", "metrics.jsonl", "metrics.csv", "checkpoint.msgpack",
                                                "learner.msgpack", "success.png", "videos", "field"}
     assert sorted(p.name for p in (run / "videos").iterdir()) == ["eval_000.mp4", "eval_001.mp4", "eval_002.mp4"]
     rows = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
