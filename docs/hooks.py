@@ -263,7 +263,7 @@ def on_config(config):
 
 def _title(folder: Path) -> str:
     first = (folder / "README.md").read_text().splitlines()[0]
-    return first.lstrip("# ").strip()
+    return first.lstrip("# ").replace("`", "").strip()
 
 
 def on_files(files, config):
