@@ -26,6 +26,12 @@ RUN, METRICS, CSV, CHECKPOINT, PLOT = "run.json", "metrics.jsonl", "metrics.csv"
 LEARNER, INITIAL, VIDEOS = "learner.msgpack", "initial.msgpack", "videos"
 
 
+def run_name(field: str, algo: str, seeds: list[int]) -> str:
+    """The name of a run's folder: <field>-<algo>-<seed>, or <first>to<last> for seeds trained at once."""
+    suffix = str(seeds[0]) if len(seeds) == 1 else f"{seeds[0]}to{seeds[-1]}"
+    return f"{field}-{algo}-{suffix}"
+
+
 def has_trained(run_dir: Path) -> bool:
     """Whether the run has a checkpoint to go on from: its whole state, or what it learned alone."""
     return (run_dir / CHECKPOINT).exists() or (run_dir / LEARNER).exists()

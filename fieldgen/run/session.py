@@ -75,11 +75,6 @@ class Run:
         return registry.trainer(self.algo).make_train(self.config, self.env)
 
 
-def run_name(field: str, algo: str, seeds: list[int]) -> str:
-    suffix = str(seeds[0]) if len(seeds) == 1 else f"{seeds[0]}to{seeds[-1]}"
-    return f"{field}-{algo}-{suffix}"
-
-
 def agent_kind(source: Path) -> str:
     """The kind of agent (ant, point) a field, build folder or curriculum folder trains: it picks the
     trainer's preset (agents/presets) before anything compiles."""
@@ -112,7 +107,7 @@ def new_run(source: Path, algo: str, seeds: list[int], config, out: Path, mixed:
         if mixed:
             raise record.RunError(f"{source} is a single field; --mixed trains the stages of a curriculum folder")
         envs = [fieldgen.make(source)]
-    folder = out / run_name(name or envs[0].spec.name, algo, seeds)
+    folder = out / record.run_name(name or envs[0].spec.name, algo, seeds)
     if record.has_trained(folder):
         raise record.RunError(f"{folder} already holds a run; continue it with --resume {folder}, "
                                 "or pick another --seed or --out")

@@ -23,15 +23,16 @@ EXPECTED = {
 }
 
 
-def problems(source: Source, errors: list[dict]) -> list[Problem]:
-    """One problem per value: a value that no choice of a union accepts draws one error per choice."""
+def problems(source: Source, errors: list[dict], model: type[BaseModel] = FieldSpec) -> list[Problem]:
+    """One problem per value: a value that no choice of a union accepts draws one error per choice.
+    `model` is what validated the document (a field spec, or another YAML file read the same way)."""
     by_value: dict[tuple, list[dict]] = {}
     for err in errors:
         by_value.setdefault(_data_path(source.data, err["loc"], err["type"] == "missing"), []).append(err)
-    return [_problem(source, parts, errs) for parts, errs in by_value.items()]
+    return [_problem(source, parts, errs, model) for parts, errs in by_value.items()]
 
 
-def _problem(source: Source, parts: tuple, errs: list[dict]) -> Problem:
+def _problem(source: Source, parts: tuple, errs: list[dict], model: type[BaseModel]) -> Problem:
     err = errs[0]
     kind, value = err["type"], err.get("input")
     if isinstance(value, NotAsWritten):
@@ -43,7 +44,7 @@ def _problem(source: Source, parts: tuple, errs: list[dict]) -> Problem:
         wanted = dict.fromkeys(_expected(e) for e in errs)
         return source.problem(parts, f"expected {' or '.join(wanted)} (got {_shown(value)})")
     if kind == "extra_forbidden":
-        allowed = _allowed_keys(err["loc"][:-1])
+        allowed = _allowed_keys(model, err["loc"][:-1])
         msg = f"unknown key '{parts[-1]}'{did_you_mean(str(parts[-1]), allowed) or '.'}"
         return source.problem(parts, msg + (f" Allowed keys here: {', '.join(allowed)}." if allowed else ""))
     if kind == "missing" and isinstance(err["loc"][-1], int):
@@ -55,7 +56,7 @@ def _problem(source: Source, parts: tuple, errs: list[dict]) -> Problem:
         return source.problem(parts, f"{'at most' if kind == 'too_long' else 'at least'} {bound:,} "
                                      f"item{'s' * (bound != 1)} here (got {err['ctx']['actual_length']:,})")
     if kind in ("union_tag_invalid", "union_tag_not_found"):
-        return _tag_problem(source, parts, err)
+        return _tag_problem(source, parts, err, model)
     if kind == "literal_error" and isinstance(value, str):
         expected = re.findall(r"'([^']*)'", err["ctx"]["expected"])
         return source.problem(parts, f"{err['msg']} (got {value!r}{did_you_mean(value, expected)})")
@@ -64,13 +65,13 @@ def _problem(source: Source, parts: tuple, errs: list[dict]) -> Problem:
     return source.problem(parts, _plain(err))
 
 
-def _tag_problem(source: Source, parts: tuple, err: dict) -> Problem:
+def _tag_problem(source: Source, parts: tuple, err: dict, model: type[BaseModel]) -> Problem:
     """A choice (target, spawn, fall rule) named by its `kind` or `mode`: the key, and the names it takes."""
     value, ctx = err["input"], err.get("ctx", {})
     key = ctx.get("discriminator", "").strip("'")
     if key.endswith("()"):  # a function picks the choice; the key is the one holding the unknown name
         key = next((k for k, v in value.items() if v == ctx.get("tag")), key)
-    names = _choices(err["loc"], key)
+    names = _choices(model, err["loc"], key)
     listed = ", ".join(repr(n) for n in names)
     if err["type"] == "union_tag_not_found":
         return source.problem(parts, f"the key '{key}' is required here: one of {listed}")
@@ -121,26 +122,26 @@ def _data_path(data, loc: tuple, missing: bool = False) -> tuple:
     return tuple(parts)
 
 
-def _allowed_keys(loc: tuple) -> list[str]:
+def _allowed_keys(root: type[BaseModel], loc: tuple) -> list[str]:
     """The keys the model at this location accepts, for did-you-mean hints."""
-    model = _unwrap(_type_at(loc))
+    model = _unwrap(_type_at(root, loc))
     if isinstance(model, type) and issubclass(model, BaseModel):
         return list(model.model_fields)
     return []
 
 
-def _choices(loc: tuple, key: str) -> list[str]:
+def _choices(root: type[BaseModel], loc: tuple, key: str) -> list[str]:
     """The names `key` takes in the choices of the union at this location."""
     names: list[str] = []
-    for member in typing.get_args(_unwrap(_type_at(loc))):
+    for member in typing.get_args(_unwrap(_type_at(root, loc))):
         member = _unwrap(member)
         if isinstance(member, type) and issubclass(member, BaseModel) and key in member.model_fields:
             names += typing.get_args(member.model_fields[key].annotation)
     return names
 
 
-def _type_at(loc: tuple):
-    tp: object = FieldSpec
+def _type_at(root: type[BaseModel], loc: tuple):
+    tp: object = root
     for elem in loc:
         tp = _step(tp, elem)
         if tp is None:

@@ -60,7 +60,9 @@ SpecLoader.add_implicit_resolver(
     "tag:yaml.org,2002:float", re.compile(r"^[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"), list("-+0123456789"))
 
 
-def read_yaml(path: Path) -> Source:
+def read_yaml(path: Path, document: str = "a field spec", needs: str = "a field needs at least 'name:'") -> Source:
+    """The file as data and key positions; `document` (what the file is) and `needs` (what it cannot go
+    without) word the complaints about a file that holds no mapping."""
     text = _read_text(path)
     _refuse_characters(path, text)
     loader = SpecLoader(text)
@@ -68,10 +70,10 @@ def read_yaml(path: Path) -> Source:
         _refuse_depth(path, text)
         node = loader.get_single_node()
         if node is None:
-            raise SpecError([Problem(path, 1, 1, "", "the file is empty; a field needs at least 'name:'")])
+            raise SpecError([Problem(path, 1, 1, "", f"the file is empty; {needs}")])
         if not isinstance(node, yaml.MappingNode):
             kind = {yaml.SequenceNode: "a list", yaml.ScalarNode: "a single value"}.get(type(node), "not a mapping")
-            raise SpecError([_at(path, node, (), f"the document is {kind}; a field spec is a mapping of sections")])
+            raise SpecError([_at(path, node, (), f"the document is {kind}; {document} is a mapping of sections")])
         problems: list[Problem] = []
         positions: dict[tuple, Pos] = {(): _pos(path, node)}
         _bounded(path, node)
