@@ -70,6 +70,14 @@ class InitFrom(BaseModel):
     eval: Index
 
 
+def _schedule(name: str) -> str:
+    from fieldgen.curriculum.schedule import SCHEDULES
+
+    if name not in SCHEDULES:
+        raise ValueError(f"should be one of {', '.join(SCHEDULES)}")
+    return name
+
+
 class RunRecord(BaseModel):
     """What run.json must hold to reopen a run, each value of the type fieldgen wrote."""
 
@@ -80,6 +88,8 @@ class RunRecord(BaseModel):
     fields: Annotated[list[Annotated[StrictStr, AfterValidator(_inside)]], Field(min_length=1)] = []  # []: field/
     promotion: Promotion = Promotion()
     mixed: StrictBool = False
+    schedule: Annotated[StrictStr, AfterValidator(_schedule)] | None = None  # None (older runs): staged, or mixed
+    levels: list[dict] = []  # an automatic curriculum's levels: each stage's coordinates on the named axes
     init_from: InitFrom | None = None
 
 
