@@ -18,7 +18,7 @@ import pytest
 import submitit  # before any CliRunner: its logger keeps the stderr it finds at import
 from typer.testing import CliRunner
 
-from conftest import TINY_CRL
+from tiny_runs import TINY_CRL
 from fieldgen.cli import app
 from fieldgen.sweep import launch, plan, status
 
