@@ -22,11 +22,7 @@ from fieldgen.schema import bundled_fields
 
 FIELDS = sorted(bundled_fields())
 
-# The smallest CRL run on point_nav that trains: 10 iterations of 8 envs x 10 steps prefill its 100 rows
-# (800 env steps), then 2 evaluations of 6 iterations each. Every test that trains it, in-process or through
-# `fieldgen train`, uses these very settings, so that the session compiles its programs once.
-TINY_CRL = {"total_steps": 1900, "num_envs": 8, "unroll_length": 10, "batch_size": 32, "min_replay_rows": 100,
-            "max_replay_rows": 400, "hidden": (32, 32), "repr_dim": 8, "num_evals": 2, "eval_envs": 8}
+from tiny_runs import TINY_CRL
 
 
 def pytest_configure(config):

@@ -122,7 +122,7 @@ def test_a_machine_that_cannot_render_is_told_what_to_install(tmp_path, monkeypa
 
 
 def test_every_command_has_help_with_an_example():
-    for command in ("validate", "build", "render", "list", "schema", "bench", "train", "eval", "curriculum"):
+    for command in ("validate", "build", "render", "list", "schema", "bench", "train", "eval", "curriculum", "sweep"):
         result = runner.invoke(app, [command, "--help"])
         assert result.exit_code == 0 and "Example: fieldgen" in result.output
 
@@ -179,7 +179,7 @@ def test_help_reads_as_command_lines_do():
     from fieldgen.agents.registry import ALGORITHMS
 
     for command in ([], ["train"], ["eval"], ["render"], ["build"], ["curriculum"], ["compare"], ["bench"],
-                    ["validate"], ["videos"]):
+                    ["validate"], ["videos"], ["sweep"]):
         result = runner.invoke(app, [*command, "--help"], env={"COLUMNS": "200"})
         assert result.exit_code == 0, result.output
         assert not re.search(r"<(bool|str|int|float|path|list\[\w+\])>", result.output), result.output
@@ -240,7 +240,8 @@ def test_the_command_line_starts_without_jax():
     import sys
 
     code = ("import sys\nfrom fieldgen.cli import app\n"
-            "for args in (['--help'], ['train', '--help'], ['compare', '--help'], ['render', '--help']):\n"
+            "for args in (['--help'], ['train', '--help'], ['compare', '--help'], ['render', '--help'],\n"
+            "             ['sweep', '--help']):\n"
             "    try:\n        app(args, prog_name='fieldgen')\n    except SystemExit:\n        pass\n"
             "print(' '.join(m for m in ('jax', 'mujoco', 'dm_control', 'brax') if m in sys.modules) or 'none')\n")
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)

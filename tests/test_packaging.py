@@ -42,7 +42,7 @@ def test_a_built_wheel_installed_elsewhere_has_its_fields_and_trainers(tmp_path)
                 env=env)
     assert "soccer_v2" in built and (work / "build" / "soccer_v2" / "scene.xml").exists()
     check = textwrap.dedent(f"""
-        import fieldgen, fieldgen.agents.crl
+        import fieldgen, fieldgen.agents.crl, fieldgen.sweep.plan
         from fieldgen.schema import load_spec
         assert fieldgen.__file__.startswith({str(site)!r}), fieldgen.__file__
         assert fieldgen.agents.crl.__file__.startswith({str(site)!r}), fieldgen.agents.crl.__file__

@@ -27,12 +27,11 @@ def _read_config(config: Path | None) -> None:
     """A --config file is read first as specs are (fieldgen.schema.source: bounded in size, depth and aliases,
     duplicate keys refused, every problem at its line), before its values are checked (ConfigError)."""
     from fieldgen.agents.config import ConfigError
-    from fieldgen.schema.source import Document, read_yaml
+    from fieldgen.schema.source import read_yaml
 
     if config is not None:
         try:
-            read_yaml(config, Document("config file", "it holds a section per algorithm, e.g. 'crl:'",
-                                       "a config file is a mapping with a section per algorithm"))
+            read_yaml(config, "a config file", "it holds a section per algorithm, such as 'crl:'")
         except SpecError as exc:
             raise ConfigError(f"{config} is not a config file: " + "; ".join(map(str, exc.problems))) from None
 
@@ -79,6 +78,14 @@ def train(
     video_fmt: VideoFormat = None,
     mixed: Annotated[bool, typer.Option(help="a curriculum's stages all at once, each env its own stage, "
                                               "re-weighted by progress (default: one stage after another)")] = False,
+    curriculum_kind: Annotated[Optional[str], typer.Option(
+        "--curriculum", help="auto: make the curriculum from the field itself: levels from an easy end (ball near "
+                             "the target, agent behind it, obstacles narrow and aside, walls off) to the field, all "
+                             "trained at once, each weighted by how much is being learnt there; the field keeps a "
+                             "fixed share", **choice("curriculum", ("auto",)))] = None,
+    levels: Annotated[Optional[int], typer.Option(metavar="N", help="with --curriculum auto: levels from the easy "
+                                                                    "end to the field, the field included "
+                                                                    "[default: 8]")] = None,
     prepare: Annotated[bool, typer.Option(help="write the run folder (config, built fields) and stop; start it "
                                                 "later with --resume, e.g. on a machine without dm_control")] = False,
     logger: Annotated[str, typer.Option(help="also log every evaluation's numbers and video to TensorBoard "
@@ -94,6 +101,7 @@ def train(
     Example: fieldgen train point_nav --algo crl --steps 40000 --envs 16 --set 'crl.hidden=[64,64]'
     Example: fieldgen train point_nav --logger tensorboard, then: tensorboard --logdir runs
     Example: fieldgen train soccer_v2 --init-from runs/soccer_v1-crl-0 --seed 1
+    Example: fieldgen train soccer_v1 --curriculum auto --steps 50M
     """
     fmt = video_format(video_fmt) if videos else None
     from fieldgen.agents import registry
@@ -125,7 +133,10 @@ def train(
             if preset:
                 out.print(f"{algo} on {agent} fields starts from {preset.name} (a --config file or --set "
                           "overrides it)")
-            run = session.new_run(source, algo, range(seed, seed + seeds), algo_config, runs, mixed, init_from)
+            if levels is not None and curriculum_kind != "auto":
+                fail(f"--levels {levels} sets how many levels --curriculum auto makes; add --curriculum auto")
+            run = session.new_run(source, algo, range(seed, seed + seeds), algo_config, runs, mixed, init_from,
+                                  auto=curriculum_kind == "auto", levels=levels)
         if run.init_from and not run.rows:
             out.print(f"starts from what {run.init_from['run']} learned in {run.init_from['env_steps']:,} env steps "
                       f"(evaluation {run.init_from['eval']}), with fresh episodes and a replay buffer filled anew")

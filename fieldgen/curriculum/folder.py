@@ -16,7 +16,7 @@ from fieldgen.curriculum.promotion import Promotion
 from fieldgen.files import Output, claim, replace_folder
 from fieldgen.schema import FieldSpec, SpecError, load_spec, messages
 from fieldgen.schema.editor import SCHEMA_FILE
-from fieldgen.schema.source import Document, read_yaml
+from fieldgen.schema.source import read_yaml
 
 INDEX = "curriculum.yaml"
 CURRICULUM = Output("fieldgen curriculum", (INDEX, "stage_*.yaml"), INDEX, "-o")
@@ -114,10 +114,6 @@ class _Index(_Strict):
     stages: Annotated[list[_Stage], Field(min_length=1, max_length=MAX_STAGES)]
 
 
-INDEX_FILE = Document("curriculum.yaml", "it lists the stages under 'stages:'",
-                      "curriculum.yaml is a mapping of kind, base, promotion and stages")
-
-
 def load(folder: Path) -> Curriculum:
     """A curriculum folder, checked: curriculum.yaml read as specs are (bounded, every problem at its line),
     every listed stage a file of the folder that exists, validates and has the base's layout."""
@@ -126,7 +122,7 @@ def load(folder: Path) -> Curriculum:
         raise CurriculumError(f"{folder} is not a curriculum: {INDEX} is missing "
                               "(make one with `fieldgen curriculum`)")
     try:
-        source = read_yaml(index, INDEX_FILE)
+        source = read_yaml(index, INDEX, "it lists the stages under 'stages:'")
         raw = _Index.model_validate(source.data)
     except SpecError as exc:
         raise CurriculumError(_problems(index, exc.problems)) from None

@@ -76,6 +76,14 @@ class Mixed:
         return [environment([e.artifact for e in envs])] if len(envs) > 1 else list(envs)
 
 
-def schedule(mixed: bool, promotion: Promotion = Promotion()) -> Staged | Mixed:
-    """The schedule of a run through a curriculum's stages (a plain run is a curriculum of one stage)."""
-    return Mixed() if mixed else Staged(promotion)
+SCHEDULES = ("staged", "mixed", "auto")  # how a run moves through its stages, as run.json records it
+
+
+def schedule(kind: str, promotion: Promotion = Promotion()) -> Staged | Mixed:
+    """The schedule of a run through a curriculum's stages (a plain run is a curriculum of one stage): one
+    of SCHEDULES."""
+    if kind == "auto":
+        from fieldgen.curriculum.auto import Auto
+
+        return Auto()
+    return Mixed() if kind == "mixed" else Staged(promotion)

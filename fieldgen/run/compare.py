@@ -44,7 +44,7 @@ def runs(source: Path, algos: list[str], seeds: list[int], folder: Path | None, 
         configs[algo].validate_env(env, sharding.device_count(), len(seeds))
     result = []
     for algo in algos:
-        existing = folder / session.run_name(env.spec.name, algo, seeds)
+        existing = folder / record.run_name(env.spec.name, algo, seeds)
         if (existing / record.RUN).exists():
             run = session.open_run(existing, load_state=False)  # a finished run needs no checkpoint to be reported
             if run.config.model_dump() != configs[algo].model_dump() or len(run.seeds) != len(seeds) \
@@ -103,21 +103,22 @@ def _finite(x: float) -> float | None:
     return None if np.isnan(x) else float(x)
 
 
-def plot(runs_: list[session.Run], path: Path, title: str) -> None:
+def plot(runs_: list[session.Run], path: Path, title: str, labels: list[str] | None = None) -> None:
     """success_any against env steps and against wall-clock seconds, time at goal and the closest approach
-    to the goal against env steps: the interquartile mean over seeds, with its 95% bootstrap interval shaded."""
+    to the goal against env steps: the interquartile mean over seeds, with its 95% bootstrap interval shaded.
+    Each run (anything with the `rows` and `seeds` of one) is a line named by its algorithm, or by `labels`."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, 4, figsize=(18, 3.8))
-    for run in runs_:
+    for k, run in enumerate(runs_):
         c = curves(run)
         for ax, x, metric in ((axes[0], "env_steps", "success_any"), (axes[1], "wall_seconds", "success_any"),
                               (axes[2], "env_steps", "time_at_goal"), (axes[3], "env_steps", "closest_distance")):
             centre, low, high = np.array([over_seeds(v) for v in c[metric]]).T
-            line, = ax.plot(c[x], centre, marker="o", ms=3, label=run.algo)
+            line, = ax.plot(c[x], centre, marker="o", ms=3, label=labels[k] if labels else run.algo)
             if len(run.seeds) > 1:
                 ax.fill_between(c[x], low, high, color=line.get_color(), alpha=0.2)
     axes[0].set(xlabel="env steps", ylabel="success_any (IQM)", ylim=(-0.02, 1.02), title="episodes with a success")

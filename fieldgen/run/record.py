@@ -27,6 +27,12 @@ LEARNER, INITIAL, VIDEOS = "learner.msgpack", "initial.msgpack", "videos"
 RUN_FOLDER = Output("fieldgen train", (), RUN)  # written into file by file, never replaced whole
 
 
+def run_name(field: str, algo: str, seeds: list[int]) -> str:
+    """The name of a run's folder: <field>-<algo>-<seed>, or <first>to<last> for seeds trained at once."""
+    suffix = str(seeds[0]) if len(seeds) == 1 else f"{seeds[0]}to{seeds[-1]}"
+    return f"{field}-{algo}-{suffix}"
+
+
 def has_trained(run_dir: Path) -> bool:
     """Whether the run has a checkpoint to go on from: its whole state, or what it learned alone."""
     return (run_dir / CHECKPOINT).exists() or (run_dir / LEARNER).exists()
@@ -65,6 +71,14 @@ class InitFrom(BaseModel):
     eval: Index
 
 
+def _schedule(name: str) -> str:
+    from fieldgen.curriculum.schedule import SCHEDULES
+
+    if name not in SCHEDULES:
+        raise ValueError(f"should be one of {', '.join(SCHEDULES)}")
+    return name
+
+
 class RunRecord(BaseModel):
     """What run.json must hold to reopen a run, each value of the type fieldgen wrote."""
 
@@ -76,6 +90,8 @@ class RunRecord(BaseModel):
     fields: Annotated[list[Annotated[StrictStr, AfterValidator(_inside)]], Field(min_length=1)] = []  # []: field/
     promotion: Promotion = Promotion()
     mixed: StrictBool = False
+    schedule: Annotated[StrictStr, AfterValidator(_schedule)] | None = None  # None (older runs): staged, or mixed
+    levels: list[dict] = []  # an automatic curriculum's levels: each stage's coordinates on the named axes
     init_from: InitFrom | None = None
 
 

@@ -40,7 +40,7 @@ class Run:
     promotion: Promotion = Promotion()
     state: object = None  # the checkpointed training state of a resumed run
     stage: int = 0  # the stage the next chunk trains on
-    mixed: bool = False  # a curriculum trained all at once: every environment carries its own stage
+    schedule_kind: str = "staged"  # curriculum.schedule.SCHEDULES: mixed and auto train every stage at once
     init_from: dict | None = None  # record.InitFrom of a run started from another run's networks
 
     @property
@@ -58,9 +58,14 @@ class Run:
         return self.envs[-1]
 
     @property
+    def mixed(self) -> bool:
+        """Whether every environment carries its own stage, all trained at once (a mixed or automatic curriculum)."""
+        return self.schedule_kind != "staged"
+
+    @property
     def schedule(self) -> Staged | Mixed:
         """How the run moves through its stages (the curriculum's; a plain run has one stage)."""
-        return schedule(self.mixed, self.promotion)
+        return schedule(self.schedule_kind, self.promotion)
 
     @functools.cached_property
     def trainers(self) -> list[loop.Trainer]:
@@ -77,11 +82,6 @@ class Run:
         return registry.trainer(self.algo).make_train(self.config, self.env)
 
 
-def run_name(field: str, algo: str, seeds: list[int]) -> str:
-    suffix = str(seeds[0]) if len(seeds) == 1 else f"{seeds[0]}to{seeds[-1]}"
-    return f"{field}-{algo}-{suffix}"
-
-
 def agent_kind(source: Path) -> str:
     """The kind of agent (ant, point) a field, build folder or curriculum folder trains: it picks the
     trainer's preset (agents/presets) before anything compiles."""
@@ -96,16 +96,23 @@ def agent_kind(source: Path) -> str:
 
 
 def new_run(source: Path, algo: str, seeds: Sequence[int], config, out: Path, mixed: bool = False,
-            init_from: Path | None = None) -> Run:
+            init_from: Path | None = None, auto: bool = False, levels: int | None = None) -> Run:
     """A run folder for a field (a YAML file or a build folder) or a curriculum folder (staged, or mixed:
-    every stage in one batch, built to one structure); with `init_from`, starting from what that run learned.
-    Nothing is written before every setting is known good, the memory the run needs included; `seeds` may be
-    a range, listed only once it is known to fit."""
-    promotion, name = Promotion(), None
-    if curriculum.is_curriculum(source):
+    every stage in one batch, built to one structure); with `auto`, a field trained through `levels` levels
+    (curriculum.auto.LEVELS by default) between its easy end and itself; with `init_from`, starting from what that run
+    learned. Nothing is written before every setting is known good, the memory the run needs included; `seeds`
+    may be a range, listed only once it is known to fit."""
+    promotion, name, kind, coordinates = Promotion(), None, "mixed" if mixed else "staged", []
+    if auto:
+        if mixed or curriculum.is_curriculum(source):
+            raise record.RunError(f"--curriculum auto makes its own levels from one field and trains them all at "
+                                  f"once; give it a field (YAML or build folder), without --mixed{'' if mixed else f', not the curriculum folder {source}'}")
+        envs, coordinates = auto_environments(source, levels)
+        kind, name = "auto", f"{envs[-1].spec.name}-auto"
+    elif curriculum.is_curriculum(source):
         try:
             c = curriculum.load(source)
-            envs = schedule(mixed, c.promotion).stage_environments(c.specs())
+            envs = schedule(kind, c.promotion).stage_environments(c.specs())
         except (curriculum.CurriculumError, VariantError, ValueError) as exc:
             raise record.RunError(str(exc)) from None
         promotion, name = c.promotion, source.name + ("-mixed" if mixed else "")
@@ -114,16 +121,17 @@ def new_run(source: Path, algo: str, seeds: Sequence[int], config, out: Path, mi
             raise record.RunError(f"{source}: the stages' observation layouts differ; a policy cannot move between them")
     else:
         if mixed:
-            raise record.RunError(f"{source} is a single field; --mixed trains the stages of a curriculum folder")
+            raise record.RunError(f"{source} is a single field; --mixed trains the stages of a curriculum folder "
+                                  "(or let fieldgen make the stages: --curriculum auto)")
         envs = [fieldgen.make(source)]
-    folder = out / run_name(name or envs[0].spec.name, algo, seeds)
+    folder = out / record.run_name(name or envs[0].spec.name, algo, seeds)
     if record.has_trained(folder):
         raise record.RunError(f"{folder} already holds a run; continue it with --resume {folder}, "
                                 "or pick another --seed or --out")
     for env in envs:
         config.validate_env(env, sharding.device_count(), len(seeds))
     dirs = [FIELD] if len(envs) == 1 else [f"{STAGES}/{k + 1:02d}" for k in range(len(envs))]
-    run = Run(folder, algo, envs, config, seeds, [], promotion, mixed=mixed)
+    run = Run(folder, algo, envs, config, seeds, [], promotion, schedule_kind=kind)
     check_memory(run)
     run.seeds = seeds = list(seeds)
     if init_from is not None:
@@ -143,7 +151,8 @@ def new_run(source: Path, algo: str, seeds: Sequence[int], config, out: Path, mi
         if run.state is not None:
             files.write_atomic(folder / record.INITIAL, checkpoint.pieces(jax.device_get(run.state)))
         record.write_run(folder, envs[-1].spec.model_dump(mode="json"), algo, config, envs[0].layout.to_json(),
-                         seeds, {"fields": dirs, "promotion": dataclasses.asdict(promotion), "mixed": mixed,
+                         seeds, {"fields": dirs, "promotion": dataclasses.asdict(promotion), "mixed": run.mixed,
+                                 "schedule": kind, **({"levels": coordinates} if coordinates else {}),
                                  **({"init_from": run.init_from} if run.init_from else {})})
     except OSError as exc:
         raise record.RunError(f"cannot set up the run folder {folder}: {exc.strerror}; free some space, fix the "
@@ -162,6 +171,22 @@ def check_memory(run: Run) -> None:
     for trainer in run.trainers:
         memory.check(memory.training(trainer, seeds),
                      f"training {seeds:,} seed{'s' * (seeds > 1)} of {algo} with {run.config.num_envs:,} envs", lower)
+
+
+def auto_environments(source: Path, count: int | None) -> tuple[list, list[dict]]:
+    """The environments of `count` levels from `source`'s easy end to the field itself (curriculum.auto),
+    built to one structure, and each level's coordinates by axis name for run.json."""
+    from fieldgen.curriculum.auto import LEVELS, levels as auto_levels
+    from fieldgen.curriculum.levels import LevelError, LevelSpace
+
+    try:
+        spec = load_artifact(source).spec if source.is_dir() else load_spec(source)
+        chosen = auto_levels(spec, LEVELS if count is None else count)
+        envs = schedule("auto").stage_environments([level.spec for level in chosen])
+    except (LevelError, VariantError, ArtifactError, ValueError) as exc:
+        raise record.RunError(str(exc)) from None
+    names = [axis.name for axis in LevelSpace.of(spec).axes]
+    return envs, [dict(zip(names, level.coordinates)) for level in chosen]
 
 
 def learned_template(run: Run):
@@ -238,7 +263,8 @@ def open_run(folder: Path, load_state: bool = True, to_train: bool = False) -> R
                               "or written by another version of fieldgen") from None
     seeds = saved.seeds or [config.seed]
     rows = record.read_metrics(folder)
-    run = Run(folder, saved.algo, envs, config, seeds, rows, saved.promotion, mixed=saved.mixed)
+    kind = saved.schedule or ("mixed" if saved.mixed else "staged")
+    run = Run(folder, saved.algo, envs, config, seeds, rows, saved.promotion, schedule_kind=kind)
     if not load_state:
         return run  # only reported on
     if to_train:
@@ -291,7 +317,7 @@ def on_field(run: Run, source: Path) -> Run:
     if differ := interface_difference(env, run.env):
         raise record.RunError(f"{source} observes or acts differently from {run.env.spec.name}, which {run.folder} "
                               f"was trained on ({differ}); a policy moves only between fields of one layout")
-    return dataclasses.replace(run, envs=[env], mixed=False, stage=0)
+    return dataclasses.replace(run, envs=[env], schedule_kind="staged", stage=0)
 
 
 def interface_difference(env, other) -> str:

@@ -25,13 +25,15 @@ class Problem:
 class SpecError(Exception):
     """A spec that cannot become a field; carries every problem found, not just the first."""
 
+    document = "the field spec"  # what the problems are in, as the first line names it
+
     def __init__(self, problems: list[Problem]):
         self.problems = sorted(problems, key=lambda p: (str(p.file), p.line or 0, p.col or 0))
         super().__init__(str(self))
 
     def __str__(self) -> str:
         n = len(self.problems)
-        head = f"{n} problem{'s' if n != 1 else ''} in the field spec:"
+        head = f"{n} problem{'s' if n != 1 else ''} in {self.document}:"
         return "\n".join([head] + [f"  {p}" for p in self.problems])
 
 

@@ -24,8 +24,8 @@ EXPECTED = {
 
 
 def problems(source: Source, errors: list[dict], model: type[BaseModel] = FieldSpec) -> list[Problem]:
-    """One problem per value: a value that no choice of a union accepts draws one error per choice. `model` is
-    what was validated (a field spec, or another YAML file's model), for the keys and names it allows."""
+    """One problem per value: a value that no choice of a union accepts draws one error per choice.
+    `model` is what validated the document (a field spec, or another YAML file read the same way)."""
     by_value: dict[tuple, list[dict]] = {}
     for err in errors:
         by_value.setdefault(_data_path(source.data, err["loc"], err["type"] == "missing"), []).append(err)

@@ -7,8 +7,8 @@ record where each key path starts and to reject duplicate keys, which plain
 Specs travel between people, so reading one is bounded: a regular file of at most
 MAX_BYTES, nesting at most MAX_DEPTH deep, at most MAX_NODES values once aliases
 are expanded (an alias "bomb" is refused before it is built), no character YAML
-refuses, and no key that is not a plain string. Other YAML files fieldgen reads
-(a curriculum's curriculum.yaml) are read the same way, as another `Document`.
+refuses, and no key that is not a plain string. Other YAML files fieldgen reads (a
+curriculum's curriculum.yaml, a sweep file, a --config file) are read the same way.
 """
 
 from __future__ import annotations
@@ -28,18 +28,6 @@ MAX_BYTES = 1_000_000  # a spec is a few kilobytes; a megabyte is a mistake or a
 MAX_DEPTH = 32  # a spec nests four or five levels
 MAX_NODES = 30_000  # values after expanding aliases; 1,000 obstacles with every key set have about 16,000
 _STR = "tag:yaml.org,2002:str"
-
-
-@dataclass(frozen=True)
-class Document:
-    """What a YAML file is, in the words of its messages: its name, what an empty one lacks, and its shape."""
-
-    noun: str
-    needs: str
-    shape: str
-
-
-SPEC = Document("spec", "a field needs at least 'name:'", "a field spec is a mapping of sections")
 
 
 @dataclass
@@ -73,8 +61,9 @@ SpecLoader.add_implicit_resolver(
     "tag:yaml.org,2002:float", re.compile(r"^[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"), list("-+0123456789"))
 
 
-def read_yaml(path: Path, document: Document = SPEC) -> Source:
-    """The mapping in a YAML file, read within the bounds above; SpecError for every way it is not one."""
+def read_yaml(path: Path, document: str = "a field spec", needs: str = "a field needs at least 'name:'") -> Source:
+    """The file as data and key positions; `document` (what the file is) and `needs` (what it cannot go
+    without) word the complaints about a file that holds no mapping."""
     text = _read_text(path, document)
     _refuse_characters(path, text)
     loader = SpecLoader(text)
@@ -82,10 +71,10 @@ def read_yaml(path: Path, document: Document = SPEC) -> Source:
         _refuse_depth(path, text, document)
         node = loader.get_single_node()
         if node is None:
-            raise SpecError([Problem(path, 1, 1, "", f"the file is empty; {document.needs}")])
+            raise SpecError([Problem(path, 1, 1, "", f"the file is empty; {needs}")])
         if not isinstance(node, yaml.MappingNode):
             kind = {yaml.SequenceNode: "a list", yaml.ScalarNode: "a single value"}.get(type(node), "not a mapping")
-            raise SpecError([_at(path, node, (), f"the document is {kind}; {document.shape}")])
+            raise SpecError([_at(path, node, (), f"the document is {kind}; {document} is a mapping of sections")])
         problems: list[Problem] = []
         positions: dict[tuple, Pos] = {(): _pos(path, node)}
         _bounded(path, node, document)
@@ -103,7 +92,7 @@ def read_yaml(path: Path, document: Document = SPEC) -> Source:
     return Source(data, positions)
 
 
-def _read_text(path: Path, document: Document) -> str:
+def _read_text(path: Path, document: str) -> str:
     """The file's text, if it is a regular file of at most MAX_BYTES in UTF-8."""
     try:
         info = path.stat()
@@ -113,10 +102,10 @@ def _read_text(path: Path, document: Document) -> str:
         raise SpecError([Problem(path, None, None, "", f"cannot read the file: {exc.strerror}")]) from None
     if not stat.S_ISREG(info.st_mode):
         what = "a folder" if stat.S_ISDIR(info.st_mode) else "not a regular file (a device, pipe or socket)"
-        raise SpecError([Problem(path, None, None, "", f"this is {what}; a {document.noun} is a YAML file")])
+        raise SpecError([Problem(path, None, None, "", f"this is {what}; {document} is a YAML file")])
     if info.st_size > MAX_BYTES:
-        raise SpecError([Problem(path, None, None, "", f"the file has {info.st_size:,} bytes; a {document.noun} "
-                                 f"may have at most {MAX_BYTES:,}")])
+        raise SpecError([Problem(path, None, None, "", f"the file has {info.st_size:,} bytes; {document} may have "
+                                 f"at most {MAX_BYTES:,}")])
     try:
         with path.open("rb") as f:
             raw = f.read(MAX_BYTES + 1)
@@ -144,7 +133,7 @@ def _refuse_characters(path: Path, text: str) -> None:
                                  "delete it or write it as an escape inside double quotes")])
 
 
-def _refuse_depth(path: Path, text: str, document: Document) -> None:
+def _refuse_depth(path: Path, text: str, document: str) -> None:
     """Refuse nesting past MAX_DEPTH from the parser's events, before anything is built: PyYAML's
     composer recurses once a level, and its scanner slows with every bracket left open."""
     events = SpecLoader(text)
@@ -154,8 +143,8 @@ def _refuse_depth(path: Path, text: str, document: Document) -> None:
             if isinstance(event, yaml.CollectionStartEvent):
                 depth += 1
                 if depth > MAX_DEPTH:
-                    raise SpecError([_at(path, event, (), f"the {document.noun} nests deeper than {MAX_DEPTH} "
-                                                          "levels; it needs a few")])
+                    raise SpecError([_at(path, event, (), f"{document} nests deeper than {MAX_DEPTH} levels; "
+                                                          "it needs a few")])
             elif isinstance(event, yaml.CollectionEndEvent):
                 depth -= 1
     finally:
@@ -170,18 +159,18 @@ def _at(path: Path, node: yaml.Node, parts: tuple, message: str) -> Problem:
     return Problem(path, node.start_mark.line + 1, node.start_mark.column + 1, format_path(parts), message)
 
 
-def _bounded(path: Path, root: yaml.MappingNode, document: Document) -> None:
+def _bounded(path: Path, root: yaml.MappingNode, document: str) -> None:
     """Refuse a document that aliases would expand past MAX_NODES values or MAX_DEPTH levels (an alias
     "bomb", an alias inside the collection it names), measured on the node graph without expanding it."""
     sizes: dict[int, int | None] = {}
 
     def size(node: yaml.Node, depth: int) -> int:
         if id(node) in sizes and sizes[id(node)] is None:
-            raise SpecError([_at(path, node, (), f"an alias refers to the collection it stands in, so the "
-                                                 f"{document.noun} would nest without end")])
+            raise SpecError([_at(path, node, (), f"an alias refers to the collection it stands in, so {document} "
+                                                 "would nest without end")])
         if depth > MAX_DEPTH:
-            raise SpecError([_at(path, node, (), f"the {document.noun} nests deeper than {MAX_DEPTH} levels once "
-                                                 "its aliases are expanded")])
+            raise SpecError([_at(path, node, (), f"{document} nests deeper than {MAX_DEPTH} levels once its aliases "
+                                                 "are expanded")])
         if id(node) not in sizes:
             sizes[id(node)] = None
             children = [n for pair in node.value for n in pair] if isinstance(node, yaml.MappingNode) else (
@@ -192,8 +181,8 @@ def _bounded(path: Path, root: yaml.MappingNode, document: Document) -> None:
     if size(root, 0) > MAX_NODES:
         key, _ = max(root.value, key=lambda pair: sizes[id(pair[1])])
         raise SpecError([_at(path, key, (key.value,) if isinstance(key.value, str) else (),
-                             f"the {document.noun} holds {sizes[id(root)]:,} values, each alias counted as what "
-                             f"it repeats, most of them here; at most {MAX_NODES:,} are allowed (it needs far fewer)")])
+                             f"{document} holds {sizes[id(root)]:,} values, each alias counted as what it "
+                             f"repeats, most of them here; at most {MAX_NODES:,} are allowed (it needs far fewer)")])
 
 
 def _walk(path: Path, node: yaml.Node, parts: tuple, positions: dict, problems: list) -> None:

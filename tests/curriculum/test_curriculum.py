@@ -244,8 +244,8 @@ def test_a_curriculum_renders_as_a_sheet_of_its_stages(tmp_path):
     (lambda t: t.replace("- name: c_s01\n  file", "- file"), "stages[0].name: the key 'name' is required"),
     (lambda t: t.split("stages:")[0] + "stages: []\n", "stages: at least 1 item here (got 0)"),
     (lambda t: "", "curriculum.yaml:1:1: the file is empty; it lists the stages under 'stages:'"),
-    (lambda t: "- a\n- b\n", "the document is a list; curriculum.yaml is a mapping of kind, base, promotion and stages"),
-    (lambda t: "a: &a [*a]\n", "an alias refers to the collection it stands in, so the curriculum.yaml would nest "
+    (lambda t: "- a\n- b\n", "the document is a list; curriculum.yaml is a mapping of sections"),
+    (lambda t: "a: &a [*a]\n", "an alias refers to the collection it stands in, so curriculum.yaml would nest "
      "without end"),
     (lambda t: t + "stages: []\n", "duplicate key 'stages' (first given on line 8)"),
     (lambda t: t + "#" * 1_000_001, "the file has 1,00"),

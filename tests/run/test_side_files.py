@@ -21,7 +21,7 @@ BOMB = "a: &a [x, x, x, x, x, x, x, x, x, x]\n" + "".join(
     (BOMB, "values, each alias counted as what it repeats, most of them here; at most 30,000 are allowed"),
     ("crl:\n  repr_dim: 8\n  repr_dim: 16\n", "config.yaml:3:3: crl.repr_dim: duplicate key 'repr_dim' (first given on "
      "line 2)"),
-    ("- crl\n", "config.yaml:1:1: the document is a list; a config file is a mapping with a section per algorithm"),
+    ("- crl\n", "config.yaml:1:1: the document is a list; a config file is a mapping of sections"),
     ("crl: {seed: 1}\n\x07", "character U+0007 (a control character) is not allowed in YAML"),
     ("crl:\n" + "  # padding\n" * 100_000, "a config file may have at most 1,000,000"),
 ], ids=["alias_bomb", "duplicate", "list", "control", "huge"])

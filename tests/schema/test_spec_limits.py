@@ -49,7 +49,7 @@ LAUGHS = "".join(f"l{i}: &l{i} [{', '.join([f'*l{i - 1}'] * 9)}]\n" for i in ran
 def test_an_alias_bomb_is_refused_before_it_is_built(write_spec):
     p = one_problem(write_spec("l0: &l0 [lol, lol, lol, lol, lol, lol, lol, lol, lol]\n" + LAUGHS + "name: x\n"))
     assert (p.line, p.path) == (10, "l9")
-    assert "the spec holds 4,412,961,518 values" in p.message and "at most 30,000" in p.message
+    assert "a field spec holds 4,412,961,518 values" in p.message and "at most 30,000" in p.message
 
 
 def test_an_alias_inside_itself_is_refused(write_spec):
@@ -82,7 +82,7 @@ def test_devices_pipes_and_huge_files_are_not_read(write_spec, tmp_path):
     p = one_problem(tmp_path / "pipe.yaml")
     assert "not a regular file" in p.message
     p = one_problem(write_spec("name: x\ndescription: " + "a" * 1_100_000 + "\n", "huge.yaml"))
-    assert "has 1,100,022 bytes; a spec may have at most 1,000,000" in p.message
+    assert "has 1,100,022 bytes; a field spec may have at most 1,000,000" in p.message
 
 
 def obstacles(n: int, size: float = 1.0) -> str:

@@ -1,0 +1,58 @@
+"""Runs of several seeds, kept as metrics files, drawn and summarised as `fieldgen compare` does for run
+folders: the interquartile mean over seeds with its 95% stratified bootstrap interval (fieldgen.run.summary),
+success against env steps and wall clock, and each seed's last evaluation with the IQM line.
+
+Each LABEL names one setting, its rows from one or more metrics.jsonl files (seeds trained in separate
+programs, e.g. two GPUs, joined with '+'); rows of one evaluation index are one point.
+
+    python bench/seed_bands.py preset=bench/results/ant_nav_fresh_seeds/preset_200to202.metrics.jsonl+... \\
+        -o bench/results/ant_nav_fresh_seeds/preset.png --title "ant_nav, CRL preset, fresh seeds 200-204"
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+from types import SimpleNamespace
+
+from fieldgen.run import compare, summary
+
+
+def setting(files: str) -> SimpleNamespace:
+    """One setting's rows from '+'-joined metrics files, as compare.plot reads a run (rows, seeds, algo)."""
+    rows = [json.loads(line) for f in files.split("+") for line in Path(f).read_text().splitlines() if line.strip()]
+    return SimpleNamespace(rows=rows, seeds=sorted({r["seed"] for r in rows}))
+
+
+def last_evaluation(run: SimpleNamespace) -> dict:
+    """Each seed's row at the last evaluation every seed reached."""
+    last = min(max(r["eval"] for r in run.rows if r["seed"] == s) for s in run.seeds)
+    return {r["seed"]: r for r in run.rows if r["eval"] == last}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("settings", nargs="+", metavar="LABEL=FILE[+FILE...]")
+    parser.add_argument("-o", "--out", type=Path, required=True, help="the plot (PNG)")
+    parser.add_argument("--title", default="")
+    args = parser.parse_args()
+    labels, runs = [], []
+    for entry in args.settings:
+        label, _, files = entry.partition("=")
+        labels.append(label)
+        runs.append(setting(files))
+    for label, run in zip(labels, runs):
+        rows = last_evaluation(run)
+        values = [rows[s]["success_any"] for s in run.seeds]
+        low, high = summary.interval(values)
+        steps = {r["env_steps"] for r in rows.values()}
+        print(f"{label}: env steps {', '.join(f'{s:,}' for s in sorted(steps))}; success_any "
+              + ", ".join(f"{s}: {v:.3f}" for s, v in zip(run.seeds, values))
+              + f"; IQM {summary.iqm(values):.3f} [{low:.3f}, {high:.3f}] over {len(values)} seeds")
+    compare.plot(runs, args.out, args.title, labels=labels)
+    print(f"plot: {args.out}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,279 @@
+"""A sweep file, read and checked, and the runs it expands into.
+
+A sweep names fields, algorithms, seeds, fixed config values (`set`) and config axes (`grid`); every
+combination of one field, one algorithm, one value of each of that algorithm's axes and one seed is a
+run: the `fieldgen train` command a user would type, into a folder of the sweep's own. The file is
+read as field specs are (fieldgen.schema: YAML with every key's position) and checked by pydantic and
+by the trainers' own config classes, so that a wrong key or value is reported at its line before
+anything trains.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import json
+import shlex
+from pathlib import Path
+from typing import Annotated, Any, Literal, Union
+
+import yaml
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, StrictBool, StrictInt, StrictStr, ValidationError
+
+from fieldgen.agents.registry import ALGORITHMS
+from fieldgen.schema import Problem, SpecError, bundled_fields, resolve_spec_path
+from fieldgen.schema.messages import problems
+from fieldgen.schema.source import Source, read_yaml
+
+BACKENDS = ("local", "slurm")
+PLAN = "sweep.json"  # in the sweep's folder: the runs as planned, so that a changed sweep file is noticed
+
+
+class SweepError(SpecError):
+    """A sweep file that cannot be run; one problem reads as one line, with its file, line and key."""
+
+    document = "the sweep file"
+
+    def __str__(self) -> str:
+        return str(self.problems[0]) if len(self.problems) == 1 else super().__str__()
+
+
+def _count(value):
+    """A count as `fieldgen train` reads it: 40000, 50M, 1.5k, 2e6."""
+    from fieldgen.cli.app import count
+
+    import typer
+
+    if isinstance(value, bool) or not isinstance(value, (int, float, str)):
+        raise ValueError(f"expected a count such as 40000, 50M or 1.5k (got {value!r})")
+    try:
+        return count(value)
+    except typer.BadParameter as exc:
+        raise ValueError(str(exc)) from None
+
+
+Count = Annotated[int, BeforeValidator(_count)]
+Positive = Annotated[StrictInt, Field(gt=0)]
+Seed = Annotated[StrictInt, Field(ge=0)]
+
+
+class Local(BaseModel):
+    """The local backend: which GPUs take a run each ('auto': those CUDA_VISIBLE_DEVICES or nvidia-smi
+    lists; an empty list: no GPU, one run at a time)."""
+
+    model_config = ConfigDict(extra="forbid")
+    gpus: Union[Literal["auto"], list[Seed]] = "auto"
+
+
+class Slurm(BaseModel):
+    """The slurm backend: one array job, each task one run."""
+
+    model_config = ConfigDict(extra="forbid")
+    partition: StrictStr | None = None
+    time: Positive = 60  # minutes a task may run before it is stopped and requeued
+    gpus_per_task: Annotated[StrictInt, Field(ge=0)] = 1
+    cpus_per_task: Positive | None = None
+    mem_gb: Positive | None = None
+    parallel: Positive | None = None  # array tasks running at once (default: as the scheduler allows)
+    account: StrictStr | None = None
+    qos: StrictStr | None = None
+    requeues: Annotated[StrictInt, Field(ge=0)] = 3  # times a task is requeued after its time limit runs out
+
+
+class SweepFile(BaseModel):
+    """What a sweep file holds."""
+
+    model_config = ConfigDict(extra="forbid")
+    fields: Annotated[list[StrictStr], Field(min_length=1)]  # bundled names, YAML files or folders
+    algorithms: Annotated[list[Literal[ALGORITHMS]], Field(min_length=1)]
+    seeds: Union[Positive, Annotated[list[Seed], Field(min_length=1)]] = 1  # K: seeds 0..K-1
+    steps: Count | None = None
+    envs: Count | None = None
+    config: StrictStr | None = None  # a config file, as `fieldgen train --config` reads it
+    set: dict[StrictStr, Any] = {}  # config values every run of that algorithm gets: crl.batch_size: 256
+    grid: dict[StrictStr, Annotated[list, Field(min_length=1)]] = {}  # axes: crl.repr_dim: [32, 64]
+    videos: StrictBool = False
+    out: StrictStr | None = None  # the sweep's folder (default runs/sweep-<file name>)
+    backend: Literal[BACKENDS] = "local"
+    local: Local = Local()
+    slurm: Slurm = Slurm()
+
+    @property
+    def seed_list(self) -> list[int]:
+        return list(range(self.seeds)) if isinstance(self.seeds, int) else list(self.seeds)
+
+
+@dataclasses.dataclass(frozen=True)
+class PlannedRun:
+    """One run of a sweep: where it trains, and the commands that start it and that continue it."""
+
+    id: str  # its folder inside the sweep's: [<point>/]<field>-<algo>-<seed>
+    folder: Path
+    field: str  # the field's name, as its run folder and the summary name it
+    algo: str
+    seed: int
+    point: dict  # this run's values of its algorithm's grid axes
+    start: tuple[str, ...]  # fieldgen train ... (without the leading "fieldgen")
+    videos: bool
+
+    @property
+    def resume(self) -> tuple[str, ...]:
+        return ("train", "--resume", str(self.folder), "--videos" if self.videos else "--no-videos")
+
+    @property
+    def label(self) -> str:
+        """The run's settings apart from its field and seed: the algorithm and its axes' values."""
+        return " ".join([self.algo, *(f"{k}={_shown(v)}" for k, v in self.point.items())])
+
+    def command(self) -> tuple[str, ...]:
+        """What to run now: the run continued where its folder holds one, else started."""
+        return self.resume if (self.folder / "run.json").is_file() else self.start
+
+
+@dataclasses.dataclass(frozen=True)
+class Sweep:
+    path: Path
+    spec: SweepFile
+    folder: Path
+    runs: list[PlannedRun]
+
+
+def _shown(value) -> str:
+    """A config value as `--set` takes it: text as it is where YAML reads it back the same, else JSON."""
+    if isinstance(value, str) and yaml.safe_load(value) == value:
+        return value
+    return json.dumps(value, separators=(",", ":"))
+
+
+def shell(words: tuple[str, ...]) -> str:
+    return shlex.join(["fieldgen", *words])
+
+
+def load(path: Path, out: Path | None = None, **overrides) -> Sweep:
+    """The sweep in `path`, its runs planned; `overrides` (backend, slurm settings) replace the file's.
+    Raises SweepError with every problem found."""
+    try:
+        source = read_yaml(path, "a sweep file", "a sweep needs at least 'fields:' and 'algorithms:'")
+    except SweepError:
+        raise
+    except SpecError as exc:
+        raise SweepError(exc.problems) from None
+    data = dict(source.data)
+    slurm = {k: v for k, v in overrides.items() if k != "backend" and v is not None}
+    if slurm:
+        data["slurm"] = {**(data.get("slurm") or {}), **slurm}
+    if overrides.get("backend") is not None:
+        data["backend"] = overrides["backend"]
+    try:
+        spec = SweepFile.model_validate(data)
+    except ValidationError as exc:
+        raise SweepError(problems(source, exc.errors(), SweepFile)) from None
+    found: list[Problem] = []
+    names = _field_names(path, spec, source, found)
+    config = None if spec.config is None else _relative(path, spec.config)
+    if config is not None and not config.is_file():
+        found.append(source.problem(("config",), f"there is no file {config}"))
+    _assignments(spec, source, found)
+    if found:
+        raise SweepError(found)
+    folder = (Path(spec.out) if out is None and spec.out else out or Path("runs") / f"sweep-{path.stem}").absolute()
+    runs = []
+    for ref, name in zip(spec.fields, names):
+        field_arg = ref if ref in bundled_fields() and "/" not in ref else str(_relative(path, ref).absolute())
+        for algo in spec.algorithms:
+            axes = {k: v for k, v in spec.grid.items() if k.partition(".")[0] == algo}
+            fixed = [f"{k}={_shown(v)}" for k, v in spec.set.items() if k.partition(".")[0] == algo]
+            for values in itertools.product(*axes.values()):
+                point = dict(zip(axes, values))
+                where = folder / _point_folder(point) if point else folder
+                for seed in spec.seed_list:
+                    run_folder = where / f"{name}-{algo}-{seed}"
+                    start = ("train", field_arg, "--algo", algo, "--seed", str(seed), "--out", str(where),
+                             *(("--steps", str(spec.steps)) if spec.steps else ()),
+                             *(("--envs", str(spec.envs)) if spec.envs else ()),
+                             *(("--config", str(config.absolute())) if config else ()),
+                             *(w for item in fixed + [f"{k}={_shown(v)}" for k, v in point.items()]
+                               for w in ("--set", item)),
+                             "--videos" if spec.videos else "--no-videos")
+                    runs.append(PlannedRun(str(run_folder.relative_to(folder)), run_folder, name, algo, seed, point,
+                                           start, spec.videos))
+    return Sweep(path, spec, folder, runs)
+
+
+def _relative(path: Path, ref: str) -> Path:
+    """A path in a sweep file, read relative to the file (a bundled field name stays a name)."""
+    return resolve_spec_path(ref, relative_to=path)
+
+
+def _point_folder(point: dict) -> str:
+    """A folder name for one point of the grid: its axes and values, with nothing a path cannot hold."""
+    text = ",".join(f"{k}={_shown(v)}" for k, v in point.items())
+    return "".join(c if c.isalnum() or c in "._=,+-" else "_" for c in text)
+
+
+def _field_names(path: Path, spec: SweepFile, source: Source, found: list[Problem]) -> list[str]:
+    """Each field's name, which names its runs' folders: a spec's `name`, a build folder's, a curriculum
+    folder's own name."""
+    from fieldgen import curriculum
+    from fieldgen.compile.artifact import ArtifactError, load_artifact
+    from fieldgen.schema import load_spec
+
+    names = []
+    for i, ref in enumerate(spec.fields):
+        target = _relative(path, ref)
+        try:
+            if target.is_dir():
+                names.append(target.name if curriculum.is_curriculum(target) else load_artifact(target).spec.name)
+            elif target.is_file():
+                names.append(load_spec(target).name)
+            else:
+                found.append(source.problem(("fields", i), f"'{ref}' is neither a file nor a folder nor a bundled "
+                                                           f"field ({', '.join(bundled_fields())})"))
+        except (SpecError, ArtifactError) as exc:
+            found.append(source.problem(("fields", i), f"'{ref}' cannot be read: {exc}".replace("\n", " ")))
+    return names
+
+
+def _assignments(spec: SweepFile, source: Source, found: list[Problem]) -> None:
+    """Check every `set` and `grid` value with its algorithm's config class, as `--set` would be."""
+    from fieldgen.agents import registry
+    from fieldgen.agents.config import ConfigError
+
+    listed = ", ".join(spec.algorithms)
+    for section, values in (("set", {k: [v] for k, v in spec.set.items()}), ("grid", spec.grid)):
+        for key, choices in values.items():
+            algo, dot, name = key.partition(".")
+            if not dot or not name:
+                found.append(source.problem((section, key), f"write the key as ALGO.KEY, such as crl.repr_dim "
+                                                            f"(got {key!r})"))
+                continue
+            if algo not in spec.algorithms:
+                found.append(source.problem((section, key), f"'{algo}' is not among the sweep's algorithms "
+                                                            f"({listed}); its keys apply to those runs alone"))
+                continue
+            config = registry.trainer(algo).config
+            for value in choices:
+                item = f"{key}={_shown(value)}"
+                try:
+                    config.layered(sets=[item])
+                except ConfigError as exc:
+                    found.append(source.problem((section, key), str(exc).removeprefix(f"--set {item}: ")))
+                    break
+
+
+def check_plan(sweep: Sweep) -> None:
+    """Refuse to go on in a folder whose runs were planned otherwise (the sweep file edited since): a run
+    would resume with the settings it started with, not those the file now gives."""
+    recorded = sweep.folder / PLAN
+    try:
+        before = json.loads(recorded.read_text()).get("runs", {})
+    except FileNotFoundError:
+        return
+    except (OSError, ValueError, AttributeError) as exc:
+        raise SweepError([Problem(recorded, None, None, "", f"cannot be read ({exc}); move it aside to "
+                                                            "plan the sweep anew")]) from None
+    for run in sweep.runs:
+        if run.id in before and before[run.id] != list(run.start) and (run.folder / "run.json").is_file():
+            raise SweepError([Problem(sweep.path, None, None, "", f"{run.folder} was started as `{shell(before[run.id])}`, "
+                                      f"the sweep file now plans `{shell(run.start)}`; give the sweep another "
+                                      "out: folder, or move that run aside")])

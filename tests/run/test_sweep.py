@@ -1,0 +1,243 @@
+"""`fieldgen sweep`: a file expands into `fieldgen train` runs, handed to a local queue or to SLURM (tested
+through submitit's local executor), resumed when started again, and summarized over seeds once done.
+
+Most tests read hand-made run folders (run.json and metrics.jsonl are all status and summary read), so that
+only the end-to-end ones train."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import submitit  # before any CliRunner: its logger keeps the stderr it finds at import
+from typer.testing import CliRunner
+
+from tiny_runs import TINY_CRL
+from fieldgen.cli import app
+from fieldgen.sweep import launch, plan, status
+
+runner = CliRunner()
+
+TINY_SET = "\n".join(f"  crl.{k}: {json.dumps(list(v) if isinstance(v, tuple) else v)}"
+                     for k, v in TINY_CRL.items() if k not in ("total_steps", "num_envs"))
+
+
+def sweep_file(folder: Path, body: str = "", name: str = "sweep.yaml", seeds: int = 2, grid: str = "") -> Path:
+    path = folder / name
+    path.write_text(f"fields: [point_nav]\nalgorithms: [crl]\nseeds: {seeds}\nsteps: {TINY_CRL['total_steps']}\n"
+                    f"envs: {TINY_CRL['num_envs']}\nout: {folder / 'out'}\nset:\n{TINY_SET}\n"
+                    + (f"grid:\n{grid}\n" if grid else "") + body)
+    return path
+
+
+def hand_made(run: plan.PlannedRun, evals: int, success: float, num_evals: int = 2) -> None:
+    """A run folder as fieldgen train leaves it after `evals` evaluations (no checkpoint: nothing reads one)."""
+    run.folder.mkdir(parents=True, exist_ok=True)
+    (run.folder / "run.json").write_text(json.dumps({"algo": run.algo, "config": {"num_evals": num_evals,
+                                                                                   "eval_envs": 8},
+                                                     "observation": {}, "seeds": [run.seed]}))
+    rows = [{"eval": e, "seed": run.seed, "env_steps": 800 + 480 * e, "success_any": success * e / num_evals,
+             "time_at_goal": 10.0 * success, "closest_distance": 1.0, "wall_seconds": float(e)}
+            for e in range(evals + 1)]
+    (run.folder / "metrics.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
+
+
+def test_a_sweep_expands_into_the_train_commands_a_user_would_type(tmp_path):
+    path = sweep_file(tmp_path, grid="  crl.repr_dim: [8, 16]\n  crl.energy: [norm, l2]", seeds=2)
+    sweep = plan.load(path)
+    assert len(sweep.runs) == 8  # 2 x 2 points x 2 seeds
+    first = sweep.runs[0]
+    assert first.id == "crl.repr_dim=8,crl.energy=norm/point_nav-crl-0"
+    assert first.folder == tmp_path / "out" / first.id
+    words = plan.shell(first.command()).split()
+    assert words[:8] == ["fieldgen", "train", "point_nav", "--algo", "crl", "--seed", "0", "--out"]
+    assert "crl.repr_dim=8" in words and "crl.energy=norm" in words and "'crl.hidden=[32,32]'" in words
+    assert words[-1] == "--no-videos" and "--resume" not in words
+    lines = launch.dry_run(sweep)
+    assert lines[0].startswith("#") and len(lines) == 9 and not (tmp_path / "out").exists()  # nothing written
+    hand_made(first, 1, 0.5)  # started: it is continued from its folder
+    assert first.command() == ("train", "--resume", str(first.folder), "--no-videos")
+
+
+def test_dry_run_on_the_command_line_shows_each_command_and_the_backend(tmp_path):
+    path = sweep_file(tmp_path, "backend: slurm\nslurm: {partition: gpu, time: 90}\n", seeds=1)
+    result = runner.invoke(app, ["sweep", str(path), "--dry-run", "--gpus-per-task", "2"])
+    assert result.exit_code == 0, result.output
+    assert "one SLURM job array" in result.output and "2 GPU(s) each, 90 min" in result.output
+    assert "partition gpu" in result.output and "fieldgen train point_nav --algo crl --seed 0" in result.output
+
+
+@pytest.mark.parametrize("body,phrase", [
+    ("grid:\n  crl.repr_dimm: [8, 16]\n", ":7:3: grid.crl.repr_dimm: unknown config key 'repr_dimm'; did you mean "
+                                          "'repr_dim'?"),
+    ("grid:\n  crl.repr_dim: []\n", ":7:3: grid.crl.repr_dim: at least 1 item here (got 0)"),
+    ("grid:\n  sac.her: [0.5]\n", "grid.sac.her: 'sac' is not among the sweep's algorithms (crl)"),
+    ("grid:\n  crl.repr_dim: [8, -1]\n", "grid.crl.repr_dim: crl.repr_dim must be greater than 0, not -1"),
+    ("backend: slurmm\n", ":6:1: backend: Input should be 'local' or 'slurm' (got 'slurmm'; did you mean 'slurm'?)"),
+    ("fields: [point_nav, nowhere.yaml]\n", "fields[1]: 'nowhere.yaml' is neither a file nor a folder"),
+    ("algorithms: [crll]\n", "did you mean 'crl'?"),
+    ("seeds: 0\n", "seeds: Input should be greater than 0"),
+    ("steps: lots\n", "steps: 'lots' is not a positive whole count"),
+    ("colour: red\n", "unknown key 'colour'"),
+])
+def test_bad_sweep_files_are_one_line_at_the_key(tmp_path, body, phrase):
+    path = tmp_path / "sweep.yaml"
+    base = {"fields": "[point_nav]", "algorithms": "[crl]", "seeds": "2", "steps": "1900", "envs": "8"}
+    given = body.partition(":")[0]  # a key of the base given otherwise takes its line
+    path.write_text("".join(f"{k}: {v}\n" if k != given else body for k, v in base.items())
+                    + ("" if given in base else body))
+    result = runner.invoke(app, ["sweep", str(path), "--out", str(tmp_path / "out")])
+    assert result.exit_code == 1
+    assert result.output.startswith(f"error: {path}") and phrase in result.output, result.output
+    assert len(result.output.strip().splitlines()) == 1 and "Traceback" not in result.output
+    assert not (tmp_path / "out").exists()
+
+
+def test_the_slurm_backend_without_submitit_or_sbatch_is_one_line(tmp_path, monkeypatch):
+    path = sweep_file(tmp_path, "backend: slurm\n", seeds=1)
+    monkeypatch.setitem(sys.modules, "submitit", None)  # as if not installed
+    result = runner.invoke(app, ["sweep", str(path)])
+    assert result.exit_code == 1 and result.output.startswith("error: the slurm backend needs submitit, which is not "
+                                                              "installed: pip install 'fieldgen[slurm]'")
+    monkeypatch.delitem(sys.modules, "submitit")
+    monkeypatch.setattr(shutil, "which", lambda name: None)
+    result = runner.invoke(app, ["sweep", str(path)])
+    assert result.exit_code == 1 and "sbatch is not on PATH" in result.output and len(result.output.splitlines()) == 1
+
+
+def test_the_local_queue_gives_each_gpu_one_run_at_a_time_and_skips_finished_runs(tmp_path, monkeypatch):
+    sweep = plan.load(sweep_file(tmp_path, "local: {gpus: [0, 3]}\n", seeds=5))
+    hand_made(sweep.runs[4], 2, 1.0)  # finished before: not run again
+    running, seen = {}, []
+
+    def fake(folder, run, environment=None, on_start=None):
+        gpu = environment["CUDA_VISIBLE_DEVICES"]
+        assert gpu not in running, "two runs on one GPU"
+        running[gpu] = run.id
+        time.sleep(0.05)
+        seen.append((run.seed, gpu))
+        del running[gpu]
+        return 0
+
+    monkeypatch.setattr(launch, "execute", fake)
+    results = launch.run_local(sweep, lambda line: None)
+    assert sorted(seed for seed, _ in seen) == [0, 1, 2, 3] and {gpu for _, gpu in seen} == {"0", "3"}
+    assert [code for _, code in results] == [0] * 4
+    recorded = json.loads((sweep.folder / plan.PLAN).read_text())["runs"]
+    assert recorded[sweep.runs[0].id] == list(sweep.runs[0].start)
+
+
+def test_gpus_come_from_the_file_cuda_visible_devices_or_none(monkeypatch):
+    assert launch.gpus([1, 2]) == ["1", "2"]
+    monkeypatch.setenv("CUDA_VISIBLE_DEVICES", "2,5")
+    assert launch.gpus("auto") == ["2", "5"]
+    monkeypatch.setenv("CUDA_VISIBLE_DEVICES", "")
+    assert launch.gpus("auto") == []
+
+
+def test_status_tells_done_failed_stopped_and_waiting_then_summarizes_once_all_are_done(tmp_path):
+    path = sweep_file(tmp_path, grid="  crl.repr_dim: [8, 16]", seeds=2)
+    sweep = plan.load(path)
+    a, b, c, d = sweep.runs
+    hand_made(a, 2, 1.0)
+    hand_made(b, 1, 0.5)  # stopped after its first evaluation
+    (sweep.folder / launch.LOGS).mkdir(parents=True)
+    launch.log_path(sweep.folder, b, ".started").write_text(json.dumps({"host": "elsewhere-not-here", "pid": 1}))
+    launch.log_path(sweep.folder, b, ".ended").write_text(json.dumps({"exit": -9, "why": ""}))
+    launch.log_path(sweep.folder, c, ".log").write_text("$ fieldgen train ...\nerror: --steps 10 is too few\n")
+    launch.log_path(sweep.folder, c, ".ended").write_text(json.dumps({"exit": 1, "why": launch.why(
+        launch.log_path(sweep.folder, c, ".log"), 1)}))
+    result = runner.invoke(app, ["sweep", str(path), "--status"])
+    assert result.exit_code == 0, result.output
+    found = {s.run.id: (s.state, s.detail) for s in status.states(sweep)}
+    assert found[a.id] == ("done", "evaluation 2 of 2, 1,760 env steps")
+    assert found[b.id][0] == "failed" and found[c.id] == ("failed", "error: --steps 10 is too few")
+    assert found[d.id] == ("waiting", "not started")
+    assert "1 done, 2 failed, 1 waiting" in result.output and not (sweep.folder / status.SUMMARY).exists()
+    launch.log_path(sweep.folder, b, ".ended").unlink()  # no end recorded: its process, elsewhere, may still run
+    assert (status.states(sweep)[1].state, status.states(sweep)[1].detail) == (
+        "running", "evaluation 1 of 2, 1,280 env steps, on elsewhere-not-here")
+    ended = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
+    launch.log_path(sweep.folder, b, ".started").write_text(json.dumps({"host": socket.gethostname(),
+                                                                         "pid": int(ended.stdout)}))
+    assert (status.states(sweep)[1].state, status.states(sweep)[1].detail) == (
+        "stopped", "evaluation 1 of 2, 1,280 env steps; start the sweep again to continue it")
+    for run, success in ((b, 0.5), (c, 0.25), (d, 0.75)):
+        hand_made(run, 2, success)
+    result = runner.invoke(app, ["sweep", str(path), "--status"])
+    assert result.exit_code == 0 and "4 done" in result.output, result.output
+    summary = json.loads((sweep.folder / status.SUMMARY).read_text())
+    by_setting = {g["setting"]: g["summary"] for g in summary["groups"]}
+    assert list(by_setting) == ["crl crl.repr_dim=8", "crl crl.repr_dim=16"]
+    assert by_setting["crl crl.repr_dim=8"]["success_any"]["per_seed"] == {"0": 1.0, "1": 0.5}
+    assert by_setting["crl crl.repr_dim=8"]["success_any"]["iqm"] == pytest.approx(0.75)  # two seeds: their mean
+    assert by_setting["crl crl.repr_dim=16"]["episodes"] == 8
+    assert "| point_nav | crl crl.repr_dim=16 | 2 | 1,760 | 0.500 [" in (sweep.folder / status.TABLE).read_text()
+    assert (sweep.folder / "summary-point_nav.png").stat().st_size > 10_000
+
+
+def test_a_sweep_file_changed_under_started_runs_is_refused(tmp_path):
+    path = sweep_file(tmp_path, seeds=1)
+    sweep = plan.load(path)
+    launch.record_plan(sweep)
+    hand_made(sweep.runs[0], 1, 0.0)
+    path.write_text(path.read_text().replace("steps: 1900", "steps: 3800"))
+    result = runner.invoke(app, ["sweep", str(path)])
+    assert result.exit_code == 1 and "was started as `fieldgen train point_nav" in result.output
+    assert "--steps 1900" in result.output and "now plans" in result.output
+
+
+def test_a_slurm_task_requeued_after_its_time_limit_continues_its_run(tmp_path):
+    """submitit's checkpointing protocol: the requeued task is the same task with the same run, and a run
+    whose folder exists goes on from it (`--resume`)."""
+    sweep = plan.load(sweep_file(tmp_path, "backend: slurm\n", seeds=1))
+    task, run = launch.Task(sweep.folder), sweep.runs[0]
+    again = task.checkpoint(run)
+    assert isinstance(again, submitit.helpers.DelayedSubmission)
+    assert again.function is task and again.args == (run,)
+    hand_made(run, 1, 0.0)
+    assert run.command()[:2] == ("train", "--resume")
+
+
+def test_the_slurm_path_through_submitits_local_executor_records_failures_and_skips_done_runs(tmp_path):
+    """The job array, its tasks running `fieldgen train` and writing how they ended: a run refused before it
+    compiles fails fast with its reason; a finished run is not submitted."""
+    path = sweep_file(tmp_path, "backend: slurm\nslurm: {gpus_per_task: 0, time: 5}\n", seeds=2)
+    path.write_text(path.read_text().replace("steps: 1900", "steps: 100"))  # too few for the prefill: refused
+    sweep = plan.load(path)
+    hand_made(sweep.runs[1], 2, 1.0)
+    jobs = launch.submit(sweep, cluster="local")
+    assert len(jobs) == 1
+    with pytest.raises(Exception):
+        jobs[0].result()
+    found = {s.run.id: s for s in status.states(sweep)}
+    assert found[sweep.runs[0].id].state == "failed"
+    assert "--steps 100 is too few" in found[sweep.runs[0].id].detail
+    assert found[sweep.runs[1].id].state == "done"
+    assert json.loads((sweep.folder / plan.PLAN).read_text())["jobs"][sweep.runs[0].id] == jobs[0].job_id
+
+
+@pytest.mark.slow
+def test_a_local_sweep_trains_summarizes_and_started_again_only_reports(tmp_path):
+    path = sweep_file(tmp_path, seeds=1)
+    result = runner.invoke(app, ["sweep", str(path)])
+    assert result.exit_code == 0, result.output
+    assert "1 done" in result.output and (tmp_path / "out" / status.SUMMARY).is_file()
+    metrics = (tmp_path / "out" / "point_nav-crl-0" / "metrics.jsonl").read_text()
+    again = runner.invoke(app, ["sweep", str(path)])
+    assert again.exit_code == 0 and "starts" not in again.output
+    assert (tmp_path / "out" / "point_nav-crl-0" / "metrics.jsonl").read_text() == metrics
+
+
+@pytest.mark.slow
+def test_a_slurm_sweep_trains_through_submitits_local_executor(tmp_path):
+    sweep = plan.load(sweep_file(tmp_path, "backend: slurm\nslurm: {gpus_per_task: 0, time: 10}\n", seeds=1))
+    jobs = launch.submit(sweep, cluster="local")
+    assert [job.result() for job in jobs] == [0]
+    assert [s.state for s in status.states(sweep)] == ["done"]

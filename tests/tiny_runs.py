@@ -1,0 +1,8 @@
+"""Settings of the smallest runs the tests train, importable by name from any test module (each test folder
+has its own conftest, so `from conftest import ...` would find the nearest one, not this)."""
+
+# The smallest CRL run on point_nav that trains: 10 iterations of 8 envs x 10 steps prefill its 100 rows
+# (800 env steps), then 2 evaluations of 6 iterations each. Every test that trains it, in-process or through
+# `fieldgen train`, uses these very settings, so that the session compiles its programs once.
+TINY_CRL = {"total_steps": 1900, "num_envs": 8, "unroll_length": 10, "batch_size": 32, "min_replay_rows": 100,
+            "max_replay_rows": 400, "hidden": (32, 32), "repr_dim": 8, "num_evals": 2, "eval_envs": 8}
