@@ -85,7 +85,8 @@ class RunRecord(BaseModel):
     algo: StrictStr
     config: dict
     observation: dict
-    field: dict  # the resolved spec of the field the run is judged on, as its own copy of it holds it
+    field: Annotated[dict, Field(strict=True)] | None = None  # the resolved spec of the field the run is judged on
+    # (reading metrics needs no field; opening the run does: session.open_run refuses a record without it)
     seeds: Annotated[list[Index], Field(min_length=1)] = []  # [] (left out): the config's seed
     fields: Annotated[list[Annotated[StrictStr, AfterValidator(_inside)]], Field(min_length=1)] = []  # []: field/
     promotion: Promotion = Promotion()

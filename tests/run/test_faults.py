@@ -214,6 +214,9 @@ TORN = '{"eval": 1, "se'
      "run.json describes another field than the run's own copy of it, "),
     (lambda run: edit_record(run, field="point_nav"), "run.json is not a run record: field should be a valid "
      "dictionary, not 'point_nav'"),
+    (lambda run: (run / "run.json").write_text(json.dumps(
+        {k: v for k, v in json.loads((run / "run.json").read_text()).items() if k != "field"})),
+     "run.json describes another field than the run's own copy of it"),
     (lambda run: shutil.rmtree(run / "field"), "point_nav-crl-0/field is missing: the run's own copy of its field "
      "(a setup cut short, or a copy of the run that left it out); set the run up again with the fieldgen train "
      "command that made it"),
@@ -221,7 +224,7 @@ TORN = '{"eval": 1, "se'
      "folder fieldgen train wrote (runs/<field>-<algo>-<seed>); one whose setup was cut short is set up again by the "
      "same fieldgen train command"),
 ], ids=["file", "empty", "list", "config", "seeds", "seeds_mixed", "fields", "promotion", "middle", "bytes",
-        "eval_text", "stage", "no_rows", "folder", "field", "other_field", "field_text", "field_missing",
+        "eval_text", "stage", "no_rows", "folder", "field", "other_field", "field_text", "no_field", "field_missing",
         "record_missing"])
 def test_damaged_run_folders_are_clear_errors(tmp_path, damage, phrase, tiny_crl_args):
     """What a kill, an editor or a copy can leave in a run folder: one sentence naming the file and the key,
