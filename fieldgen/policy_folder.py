@@ -1,6 +1,8 @@
 """An exported policy's folder: `policy.json` says what the network reads, how it is built and what its
 outputs drive; `params.msgpack` holds its weights (flax's msgpack serialization).
 
+`policy.json` also holds the SHA-256 of `params.msgpack`, so weights damaged or swapped are refused.
+
 `load_policy(folder)` gives a jit-able `act(obs) -> action` from these two files alone: no trainer,
 run folder, field or simulator is needed, so the policy can go wherever JAX and flax run.
 
@@ -10,6 +12,7 @@ ICRL's one per leg or joint, one for every other algorithm), named as exported f
 
 from __future__ import annotations
 
+import hashlib
 from pathlib import Path
 from typing import Annotated, Literal
 
@@ -80,6 +83,7 @@ class Description(_Strict):
     agents: Annotated[list[Agent], Field(min_length=1)]
     normalizer: Normalizer | None
     action: Literal[ACTION] = ACTION
+    params_sha256: str = ""  # the digest of params.msgpack, set as the folder is written (save_policy)
 
     @model_validator(mode="after")
     def _consistent(self):
@@ -115,6 +119,7 @@ def describe(policy: Policy, observation_names, action_names, **about) -> Descri
 def save_policy(policy: Policy, description: Description, folder: Path) -> None:
     """Write (or replace whole) an exported policy's folder."""
     params = serialization.msgpack_serialize(jax.device_get(policy.params))
+    description = description.model_copy(update={"params_sha256": hashlib.sha256(params).hexdigest()})
 
     def fill(staging: Path) -> None:
         write_atomic(staging / DESCRIPTION, (description.model_dump_json(indent=1) + "\n").encode())
@@ -129,8 +134,18 @@ def load_policy(folder: str | Path) -> jax.tree_util.Partial:
     weights, so a new policy of the same shape reuses the compiled program)."""
     folder = Path(folder)
     description = read_description(folder)
+    path = folder / PARAMS
     try:
-        params = serialization.msgpack_restore((folder / PARAMS).read_bytes())
+        blob = path.read_bytes()
+        if not description.params_sha256:
+            raise PolicyError(f"{folder / DESCRIPTION} names no params_sha256, so {path} cannot be told from damaged "
+                              "weights (exported by an earlier fieldgen, or edited); export the policy again")
+        if hashlib.sha256(blob).hexdigest() != description.params_sha256:
+            raise PolicyError(f"{path} is not the weights {folder / DESCRIPTION} names (its digest differs: "
+                              "damaged, or copied from another export); export the policy again")
+        params = serialization.msgpack_restore(blob)
+    except PolicyError:
+        raise
     except OSError as exc:
         raise PolicyError(f"cannot read {folder / PARAMS}: {exc.strerror}") from None
     except Exception:  # msgpack raises many types on damaged input

@@ -9,10 +9,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from flax import serialization
 
 import fieldgen
 from fieldgen.agents.actor import Policy
-from fieldgen.policy_folder import DESCRIPTION, PolicyError, describe, save_policy
+from fieldgen.policy_folder import DESCRIPTION, PARAMS, PolicyError, describe, save_policy
 
 
 @pytest.fixture
@@ -76,3 +77,22 @@ def test_a_policy_json_too_large_to_be_one_is_refused_unread(exported):
     with pytest.raises(PolicyError, match="policy.json has 20,000,000 bytes, more than a policy's description ever "
                                           "needs"):
         fieldgen.load_policy(exported)
+
+
+@pytest.mark.parametrize("damage,phrase", [
+    (lambda folder: (folder / PARAMS).write_bytes(bytes([(folder / PARAMS).read_bytes()[0] ^ 1]) +
+                                                  (folder / PARAMS).read_bytes()[1:]),
+     "params.msgpack is not the weights {folder}/policy.json names (its digest differs"),
+    (lambda folder: (folder / PARAMS).write_bytes(serialization.msgpack_serialize(
+        jax.tree.map(lambda x: x + 1, serialization.msgpack_restore((folder / PARAMS).read_bytes())))),
+     "params.msgpack is not the weights"),
+    (lambda folder: (folder / DESCRIPTION).write_text(json.dumps(
+        {k: v for k, v in json.loads((folder / DESCRIPTION).read_text()).items() if k != "params_sha256"})),
+     "policy.json names no params_sha256, so {folder}/params.msgpack cannot be told from damaged weights"),
+], ids=["flipped", "other_weights", "no_digest"])
+def test_weights_that_are_not_those_described_are_refused(exported, damage, phrase):
+    """Weights of the right shapes but other values (a flipped bit, another export's) acted without a word."""
+    damage(exported)
+    with pytest.raises(PolicyError) as caught:
+        fieldgen.load_policy(exported)
+    assert phrase.format(folder=exported) in str(caught.value)

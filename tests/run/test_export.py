@@ -32,7 +32,7 @@ def test_exported_policy_acts_as_the_run(trained, tmp_path):
     result = runner.invoke(app, ["export", str(trained), "-o", str(folder), "--seed", "1"])
     assert result.exit_code == 0, result.output
     assert "exported crl seed 1 at 1,760 env steps (point_nav: 6 observations -> 2 actions)" in result.output
-    assert sorted(p.name for p in folder.iterdir()) == [PARAMS, DESCRIPTION]
+    assert sorted(p.name for p in folder.iterdir()) == [".fieldgen", PARAMS, DESCRIPTION]
     run = session.open_run(trained)
     described = json.loads((folder / DESCRIPTION).read_text())
     assert described["algorithm"] == "crl" and described["seed"] == 1 and described["env_steps"] == 1760
@@ -78,5 +78,5 @@ def test_a_damaged_export_is_a_clear_error(trained, tmp_path):
         fieldgen.load_policy(folder)
     (folder / DESCRIPTION).write_text(json.dumps(described))
     (folder / PARAMS).write_bytes((folder / PARAMS).read_bytes()[:100])
-    with pytest.raises(PolicyError, match="params.msgpack is damaged"):
+    with pytest.raises(PolicyError, match="params.msgpack is not the weights .*policy.json names"):
         fieldgen.load_policy(folder)
