@@ -4,13 +4,14 @@ from __future__ import annotations
 
 import contextlib
 import io
+import math
 import os
 
 import imageio.v3 as iio
 import mujoco
 import numpy as np
 
-from fieldgen.compile.cameras import CAMERAS
+from fieldgen.compile.cameras import CAMERAS, TOP
 
 HEIGHT = 480  # of a still; videos are drawn half as high
 PERSPECTIVE_ASPECT = 4 / 3
@@ -46,7 +47,7 @@ def frame_size(model: mujoco.MjModel, camera: str, height: int) -> tuple[int, in
     top view's is the field's aspect), 4:3 for a perspective one. Widths are multiples of 16, which video
     encoders take without rescaling."""
     w, h = model.cam_resolution[model.cam(camera).id]
-    aspect = w / h if _orthographic(model, camera) else PERSPECTIVE_ASPECT
+    aspect = w / h if _view_height(model, camera) is not None else PERSPECTIVE_ASPECT
     return height, max(16, 16 * round(height * aspect / 16))
 
 
@@ -111,19 +112,20 @@ def contact_sheet(images: list[np.ndarray], titles: list[str], columns: int = 3)
 
 
 def _scene_option(model: mujoco.MjModel, camera: str) -> mujoco.MjvOption:
-    """Bodies and floor markings in every view; the goal's volume and net only in perspective ones."""
+    """Bodies and floor markings in every view; the goal's volume and net only in views from the side."""
     option = mujoco.MjvOption()
     option.geomgroup[:] = 0
-    option.geomgroup[:SIDE_VIEW + (not _orthographic(model, camera))] = 1
+    option.geomgroup[:SIDE_VIEW + (_view_height(model, camera) is None)] = 1
     return option
 
 
 def _mark(model: mujoco.MjModel, data: mujoco.MjData, scene: mujoco.MjvScene, camera: str) -> None:
     """In the top view, a translucent disc in its own colour under the agent and under the ball, so both
     show at a glance however large the field; they are drawn, not simulated."""
-    if not _orthographic(model, camera):
+    height = _view_height(model, camera)
+    if height is None:
         return
-    radius = MARK_RADIUS * model.cam_fovy[model.cam(camera).id]
+    radius = MARK_RADIUS * height
     for name in MARKED:
         geom = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, name)
         if geom < 0 or scene.ngeom == scene.maxgeom:
@@ -136,5 +138,13 @@ def _mark(model: mujoco.MjModel, data: mujoco.MjData, scene: mujoco.MjvScene, ca
         scene.ngeom += 1
 
 
-def _orthographic(model: mujoco.MjModel, camera: str) -> bool:
-    return model.cam_projection[model.cam(camera).id] == mujoco.mjtProjection.mjPROJ_ORTHOGRAPHIC
+def _view_height(model: mujoco.MjModel, camera: str) -> float | None:
+    """The metres a view straight down frames from bottom to top: an orthographic camera's fovy, or what the
+    top camera sees of the floor where a field too large for an orthographic one has it in perspective
+    (fieldgen.compile.scene); None for a view from the side."""
+    i = model.cam(camera).id
+    if model.cam_projection[i] == mujoco.mjtProjection.mjPROJ_ORTHOGRAPHIC:
+        return float(model.cam_fovy[i])
+    if camera == TOP:
+        return float(2 * model.cam_pos[i][2] * math.tan(math.radians(model.cam_fovy[i] / 2)))
+    return None

@@ -84,3 +84,23 @@ def test_the_top_view_marks_the_agent_and_ball_wherever_they_go():
     assert agent_after[1] > agent_before[1] + 40 and agent_after[0] > agent_before[0] + 40  # rows grow downward
     disc = regions(before.astype(int))["agent"].sum()
     assert disc > np.pi * (0.25 * before.shape[0] / m.cam("top").fovy[0]) ** 2  # more than the bare point
+
+
+@pytest.mark.parametrize("length,width", [(500, 500), (400, 300), (500, 10), (170, 100)])
+def test_a_field_as_large_as_the_schema_allows_builds_and_renders(write_spec, tmp_path, length, width):
+    """mujoco takes no camera fovy of 180 or more, which an orthographic top view of a field over about 160 m
+    would need: such a field is framed in perspective, in the field's aspect, with the agent and ball marked.
+    Before: the build of any of these died in the renderer with 'fovy too large'."""
+    from fieldgen.compile.build import build
+
+    spec = write_spec(f"extends: soccer_v2\nname: large\nfield: {{length: {length}, width: {width}}}\n"
+                      "goal: {distance: 2}\n")
+    built = build(spec, tmp_path / "build")
+    assert (built.out_dir / "preview.png").exists()
+    large = built.artifact.model()
+    frame = render_pose(large, camera="top")
+    height, frame_width = frame_size(large, "top", 480)
+    assert frame.shape == (height, frame_width, 3) and abs(frame_width / height - width / length) < 0.2
+    floor = np.median(frame.reshape(-1, 3), axis=0)
+    marks = np.abs(frame.astype(int) - floor).max(axis=-1) > 60  # the agent's and the ball's, in colour on grey
+    assert 20 < marks.sum() < 0.05 * marks.size

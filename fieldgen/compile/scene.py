@@ -8,6 +8,8 @@ build report look geoms and joints up by name.
 
 from __future__ import annotations
 
+import math
+
 from dm_control import mjcf
 
 from fieldgen.compile.bodies import BUILDERS
@@ -20,6 +22,8 @@ from fieldgen.schema.models import FieldSpec
 
 TOP_HEIGHT_PX = 480  # the top view's frame height; its width follows the field's aspect
 TOP_MARGIN = 0.05  # of the framed extent's longer side, on every side of the top view
+ORTHOGRAPHIC_MAX_M = 170.0  # the tallest view the top camera frames orthographically (mujoco: fovy below 180)
+TOP_FOVY_DEG = 45.0  # the top camera's angle of view where a field is framed in perspective
 # Okabe and Ito's colour-blind-safe palette on a neutral floor: the target (vermillion), goal (blue),
 # ball (yellow) and agent (reddish purple, in fieldgen.compile.bodies) differ in hue and lightness alike.
 RGBA = {
@@ -124,8 +128,15 @@ def _top_camera(root: mjcf.RootElement, spec: FieldSpec) -> None:
     width = max(16, 16 * round(TOP_HEIGHT_PX * span_x / span_y / 16))  # what video encoders take
     height_m = max(span_y, span_x * TOP_HEIGHT_PX / width)
     getattr(root.visual, "global").offwidth = max(640, width)
-    root.worldbody.add("camera", name=TOP, pos=((x0 + x1) / 2, (y0 + y1) / 2, 2 * max(span_x, span_y)),
-                       xyaxes=(1, 0, 0, 0, 1, 0), projection="orthographic", fovy=height_m,
+    centre = ((x0 + x1) / 2, (y0 + y1) / 2)
+    if height_m < ORTHOGRAPHIC_MAX_M:
+        root.worldbody.add("camera", name=TOP, pos=(*centre, 2 * max(span_x, span_y)), xyaxes=(1, 0, 0, 0, 1, 0),
+                           projection="orthographic", fovy=height_m, resolution=(width, TOP_HEIGHT_PX))
+        return
+    # mujoco takes no fovy of 180 or more, even as an orthographic camera's metres: a field this large is framed
+    # by a perspective camera as high as frames the same view
+    above = height_m / 2 / math.tan(math.radians(TOP_FOVY_DEG / 2))
+    root.worldbody.add("camera", name=TOP, pos=(*centre, above), xyaxes=(1, 0, 0, 0, 1, 0), fovy=TOP_FOVY_DEG,
                        resolution=(width, TOP_HEIGHT_PX))
 
 

@@ -70,7 +70,8 @@ def test_a_damaged_export_is_a_clear_error(trained, tmp_path):
     with pytest.raises(PolicyError, match=r"\['params'\]\['Dense_1'\]\['bias'\] are \(32,\) where policy.json "
                                           r"describes a network whose .* is \(4,\)"):
         fieldgen.load_policy(folder)
-    (folder / DESCRIPTION).write_text(json.dumps({**described, "agents": [{"observes": ["ball.x"], "drives": []}]}))
+    (folder / DESCRIPTION).write_text(json.dumps({**described, "agents": [{"observes": ["ball.x"],
+                                                                             "drives": described["action_names"]}]}))
     with pytest.raises(PolicyError, match="'ball.x' is not in list"):
         fieldgen.load_policy(folder)
     (folder / DESCRIPTION).write_text(json.dumps({**described, "normalizer": {"mean": [0.0]}}))
