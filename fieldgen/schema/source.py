@@ -28,6 +28,7 @@ MAX_BYTES = 1_000_000  # a spec is a few kilobytes; a megabyte is a mistake or a
 MAX_DEPTH = 32  # a spec nests four or five levels
 MAX_NODES = 30_000  # values after expanding aliases; 1,000 obstacles with every key set have about 16,000
 _STR = "tag:yaml.org,2002:str"
+_MERGE = "tag:yaml.org,2002:merge"
 
 
 @dataclass
@@ -78,6 +79,7 @@ def read_yaml(path: Path, document: str = "a field spec", needs: str = "a field 
         problems: list[Problem] = []
         positions: dict[tuple, Pos] = {(): _pos(path, node)}
         _bounded(path, node, document)
+        _merge_keys(path, node, (), problems, set())
         _walk(path, node, (), positions, problems)
         if problems:
             raise SpecError(problems)
@@ -135,18 +137,28 @@ def _refuse_characters(path: Path, text: str) -> None:
 
 def _refuse_depth(path: Path, text: str, document: str) -> None:
     """Refuse nesting past MAX_DEPTH from the parser's events, before anything is built: PyYAML's
-    composer recurses once a level, and its scanner slows with every bracket left open."""
+    composer recurses once a level, and its scanner slows with every bracket left open. The refusal names
+    the key path it got to, as every other problem does."""
     events = SpecLoader(text)
-    depth = 0
+    open_: list[list] = []  # per open collection: [is a mapping, items begun in it, the last key]
     try:
         while (event := events.get_event()) is not None and not isinstance(event, yaml.StreamEndEvent):
+            if isinstance(event, yaml.CollectionEndEvent):
+                open_.pop()
+                continue
+            if not isinstance(event, yaml.NodeEvent):
+                continue
+            if open_:
+                level = open_[-1]
+                if level[0] and level[1] % 2 == 0:  # a mapping's key
+                    level[2] = event.value if isinstance(event, yaml.ScalarEvent) else "?"
+                level[1] += 1
             if isinstance(event, yaml.CollectionStartEvent):
-                depth += 1
-                if depth > MAX_DEPTH:
-                    raise SpecError([_at(path, event, (), f"{document} nests deeper than {MAX_DEPTH} levels; "
-                                                          "it needs a few")])
-            elif isinstance(event, yaml.CollectionEndEvent):
-                depth -= 1
+                open_.append([isinstance(event, yaml.MappingStartEvent), 0, None])
+                if len(open_) > MAX_DEPTH:
+                    parts = tuple(level[2] if level[0] else level[1] - 1 for level in open_[:-1])
+                    raise SpecError([_at(path, event, parts, f"{document} nests deeper than {MAX_DEPTH} levels; "
+                                                             "it needs a few")])
     finally:
         events.dispose()
 
@@ -183,6 +195,43 @@ def _bounded(path: Path, root: yaml.MappingNode, document: str) -> None:
         raise SpecError([_at(path, key, (key.value,) if isinstance(key.value, str) else (),
                              f"{document} holds {sizes[id(root)]:,} values, each alias counted as what it "
                              f"repeats, most of them here; at most {MAX_NODES:,} are allowed (it needs far fewer)")])
+
+
+def _merge_keys(path: Path, node: yaml.Node, parts: tuple, problems: list, done: set) -> None:
+    """YAML merge keys (`<<: *defaults`, `<<: [*a, *b]`) resolved in place, as YAML means them: the keys of the
+    mappings named (of the first named first) come in under the mapping's own, which win; each key keeps the
+    position it is written at, so a problem in a merged value points at the anchor that set it."""
+    if id(node) in done or not isinstance(node, (yaml.MappingNode, yaml.SequenceNode)):
+        return
+    done.add(id(node))
+    if isinstance(node, yaml.SequenceNode):
+        for i, item in enumerate(node.value):
+            _merge_keys(path, item, parts + (i,), problems, done)
+        return
+    own, merged = [], []
+    for key_node, value_node in node.value:
+        if key_node.tag != _MERGE:
+            own.append((key_node, value_node))
+            here = parts + (key_node.value,) if isinstance(key_node.value, str) else parts
+            _merge_keys(path, value_node, here, problems, done)
+            continue
+        named = value_node.value if isinstance(value_node, yaml.SequenceNode) else [value_node]
+        for source in named:
+            if not isinstance(source, yaml.MappingNode):
+                problems.append(_at(path, source, parts, "a merge key '<<' takes a mapping or a list of mappings, "
+                                                         "such as <<: *defaults"))
+                continue
+            _merge_keys(path, source, parts, problems, done)
+            merged.extend(source.value)
+    if len(own) == len(node.value):
+        return
+    taken = {k.value for k, _ in own if isinstance(k, yaml.ScalarNode)}
+    first = []
+    for key_node, value_node in merged:
+        if not (isinstance(key_node, yaml.ScalarNode) and key_node.value in taken):
+            taken.add(key_node.value)
+            first.append((key_node, value_node))
+    node.value = first + own
 
 
 def _walk(path: Path, node: yaml.Node, parts: tuple, positions: dict, problems: list) -> None:

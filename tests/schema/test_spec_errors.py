@@ -87,3 +87,35 @@ def test_missing_file_and_unknown_bundled_base(write_spec, tmp_path):
     (p,) = problems_of(write_spec("extends: socer_v2\nname: x\n"))
     assert p.line == 1 and p.path == "extends"
     assert "did you mean 'soccer_v2'" in p.message
+
+
+MERGED = """\
+extends: soccer_v2
+name: merged
+obstacles:
+  left: &block {x: -3, y: 6, width: 1.0, depth: 0.5, height: 0.5}
+  middle: &tall
+    <<: *block
+    x: 0
+    height: 1.5
+  right: {<<: [*tall, *block], x: 3}
+"""
+
+
+def test_yaml_merge_keys_are_read_as_yaml_means_them(write_spec):
+    """`<<: *anchor` and `<<: [*a, *b]` (the first named wins) under the mapping's own keys, which win over both.
+    Before: refused as "keys must be plain names"."""
+    spec = load_spec(write_spec(MERGED))
+    left, middle, right = (spec.obstacles[k] for k in ("left", "middle", "right"))
+    assert (middle.x, middle.y, middle.width, middle.height) == (0, 6, 1.0, 1.5)
+    assert (right.x, right.y, right.height) == (3, 6, 1.5)  # middle's height, named first, over left's
+
+
+def test_a_problem_in_a_merged_value_points_at_where_it_is_written(write_spec):
+    with pytest.raises(SpecError) as caught:
+        load_spec(write_spec(MERGED.replace("height: 0.5}", "height: -0.5}").replace("    height: 1.5\n", "")))
+    problems = {p.path: (p.line, p.col) for p in caught.value.problems}
+    assert set(problems) == {"obstacles.left.height", "obstacles.middle.height", "obstacles.right.height"}
+    assert set(problems.values()) == {(4, 54)}  # all three at left's `height:`, where the value is written
+    with pytest.raises(SpecError, match="bad.yaml:3:12: goal: a merge key '<<' takes a mapping or a list of mappings"):
+        load_spec(write_spec("extends: soccer_v2\nname: a\ngoal: {<<: 5}\n", "bad.yaml"))

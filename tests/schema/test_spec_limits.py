@@ -64,6 +64,18 @@ def test_twenty_thousand_nested_brackets(write_spec, opening, closing):
     assert p.file == spec and p.line == 2 and "nests deeper than 32 levels" in p.message
 
 
+@pytest.mark.parametrize("text,path", [
+    ("name: x\ndescription: " + "[" * 40 + "]" * 40 + "\n", "description[0][0][0][0][0][0][0][0][0][0][0][0][0][0][0]"
+     "[0][0][0][0][0][0][0][0][0][0][0][0][0][0][0][0]"),
+    ("name: x\nobstacles:\n  rock:\n    x: " + "{a: " * 40 + "1" + "}" * 40 + "\n", "obstacles.rock.x.a.a.a.a.a.a.a"),
+    ("name: x\ntask:\n  reward:\n  - term: success\n  - " + "[" * 40 + "]" * 40 + "\n", "task.reward[1]"),
+])
+def test_nesting_too_deep_names_the_key_path_it_got_to(write_spec, text, path):
+    """Before: the refusal named no key, so the author of a large spec had to find the place by line alone."""
+    p = one_problem(write_spec(text))
+    assert p.path.startswith(path) and "nests deeper than 32 levels" in p.message
+
+
 def test_an_extends_chain_hundreds_deep(tmp_path):
     for i in range(300):
         (tmp_path / f"c{i}.yaml").write_text(f"extends: c{i + 1}.yaml\nname: c{i}\n" if i < 299 else "name: c299\n")
