@@ -264,3 +264,15 @@ def test_a_video_format_this_machine_cannot_write_is_refused_before_anything_loa
     assert not any(tmp_path.iterdir())  # no run folder begun
     unknown = runner.invoke(app, ["videos", str(tmp_path), "--video-format", "avi"])
     assert unknown.exit_code == 1 and "unknown video format 'avi'. Choose one of: mp4, gif." in unknown.output
+
+
+def test_validate_says_when_a_moved_goal_leaves_a_wall_across_the_goal_line(write_spec):
+    """soccer_v2 with its goal moved to 15 ahead keeps a front wall across the whole field at 20: it validates,
+    and validate now says so (before: a bare "ok")."""
+    moved = write_spec("extends: soccer_v2\nname: moved\ngoal: {distance: 15}\n")
+    result = runner.invoke(app, ["validate", str(moved), "soccer_v2"])
+    message = " ".join(result.output.split())
+    assert result.exit_code == 0 and f"ok {moved}: moved note: the goal stands 15 ahead, off the goal line at 20, so " \
+        "the front wall there runs the field's whole width with no mouth in it; to play into a goal on the goal " \
+        "line, set goal.distance: 20 (or field.length: 30); for no wall there, walls.front: false" in message
+    assert message.endswith("ok soccer_v2: soccer_v2")  # its goal is on the goal line: nothing to say

@@ -32,6 +32,8 @@ def validate(specs: Annotated[list[str], typer.Argument(metavar="SPEC",
             err.print(str(exc), highlight=False)
             continue
         out.print(Text.assemble(("ok", "green"), f" {ref}: {spec.name}"))
+        if note := geometry.goal_behind_wall(spec):
+            out.print(Text(f"note: {note}", style="yellow"))
     if failed:
         raise typer.Exit(1)
 

@@ -68,6 +68,18 @@ def walls(spec: FieldSpec) -> list[Box]:
     return out
 
 
+def goal_behind_wall(spec: FieldSpec) -> str:
+    """Why a front wall stands across the whole goal line, where the goal is not on it ('' where not): a spec
+    that moved its goal (goal.distance) and kept its walls as they were builds this, which validates, so it is
+    said rather than refused (soccer_v2_near means it: a near goal inside a walled field)."""
+    w, g, hy = spec.walls, spec.goal, spec.field.length / 2
+    if not (w.enabled and w.front and g.enabled) or g.distance - g.depth / 2 <= hy <= g.distance + g.depth / 2:
+        return ""
+    return (f"the goal stands {g.distance:g} ahead, off the goal line at {hy:g}, so the front wall there runs the "
+            "field's whole width with no mouth in it; to play into a goal on the goal line, set goal.distance: "
+            f"{hy:g} (or field.length: {2 * g.distance:g}); for no wall there, walls.front: false")
+
+
 def obstacles(spec: FieldSpec) -> list[Box]:
     out = []
     for name, o in spec.obstacles.items():
