@@ -31,6 +31,7 @@ from .team import GROUPINGS, split
 PRESETS = Path(__file__).with_name("presets")
 COUNTER_MAX = 2**31 - 1  # env steps are counted on the device in int32, up to the last iteration's end
 SEED_MAX = 2**32 - 1  # a random key takes 32 bits of seed: 2**32 would give seed 0's key
+MAX_SEEDS = 65_536  # seeds vmapped in one run: their list is written in run.json and their keys made at once
 REWARDS = ("dense", "sparse")
 SPREADS = ("global", "state")
 
@@ -189,6 +190,9 @@ class RunConfig(BaseModel):
             raise ConfigError(f"--steps {self.total_steps:,} with {self.num_envs:,} envs x unroll "
                               f"{self.unroll_length:,} per iteration: a run counts its env steps in 32-bit "
                               f"integers, which reach {COUNTER_MAX:,}; train fewer steps or use fewer --envs")
+        if seeds > MAX_SEEDS:
+            raise ConfigError(f"--seeds {seeds:,}: at most {MAX_SEEDS:,} seeds train at once, each a whole run; "
+                              "train them in several runs")
         if self.seed + seeds - 1 > SEED_MAX:
             raise ConfigError(f"--seed {self.seed} with --seeds {seeds:,} runs past seed {SEED_MAX:,}, the largest "
                               "a random key takes; train fewer --seeds or start from a lower --seed")

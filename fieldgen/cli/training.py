@@ -136,7 +136,7 @@ def train(
             if levels is not None and curriculum_kind != "auto":
                 fail(f"--levels {levels} sets how many levels --curriculum auto makes; add --curriculum auto")
             run = session.new_run(source, algo, range(seed, seed + seeds), algo_config, runs, mixed, init_from,
-                                  auto=curriculum_kind == "auto", levels=levels)
+                                  auto=curriculum_kind == "auto", levels=levels, trains_here=not prepare)
         if run.init_from and not run.rows:
             out.print(f"starts from what {run.init_from['run']} learned in {run.init_from['env_steps']:,} env steps "
                       f"(evaluation {run.init_from['eval']}), with fresh episodes and a replay buffer filled anew")
@@ -144,6 +144,10 @@ def train(
         fail(str(exc))
     if prepare:
         out.print(f"prepared {run.folder}; start it with: fieldgen train --resume {run.folder}")
+        try:
+            session.check_memory(run)
+        except ConfigError as exc:
+            out.print(Text(f"note: {exc}; resume it on a machine that holds it", style="yellow"))
         return
     _train(run, videos, logger, fmt)
 

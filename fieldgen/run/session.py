@@ -96,12 +96,13 @@ def agent_kind(source: Path) -> str:
 
 
 def new_run(source: Path, algo: str, seeds: Sequence[int], config, out: Path, mixed: bool = False,
-            init_from: Path | None = None, auto: bool = False, levels: int | None = None) -> Run:
+            init_from: Path | None = None, auto: bool = False, levels: int | None = None,
+            trains_here: bool = True) -> Run:
     """A run folder for a field (a YAML file or a build folder) or a curriculum folder (staged, or mixed:
     every stage in one batch, built to one structure); with `auto`, a field trained through `levels` levels
     (curriculum.auto.LEVELS by default) between its easy end and itself; with `init_from`, starting from what that run
-    learned. Nothing is written before every setting is known good, the memory the run needs included; `seeds`
-    may be a range, listed only once it is known to fit."""
+    learned. Nothing is written before every setting is known good, the memory the run needs included where it
+    `trains_here` (a run prepared to train elsewhere is checked where it resumes); `seeds` may be a range."""
     promotion, name, kind, coordinates = Promotion(), None, "mixed" if mixed else "staged", []
     if auto:
         if mixed or curriculum.is_curriculum(source):
@@ -132,7 +133,8 @@ def new_run(source: Path, algo: str, seeds: Sequence[int], config, out: Path, mi
         config.validate_env(env, sharding.device_count(), len(seeds))
     dirs = [FIELD] if len(envs) == 1 else [f"{STAGES}/{k + 1:02d}" for k in range(len(envs))]
     run = Run(folder, algo, envs, config, seeds, [], promotion, schedule_kind=kind)
-    check_memory(run)
+    if trains_here:
+        check_memory(run)
     run.seeds = seeds = list(seeds)
     if init_from is not None:
         run.state, run.init_from = started_from(run, init_from)

@@ -24,8 +24,8 @@ def machine_of(monkeypatch):
 
 
 def refused(tmp_path, *args: str) -> str:
-    """`fieldgen train point_nav ARGS --prepare` into tmp_path: refused in one paragraph, nothing written."""
-    result = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path), "--prepare", *args])
+    """`fieldgen train point_nav ARGS` into tmp_path: refused in one paragraph, nothing written."""
+    result = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path), "--no-videos", *args])
     assert result.exit_code == 1 and "Traceback" not in result.output, result.output
     assert list(tmp_path.iterdir()) == []
     return " ".join(result.output.split())
@@ -35,11 +35,12 @@ def refused(tmp_path, *args: str) -> str:
     (["--envs", "10000000000", "--steps", "1e14"], "--steps 100,000,000,000,000 with 10,000,000,000 envs x unroll "
      "62 per iteration: a run counts its env steps in 32-bit integers, which reach 2,147,483,647"),
     (["--steps", "3G"], "--steps 3,000,000,000 with 1,024 envs x unroll 62 per iteration"),
-    (["--seeds", "100000000000"], "--seed 0 with --seeds 100,000,000,000 runs past seed 4,294,967,295, the largest a "
-     "random key takes; train fewer --seeds or start from a lower --seed"),
+    (["--seed", "4294967000", "--seeds", "1000"], "--seed 4294967000 with --seeds 1,000 runs past seed 4,294,967,295, "
+     "the largest a random key takes; train fewer --seeds or start from a lower --seed"),
     (["--seed", "4294967296"], "crl.seed must be at most 4294967295, not 4294967296"),
     (["--seed", "4294967295", "--seeds", "2"], "runs past seed 4,294,967,295"),
-], ids=["envs", "steps", "seeds", "seed", "seed_range"])
+    (["--seeds", "1000000"], "--seeds 1,000,000: at most 65,536 seeds train at once, each a whole run"),
+], ids=["envs", "steps", "seeds", "seed", "seed_range", "many_seeds"])
 def test_counts_past_what_the_device_counts_are_refused(tmp_path, args, phrase):
     """Before: an OverflowError traceback (and a run folder) for --envs, a run whose step counter would wrap
     for --steps, a MemoryError listing the seeds, and seeds past 2**32 given seed 0's random key."""
@@ -63,6 +64,19 @@ def test_counts_past_what_the_device_counts_are_refused(tmp_path, args, phrase):
 def test_a_run_the_machine_cannot_hold_is_refused_with_its_estimate(tmp_path, machine_of, args, phrase):
     machine_of(16)
     assert phrase in refused(tmp_path, *args)
+
+
+def test_a_run_prepared_to_train_elsewhere_is_written_with_a_note(tmp_path, machine_of):
+    """--prepare is for a run that trains on another machine (a GPU's): its memory is checked where it resumes,
+    and here it is only said."""
+    machine_of(16)
+    result = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path), "--prepare", "--envs", "100000",
+                                 "--steps", "1G"])
+    message = " ".join(result.output.split())
+    assert result.exit_code == 0 and (tmp_path / "point_nav-crl-0" / "run.json").exists(), result.output
+    assert "note: training 1 seed of crl with 100,000 envs needs about 28.8 GB" in message
+    assert message.endswith("more than the 16 GB of this machine; lower --envs or crl.max_replay_rows; resume it on a "
+                            "machine that holds it")
 
 
 def test_a_prepared_run_too_large_for_this_machine_is_refused_before_it_loads(tmp_path, machine_of, tiny_crl_args):
