@@ -15,14 +15,13 @@ import jax.numpy as jnp
 from pydantic import ValidationError
 
 import fieldgen
-from fieldgen import curriculum
+from fieldgen import curriculum, files
 from fieldgen.agents import checkpoint, loop, memory, registry, sharding
 from fieldgen.agents.config import ConfigError
 from fieldgen.compile.artifact import ArtifactError, load_artifact, write_artifact
 from fieldgen.compile.variants import VariantError
 from fieldgen.curriculum.promotion import Promotion
 from fieldgen.curriculum.schedule import Mixed, Staged, schedule
-from fieldgen import files
 from fieldgen.run import record
 from fieldgen.schema import FieldSpec, load_spec
 
@@ -301,9 +300,11 @@ def open_run(folder: Path, load_state: bool = True, to_train: bool = False) -> R
     except checkpoint.CheckpointError as exc:
         raise record.RunError(str(exc)) from None
     done = int(jax.device_get(run.state.env_steps)[0])
-    run.rows = [r for r in run.rows if r["env_steps"] <= done]  # a kill between an evaluation's metrics and its
-    if not run.rows or run.rows[-1]["env_steps"] != done:  # checkpoint leaves rows after it; none may be missing
-        last = f"its last evaluation at or before them is at {run.rows[-1]['env_steps']:,}" if run.rows else "none is at or before them"
+    # a kill between an evaluation's metrics and its checkpoint leaves rows after it; the checkpoint's own is there
+    run.rows = [r for r in run.rows if r["env_steps"] <= done]
+    if not run.rows or run.rows[-1]["env_steps"] != done:
+        last = (f"its last evaluation at or before them is at {run.rows[-1]['env_steps']:,}" if run.rows
+                else "none is at or before them")
         raise record.RunError(f"{path} holds the run at {done:,} env steps, but {folder / record.METRICS} has no "
                               f"evaluation there ({last}): the two disagree; {damaged}")
     return run
