@@ -137,27 +137,18 @@ def test_levels_of_a_run_of_one_stage_is_one_sentence(tmp_path):
 
 
 @pytest.mark.slow
-def test_an_auto_run_killed_and_resumed_continues_its_levels_exactly(tmp_path, monkeypatch):
+def test_an_auto_run_killed_and_resumed_continues_its_levels_exactly(tmp_path, interrupt_after_eval):
     """The level weights live in the training state (each environment's next draw), so a run stopped after an
     evaluation and resumed weighs and plays its levels exactly as the run never stopped."""
-    from fieldgen.run import record
-
     sets = ["crl.hidden=[32,32]", "crl.repr_dim=8", "crl.batch_size=64", "crl.unroll_length=25",
             "crl.min_replay_rows=100", "crl.max_replay_rows=400", "crl.num_evals=3", "crl.eval_envs=8"]
     args = ["train", "point_soccer", "--curriculum", "auto", "--levels", "3", "--steps", "5000", "--envs", "8",
             "--no-videos", *[x for s in sets for x in ("--set", s)]]
     whole = runner.invoke(app, [*args, "--out", str(tmp_path / "whole")])
     assert whole.exit_code == 0, whole.output
-    write_metrics = record.write_metrics
-
-    def stop_after_eval_1(folder, rows):
-        write_metrics(folder, rows)
-        if rows[-1]["eval"] == 1:
-            raise KeyboardInterrupt
-
-    monkeypatch.setattr(record, "write_metrics", stop_after_eval_1)
+    interrupt_after_eval(1)
     assert runner.invoke(app, [*args, "--out", str(tmp_path / "cut")]).exit_code == 130
-    monkeypatch.setattr(record, "write_metrics", write_metrics)
+    interrupt_after_eval(None)
     cut = tmp_path / "cut" / "point_soccer-auto-crl-0"
     resumed = runner.invoke(app, ["train", "--resume", str(cut)])
     assert resumed.exit_code == 0, resumed.output
