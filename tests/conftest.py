@@ -111,3 +111,22 @@ def train_point_nav(tmp_path_factory, tiny_crl_args):
         return trained[seeds]
 
     return train
+
+
+@pytest.fixture
+def interrupt_after_eval(monkeypatch):
+    """interrupt_after_eval(index): from now on `fieldgen train` stops as Ctrl-C would, once evaluation `index`'s
+    metrics are written; interrupt_after_eval(None) lets training run on again."""
+    from fieldgen.run import record
+
+    write_metrics = record.write_metrics
+
+    def arm(index: int | None) -> None:
+        def stop(folder, rows):
+            write_metrics(folder, rows)
+            if rows[-1]["eval"] == index:
+                raise KeyboardInterrupt
+
+        monkeypatch.setattr(record, "write_metrics", write_metrics if index is None else stop)
+
+    return arm

@@ -133,10 +133,14 @@ def render(
                                          help="PNG file to write")] = Path("field.png"),
     camera: Annotated[str, typer.Option(help="the view; both: side by side",
                                         **choice("camera", (*CAMERAS, "both")))] = "top",
+    levels: Annotated[bool, typer.Option("--levels", help="SPEC is a run of an automatic (or mixed) curriculum: "
+                                                          "draw the levels it favours now, each with its share "
+                                                          "of new episodes and its success")] = False,
 ) -> None:
     """Render a field to a PNG, headless.
 
     Example: fieldgen render fields/soccer_v2.yaml -o v2.png --camera follow
+    Example: fieldgen render runs/soccer_v2-auto-crl-0 --levels -o levels.png
     """
     from fieldgen.compile.artifact import ArtifactError, compile_spec, load_artifact
     from fieldgen.files import write_atomic
@@ -144,6 +148,17 @@ def render(
 
     from fieldgen import curriculum
 
+    if levels:
+        from fieldgen.run.favoured import favoured_levels
+        from fieldgen.run.record import RunError
+
+        try:
+            image_bytes, said = favoured_levels(Path(spec), "top" if camera == "both" else camera)
+            write_atomic(output, image_bytes)
+        except (RunError, RenderError, OSError) as exc:
+            fail(str(exc))
+        out.print(f"wrote {output}: {said}")
+        return
     if curriculum.is_curriculum(Path(spec)):
         from fieldgen.curriculum.sheet import stage_sheet
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 
+import imageio.v3 as iio
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -83,6 +84,8 @@ def test_auto_run_records_its_levels_and_weights_and_resumes(tmp_path):
     prepared = runner.invoke(app, [*args, "--prepare"])
     assert prepared.exit_code == 0, prepared.output
     run = tmp_path / "point_soccer-auto-crl-0"
+    early = runner.invoke(app, ["render", str(run), "--levels", "-o", str(tmp_path / "early.png")])
+    assert early.exit_code != 0 and "has no evaluation yet" in " ".join(early.output.split())
     record = json.loads((run / "run.json").read_text())
     assert record["schedule"] == "auto" and record["mixed"] and len(record["levels"]) == 4
     assert record["levels"][0]["kickoff"] == 0.0 and all(v == 1.0 for v in record["levels"][-1].values())
@@ -95,6 +98,11 @@ def test_auto_run_records_its_levels_and_weights_and_resumes(tmp_path):
         expected = level_weights(jnp.asarray(v["success_any"]))
         np.testing.assert_allclose(v["weight"], expected, atol=1e-6)
         assert row["last_stage_success_any"] == v["success_any"][-1]
+    assert iio.imread(run / "success.png").shape == (360, 2500, 4)  # with the panel of where episodes go
+    sheet = runner.invoke(app, ["render", str(run), "--levels", "-o", str(tmp_path / "levels.png")])
+    assert sheet.exit_code == 0, sheet.output
+    assert "most played of 4 levels after evaluation 2" in " ".join(sheet.output.split())
+    assert iio.imread(tmp_path / "levels.png").ndim == 3
 
 
 @pytest.mark.parametrize(("extra", "says"), [
@@ -117,3 +125,36 @@ def test_auto_on_a_curriculum_folder_or_a_field_without_an_easy_end(tmp_path):
     assert folder.exit_code != 0 and "not the curriculum folder" in " ".join(folder.output.split())
     plain = runner.invoke(app, ["train", "point_nav", "--curriculum", "auto", "--out", str(tmp_path / "r")])
     assert plain.exit_code != 0 and "no such ball or target" in " ".join(plain.output.split()), plain.output
+
+
+def test_levels_of_a_run_of_one_stage_is_one_sentence(tmp_path):
+    prepared = runner.invoke(app, ["train", "point_nav", "--steps", "20000", "--envs", "8", "--prepare", "--out",
+                                   str(tmp_path)])
+    assert prepared.exit_code == 0, prepared.output
+    result = runner.invoke(app, ["render", str(tmp_path / "point_nav-crl-0"), "--levels", "-o", str(tmp_path / "l.png")])
+    assert result.exit_code != 0 and "trains one stage at a time" in " ".join(result.output.split()), result.output
+    assert not (tmp_path / "l.png").exists()
+
+
+@pytest.mark.slow
+def test_an_auto_run_killed_and_resumed_continues_its_levels_exactly(tmp_path, interrupt_after_eval):
+    """The level weights live in the training state (each environment's next draw), so a run stopped after an
+    evaluation and resumed weighs and plays its levels exactly as the run never stopped."""
+    sets = ["crl.hidden=[32,32]", "crl.repr_dim=8", "crl.batch_size=64", "crl.unroll_length=25",
+            "crl.min_replay_rows=100", "crl.max_replay_rows=400", "crl.num_evals=3", "crl.eval_envs=8"]
+    args = ["train", "point_soccer", "--curriculum", "auto", "--levels", "3", "--steps", "5000", "--envs", "8",
+            "--no-videos", *[x for s in sets for x in ("--set", s)]]
+    whole = runner.invoke(app, [*args, "--out", str(tmp_path / "whole")])
+    assert whole.exit_code == 0, whole.output
+    interrupt_after_eval(1)
+    assert runner.invoke(app, [*args, "--out", str(tmp_path / "cut")]).exit_code == 130
+    interrupt_after_eval(None)
+    cut = tmp_path / "cut" / "point_soccer-auto-crl-0"
+    resumed = runner.invoke(app, ["train", "--resume", str(cut)])
+    assert resumed.exit_code == 0, resumed.output
+
+    def rows(folder):
+        return [{k: v for k, v in json.loads(line).items() if k not in ("wall_seconds", "steps_per_second")}
+                for line in (folder / "metrics.jsonl").read_text().splitlines()]
+
+    assert rows(cut) == rows(tmp_path / "whole" / "point_soccer-auto-crl-0")

@@ -83,22 +83,15 @@ def test_resume_after_interrupt_reproduces_the_uninterrupted_run(env_cache, tmp_
 
 
 @pytest.mark.slow
-def test_a_run_copied_without_its_whole_checkpoint_goes_on_from_what_it_learned(tmp_path, monkeypatch, tiny_crl_args):
+def test_a_run_copied_without_its_whole_checkpoint_goes_on_from_what_it_learned(tmp_path, interrupt_after_eval,
+                                                                                tiny_crl_args):
     """A run folder moved without checkpoint.msgpack (gigabytes with a full replay buffer) goes on from
     learner.msgpack: it says so, and trains to its end with a buffer filled anew."""
-    from fieldgen.run import record
     args = ["train", "point_nav", "--out", str(tmp_path), "--no-videos", *tiny_crl_args]
     run = tmp_path / "point_nav-crl-0"
-    write_metrics = record.write_metrics
-
-    def stop_after_eval_1(folder, rows):
-        write_metrics(folder, rows)
-        if rows[-1]["eval"] == 2:
-            raise KeyboardInterrupt
-
-    monkeypatch.setattr(record, "write_metrics", stop_after_eval_1)
+    interrupt_after_eval(2)
     assert runner.invoke(app, args).exit_code == 130
-    monkeypatch.setattr(record, "write_metrics", write_metrics)
+    interrupt_after_eval(None)
     (run / "checkpoint.msgpack").unlink()
     result = runner.invoke(app, ["train", "--resume", str(run)])
     assert result.exit_code == 0, result.output
