@@ -181,8 +181,9 @@ def take(folder: Path) -> None:
         raise WriteError(exc.errno, exc.strerror, str(folder)) from None
     holder = {"pid": os.getpid(), "host": socket.gethostname(), "since": time.strftime("%Y-%m-%d %H:%M:%S"),
               "command": shlex.join([Path(sys.argv[0]).name, *sys.argv[1:]])}
-    os.ftruncate(fd, 0)
-    os.write(fd, json.dumps(holder).encode())
+    with contextlib.suppress(OSError):  # who holds it is only told to others: the lock holds without it
+        os.ftruncate(fd, 0)
+        os.write(fd, json.dumps(holder).encode())
     _held[path] = [fd, 1]
 
 
