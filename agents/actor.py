@@ -34,10 +34,11 @@ class Policy:
     skip_every: int = flax.struct.field(pytree_node=False, default=0)
     per_controller: bool = flax.struct.field(pytree_node=False, default=False)
     clip: float = flax.struct.field(pytree_node=False, default=10.0)
+    matmul: str = flax.struct.field(pytree_node=False, default="float32")  # as it trained (networks.MATMULS)
 
     @property
     def network(self) -> MLP:
-        return MLP(self.hidden, self.outputs, self.layer_norm, skip_every=self.skip_every)
+        return MLP(self.hidden, self.outputs, self.layer_norm, skip_every=self.skip_every, matmul=self.matmul)
 
     @classmethod
     def whole(cls, env, params: dict, hidden, outputs: int, **options) -> "Policy":

@@ -24,7 +24,7 @@ from ..env.contract import Environment
 from ..suggest import did_you_mean
 from .buffer import gradient_steps, iterations
 from .contrastive import ENERGIES, LOSSES
-from .networks import residual_blocks
+from .networks import MATMULS, residual_blocks
 from .sharding import by_seed
 from .team import GROUPINGS, split
 
@@ -72,6 +72,7 @@ Spread = Annotated[Literal[SPREADS], Unknown(
     "or state (the policy network's own spread for each state)")]
 Energy = Annotated[Literal[ENERGIES], Unknown(f"unknown energy '{{}}'; choose one of {', '.join(ENERGIES)}")]
 Loss = Annotated[Literal[LOSSES], Unknown(f"unknown contrastive_loss '{{}}'; choose one of {', '.join(LOSSES)}")]
+Matmul = Annotated[Literal[tuple(MATMULS)], Unknown(f"unknown matmul '{{}}'; choose one of {', '.join(MATMULS)}")]
 Grouping = Annotated[Literal[GROUPINGS], Unknown(
     f"icrl.agents: unknown grouping '{{}}'; choose one of {', '.join(GROUPINGS)}")]
 
@@ -266,6 +267,7 @@ class CRLConfig(ReplayConfig):
     alpha_lr: Rate = 3e-4
     repr_dim: Count = 64
     skip_every: Annotated[Int, Field(ge=0)] = 0  # residual blocks of this many hidden layers after the first (agents.networks.MLP); 0: none
+    matmul: Matmul = "float32"  # bfloat16: the networks' products on bfloat16 operands, summed in float32
     energy: Energy = "norm"
     contrastive_loss: Loss = "fwd_infonce"
     logsumexp_penalty: Annotated[Float, Field(ge=0)] = 0.1

@@ -60,7 +60,7 @@ def make_train(config: CRLConfig, env, team: Team | None = None, shared: bool = 
     seen, own, goal_size = team.observed.shape[1], team.actions.shape[1], len(env.goal_indices)
     # one batched network call evaluates the actor and both encoders together
     nets = Stacked(c.hidden, (seen + goal_size, seen + own, goal_size), (2 * own, c.repr_dim, c.repr_dim),
-                   c.layer_norm, team.size, shared, c.skip_every)
+                   c.layer_norm, team.size, shared, c.skip_every, c.matmul)
     tx = adam_by_group(jnp.array([c.actor_lr, c.critic_lr, c.critic_lr]), c.critic_lr, c.alpha_lr)
     target_entropy = c.target_entropy_per_action * own
     energies = jax.vmap(functools.partial(energy, c.energy))
@@ -196,6 +196,7 @@ def make_train(config: CRLConfig, env, team: Team | None = None, shared: bool = 
         goal = tuple(range(state_dim, state_dim + goal_size))
         observes = tuple(tuple(o) + goal for o in team.observed.tolist())
         return Policy(actor, observes, tuple(map(tuple, team.actions.tolist())), tuple(c.hidden), 2 * own,
-                      layer_norm=c.layer_norm, skip_every=c.skip_every, per_controller=per_controller)
+                      layer_norm=c.layer_norm, skip_every=c.skip_every, per_controller=per_controller,
+                      matmul=c.matmul)
 
     return Trainer(config, env, init, prefill, chunk, act, {"env_state": 0, "buffer": 1}, export)

@@ -11,8 +11,8 @@ networks (`fieldgen train --init-from`) is drawn as LABEL=SOURCE_METRICS+METRICS
 where its source's ended, in env steps and wall clock, so both count from nothing learned (the
 source's own evaluations, of its own field, are drawn only under a label of their own).
 
-    python bench/curriculum_curves.py direct=bench/results/h200_ppo_tanh_direct_v2_dense.jsonl \\
-        staged=bench/results/h200_ppo_tanh_staged_v2_dense.jsonl mixed=... -o curves.png
+    python bench/curriculum_curves.py direct=bench/results/ppo_dense_reward/h200_soccer_v2_direct_global_spread_s0.jsonl \\
+        staged=bench/results/ppo_dense_reward/h200_soccer_v2_staged_global_spread.jsonl mixed=... -o curves.png
 """
 
 from __future__ import annotations

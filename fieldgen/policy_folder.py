@@ -44,6 +44,7 @@ class Network(_Strict):
     outputs: int
     layer_norm: bool
     skip_every: int
+    matmul: Literal["float32", "bfloat16"] = "float32"  # the operands of each layer's product (agents.networks.MATMULS)
     per_agent: bool  # each controller has its own weights, stacked on a leading axis of params.msgpack
 
 
@@ -78,7 +79,7 @@ class Description(_Strict):
 def describe(policy: Policy, observation_names, action_names, **about) -> Description:
     """The description of `policy` for an environment's names; `about`: algorithm, field, seed, env_steps."""
     network = Network(hidden=list(policy.hidden), outputs=policy.outputs, layer_norm=policy.layer_norm,
-                      skip_every=policy.skip_every, per_agent=policy.per_controller)
+                      skip_every=policy.skip_every, matmul=policy.matmul, per_agent=policy.per_controller)
     agents = [Agent(observes=[observation_names[i] for i in seen], drives=[action_names[i] for i in driven])
               for seen, driven in zip(policy.observes, policy.drives)]
     normalizer = None
@@ -145,7 +146,7 @@ def _policy(d: Description, params: dict) -> Policy:
                      obs_std=jnp.asarray(d.normalizer.std, jnp.float32), clip=d.normalizer.clip)
     n = d.network
     return Policy(params, observes, drives, tuple(n.hidden), n.outputs, layer_norm=n.layer_norm,
-                  skip_every=n.skip_every, per_controller=n.per_agent, **stats)
+                  skip_every=n.skip_every, per_controller=n.per_agent, matmul=n.matmul, **stats)
 
 
 def _check_shapes(policy: Policy, path: Path) -> None:

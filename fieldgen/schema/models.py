@@ -258,7 +258,7 @@ class Success(Section):
 
 
 class RewardTerm(Section):
-    term: Literal[tuple(TERMS)] = Field(description="a term from the registry (README: reward terms)")
+    term: Literal[tuple(TERMS)] = Field(description="a term from the reward-term registry (fieldgen/schema/terms.py)")
     weight: float = Field(1.0, ge=-1e4, le=1e4, description="the term's factor in the reward sum")
     band: Span | None = Field(None, description="upright only: torso height band that earns the bonus")
 

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 @dataclass(frozen=True)
 class Term:
-    description: str  # one line, as README's "Reward terms" table gives it
+    description: str  # one line, as the DSL reference's "Reward terms" table gives it
     ball: bool = False  # needs a ball (ball.enabled)
     goal: bool = False  # needs a goal (goal.enabled)
     torso: bool = False  # needs an agent with a torso (agent.kind: ant)

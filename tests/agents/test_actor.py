@@ -14,6 +14,7 @@ REPLAY = {"windows": 2, "min_replay_rows": 10}
 CASES = {
     "crl": ("crl", REPLAY),
     "crl residual layer-norm": ("crl", {**REPLAY, "hidden": (8, 8, 8), "skip_every": 2, "layer_norm": True}),
+    "crl bfloat16 matmuls": ("crl", {**REPLAY, "matmul": "bfloat16"}),
     "icrl an actor per controller": pytest.param("icrl", {**REPLAY, "agents": "joint"}, marks=pytest.mark.slow),
     "icrl one shared actor": ("icrl", {**REPLAY, "agents": "joint", "share_parameters": True}),
     "ppo normalised": ("ppo", {"num_minibatches": 2}),

@@ -82,3 +82,18 @@ def test_stacked_residual_networks_equal_the_networks_alone():
         alone = MLP((16,) * 5, OUTPUTS[k], layer_norm=True, skip_every=4)
         np.testing.assert_allclose(out[0], alone.apply(alone.init(key, jnp.zeros((1, n))), xs[k][0]),
                                    rtol=1e-5, atol=1e-6)
+
+
+def test_bfloat16_products_keep_float32_weights_and_outputs_near_float32():
+    """bfloat16 changes only the operands of each product: the same weights, float32 out and float32 gradients,
+    within bfloat16's rounding of the float32 network (and not equal to it: the option does something)."""
+    x = jax.random.normal(jax.random.PRNGKey(1), (16, 12))
+    exact, rounded = MLP((64, 64), 5, layer_norm=True), MLP((64, 64), 5, layer_norm=True, matmul="bfloat16")
+    params = exact.init(jax.random.PRNGKey(0), x)
+    assert jax.tree.structure(params) == jax.tree.structure(rounded.init(jax.random.PRNGKey(0), x))
+    y, y16 = exact.apply(params, x), rounded.apply(params, x)
+    assert y16.dtype == jnp.float32
+    gap = float(jnp.abs(y16 - y).max())
+    assert 0 < gap < 0.05 * float(jnp.abs(y).max())
+    grads = jax.grad(lambda p: jnp.sum(rounded.apply(p, x) ** 2))(params)
+    assert all(g.dtype == jnp.float32 and bool(jnp.all(jnp.isfinite(g))) for g in jax.tree.leaves(grads))

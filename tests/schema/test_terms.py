@@ -1,11 +1,10 @@
-"""The reward-term registry is what the schema offers, what the checks ask of a field and what README lists."""
+"""The reward-term registry is what the schema offers, and what the checks ask of a field (tests/test_docs.py:
+the DSL reference's table lists it)."""
 
 from __future__ import annotations
 
-import re
 import typing
 from dataclasses import replace
-from pathlib import Path
 
 import pytest
 
@@ -13,9 +12,6 @@ from fieldgen.schema import SpecError, load_spec
 from fieldgen.schema.editor import json_schema
 from fieldgen.schema.models import RewardTerm
 from fieldgen.schema.terms import TERMS
-
-ROOT = Path(__file__).resolve().parents[2]
-
 
 def test_the_schema_offers_exactly_the_registered_terms():
     assert typing.get_args(RewardTerm.model_fields["term"].annotation) == tuple(TERMS)
@@ -42,10 +38,3 @@ def test_the_checks_read_what_a_term_needs_from_the_registry(write_spec, monkeyp
         load_spec(write_spec(text))
     assert [(p.path, p.message) for p in info.value.problems] == [
         ("task.reward[0].term", f"the 'agent_progress' term {message}")]
-
-
-def test_readme_lists_the_registered_terms():
-    """README's table is written by hand; this keeps its names and descriptions those of the registry."""
-    section = ROOT.joinpath("README.md").read_text().split("### Reward terms", 1)[1].split("\n### ", 1)[0]
-    rows = re.findall(r"^\| `(\w+)` \| (.+) \|$", section, re.MULTILINE)
-    assert [(name, text.replace("`", "")) for name, text in rows] == [(n, t.description) for n, t in TERMS.items()]

@@ -1,0 +1,281 @@
+"""MkDocs hooks: the pages that are generated from the code rather than written by hand.
+
+- the field DSL reference, from the JSON Schema that `fieldgen schema` prints (fieldgen.schema.editor) and
+  the reward-term registry (fieldgen.schema.terms);
+- the CLI reference, from the typer application behind `fieldgen` (its commands, arguments and options);
+- the results pages, mirrored from bench/results/ (each folder's README and its files), so a reader of the
+  site and a reader of the repository see the same record.
+
+A page asks for a generated part with a line `<!-- generated: NAME -->`; tests/test_docs.py checks that
+every key of the schema and every option of the app appears, so the references cannot drift from the code.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+RESULTS = ROOT / "bench" / "results"
+
+
+# --- the field DSL -----------------------------------------------------------------------------------
+
+
+def _ref(schema: dict, node: dict) -> tuple[str | None, dict]:
+    """The $defs name and definition a node points at, or (None, node)."""
+    if "$ref" in node:
+        name = node["$ref"].rsplit("/", 1)[1]
+        return name, schema["$defs"][name]
+    return None, node
+
+
+def _type(schema: dict, node: dict) -> str:
+    """A key's type as a reader writes it in YAML."""
+    name, node = _ref(schema, node)
+    if name:
+        return "mapping (below)"
+    if "enum" in node:
+        return "one of " + ", ".join(f"`{v}`" for v in node["enum"])
+    if "const" in node:
+        return f"`{node['const']}`"
+    if "anyOf" in node:
+        kinds = [_type(schema, n) for n in node["anyOf"] if n.get("type") != "null"]
+        text = " or ".join(dict.fromkeys(kinds))
+        return text + (" or null" if any(n.get("type") == "null" for n in node["anyOf"]) else "")
+    kind = node.get("type")
+    if kind == "array":
+        if "prefixItems" in node:
+            return "[" + ", ".join(_type(schema, n) for n in node["prefixItems"]) + "]"
+        return "list of " + _type(schema, node.get("items", {}))
+    if kind == "object":
+        return "mapping of names to mappings (below)"
+    return {"number": "number", "integer": "integer", "boolean": "boolean", "string": "text"}.get(kind, str(kind))
+
+
+def _range(node: dict) -> str:
+    """Bounds on a value (numbers, lengths of lists and text), from the schema's keywords."""
+    parts = []
+    for key, sign in (("exclusiveMinimum", ">"), ("minimum", "≥"), ("exclusiveMaximum", "<"), ("maximum", "≤")):
+        if key in node:
+            parts.append(f"{sign} {node[key]:g}")
+    for key, sign in (("minItems", "≥"), ("maxItems", "≤"), ("maxProperties", "≤")):
+        if key in node and not ("prefixItems" in node and key in ("minItems", "maxItems")):
+            parts.append(f"{sign} {node[key]} entries")
+    if "maxLength" in node:
+        parts.append(f"≤ {node['maxLength']} characters")
+    if "pattern" in node:
+        parts.append(f"matches `{node['pattern']}`")
+    for sub in node.get("anyOf", []):
+        inner = _range(sub)
+        if inner:
+            parts.append(inner)
+    return ", ".join(dict.fromkeys(parts))
+
+
+def _value(value) -> str:
+    return "`" + json.dumps(value) + "`" if value is not None else "`null`"
+
+
+def _cell(text: str) -> str:
+    return text.replace("|", "\\|").replace("\n", " ")
+
+
+def _choice_label(schema: dict, node: dict) -> str:
+    """A choice's form by its tag (`kind: ring`, `mode: region`), or its $defs name."""
+    name, node = _ref(schema, node)
+    for key, prop in node.get("properties", {}).items():
+        if "const" in prop:
+            return f"{key}: {prop['const']}"
+    return name or "value"
+
+
+def _section(schema: dict, path: str, node: dict, defaults, out: list[str], depth: int) -> None:
+    """A table of one mapping's keys, then a subsection for each key that is a mapping or a choice."""
+    props = node.get("properties", {})
+    required = set(node.get("required", []))
+    nested = []
+    out += ["| key | type | default | range | description |", "|---|---|---|---|---|"]
+    for key, prop in props.items():
+        if "default" in prop:
+            default = _value(prop["default"])
+        elif "const" in prop:
+            default = _value(prop["const"])
+        elif key in required:
+            default = "required"
+        elif isinstance(defaults, dict) and key in defaults and not isinstance(defaults[key], (dict, list)):
+            default = _value(defaults[key])
+        else:
+            default = "see below"
+        out.append(f"| `{key}` | {_cell(_type(schema, prop))} | {_cell(default)} | {_cell(_range(prop))} | "
+                   f"{_cell(prop.get('description', ''))} |")
+        sub_defaults = defaults.get(key) if isinstance(defaults, dict) else None
+        ref, target = _ref(schema, prop)
+        if ref:
+            nested.append((f"{path}.{key}" if path else key, [(None, target)], sub_defaults, prop))
+        elif "anyOf" in prop and any("$ref" in n for n in prop["anyOf"]):
+            forms = [(_choice_label(schema, n), _ref(schema, n)[1]) for n in prop["anyOf"] if "$ref" in n]
+            nested.append((f"{path}.{key}" if path else key, forms, sub_defaults, prop))
+        elif prop.get("type") == "array" and "$ref" in prop.get("items", {}):
+            nested.append((f"{path}.{key}[]" if path else f"{key}[]", [(None, _ref(schema, prop["items"])[1])], None,
+                           prop))
+    for sub_path, forms, sub_defaults, prop in nested:
+        out += ["", f"{'#' * depth} `{sub_path}`", ""]
+        if prop.get("description"):
+            out += [prop["description"][0].upper() + prop["description"][1:] + ".", ""]
+        if sub_defaults is not None and len(forms) > 1:
+            out += [f"Default: {_value(sub_defaults)}.", ""]
+        for label, target in forms:
+            if len(forms) > 1:
+                tag = next((p for p in target.get("properties", {}).values() if "const" in p), {})
+                out += [f"**`{label}`**: {tag.get('description', target.get('description', ''))}", ""]
+            _section(schema, sub_path, target, sub_defaults if len(forms) == 1 else None, out, depth + 1)
+            out.append("")
+
+
+def dsl_reference() -> str:
+    """Every key of a field spec, section by section, from the schema `fieldgen schema` prints."""
+    from fieldgen.schema.editor import json_schema
+    from fieldgen.schema.models import FieldSpec
+    from fieldgen.schema.terms import TERMS
+
+    schema = json_schema()
+    defaults = FieldSpec.model_validate({"name": "example"}).model_dump(mode="json")
+    out: list[str] = []
+    top = {"properties": {k: v for k, v in schema["properties"].items() if _ref(schema, v)[0] is None
+                          and k != "obstacles"}, "required": schema.get("required", [])}
+    out += ["## Top level", ""]
+    _section(schema, "", top, defaults, out, 3)
+    for key, prop in schema["properties"].items():
+        name, target = _ref(schema, prop)
+        if key == "obstacles":
+            entry = next(n for n in prop["patternProperties"].values())
+            out += ["", "## `obstacles`", "", f"{prop['description'][0].upper()}{prop['description'][1:]}: a mapping "
+                    f"from a name ({_range(prop['propertyNames']) or 'a plain name'}; {_range(prop)}) to a box.",
+                    ""]
+            _section(schema, "obstacles.NAME", _ref(schema, entry["anyOf"][0])[1], None, out, 3)
+            continue
+        if name is None:
+            continue
+        out += ["", f"## `{key}`", "", prop["description"][0].upper() + prop["description"][1:] + ".", ""]
+        _section(schema, key, target, defaults.get(key), out, 3)
+    out += ["", "## Reward terms", "",
+            "The terms `task.reward` may name, from the registry `fieldgen/schema/terms.py`; the reward is the sum of "
+            "`weight * term`, and terms are signed so larger is better.", "",
+            "| term | value | needs |", "|---|---|---|"]
+    for term, spec in TERMS.items():
+        needs = [part for part, flag in (("a ball", spec.ball), ("a goal", spec.goal), ("a torso (ant)", spec.torso))
+                 if flag]
+        out.append(f"| `{term}` | {_cell(spec.description)} | {', '.join(needs) or '-'} |")
+    return "\n".join(out) + "\n"
+
+
+# --- the command line --------------------------------------------------------------------------------
+
+
+def cli_reference() -> str:
+    """Every command of `fieldgen` with its usage, description and parameters, from the typer app."""
+    import click
+    import typer
+
+    from fieldgen.cli import app
+
+    group = typer.main.get_command(app)
+    root = click.Context(group, info_name="fieldgen")
+    out = ["`SPEC` is a YAML path or a bundled field name (`fieldgen list`). `fieldgen --version` prints the "
+           "version, `python -m fieldgen` is the same command, and `fieldgen --install-completion` adds tab "
+           "completion to your shell.", ""]
+    for name, command in group.commands.items():
+        ctx = click.Context(command, info_name=name, parent=root)
+        params = [p for p in command.get_params(ctx) if p.name != "help"]
+        out += [f"## `fieldgen {name}`", "", "```text", f"fieldgen {name} {_usage(params)}", "```", ""]
+        lines = (command.help or "").strip().splitlines()
+        examples = [line.split(":", 1)[1].strip() for line in lines if line.startswith("Example:")]
+        prose = [line for line in lines if not line.startswith("Example:")]
+        out += ["\n".join(prose).strip(), ""]
+        if examples:
+            out += ["```bash", *examples, "```", ""]
+        out += ["| parameter | value | default | description |", "|---|---|---|---|"]
+        for param in params:
+            if param.param_type_name == "argument":
+                label = f"`{_metavar(param)}`"
+            else:
+                label = " / ".join(f"`{opt}`" for opt in (*param.opts, *param.secondary_opts))
+            value = "" if getattr(param, "is_flag", False) else (param.metavar or "")
+            if param.multiple:
+                value += " (repeat)"
+            default = param.default
+            if getattr(param, "is_flag", False):
+                shown = f"`{(param.opts if default else param.secondary_opts or ['off'])[0]}`"
+            else:
+                shown = "-" if default in (None, "") or param.required else f"`{default}`"
+            out.append(f"| {_cell(label)} | {_cell(value)} | {_cell(shown)} | {_cell(getattr(param, 'help', '') or '')} |")
+        out.append("")
+    return "\n".join(out)
+
+
+def _metavar(argument) -> str:
+    return (argument.metavar or argument.name.upper()).strip("{}")
+
+
+def _usage(params) -> str:
+    """`[OPTIONS]` and the arguments as --help names them: SPEC... for several, [SPEC] where optional."""
+    pieces = ["[OPTIONS]"]
+    for param in params:
+        if param.param_type_name == "argument":
+            text = _metavar(param)
+            text += "..." if param.nargs == -1 and not text.endswith("...") else ""
+            pieces.append(text if param.required else f"[{text}]")
+    return " ".join(pieces)
+
+
+GENERATED = {"dsl-reference": dsl_reference, "cli-reference": cli_reference}
+
+
+def render(markdown: str) -> str:
+    """The page with each `<!-- generated: NAME -->` line replaced by its generated part."""
+    for name, make in GENERATED.items():
+        marker = f"<!-- generated: {name} -->"
+        if marker in markdown:
+            markdown = markdown.replace(marker, make())
+    return markdown
+
+
+# --- MkDocs events -----------------------------------------------------------------------------------
+
+
+def result_folders() -> list[Path]:
+    """The question folders of bench/results, in the order its index lists them."""
+    index = (RESULTS / "README.md").read_text()
+    folders = [p for p in RESULTS.iterdir() if p.is_dir() and (p / "README.md").exists()]
+    return sorted(folders, key=lambda p: (index.find(f"({p.name}/"), p.name) if f"({p.name}/" in index
+                  else (len(index), p.name))
+
+
+def on_config(config):
+    """One results page per question folder, in the nav under Results."""
+    for entry in config["nav"]:
+        if isinstance(entry, dict) and "Results" in entry:
+            entry["Results"] = [*entry["Results"], {"All questions": "results/README.md"},
+                                *[{_title(p): f"results/{p.name}/README.md"} for p in result_folders()]]
+    return config
+
+
+def _title(folder: Path) -> str:
+    first = (folder / "README.md").read_text().splitlines()[0]
+    return first.lstrip("# ").replace("`", "").strip()
+
+
+def on_files(files, config):
+    """bench/results/ mirrored under results/: every README as a page, every data file and plot beside it."""
+    from mkdocs.structure.files import File
+
+    for path in sorted(RESULTS.rglob("*")):
+        if path.is_file():
+            uri = "results/" + path.relative_to(RESULTS).as_posix()
+            files.append(File.generated(config, uri, abs_src_path=str(path)))
+    return files
+
+
+def on_page_markdown(markdown, page, config, files):
+    return render(markdown)

@@ -1,0 +1,150 @@
+"""The documentation cannot drift from the code: its references are generated from the schema and the typer
+app (docs/hooks.py) and must cover every key and option, and every code block marked runnable runs.
+
+A block is marked by a line `<!-- runnable -->` (run by the default suite) or `<!-- runnable: slow -->`
+(compiles or trains: run with `-m slow`) right before its fence. A page's blocks run in order in one
+temporary folder, so a later block may use what an earlier one wrote.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import click
+import pytest
+import typer
+
+ROOT = Path(__file__).resolve().parent.parent
+DOCS = ROOT / "docs"
+MARKER = re.compile(r"^<!-- runnable(?:: (?P<tag>\w+))? -->\n```(?P<lang>\w+)[^\n]*\n(?P<code>.*?)^```", re.M | re.S)
+
+
+def hooks():
+    spec = importlib.util.spec_from_file_location("docs_hooks", DOCS / "hooks.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def runnable_blocks(page: Path) -> list[tuple[bool, str, str]]:
+    """(slow, language, code) of each marked block, in page order; a marker without a fence after it fails."""
+    text = page.read_text()
+    blocks = [(m["tag"] == "slow", m["lang"], m["code"]) for m in MARKER.finditer(text)]
+    assert len(blocks) == text.count("<!-- runnable"), f"{page.name}: a runnable marker not followed by a fence"
+    for slow, lang, _ in blocks:
+        assert lang in ("bash", "python"), f"{page.name}: runnable blocks are bash or python, not {lang}"
+    return blocks
+
+
+PAGES = sorted(p for p in DOCS.rglob("*.md") if "<!-- runnable" in p.read_text())
+
+
+def run_blocks(page: Path, folder: Path, include_slow: bool) -> None:
+    env = {**os.environ, "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}"}
+    for slow, lang, code in runnable_blocks(page):
+        if slow and not include_slow:
+            continue
+        command = ["bash", "-euo", "pipefail", "-c", code] if lang == "bash" else [sys.executable, "-c", code]
+        done = subprocess.run(command, cwd=folder, env=env, capture_output=True, text=True, timeout=900)
+        assert done.returncode == 0, f"{page.name}: this block failed:\n{code}\n{done.stdout}\n{done.stderr}"
+
+
+def test_some_pages_have_runnable_blocks_and_each_is_well_formed():
+    assert DOCS / "getting-started.md" in PAGES
+    for page in PAGES:
+        runnable_blocks(page)
+
+
+@pytest.mark.parametrize("page", PAGES, ids=lambda p: p.name)
+def test_the_quick_runnable_blocks_of_a_page_run(page, tmp_path):
+    run_blocks(page, tmp_path, include_slow=False)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("page", PAGES, ids=lambda p: p.name)
+def test_every_runnable_block_of_a_page_runs(page, tmp_path):
+    run_blocks(page, tmp_path, include_slow=True)
+
+
+def test_a_failing_runnable_block_fails_the_test(tmp_path):
+    page = tmp_path / "page.md"
+    page.write_text("<!-- runnable -->\n```bash\nfieldgen validate no_such_field\n```\n")
+    with pytest.raises(AssertionError, match="this block failed"):
+        run_blocks(page, tmp_path, include_slow=False)
+
+
+def _rows(text: str) -> dict[str, list[str]]:
+    """The cells of every table row, by the row's first cell (several rows may share one: keys repeat)."""
+    rows: dict[str, list[str]] = {}
+    for line in text.splitlines():
+        if line.startswith("| `"):
+            cells = [c.strip() for c in re.split(r"(?<!\\)\|", line)[1:-1]]
+            rows.setdefault(cells[0], []).append(" | ".join(cells[1:]))
+    return rows
+
+
+def _objects(schema: dict):
+    """Every mapping the schema describes: the spec itself and each definition."""
+    yield schema
+    yield from schema["$defs"].values()
+
+
+def test_the_dsl_reference_gives_every_key_with_its_default_range_and_description():
+    from fieldgen.schema.editor import json_schema
+
+    schema = json_schema()
+    text = hooks().dsl_reference()
+    rows = _rows(text)
+    for key, prop in schema["properties"].items():
+        if "$ref" in prop or key == "obstacles":  # a section: a heading with its description, its keys below
+            assert f"## `{key}`" in text and prop["description"][1:] in text, key
+    for node in _objects(schema):
+        for key, prop in node.get("properties", {}).items():
+            if node is schema and ("$ref" in prop or key == "obstacles"):
+                continue
+            assert f"`{key}`" in rows, f"{key} is missing from the DSL reference"
+            description = prop.get("description", "").replace("|", "\\|")
+            matching = [r for r in rows[f"`{key}`"] if description in r]
+            assert matching, f"{key}: no row carries its description"
+            if "default" in prop:
+                assert any(f"`{json.dumps(prop['default'])}`" in r for r in matching), key
+            if "maximum" in prop:
+                assert any(f"≤ {prop['maximum']:g}" in r for r in matching), key
+
+
+def test_the_dsl_reference_lists_the_registered_reward_terms():
+    from fieldgen.schema.terms import TERMS
+
+    section = hooks().dsl_reference().split("## Reward terms", 1)[1]
+    rows = re.findall(r"^\| `(\w+)` \| (.+?) \|", section, re.MULTILINE)
+    assert rows == [(name, term.description) for name, term in TERMS.items()]
+
+
+def test_the_cli_reference_gives_every_command_and_option():
+    from fieldgen.cli import app
+
+    text = hooks().cli_reference()
+    group = typer.main.get_command(app)
+    root = click.Context(group, info_name="fieldgen")
+    for name, command in group.commands.items():
+        assert f"## `fieldgen {name}`" in text
+        section = text.split(f"## `fieldgen {name}`", 1)[1].split("\n## ", 1)[0]
+        for param in command.get_params(click.Context(command, info_name=name, parent=root)):
+            if param.name == "help":
+                continue
+            for opt in param.opts if param.param_type_name == "option" else ():
+                assert f"`{opt}`" in section, f"fieldgen {name} {opt} is missing from the CLI reference"
+            if getattr(param, "help", None):
+                assert param.help.replace("|", "\\|") in section, f"fieldgen {name}: {param.name}'s help is missing"
+
+
+def test_the_reference_pages_ask_for_their_generated_parts():
+    generated = hooks().render((DOCS / "reference" / "dsl.md").read_text() + (DOCS / "reference" / "cli.md").read_text())
+    assert "<!-- generated:" not in generated
+    assert "## `task.reward[]`" in generated and "## `fieldgen train`" in generated
