@@ -21,7 +21,7 @@ import numpy as np
 from ..env.contract import Environment
 from .config import RunConfig
 from .programs import Programs
-from .sharding import to_host
+from .sharding import from_host, to_host
 
 EVAL_STREAM = 0x5EED  # evaluation keys: fold_in(fold_in(seed key, EVAL_STREAM), evaluation index)
 
@@ -267,8 +267,7 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
         state, first, previous = programs(0).start(keys), 1, 0
     else:
         state, index, _ = resume
-        state = jax.tree.map(np.asarray, state)  # from the host, as every process places its share of it
-        state = programs(stage).refill(state) if refilling else jax.device_put(state, programs(stage).placement)
+        state = programs(stage).refill(state) if refilling else from_host(state, programs(stage).placement)
         first, previous = index + 1, int(to_host(state.env_steps)[0])
     for index in range(0 if resume is None else first, num_evals + 1):
         began = time.perf_counter()

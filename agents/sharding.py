@@ -62,6 +62,16 @@ def device_count() -> int:
     return jax.device_count()
 
 
+def from_host(tree, placement):
+    """`tree`, read alike by every process (a checkpoint), placed as `placement` says. In a run over several
+    processes each places its own devices' shares: jax.device_put would first check, by an exchange per
+    array, that every process holds the same values."""
+    if jax.process_count() == 1:
+        return jax.device_put(tree, placement)
+    return jax.tree.map(lambda x, s: jax.make_array_from_callback(np.shape(x), s, lambda index: np.asarray(x)[index]),
+                        tree, placement)
+
+
 def to_host(tree):
     """`tree` as NumPy arrays, whole, on this host (jax.device_get), gathering the shares other processes hold
     where a run spans several."""
