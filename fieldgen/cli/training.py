@@ -24,11 +24,16 @@ VideoFormat = Annotated[Optional[str], typer.Option(
 
 
 def _train(run, videos: bool, logger: str, fmt: str | None = None) -> None:
-    """Train a run; Ctrl-C exits with 130, and a failed write or a diverged run says what to do (training.train
-    says how to go on)."""
+    """Train a run; Ctrl-C exits with 130, and a failed write, a diverged run or, in a run over several
+    processes, one that stopped says what to do (training.train says how to go on)."""
     from fieldgen.run import distributed, record
     from fieldgen.run.train import train as train_run
 
+    def another_stopped(sentence: str) -> None:
+        err.print(Text.assemble(("error:", "bold red"), f" {sentence}. Start every process again with --resume "
+                                f"{run.folder} to continue from its last checkpoint"), highlight=False)
+
+    distributed.watch(another_stopped)
     try:
         train_run(run, out, videos, logger, fmt)
     except KeyboardInterrupt:
@@ -40,17 +45,9 @@ def _train(run, videos: bool, logger: str, fmt: str | None = None) -> None:
               f"intact: free some space (or fix the folder's permissions) and continue with "
               f"fieldgen train --resume {run.folder}")
     except Exception as exc:
-        stopped = distributed.stopped_process(exc)
-        if stopped is None:
-            raise
-        err.print(Text.assemble(("error:", "bold red"), f" {stopped}. Start every process again with "
-                                f"--resume {run.folder} to continue from its last checkpoint"), highlight=False)
-        import os
-        import sys
-
-        sys.stdout.flush()
-        sys.stderr.flush()
-        os._exit(1)  # not through JAX's shutdown, which waits for the process that is gone and then aborts
+        distributed.stop_if_another_stopped(exc, another_stopped)
+        raise
+    distributed.finished()
 
 
 @app.command()

@@ -7,20 +7,27 @@ Where the processes come from: `--coordinator HOST:PORT --num-processes N --proc
 FIELDGEN_COORDINATOR, FIELDGEN_NUM_PROCESSES and FIELDGEN_PROCESS_ID variables), or, with none of them,
 a launcher JAX recognises by itself when it started more than one task (srun, mpirun). Failures come as
 one line: settings that do not fit, a coordinator that never answers, and, mid-run, a process that died
-(`stopped_process`).
+(`watch`, `stop_if_another_stopped`).
 """
 
 from __future__ import annotations
 
+import atexit
 import dataclasses
 import os
 import socket
+import sys
+import threading
 import time
+from typing import Callable
 
 from fieldgen.run.record import RunError
 
 HEARTBEAT_SECONDS = 30  # a process silent this long is taken for dead, and the others are stopped
+FINISHED_KEY = "fieldgen/finished"  # + "/<process>": set by each process that trained to the end
 LAUNCHERS = {"SLURM_STEP_NUM_TASKS": "srun", "OMPI_COMM_WORLD_SIZE": "mpirun"}  # variable -> launcher
+_stopping = threading.Lock()  # one thread says why the process stops, and ends it
+_finished = threading.Event()  # this process trained to the end: no other's leaving stops it
 
 
 @dataclasses.dataclass(frozen=True)
@@ -63,8 +70,13 @@ def join(where: Layout, timeout: int) -> dict:
     if where.coordinator is not None and where.process_id != 0:
         _wait_for(where.coordinator, timeout)
     jax.config.update("jax_cpu_collectives_implementation", "gloo")  # CPU processes reach one another too
+    # a process that stops is then noticed by asking the coordination service (`watch`), instead of JAX
+    # aborting every other process with a stack trace
+    jax.config.update("jax_enable_recoverability", True)
     jax.distributed.initialize(where.coordinator, where.num_processes, where.process_id,
                                initialization_timeout=timeout, heartbeat_timeout_seconds=HEARTBEAT_SECONDS)
+    if jax.process_index() == 0:
+        atexit.register(_leave_last, jax.process_count())  # before JAX's exit handler, which stops the service
     counts = [sum(d.process_index == p for d in jax.devices()) for p in range(jax.process_count())]
     return {"count": jax.process_count(), "devices_per_process": counts,
             "coordinator": where.coordinator or "from the launcher"}
@@ -87,35 +99,101 @@ def _wait_for(coordinator: str, timeout: int) -> None:
             time.sleep(0.5)
 
 
-def stopped_process(error: BaseException) -> str | None:
-    """Where a run over several processes failed because one of them stopped, a sentence naming the ones gone;
-    None otherwise (a single process, or another error)."""
+def watch(say: Callable[[str], None]) -> None:
+    """From now on until `finished`, as soon as the coordination service misses a process (by its heartbeat),
+    `say` a sentence naming it and stop this one, whatever it is doing: computing, compiling or waiting for
+    that process in a collective. Nothing to watch in a run of one process."""
     import jax
 
-    if jax.process_count() == 1 or "Gloo" not in str(error) and "NCCL" not in str(error) \
-            and "heartbeat" not in str(error) and "coordination" not in str(error).lower():
-        return None
-    gone = _gone()
-    who = (f"process{'es' if len(gone) > 1 else ''} {', '.join(map(str, gone))} of {jax.process_count()}" if gone
-           else f"another of the {jax.process_count()} processes")
-    return f"{who} stopped, so this one (process {jax.process_index()}) stops too: {str(error).splitlines()[0]}"
+    if jax.process_count() > 1:  # the thread asks JAX nothing: at exit JAX's state is being taken down
+        layout = (jax.process_index(), jax.process_count())
+        threading.Thread(target=_watch, args=(say, *layout), name="fieldgen-watch", daemon=True).start()
 
 
-def _gone(wait: float = HEARTBEAT_SECONDS + 5) -> list[int]:
-    """The processes the coordination service no longer hears from (as soon as it notices, up to `wait`)."""
+def finished() -> None:
+    """Tell the other processes this one trained to the end (leaving is then no failure), and stop watching."""
+    client = _client()
+    if client is not None:
+        import jax
+
+        with _stopping:
+            _finished.set()
+        client.key_value_set(f"{FINISHED_KEY}/{jax.process_index()}", "1")
+
+
+def stop_if_another_stopped(error: BaseException, say: Callable[[str], None]) -> None:
+    """Where `error` is a collective's failure in a run over several processes because another process
+    stopped, `say` so and stop, once the coordination service names it (within a heartbeat); return
+    otherwise."""
     import jax
-    from jax._src import distributed  # the client JAX keeps: the live processes are not asked of it otherwise
 
-    client = distributed.global_state.client
-    everyone = list(range(jax.process_count()))
-    deadline = time.monotonic() + wait
+    text, me, count = str(error), jax.process_index(), jax.process_count()
+    if count == 1 or not any(word in text for word in ("Gloo", "NCCL", "heartbeat")) \
+            and "coordination" not in text.lower():
+        return
+    deadline = time.monotonic() + HEARTBEAT_SECONDS + 5
+    while time.monotonic() < deadline:
+        gone = _gone(me, count)
+        if gone:
+            _stop(say, gone, me, count)
+        time.sleep(1)
+
+
+def _client():
+    """The coordination service's client JAX keeps (None in a run of one process): whether the others live
+    and what they said are not asked of JAX otherwise."""
+    from jax._src import distributed
+
+    return distributed.global_state.client
+
+
+def _gone(me: int, count: int) -> list[int]:
+    """The processes the coordination service no longer hears from and that did not finish."""
+    client, everyone = _client(), list(range(count))
+    try:
+        live = client.get_live_nodes(everyone)
+    except Exception:  # the coordinator itself is gone
+        return [0] if me != 0 else []
+    gone = []
+    for p in everyone:
+        if p not in live:
+            try:
+                client.key_value_try_get(f"{FINISHED_KEY}/{p}")
+            except Exception:  # no such key: it stopped before the end
+                gone.append(p)
+    return gone
+
+
+def _watch(say: Callable[[str], None], me: int, count: int) -> None:
+    while not _finished.is_set():
+        gone = _gone(me, count)
+        if gone:
+            _stop(say, gone, me, count)
+        time.sleep(1)
+
+
+def _stop(say: Callable[[str], None], gone: list[int], me: int, count: int) -> None:
+    """`say` which processes stopped, and end this one at once (JAX's own exit would wait for them); nothing
+    once this one has finished."""
+    with _stopping:
+        if _finished.is_set():
+            return
+        who = f"process{'es' if len(gone) > 1 else ''} {', '.join(map(str, gone))} of {count}"
+        say(f"{who} stopped, so this one (process {me}) stops too")
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(1)
+
+
+def _leave_last(count: int) -> None:
+    """Process 0 holds the coordination service, which the others' runtimes need until they have left:
+    it waits for them (a heartbeat at most, as one that failed may never leave)."""
+    client, everyone = _client(), list(range(count))
+    deadline = time.monotonic() + HEARTBEAT_SECONDS
     while client is not None and time.monotonic() < deadline:
         try:
-            live = client.get_live_nodes(everyone)
-        except Exception:  # the coordinator itself is gone
-            return [0] if jax.process_index() != 0 else []
-        gone = [p for p in everyone if p not in live]
-        if gone:
-            return gone
-        time.sleep(1)
-    return []
+            if set(client.get_live_nodes(everyone)) <= {0}:
+                return
+        except Exception:
+            return
+        time.sleep(0.2)
