@@ -94,11 +94,13 @@ def agent_kind(source: Path) -> str:
 
 
 def new_run(source: Path, algo: str, seeds: list[int], config, out: Path, mixed: bool = False,
-            init_from: Path | None = None, auto: bool = False, levels: int | None = None) -> Run:
+            init_from: Path | None = None, auto: bool = False, levels: int | None = None,
+            processes: dict | None = None) -> Run:
     """A run folder for a field (a YAML file or a build folder) or a curriculum folder (staged, or mixed:
     every stage in one batch, built to one structure); with `auto`, a field trained through `levels` levels
     (curriculum.auto.LEVELS by default) between its easy end and itself; with `init_from`, starting from what that run
-    learned."""
+    learned. A run over several processes (`processes`: their layout, recorded in run.json) is set up alike in
+    each, and written by the first alone."""
     promotion, name, kind, coordinates = Promotion(), None, "mixed" if mixed else "staged", []
     if auto:
         if mixed or curriculum.is_curriculum(source):
@@ -131,6 +133,8 @@ def new_run(source: Path, algo: str, seeds: list[int], config, out: Path, mixed:
     run = Run(folder, algo, envs, config, seeds, [], promotion, schedule_kind=kind)
     if init_from is not None:
         run.state, run.init_from = started_from(run, init_from)
+    if jax.process_index() != 0:
+        return run
     try:
         # a folder without a checkpoint holds no training (prepared, or stopped before its first
         # checkpoint): it is set up anew
@@ -145,7 +149,8 @@ def new_run(source: Path, algo: str, seeds: list[int], config, out: Path, mixed:
         record.write_run(folder, envs[-1].spec.model_dump(mode="json"), algo, config, envs[0].layout.to_json(),
                          seeds, {"fields": dirs, "promotion": dataclasses.asdict(promotion), "mixed": run.mixed,
                                  "schedule": kind, **({"levels": coordinates} if coordinates else {}),
-                                 **({"init_from": run.init_from} if run.init_from else {})})
+                                 **({"init_from": run.init_from} if run.init_from else {}),
+                                 **({"processes": processes} if processes else {})})
     except OSError as exc:
         raise record.RunError(f"cannot set up the run folder {folder}: {exc.strerror}; free some space, fix the "
                               "folder's permissions or choose another --out") from None
