@@ -185,7 +185,8 @@ class RunConfig(BaseModel):
 
     def validate_env(self, env: Environment, devices: int = 1, seeds: int = 1) -> None:
         """Problems a run would hit after compiling, reported before. `seeds` trained at once on `devices`
-        local devices split by seed when they can, and otherwise split each seed's environments."""
+        devices (every process's, in a run over several) split by seed when they can, and otherwise split
+        each seed's environments."""
         if self.total_steps + self.per_iteration > COUNTER_MAX:
             raise ConfigError(f"--steps {self.total_steps:,} with {self.num_envs:,} envs x unroll "
                               f"{self.unroll_length:,} per iteration: a run counts its env steps in 32-bit "
@@ -197,7 +198,7 @@ class RunConfig(BaseModel):
             raise ConfigError(f"--seed {self.seed} with --seeds {seeds:,} runs past seed {SEED_MAX:,}, the largest "
                               "a random key takes; train fewer --seeds or start from a lower --seed")
         if self.num_envs % devices and not by_seed(seeds, devices):
-            raise ConfigError(f"num_envs {self.num_envs} does not split evenly over the {devices} local devices; "
+            raise ConfigError(f"num_envs {self.num_envs} does not split evenly over the {devices} devices; "
                               f"use a multiple of {devices}, or train a multiple of {devices} seeds at once")
 
     @property

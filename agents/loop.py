@@ -21,6 +21,7 @@ import numpy as np
 from ..env.contract import Environment
 from .config import RunConfig
 from .programs import Programs
+from .sharding import from_host, to_host
 
 EVAL_STREAM = 0x5EED  # evaluation keys: fold_in(fold_in(seed key, EVAL_STREAM), evaluation index)
 
@@ -245,7 +246,7 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
 
     def judge(k: int, state, index: int) -> tuple[dict, object]:
         """Metrics per seed, and the first seed's episode filmed on stage k (None without `film`)."""
-        metrics, frames = jax.device_get(programs(k).evaluate(state, jax.vmap(eval_key, in_axes=(0, None))(keys, index)))
+        metrics, frames = to_host(programs(k).evaluate(state, jax.vmap(eval_key, in_axes=(0, None))(keys, index)))
         return metrics, None if frames is None else (k, seed_slice(frames, 0))
 
     history: list[dict] = []
@@ -266,8 +267,8 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
         state, first, previous = programs(0).start(keys), 1, 0
     else:
         state, index, _ = resume
-        state = programs(stage).refill(state) if refilling else jax.device_put(state, programs(stage).placement)
-        first, previous = index + 1, int(jax.device_get(state.env_steps)[0])
+        state = programs(stage).refill(state) if refilling else from_host(state, programs(stage).placement)
+        first, previous = index + 1, int(to_host(state.env_steps)[0])
     for index in range(0 if resume is None else first, num_evals + 1):
         began = time.perf_counter()
         metrics = {}
@@ -275,19 +276,19 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
             state, metrics = programs(stage).chunk(state)
             if reported is not None:  # its metrics, checkpoint and video, written on the host while the chunk trains
                 report(*reported)
-            metrics = jax.device_get(metrics)  # waits for the chunk
+            metrics = to_host(metrics)  # waits for the chunk
         seconds = time.perf_counter() - began
         judged, episode = judge(stage, state, index)
         metrics.update(judged)
         if trainers[stage].env.variant_count > 1:  # a mixed run: judged on its last variant, and re-weighted
             state, variants = programs(stage).adapt(state, metrics["variants"])
-            metrics["variants"] = jax.device_get(variants)
+            metrics["variants"] = to_host(variants)
             metrics["last_stage_success_any"] = metrics["variants"].success_any[:, -1]
         if staged and stage != last:
             metrics["last_stage_success_any"] = judge(last, state, index)[0]["success_any"]
         elif staged:
             metrics["last_stage_success_any"] = metrics["success_any"]
-        steps = int(jax.device_get(state.env_steps)[0])
+        steps = int(to_host(state.env_steps)[0])
         rows = []
         for i, seed in enumerate(seeds):
             row = {"eval": index, "seed": seed, "env_steps": steps, **({"stage": stage} if staged else {}),

@@ -65,13 +65,15 @@ def check(estimate: Estimate, what: str, lower: dict[str, str]) -> None:
 
 
 def available() -> tuple[int, str]:
-    """(bytes, in words where): the local devices' memory where JAX reports it, else the machine's."""
-    devices = jax.local_devices()
+    """(bytes, in words where): the devices' memory where JAX reports it, else the machine's; in a run over
+    several processes, as much again for each of the others (each reports only its own devices)."""
+    devices, processes = jax.local_devices(), jax.process_count()
     limits = [(d.memory_stats() or {}).get("bytes_limit") for d in devices]
+    over = f" of each of {processes} processes" if processes > 1 else ""
     if all(limits):
         kind = devices[0].device_kind
-        return sum(limits), f"the {len(devices)} {kind} device{'s' * (len(devices) > 1)}"
-    return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"), "this machine"
+        return sum(limits) * processes, f"the {len(devices)} {kind} device{'s' * (len(devices) > 1)}{over}"
+    return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") * processes, f"this machine{over}"
 
 
 def size(count: int) -> str:

@@ -54,13 +54,13 @@ class Compiling:
 
 class Programs:
     """start(keys), refill(learned), chunk(state), evaluate(learned, eval_keys) and adapt(state, variants) of
-    one trainer, vmapped over seeds and placed over the local devices (agents.sharding). Each compiles once
+    one trainer, vmapped over seeds and placed over the devices (agents.sharding). Each compiles once
     asked for, by `prepare` or by its first call."""
 
     def __init__(self, trainer, keys: jax.Array, film: Callable | None, evaluate: Callable, adapt: Callable):
         start = jax.vmap(trainer.start)  # one function for both: JAX reuses the shapes' trace to compile it
         shapes = jax.eval_shape(start, keys)
-        self.placement = sharding.training_shardings(shapes, sharding.local_mesh(), trainer.env_axes)
+        self.placement = sharding.training_shardings(shapes, sharding.device_mesh(), trainer.env_axes)
         self._state = jax.tree.map(lambda s, p: jax.ShapeDtypeStruct(s.shape, s.dtype, sharding=p),
                                    shapes, self.placement)
         self._learned = trainer.learned

@@ -1,4 +1,5 @@
-"""Spreading a training state over the local devices with jax.sharding.
+"""Spreading a training state over the devices with jax.sharding: this process's, or, in a run over
+several processes (jax.distributed), every process's, in one global mesh.
 
 Seeds trained at once (vmapped) that fill the devices evenly are split by seed: each
 device trains its own seeds and nothing passes between devices. Otherwise the
@@ -6,7 +7,8 @@ environments (and anything stored per environment, such as the replay buffer's
 columns) are split across devices along one mesh axis; everything else (parameters,
 optimizer states, keys) is replicated, and a loss averaged over the sharded batch
 becomes a cross-device mean of gradients. Code stays single-device code: the compiler
-partitions it from these placements.
+partitions it from these placements. Every process runs the same program on its own devices' share;
+`to_host` brings a result whole to every process, which is a collective: all processes call it alike.
 """
 
 from __future__ import annotations
@@ -18,9 +20,9 @@ from jax.sharding import Mesh, NamedSharding, PartitionSpec
 AXIS = "envs"
 
 
-def local_mesh(count: int | None = None) -> Mesh:
-    """A mesh over the first `count` local devices (all of them by default)."""
-    return Mesh(np.array(jax.local_devices()[:count]), (AXIS,))
+def device_mesh(count: int | None = None) -> Mesh:
+    """A mesh over the first `count` devices of every process (all of them by default)."""
+    return Mesh(np.array(jax.devices()[:count]), (AXIS,))
 
 
 def state_shardings(state, mesh: Mesh, env_axes: dict[str, int], offset: int = 0):
@@ -56,4 +58,30 @@ def training_shardings(state, mesh: Mesh, env_axes: dict[str, int]):
 
 
 def device_count() -> int:
-    return len(jax.local_devices())
+    """The devices a run spreads over: every process's."""
+    return jax.device_count()
+
+
+def from_host(tree, placement):
+    """`tree`, read alike by every process (a checkpoint), placed as `placement` says. In a run over several
+    processes each places its own devices' shares: jax.device_put would first check, by an exchange per
+    array, that every process holds the same values."""
+    if jax.process_count() == 1:
+        return jax.device_put(tree, placement)
+    return jax.tree.map(lambda x, s: jax.make_array_from_callback(np.shape(x), s, lambda index: np.asarray(x)[index]),
+                        tree, placement)
+
+
+def to_host(tree):
+    """`tree` as NumPy arrays, whole, on this host (jax.device_get), gathering the shares other processes hold
+    where a run spans several."""
+    if jax.process_count() == 1:
+        return jax.device_get(tree)
+    from jax.experimental import multihost_utils
+
+    def whole(x):
+        if isinstance(x, jax.Array) and not x.is_fully_addressable:
+            return np.asarray(multihost_utils.process_allgather(x, tiled=True))
+        return jax.device_get(x)
+
+    return jax.tree.map(whole, tree)

@@ -56,7 +56,7 @@ def time_chunk(trainer, seeds: int, devices: int | None = None, profile: Path | 
     own output, can both compile); with `profile`, one more chunk is traced into that folder."""
     keys = loop.seed_keys(range(seeds))
     shapes = jax.eval_shape(jax.vmap(trainer.start), keys)
-    placement = sharding.training_shardings(shapes, sharding.local_mesh(devices), trainer.env_axes)
+    placement = sharding.training_shardings(shapes, sharding.device_mesh(devices), trainer.env_axes)
     chunk = jax.jit(jax.vmap(trainer.chunk), in_shardings=(placement,), out_shardings=(placement, None))
     state = jax.block_until_ready(jax.jit(jax.vmap(trainer.start), out_shardings=placement)(keys))
     for _ in range(2):

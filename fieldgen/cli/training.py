@@ -37,12 +37,17 @@ def _read_config(config: Path | None) -> None:
 
 
 def _train(run, videos: bool, logger: str, fmt: str | None = None) -> None:
-    """Train a run; Ctrl-C exits with 130, and a failed write or a diverged run says what to do (training.train
-    says how to go on)."""
+    """Train a run; Ctrl-C exits with 130, and a failed write, a diverged run or, in a run over several
+    processes, one that stopped says what to do (training.train says how to go on)."""
+    from fieldgen.run import distributed, record
     from fieldgen.files import FolderError
-    from fieldgen.run import record
     from fieldgen.run.train import train as train_run
 
+    def another_stopped(sentence: str) -> None:
+        err.print(Text.assemble(("error:", "bold red"), f" {sentence}. Start every process again with --resume "
+                                f"{run.folder} to continue from its last checkpoint"), highlight=False)
+
+    distributed.watch(another_stopped)
     try:
         train_run(run, out, videos, logger, fmt)
     except KeyboardInterrupt:
@@ -53,6 +58,10 @@ def _train(run, videos: bool, logger: str, fmt: str | None = None) -> None:
         fail(f"could not write {exc.filename or run.folder}: {exc.strerror or exc}; the files already there are "
               f"intact: free some space (or fix the folder's permissions) and continue with "
               f"fieldgen train --resume {run.folder}")
+    except Exception as exc:
+        distributed.stop_if_another_stopped(exc, another_stopped)
+        raise
+    distributed.finished()
 
 
 @app.command()
@@ -91,6 +100,19 @@ def train(
     logger: Annotated[str, typer.Option(help="also log every evaluation's numbers and video to TensorBoard "
                                              "(RUN/tensorboard) or Weights & Biases (RUN/wandb)",
                                         **choice("logger", LOGGERS))] = "none",
+    coordinator: Annotated[Optional[str], typer.Option(
+        metavar="HOST:PORT", envvar="FIELDGEN_COORDINATOR", rich_help_panel="One run over several processes",
+        help="process 0's host and a free port: every process started with it joins one run over all their "
+             "devices (under srun or mpirun this and the two below come from the launcher)")] = None,
+    num_processes: Annotated[Optional[int], typer.Option(
+        metavar="N", envvar="FIELDGEN_NUM_PROCESSES", rich_help_panel="One run over several processes",
+        help="how many processes the run has")] = None,
+    process_id: Annotated[Optional[int], typer.Option(
+        metavar="I", envvar="FIELDGEN_PROCESS_ID", rich_help_panel="One run over several processes",
+        help="this process's id, 0 to N-1; process 0 writes the run folder")] = None,
+    coordinator_timeout: Annotated[int, typer.Option(
+        metavar="SECONDS", rich_help_panel="One run over several processes",
+        help="how long to wait for the coordinator and the other processes")] = 300,
 ) -> None:
     """Train an agent on a field or through a curriculum folder's stages; writes runs/<name>-<algo>-<seed>/.
 
@@ -102,13 +124,19 @@ def train(
     Example: fieldgen train point_nav --logger tensorboard, then: tensorboard --logdir runs
     Example: fieldgen train soccer_v2 --init-from runs/soccer_v1-crl-0 --seed 1
     Example: fieldgen train soccer_v1 --curriculum auto --steps 50M
+    Example: fieldgen train point_nav --seeds 8 --coordinator node01:12345 --num-processes 2 --process-id 0
     """
     fmt = video_format(video_fmt) if videos else None
     from fieldgen.agents import registry
     from fieldgen.files import FolderError
-    from fieldgen.run import loggers, record, session
+    from fieldgen.run import distributed, loggers, record, session
     from fieldgen.agents.config import ConfigError
 
+    try:
+        where = distributed.layout(coordinator, num_processes, process_id)
+        processes = None if where is None else distributed.join(where, coordinator_timeout)
+    except record.RunError as exc:
+        fail(str(exc))
     try:
         loggers.require(logger)
         if resume is not None:
@@ -136,7 +164,8 @@ def train(
             if levels is not None and curriculum_kind != "auto":
                 fail(f"--levels {levels} sets how many levels --curriculum auto makes; add --curriculum auto")
             run = session.new_run(source, algo, range(seed, seed + seeds), algo_config, runs, mixed, init_from,
-                                  auto=curriculum_kind == "auto", levels=levels, trains_here=not prepare)
+                                  auto=curriculum_kind == "auto", levels=levels, processes=processes,
+                                  trains_here=not prepare)
         if run.init_from and not run.rows:
             out.print(f"starts from what {run.init_from['run']} learned in {run.init_from['env_steps']:,} env steps "
                       f"(evaluation {run.init_from['eval']}), with fresh episodes and a replay buffer filled anew")

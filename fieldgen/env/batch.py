@@ -40,10 +40,16 @@ _UNREAD_STATIC = {"key_time", "key_qpos", "key_qvel", "key_act", "key_mpos", "ke
                   "geom_rbound_hfield", "cam_resolution"}
 
 
+def own_device() -> jax.Device:
+    """Where mjx puts a field's model and first state: this process's first device. mjx's default,
+    jax.devices()[0], is process 0's in a run over several, which no other process may compute with."""
+    return jax.local_devices()[0]
+
+
 def batched_model(models, names: list[str]) -> tuple[object, frozenset[int]]:
     """One mjx.Model whose leaves that differ between the variants are stacked on a leading axis,
     and the indices of those leaves."""
-    systems = [mjx.put_model(m) for m in models]
+    systems = [mjx.put_model(m, device=own_device()) for m in models]
     first = systems[0]
     systems = [first] + [_static_like(first, s, f"{n} and {names[0]}") for s, n in zip(systems[1:], names[1:])]
     columns = zip(*(jax.tree.leaves(s) for s in systems))

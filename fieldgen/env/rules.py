@@ -7,6 +7,7 @@ import jax
 import jax.numpy as jnp
 from mujoco import mjx
 
+from fieldgen.env.batch import own_device
 from fieldgen.env.falls import fall_fn
 from fieldgen.env.task import Transition, task_fns
 
@@ -19,7 +20,7 @@ class EpisodeRules:
         self.fell = fall_fn(spec)
         self.episode_length = episode_length or spec.episode.length
         self.home_qpos = jnp.asarray(mj_model.key("home").qpos)
-        self.data0 = mjx.make_data(mj_model).replace(qpos=self.home_qpos)
+        self.data0 = mjx.make_data(mj_model, device=own_device()).replace(qpos=self.home_qpos)
         self.layout = layout
         self.is_ant = spec.agent.kind == "ant"
 

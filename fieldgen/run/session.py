@@ -96,12 +96,14 @@ def agent_kind(source: Path) -> str:
 
 def new_run(source: Path, algo: str, seeds: Sequence[int], config, out: Path, mixed: bool = False,
             init_from: Path | None = None, auto: bool = False, levels: int | None = None,
-            trains_here: bool = True) -> Run:
+            processes: dict | None = None, trains_here: bool = True) -> Run:
     """A run folder for a field (a YAML file or a build folder) or a curriculum folder (staged, or mixed:
     every stage in one batch, built to one structure); with `auto`, a field trained through `levels` levels
     (curriculum.auto.LEVELS by default) between its easy end and itself; with `init_from`, starting from what that run
-    learned. Nothing is written before every setting is known good, the memory the run needs included where it
-    `trains_here` (a run prepared to train elsewhere is checked where it resumes); `seeds` may be a range."""
+    learned. A run over several processes (`processes`: their layout, recorded in run.json) is set up alike in
+    each, and written by the first alone. Nothing is written before every setting is known good, the memory
+    the run needs included where it `trains_here` (a run prepared to train elsewhere is checked where it
+    resumes); `seeds` may be a range."""
     promotion, name, kind, coordinates = Promotion(), None, "mixed" if mixed else "staged", []
     if auto:
         if mixed or curriculum.is_curriculum(source):
@@ -137,6 +139,8 @@ def new_run(source: Path, algo: str, seeds: Sequence[int], config, out: Path, mi
     run.seeds = seeds = list(seeds)
     if init_from is not None:
         run.state, run.init_from = started_from(run, init_from)
+    if jax.process_index() != 0:
+        return run
     files.claim(folder, record.RUN_FOLDER)
     try:
         files.take(folder)  # held until the command ends: the run is trained by the process that set it up
@@ -154,7 +158,8 @@ def new_run(source: Path, algo: str, seeds: Sequence[int], config, out: Path, mi
         record.write_run(folder, envs[-1].spec.model_dump(mode="json"), algo, config, envs[0].layout.to_json(),
                          seeds, {"fields": dirs, "promotion": dataclasses.asdict(promotion), "mixed": run.mixed,
                                  "schedule": kind, **({"levels": coordinates} if coordinates else {}),
-                                 **({"init_from": run.init_from} if run.init_from else {})})
+                                 **({"init_from": run.init_from} if run.init_from else {}),
+                                 **({"processes": processes} if processes else {})})
     except OSError as exc:
         raise record.RunError(f"cannot set up the run folder {folder}: {exc.strerror}; free some space, fix the "
                               "folder's permissions or choose another --out") from None

@@ -11,7 +11,7 @@ import time
 import jax
 from rich.console import Console
 
-from fieldgen.agents import checkpoint, loop
+from fieldgen.agents import checkpoint, loop, sharding
 from fieldgen.files import locked, remove_leftovers, write_atomic
 from fieldgen.run import background, record
 from fieldgen.run.loggers import open_logger
@@ -23,14 +23,19 @@ from fieldgen.run.videos import EpisodeRecorder, video_name
 
 def train(run: Run, console: Console, videos: bool = True, logger: str = "none", video_format: str | None = None) -> None:
     """Train until the run's last evaluation, filming each in `video_format` (fieldgen.video.choose) and logging
-    to `logger` (loggers.LOGGERS) too; Ctrl-C leaves the last checkpoint intact. The run folder is locked
-    meanwhile: a second process training it is refused."""
-    with locked(run.folder):
+    to `logger` (loggers.LOGGERS) too; Ctrl-C leaves the last checkpoint intact. In a run over several
+    processes every process trains and only the first writes (the folder, metrics, videos, checkpoints); the
+    folder is locked meanwhile by the one that writes: another command training it is refused."""
+    with locked(run.folder) if jax.process_index() == 0 else contextlib.nullcontext():
         _train(run, console, videos, logger, video_format)
 
 
 def _train(run: Run, console: Console, videos: bool, logger: str, video_format: str | None) -> None:
-    remove_leftovers(run.folder)  # of writes killed midway; here, not on opening, which `fieldgen eval` does mid-run
+    writes = jax.process_index() == 0
+    if not writes:  # it films all the same: every process runs the same programs
+        console, logger = Console(quiet=True), "none"
+    else:
+        remove_leftovers(run.folder)  # of writes killed midway; here, not on opening, which `fieldgen eval` does mid-run
     config, env = run.config, run.env
     if run.state is not None and run.finished:
         console.print(f"{run.folder} is already complete ({run.rows[-1]['env_steps']:,} env steps)")
@@ -46,7 +51,9 @@ def _train(run: Run, console: Console, videos: bool, logger: str, video_format: 
 
         def on_eval(state, index, stage, filmed):
             writer.wait()  # one snapshot at a time in host memory; a failed write stops training here
-            snapshot = jax.device_get(state)
+            snapshot = sharding.to_host(state)  # every process takes part in gathering it
+            if not writes:
+                return
             writer.submit(write_atomic, run.folder / record.CHECKPOINT, checkpoint.pieces(snapshot))
             writer.submit(write_atomic, run.folder / record.LEARNER, checkpoint.pieces(trainers[0].learned(snapshot)))
             if filmed is not None:  # the episode just evaluated (a mixed run films its last stage)
@@ -71,6 +78,8 @@ def _train(run: Run, console: Console, videos: bool, logger: str, video_format: 
                 if memory is not None:
                     row["peak_memory_mb"] = memory
             run.rows.extend(rows)
+            if not writes:
+                return
             record.write_metrics(run.folder, run.rows)
             plot_success(run.folder, run.rows, f"{env.spec.name}: {run.algo}")
             log.rows(rows)

@@ -276,7 +276,7 @@ def test_envs_must_split_over_the_devices_unless_the_seeds_do(env_cache, tiny_cr
     config.validate_env(env, devices=2, seeds=2)  # a seed per device: each keeps all 9 environments
     config.validate_env(env, devices=2, seeds=4)
     for seeds in (1, 3):
-        with pytest.raises(ConfigError, match="num_envs 9 does not split evenly over the 2 local devices"):
+        with pytest.raises(ConfigError, match="num_envs 9 does not split evenly over the 2 devices;"):
             config.validate_env(env, devices=2, seeds=seeds)
 
 

@@ -1,0 +1,199 @@
+"""One run over several processes, one per host or per GPU: JAX's multi-controller runtime
+(jax.distributed), which every `fieldgen train` process joins before anything touches a device. The
+processes then see one global set of devices, over which agents.sharding lays one mesh; each trains its
+share, and the first writes the run folder.
+
+Where the processes come from: `--coordinator HOST:PORT --num-processes N --process-id I` (or the
+FIELDGEN_COORDINATOR, FIELDGEN_NUM_PROCESSES and FIELDGEN_PROCESS_ID variables), or, with none of them,
+a launcher JAX recognises by itself when it started more than one task (srun, mpirun). Failures come as
+one line: settings that do not fit, a coordinator that never answers, and, mid-run, a process that died
+(`watch`, `stop_if_another_stopped`).
+"""
+
+from __future__ import annotations
+
+import atexit
+import dataclasses
+import os
+import socket
+import sys
+import threading
+import time
+from typing import Callable
+
+from fieldgen.run.record import RunError
+
+HEARTBEAT_SECONDS = 30  # a process silent this long is taken for dead, and the others are stopped
+FINISHED_KEY = "fieldgen/finished"  # + "/<process>": set by each process that trained to the end
+LAUNCHERS = {"SLURM_STEP_NUM_TASKS": "srun", "OMPI_COMM_WORLD_SIZE": "mpirun"}  # variable -> launcher
+_stopping = threading.Lock()  # one thread says why the process stops, and ends it
+_finished = threading.Event()  # this process trained to the end: no other's leaving stops it
+
+
+@dataclasses.dataclass(frozen=True)
+class Layout:
+    """How to join: all three given, or none (the launcher's own settings, read by JAX)."""
+
+    coordinator: str | None
+    num_processes: int | None
+    process_id: int | None
+
+
+def layout(coordinator: str | None, num_processes: int | None, process_id: int | None) -> Layout | None:
+    """The processes to join as the options (or their variables) give them; a launcher's when none are given
+    and it started several tasks; None for a run in this process alone."""
+    given = {"--coordinator": coordinator, "--num-processes": num_processes, "--process-id": process_id}
+    if all(v is None for v in given.values()):
+        launched = [name for variable, name in LAUNCHERS.items() if int(os.environ.get(variable) or 1) > 1]
+        return Layout(None, None, None) if launched else None
+    if num_processes is not None and num_processes < 1:
+        raise RunError(f"--num-processes {num_processes}: a run needs at least one process")
+    missing = [name for name, value in given.items() if value is None]
+    if missing:
+        raise RunError(f"{', '.join(missing)} missing: a run over several processes needs --coordinator HOST:PORT, "
+                       "--num-processes N and --process-id I, each process its own id")
+    if not 0 <= process_id < num_processes:
+        raise RunError(f"--process-id {process_id} is out of range: with --num-processes {num_processes} the ids "
+                       f"are 0 to {num_processes - 1}")
+    host, _, port = coordinator.rpartition(":")
+    if not host or not port.isdigit() or not 0 < int(port) < 65536:
+        raise RunError(f"--coordinator {coordinator}: write it as HOST:PORT, the address of process 0's host and a "
+                       "free port, such as node01:12345")
+    return Layout(coordinator, num_processes, process_id)
+
+
+def join(where: Layout, timeout: int) -> dict:
+    """Join the run's processes (waiting up to `timeout` seconds for the coordinator and the others); returns
+    the layout as run.json records it."""
+    import jax
+
+    if where.coordinator is not None and where.process_id != 0:
+        _wait_for(where.coordinator, timeout)
+    jax.config.update("jax_cpu_collectives_implementation", "gloo")  # CPU processes reach one another too
+    # a process that stops is then noticed by asking the coordination service (`watch`), instead of JAX
+    # aborting every other process with a stack trace
+    jax.config.update("jax_enable_recoverability", True)
+    jax.distributed.initialize(where.coordinator, where.num_processes, where.process_id,
+                               initialization_timeout=timeout, heartbeat_timeout_seconds=HEARTBEAT_SECONDS)
+    if jax.process_index() == 0:
+        atexit.register(_leave_last, jax.process_count())  # before JAX's exit handler, which stops the service
+    counts = [sum(d.process_index == p for d in jax.devices()) for p in range(jax.process_count())]
+    return {"count": jax.process_count(), "devices_per_process": counts,
+            "coordinator": where.coordinator or "from the launcher"}
+
+
+def _wait_for(coordinator: str, timeout: int) -> None:
+    """Wait until process 0's coordinator accepts connections: JAX itself would end the process with a
+    stack trace when it never does."""
+    host, _, port = coordinator.rpartition(":")
+    deadline = time.monotonic() + timeout
+    while True:
+        try:
+            socket.create_connection((host, int(port)), timeout=5).close()
+            return
+        except OSError as exc:
+            if time.monotonic() > deadline:
+                raise RunError(f"no coordinator answered at {coordinator} within {timeout} s ({exc.strerror or exc}): "
+                               "start process 0 (--process-id 0 runs it) on that host, and check the address "
+                               "and that the port is open between the hosts") from None
+            time.sleep(0.5)
+
+
+def watch(say: Callable[[str], None]) -> None:
+    """From now on until `finished`, as soon as the coordination service misses a process (by its heartbeat),
+    `say` a sentence naming it and stop this one, whatever it is doing: computing, compiling or waiting for
+    that process in a collective. Nothing to watch in a run of one process."""
+    import jax
+
+    if jax.process_count() > 1:  # the thread asks JAX nothing: at exit JAX's state is being taken down
+        layout = (jax.process_index(), jax.process_count())
+        threading.Thread(target=_watch, args=(say, *layout), name="fieldgen-watch", daemon=True).start()
+
+
+def finished() -> None:
+    """Tell the other processes this one trained to the end (leaving is then no failure), and stop watching."""
+    client = _client()
+    if client is not None:
+        import jax
+
+        with _stopping:
+            _finished.set()
+        client.key_value_set(f"{FINISHED_KEY}/{jax.process_index()}", "1")
+
+
+def stop_if_another_stopped(error: BaseException, say: Callable[[str], None]) -> None:
+    """Where `error` is a collective's failure in a run over several processes because another process
+    stopped, `say` so and stop, once the coordination service names it (within a heartbeat); return
+    otherwise."""
+    import jax
+
+    text, me, count = str(error), jax.process_index(), jax.process_count()
+    if count == 1 or not any(word in text for word in ("Gloo", "NCCL", "heartbeat")) \
+            and "coordination" not in text.lower():
+        return
+    deadline = time.monotonic() + HEARTBEAT_SECONDS + 5
+    while time.monotonic() < deadline:
+        gone = _gone(me, count)
+        if gone:
+            _stop(say, gone, me, count)
+        time.sleep(1)
+
+
+def _client():
+    """The coordination service's client JAX keeps (None in a run of one process): whether the others live
+    and what they said are not asked of JAX otherwise."""
+    from jax._src import distributed
+
+    return distributed.global_state.client
+
+
+def _gone(me: int, count: int) -> list[int]:
+    """The processes the coordination service no longer hears from and that did not finish."""
+    client, everyone = _client(), list(range(count))
+    try:
+        live = client.get_live_nodes(everyone)
+    except Exception:  # the coordinator itself is gone
+        return [0] if me != 0 else []
+    gone = []
+    for p in everyone:
+        if p not in live:
+            try:
+                client.key_value_try_get(f"{FINISHED_KEY}/{p}")
+            except Exception:  # no such key: it stopped before the end
+                gone.append(p)
+    return gone
+
+
+def _watch(say: Callable[[str], None], me: int, count: int) -> None:
+    while not _finished.is_set():
+        gone = _gone(me, count)
+        if gone:
+            _stop(say, gone, me, count)
+        time.sleep(1)
+
+
+def _stop(say: Callable[[str], None], gone: list[int], me: int, count: int) -> None:
+    """`say` which processes stopped, and end this one at once (JAX's own exit would wait for them); nothing
+    once this one has finished."""
+    with _stopping:
+        if _finished.is_set():
+            return
+        who = f"process{'es' if len(gone) > 1 else ''} {', '.join(map(str, gone))} of {count}"
+        say(f"{who} stopped, so this one (process {me}) stops too")
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(1)
+
+
+def _leave_last(count: int) -> None:
+    """Process 0 holds the coordination service, which the others' runtimes need until they have left:
+    it waits for them (a heartbeat at most, as one that failed may never leave)."""
+    client, everyone = _client(), list(range(count))
+    deadline = time.monotonic() + HEARTBEAT_SECONDS
+    while client is not None and time.monotonic() < deadline:
+        try:
+            if set(client.get_live_nodes(everyone)) <= {0}:
+                return
+        except Exception:
+            return
+        time.sleep(0.2)

@@ -1,0 +1,186 @@
+"""`fieldgen train` over several processes: settings that cannot make a run over processes, and a coordinator
+that never answers, are one line, before anything trains or is written; two processes on the CPU train the
+run one process trains over two devices, a process killed stops the other with one line, and --resume
+finishes the run."""
+
+from __future__ import annotations
+
+import json
+import os
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from fieldgen.cli import app
+from fieldgen.run import distributed
+from fieldgen.run.record import RunError
+
+runner = CliRunner()
+
+
+@pytest.mark.parametrize("options,phrase", [
+    (["--coordinator", "localhost:1234", "--num-processes", "0", "--process-id", "0"],
+     "--num-processes 0: a run needs at least one process"),
+    (["--coordinator", "localhost:1234", "--num-processes", "2", "--process-id", "2"],
+     "--process-id 2 is out of range: with --num-processes 2 the ids are 0 to 1"),
+    (["--coordinator", "localhost:1234", "--num-processes", "2", "--process-id", "-1"], "--process-id -1 is out of range"),
+    (["--coordinator", "localhost:1234"], "--num-processes, --process-id missing: a run over several processes needs"),
+    (["--coordinator", "node01", "--num-processes", "2", "--process-id", "1"],
+     "--coordinator node01: write it as HOST:PORT"),
+])
+def test_process_settings_that_cannot_make_a_run_are_one_line(tmp_path, options, phrase):
+    result = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path), *options])
+    assert result.exit_code == 1 and result.output.startswith(f"error: {phrase}"), result.output
+    assert len(result.output.strip().splitlines()) == 1 and not any(tmp_path.iterdir())
+
+
+def test_the_settings_come_from_environment_variables_too(tmp_path):
+    env = {"FIELDGEN_COORDINATOR": "localhost:1234", "FIELDGEN_NUM_PROCESSES": "3", "FIELDGEN_PROCESS_ID": "7"}
+    result = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path)], env=env)
+    assert result.exit_code == 1 and "--process-id 7 is out of range: with --num-processes 3" in result.output
+
+
+def test_a_launcher_of_several_tasks_is_joined_and_one_process_alone_is_not(monkeypatch):
+    for variable in distributed.LAUNCHERS:
+        monkeypatch.delenv(variable, raising=False)
+    assert distributed.layout(None, None, None) is None
+    monkeypatch.setenv("SLURM_STEP_NUM_TASKS", "1")  # a sweep's SLURM task: one process
+    assert distributed.layout(None, None, None) is None
+    monkeypatch.setenv("SLURM_STEP_NUM_TASKS", "4")  # srun started four
+    assert distributed.layout(None, None, None) == distributed.Layout(None, None, None)
+    assert distributed.layout("h:1", 2, 1) == distributed.Layout("h:1", 2, 1)
+
+
+def test_a_coordinator_that_never_answers_is_one_line_after_the_timeout(tmp_path):
+    with socket.socket() as s:  # a port nobody listens on
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    began = time.monotonic()
+    with pytest.raises(RunError, match=rf"no coordinator answered at 127.0.0.1:{port} within 2 s"):
+        distributed._wait_for(f"127.0.0.1:{port}", 2)
+    assert 2 <= time.monotonic() - began < 10
+    result = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path), "--coordinator", f"127.0.0.1:{port}",
+                                 "--num-processes", "2", "--process-id", "1", "--coordinator-timeout", "1"])
+    assert result.exit_code == 1 and result.output.startswith(f"error: no coordinator answered at 127.0.0.1:{port}")
+    assert "start process 0" in result.output and len(result.output.strip().splitlines()) == 1
+    assert not any(tmp_path.iterdir())
+
+
+class Coordinator:
+    """Stands in for the coordination service's client: the processes it hears from, those that finished."""
+
+    def __init__(self, live: set[int] | None, finished: set[int]):
+        self.live, self.finished = live, finished
+
+    def get_live_nodes(self, processes):
+        if self.live is None:
+            raise RuntimeError("UNAVAILABLE: Socket closed")
+        return {p: 1 for p in processes if p in self.live}
+
+    def key_value_try_get(self, key):
+        if int(key.rsplit("/", 1)[1]) not in self.finished:
+            raise RuntimeError(f"NOT_FOUND: Config key {key} not found.")
+        return "1"
+
+
+def test_the_processes_gone_are_those_unheard_of_that_did_not_finish(monkeypatch):
+    monkeypatch.setattr(distributed, "_client", lambda: Coordinator(live={0, 2}, finished={3}))
+    assert distributed._gone(0, 4) == [1]
+    monkeypatch.setattr(distributed, "_client", lambda: Coordinator(live=None, finished=set()))
+    assert distributed._gone(1, 4) == [0]  # the coordinator itself, which lives in process 0
+
+
+def test_a_process_gone_ends_this_one_with_one_sentence_naming_it(monkeypatch):
+    said, exits = [], []
+    monkeypatch.setattr(os, "_exit", exits.append)
+    distributed._stop(said.append, [1, 3], 0, 4)
+    assert said == ["processes 1, 3 of 4 stopped, so this one (process 0) stops too"] and exits == [1]
+    distributed.stop_if_another_stopped(RuntimeError("Gloo AllGather failed"), said.append)  # one process: no other
+    assert len(said) == 1
+
+# Two `fieldgen train` processes on the CPU, one device each, train as one run over both (their collectives go
+# through gloo); the same run in one process over two devices is what they must reproduce.
+TIMING = {"wall_seconds", "steps_per_second", "peak_memory_mb"}  # the only numbers two layouts may differ in
+
+
+def fieldgen_train(args: list[str], log: Path, devices: int = 1) -> subprocess.Popen:
+    """`fieldgen train ARGS` in its own process on `devices` CPU devices, its output in `log`."""
+    env = {**os.environ, "JAX_PLATFORMS": "cpu",
+           "XLA_FLAGS": f"{os.environ.get('XLA_FLAGS', '')} --xla_force_host_platform_device_count={devices}"}
+    with log.open("w") as output:
+        return subprocess.Popen([sys.executable, "-m", "fieldgen", "train", *args], stdout=output,
+                                stderr=subprocess.STDOUT, env=env)
+
+
+def over_two_processes(args: list[str], folder: Path, logs: str = "process") -> list[subprocess.Popen]:
+    """The two processes of one run, started by hand as on two hosts (process 1 first: it waits for 0)."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    return [fieldgen_train([*args, "--coordinator", f"127.0.0.1:{port}", "--num-processes", "2", "--process-id",
+                            str(i)], folder / f"{logs}{i}.log") for i in (1, 0)][::-1]
+
+
+def ended(process: subprocess.Popen, log: Path, timeout: float = 900) -> str:
+    """The process's output once it has ended with exit status 0."""
+    assert process.wait(timeout) == 0, log.read_text()[-3000:]
+    return log.read_text()
+
+
+def results(run: Path) -> tuple[list[dict], bytes, bytes]:
+    """A run's metrics without their timings, its checkpoint and its learner, as written."""
+    rows = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
+    return ([{k: v for k, v in row.items() if k not in TIMING} for row in rows],
+            (run / "checkpoint.msgpack").read_bytes(), (run / "learner.msgpack").read_bytes())
+
+
+@pytest.fixture(scope="module")
+def two_seeds(tiny_crl_args):
+    return ["point_nav", "--seeds", "2", "--no-videos", *tiny_crl_args]
+
+
+@pytest.fixture(scope="module")
+def one_process(tmp_path_factory, two_seeds) -> Path:
+    """The tiny run of two seeds in one process over two CPU devices (a seed each)."""
+    out = tmp_path_factory.mktemp("one-process")
+    ended(fieldgen_train([*two_seeds, "--out", str(out)], out / "log", devices=2), out / "log")
+    return out / "point_nav-crl-0to1"
+
+
+@pytest.mark.slow
+def test_two_processes_train_the_run_one_process_trains_over_two_devices(tmp_path, two_seeds, one_process):
+    processes = over_two_processes([*two_seeds, "--out", str(tmp_path)], tmp_path)
+    outputs = [ended(p, tmp_path / f"process{i}.log") for i, p in enumerate(processes)]
+    run = tmp_path / "point_nav-crl-0to1"
+    assert results(run) == results(one_process)
+    assert json.loads((run / "run.json").read_text())["processes"]["devices_per_process"] == [1, 1]
+    assert "metrics:" in outputs[0] and "metrics:" not in outputs[1]  # process 0 alone reports and writes
+
+
+@pytest.mark.slow
+def test_a_process_killed_stops_the_other_with_one_line_and_resume_finishes_the_run(tmp_path, two_seeds,
+                                                                                       one_process):
+    processes = over_two_processes([*two_seeds, "--out", str(tmp_path)], tmp_path)
+    run = tmp_path / "point_nav-crl-0to1"
+    deadline = time.monotonic() + 900
+    while not (run / "checkpoint.msgpack").exists():  # evaluation 0 is written: training goes on
+        assert time.monotonic() < deadline and processes[0].poll() is None, (tmp_path / "process0.log").read_text()
+        time.sleep(0.05)
+    processes[1].kill()
+    began = time.monotonic()
+    assert processes[0].wait(distributed.HEARTBEAT_SECONDS + 60) == 1  # no hang: the heartbeat names it
+    assert time.monotonic() - began < distributed.HEARTBEAT_SECONDS + 30
+    errors = [line for line in (tmp_path / "process0.log").read_text().splitlines() if line.startswith("error")]
+    assert errors == [f"error: process 1 of 2 stopped, so this one (process 0) stops too. Start every process "
+                      f"again with --resume {run} to continue from its last checkpoint"]
+    assert results(run)[0][-1]["eval"] < 2  # stopped before the end
+
+    processes = over_two_processes(["--resume", str(run)], tmp_path, "resumed")
+    for i, process in enumerate(processes):
+        ended(process, tmp_path / f"resumed{i}.log")
+    assert results(run) == results(one_process)
