@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+import sys
 from pathlib import Path
 from typing import Annotated, Optional
 
@@ -28,14 +30,20 @@ VideoFormat = Annotated[Optional[str], typer.Option(
 
 
 def _train(run, videos: bool, logger: str, fmt: str | None = None) -> None:
-    """Train a run; Ctrl-C exits with 130, and a failed write or a diverged run says what to do (training.train
-    says how to go on)."""
+    """Train a run; Ctrl-C exits with 130 at once, leaving a compile or program under way unfinished, and a
+    failed write or a diverged run says what to do (training.train says how to go on)."""
     from fieldgen.run import record
     from fieldgen.run.train import train as train_run
 
     try:
         train_run(run, out, videos, logger, fmt)
     except KeyboardInterrupt:
+        from fieldgen.agents import programs
+
+        if programs.under_way():  # XLA takes no signal mid-compile or mid-program; waiting could take minutes
+            sys.stdout.flush()
+            sys.stderr.flush()
+            os._exit(130)  # the run's files are whole: each was replaced atomically, or is not yet written
         raise typer.Exit(130) from None
     except record.RunError as exc:  # training diverged
         fail(str(exc))
