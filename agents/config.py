@@ -1,8 +1,8 @@
 """Every trainer's settings, one validated model per algorithm, and what each checks before a run.
 
 A config is layered (`RunConfig.layered`): defaults < the bundled preset for the field's kind
-of agent (presets/<algo>_<agent>.yaml) < a config file ({algo: {key: value}}) <
-`--set algo.key=value` < explicit options, each value checked by pydantic as it comes in, so
+of agent (presets/<algo>_<agent>.yaml) < a named preset (`--preset cpu`: presets/cpu.yaml, a
+section per algorithm) < a config file ({algo: {key: value}}) < `--set algo.key=value` < explicit options, each value checked by pydantic as it comes in, so
 that a bad one is reported where it was written. `validate_env` holds what only the
 environment can tell (its episode length, its actuators, its success), so that a run fails
 in a sentence before it compiles rather than in a traceback after. Configs are frozen, hence
@@ -25,6 +25,7 @@ from ..suggest import did_you_mean
 from .buffer import gradient_steps, iterations
 from .contrastive import ENERGIES, LOSSES
 from .networks import MATMULS, residual_blocks
+from .registry import ALGORITHMS, PRESETS as NAMED_PRESETS
 from .sharding import by_seed
 from .team import GROUPINGS, split
 
@@ -113,15 +114,26 @@ class RunConfig(BaseModel):
         return path if agent and path.is_file() else None
 
     @classmethod
-    def layered(cls, file: Path | None = None, sets: Sequence[str] = (), others: tuple[str, ...] = (),
-                agent: str | None = None, **options) -> RunConfig:
-        """Defaults < the preset for `agent` < config file ({algo: {key: value}}) < --set algo.key=value <
-        options (None: not given).
+    def named_preset(cls, name: str | None) -> Path | None:
+        """A bundled preset by its name (registry.PRESETS): settings sized for a kind of machine, for every
+        trainer, layered over the agent's preset."""
+        if name is not None and name not in NAMED_PRESETS:
+            raise ConfigError(f"unknown preset '{name}'{did_you_mean(name, NAMED_PRESETS) or '.'} "
+                              f"Presets: {', '.join(NAMED_PRESETS)}.")
+        return None if name is None else PRESETS / f"{name}.yaml"
 
-        Sections and --set items of the algorithms in `others` (those compared beside this one) are skipped."""
+    @classmethod
+    def layered(cls, file: Path | None = None, sets: Sequence[str] = (), others: tuple[str, ...] = (),
+                agent: str | None = None, preset: str | None = None, **options) -> RunConfig:
+        """Defaults < the preset for `agent` < the named `preset` < config file ({algo: {key: value}}) <
+        --set algo.key=value < options (None: not given).
+
+        Sections and --set items of the algorithms in `others` (those compared beside this one) are skipped;
+        a named preset holds a section for every algorithm."""
         values = {}
-        for source in (cls.preset(agent), file):
-            section, lines = cls._section(source, others)
+        everyone = tuple(a for a in ALGORITHMS if a != cls.algo)
+        for source, skipped in ((cls.preset(agent), others), (cls.named_preset(preset), everyone), (file, others)):
+            section, lines = cls._section(source, skipped)
             values.update({key: cls._checked(key, value, f"{source}:{lines[key]}" if key in lines else f"{source}")
                            for key, value in section.items()})  # a key merged in (<<: *defaults) has no line
         for item in sets:

@@ -20,7 +20,7 @@ import numpy as np
 
 from ..env.contract import Environment
 from .config import RunConfig
-from .programs import Programs
+from .programs import Programs, computed
 from .sharding import from_host, to_host
 
 EVAL_STREAM = 0x5EED  # evaluation keys: fold_in(fold_in(seed key, EVAL_STREAM), evaluation index)
@@ -246,7 +246,8 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
 
     def judge(k: int, state, index: int) -> tuple[dict, object]:
         """Metrics per seed, and the first seed's episode filmed on stage k (None without `film`)."""
-        metrics, frames = to_host(programs(k).evaluate(state, jax.vmap(eval_key, in_axes=(0, None))(keys, index)))
+        metrics, frames = computed(programs(k).evaluate(state, jax.vmap(eval_key, in_axes=(0, None))(keys, index)),
+                                   to_host)
         return metrics, None if frames is None else (k, seed_slice(frames, 0))
 
     history: list[dict] = []
@@ -276,7 +277,7 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
             state, metrics = programs(stage).chunk(state)
             if reported is not None:  # its metrics, checkpoint and video, written on the host while the chunk trains
                 report(*reported)
-            metrics = to_host(metrics)  # waits for the chunk
+            metrics = computed(metrics, to_host)  # waits for the chunk
         seconds = time.perf_counter() - began
         judged, episode = judge(stage, state, index)
         metrics.update(judged)

@@ -4,9 +4,11 @@ Compiling a run's MJX programs (its start, its chunk, its evaluation) takes most
 first minutes. Tracing needs Python's lock but XLA's compiler does not: each program is traced in
 the caller's thread and compiled on a worker, so the compiles overlap one another and the tracing
 of the next program, and the start runs while the chunk is still compiling. On a CPU backend the
-programs compile one after another in the caller's thread instead: there the programs run on the
-same cores, and XLA already spreads one compile over them (side by side, two test workers on two
-cores ran slower: bench/results/README.md).
+programs compile one after another instead, the caller waiting for each: there the programs run on
+the same cores, and XLA already spreads one compile over them (side by side, two test workers on two
+cores ran slower: bench/results/README.md). Either way the caller waits in Python, where Ctrl-C
+reaches it at once, rather than inside XLA, which takes no signal until the compile ends; so it
+waits for a program's results (`computed`).
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ import jax
 from . import sharding
 
 SIDE_BY_SIDE: bool | None = None  # compile on worker threads; None: on every backend but the CPU
+COMPILE_THREAD = "compile"  # the name of each compile's thread
 
 
 def side_by_side() -> bool:
@@ -28,19 +31,19 @@ def side_by_side() -> bool:
 
 
 class Compiling:
-    """A jitted function lowered for the given arguments and compiled on a thread of its own (where
-    `side_by_side()`); calling it waits for that compile. A run stopped meanwhile (Ctrl-C) exits once
-    the compiles under way end: XLA cannot be stopped mid-compile, and a thread killed inside it aborts
-    the process."""
+    """A jitted function lowered for the given arguments and compiled on a thread of its own; calling it
+    waits for that compile (where not `side_by_side()`, so does making it). Ctrl-C meanwhile interrupts
+    the wait, not the compile: XLA cannot be stopped mid-compile, and a thread killed inside it aborts
+    the process, so a program stopped meanwhile either waits for `under_way()` compiles to end or leaves
+    without them (os._exit, as `fieldgen train` does)."""
 
     def __init__(self, jitted, *args):
         self._done: Future = Future()
         lowered = jitted.lower(*args)
         self.out_info = lowered.out_info  # the shapes of what it returns
-        if side_by_side():
-            threading.Thread(target=self._compile, args=(lowered,), name="compile").start()
-        else:
-            self._compile(lowered)
+        threading.Thread(target=self._compile, args=(lowered,), name=COMPILE_THREAD).start()
+        if not side_by_side():
+            self._done.result()
 
     def _compile(self, lowered) -> None:
         try:
@@ -50,6 +53,29 @@ class Compiling:
 
     def __call__(self, *args):
         return self._done.result()(*args)
+
+
+def computed(tree, fetch=jax.device_get):
+    """fetch(tree) (jax.device_get, or sharding.to_host across processes), waited for on a thread of its own:
+    the caller waits in Python, where Ctrl-C reaches it at once, while a program runs in XLA, which takes no
+    signal until the program ends."""
+    done: Future = Future()
+
+    def wait():
+        try:
+            done.set_result(fetch(tree))
+        except BaseException as error:  # raised in the caller
+            done.set_exception(error)
+
+    threading.Thread(target=wait, name="wait").start()
+    return done.result()
+
+
+def under_way() -> bool:
+    """Whether a program is still compiling, or still running: one dispatched and not yet waited for, or one a
+    caller stopped waiting for (`computed`)."""
+    return any(t.name == COMPILE_THREAD and t.is_alive() for t in threading.enumerate()) or \
+        any(not array.is_ready() for array in jax.live_arrays())
 
 
 class Programs:

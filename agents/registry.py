@@ -22,6 +22,8 @@ if TYPE_CHECKING:
 CONFIG_CLASSES = {"crl": "CRLConfig", "icrl": "ICRLConfig", "ppo": "PPOConfig", "sac": "SACConfig",
                   "td3": "TD3Config"}
 ALGORITHMS: tuple[str, ...] = tuple(CONFIG_CLASSES)
+# named presets, `--preset NAME`: agents/presets/NAME.yaml, settings of every trainer sized for a kind of machine
+PRESETS: tuple[str, ...] = ("cpu",)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+import sys
 from pathlib import Path
 from typing import Annotated, Optional
 
@@ -9,7 +11,7 @@ import typer
 from rich.table import Table
 from rich.text import Text
 
-from fieldgen.agents.registry import ALGORITHMS
+from fieldgen.agents.registry import ALGORITHMS, PRESETS
 from fieldgen.cli.app import app, choice, count, err, fail, field_source, out, video_format
 from fieldgen.compile.cameras import CAMERAS
 from fieldgen.run.loggers import LOGGERS
@@ -17,6 +19,10 @@ from fieldgen.schema import SpecError
 from fieldgen.video import FORMATS as VIDEO_FORMATS
 
 
+Preset = Annotated[Optional[str], typer.Option(
+    help="bundled settings sized for a machine: cpu trains any field end to end in minutes on a "
+                         "laptop (agents/presets/cpu.yaml); a --config file, --set, --steps and --envs override it",
+    **choice("preset", PRESETS))]
 VideoFormat = Annotated[Optional[str], typer.Option(
     "--video-format", help=f"videos as {' or '.join(VIDEO_FORMATS)}; by default mp4 where imageio-ffmpeg's encoder "
                            "is installed",
@@ -37,8 +43,9 @@ def _read_config(config: Path | None) -> None:
 
 
 def _train(run, videos: bool, logger: str, fmt: str | None = None) -> None:
-    """Train a run; Ctrl-C exits with 130, and a failed write, a diverged run or, in a run over several
-    processes, one that stopped says what to do (training.train says how to go on)."""
+    """Train a run; Ctrl-C exits with 130 at once, leaving a compile or program under way unfinished, and a
+    failed write, a diverged run or, in a run over several processes, one that stopped says what to do
+    (training.train says how to go on)."""
     from fieldgen.run import distributed, record
     from fieldgen.files import FolderError
     from fieldgen.run.train import train as train_run
@@ -51,6 +58,12 @@ def _train(run, videos: bool, logger: str, fmt: str | None = None) -> None:
     try:
         train_run(run, out, videos, logger, fmt)
     except KeyboardInterrupt:
+        from fieldgen.agents import programs
+
+        if programs.under_way():  # XLA takes no signal mid-compile or mid-program; waiting could take minutes
+            sys.stdout.flush()
+            sys.stderr.flush()
+            os._exit(130)  # the run's files are whole: each was replaced atomically, or is not yet written
         raise typer.Exit(130) from None
     except (record.RunError, FolderError) as exc:  # training diverged, or another process trains the run
         fail(str(exc))
@@ -77,6 +90,7 @@ def train(
                                        help="train this many seeds at once (seed, seed+1, ...), vmapped")] = 1,
     sets: Annotated[Optional[list[str]], typer.Option("--set", metavar="KEY=VALUE",
                                                       help="override a config key: crl.repr_dim=128")] = None,
+    preset: Preset = None,
     config: Annotated[Optional[Path], typer.Option(metavar="FILE", help="YAML file: {crl: {key: value}}")] = None,
     runs: Annotated[Path, typer.Option("--out", metavar="DIR", help="folder for run folders")] = Path("runs"),
     resume: Annotated[Optional[Path], typer.Option(metavar="RUN", help="continue the run in this folder")] = None,
@@ -155,11 +169,12 @@ def train(
             source = field_source(spec)
             _read_config(config)
             trainer_config, agent = registry.trainer(algo).config, session.agent_kind(source)
-            algo_config = trainer_config.layered(config, sets or [], agent=agent, total_steps=steps,
+            algo_config = trainer_config.layered(config, sets or [], agent=agent, preset=preset, total_steps=steps,
                                                  num_envs=envs, seed=seed)
-            preset = trainer_config.preset(agent)
-            if preset:
-                out.print(f"{algo} on {agent} fields starts from {preset.name} (a --config file or --set "
+            layers = [f"{p.name}{' (--preset)' if p.stem == preset else ''}" for p in
+                      (trainer_config.preset(agent), trainer_config.named_preset(preset)) if p]
+            if layers:
+                out.print(f"{algo} on {agent} fields starts from {' then '.join(layers)} (a --config file or --set "
                           "overrides it)")
             if levels is not None and curriculum_kind != "auto":
                 fail(f"--levels {levels} sets how many levels --curriculum auto makes; add --curriculum auto")
@@ -194,6 +209,7 @@ def compare(
     seeds: Annotated[int, typer.Option(metavar="K", help="seeds per algorithm (0, 1, ...), vmapped in one run")] = 1,
     sets: Annotated[Optional[list[str]], typer.Option("--set", metavar="KEY=VALUE",
                                                       help="override a config key: sac.her=0.8")] = None,
+    preset: Preset = None,
     config: Annotated[Optional[Path], typer.Option(metavar="FILE", help="YAML file: {crl: {...}, sac: {...}}")] = None,
     runs: Annotated[Optional[Path], typer.Option("--out", metavar="DIR", help="folder of the runs and the plot "
                                                                              "(default runs/compare-<field>)")] = None,
@@ -222,8 +238,8 @@ def compare(
     names = [a.strip() for a in algos.split(",") if a.strip()]
     try:
         _read_config(config)
-        folder, todo = comparing.runs(source, names, range(seeds), runs, config, sets or [],
-                                      total_steps=steps, num_envs=envs)
+        folder, todo = comparing.runs(source, names, list(range(seeds)), runs, config, sets or [],
+                                      preset=preset, total_steps=steps, num_envs=envs)
     except (SpecError, ConfigError, record.RunError, FolderError) as exc:
         fail(str(exc))
     if prepare:
@@ -245,8 +261,9 @@ def evaluate(
     run_dirs: Annotated[list[Path], typer.Argument(
         metavar="RUN...", help="run folders written by fieldgen train: one (all its seeds), or several of one "
                                "field and algorithm, e.g. one per seed")],
-    episodes: Annotated[int, typer.Option(parser=count, metavar="N",
-                                          help="evaluation episodes per seed, one per parallel env")] = 128,
+    episodes: Annotated[Optional[int], typer.Option(
+        parser=count, metavar="N", help="evaluation episodes per seed, one per parallel env [default: as many as "
+                                        "each evaluation of the (first) run played, its eval_envs]")] = None,
     video: Annotated[bool, typer.Option(help="write eval.mp4 of one episode of the first run's first seed")] = True,
     video_fmt: VideoFormat = None,
     camera: Annotated[str, typer.Option(help="video camera", **choice("camera", CAMERAS))] = "follow",
@@ -282,6 +299,7 @@ def evaluate(
     except (SpecError, ConfigError, record.RunError) as exc:
         fail(str(exc))
     path = summary_file or judging.summary_path(run_dirs, runs[0], field is not None)
+    episodes = episodes or runs[0].config.eval_envs  # sized with training: a CPU-sized run evaluates quickly
     evaluations = [judging.evaluate(run, episodes, seed, video and k == 0) for k, run in enumerate(runs)]
     result = judging.summarize(runs, evaluations, episodes, _command_line(ctx))
     length = runs[0].env.episode_length

@@ -26,7 +26,7 @@ PLOT, TABLE = "compare.png", "compare.json"
 
 
 def runs(source: Path, algos: list[str], seeds: list[int], folder: Path | None, config_file: Path | None,
-         sets: list[str], **fixed) -> tuple[Path, list[session.Run]]:
+         sets: list[str], preset: str | None = None, **fixed) -> tuple[Path, list[session.Run]]:
     """(the comparison's folder, default runs/compare-<field>; a run per algorithm in it: an existing one,
     checked to have the same settings, or a new one). Every config is checked before anything is written."""
     entries = {algo: registry.trainer(algo) for algo in algos}
@@ -40,7 +40,7 @@ def runs(source: Path, algos: list[str], seeds: list[int], folder: Path | None, 
     configs = {}
     for algo, entry in entries.items():
         others = tuple(a for a in registry.ALGORITHMS if a != algo)
-        configs[algo] = entry.config.layered(config_file, sets, others, env.spec.agent.kind, **fixed)
+        configs[algo] = entry.config.layered(config_file, sets, others, env.spec.agent.kind, preset, **fixed)
         configs[algo].validate_env(env, sharding.device_count(), len(seeds))
     result = []
     for algo in algos:

@@ -105,6 +105,25 @@ def looks_trained(run: Path) -> Path:
     return run
 
 
+def test_eval_plays_as_many_episodes_as_the_runs_evaluations_did_unless_told(tmp_path, monkeypatch):
+    """A run sized for a CPU (`--preset cpu`: 16 evaluation episodes) is judged as quickly by default."""
+    from fieldgen.run import evaluate as judging
+
+    run = looks_trained(prepared(tmp_path, "point_nav", "--preset", "cpu"))
+    asked = []
+
+    def evaluate(run, episodes, *args):
+        asked.append(episodes)
+        raise KeyboardInterrupt  # enough: the episodes were asked for
+
+    monkeypatch.setattr(judging, "open_runs", lambda folders, field: [session.open_run(f, load_state=False)
+                                                                     for f in folders])
+    monkeypatch.setattr(judging, "evaluate", evaluate)
+    for args, episodes in (([], 16), (["--episodes", "64"], 64)):
+        runner.invoke(app, ["eval", str(run), "--no-video", *args])
+        assert asked.pop() == episodes
+
+
 def test_bad_evaluations_are_one_line_and_write_nothing(tmp_path):
     untrained = prepared(tmp_path / "a", "point_nav")
     nav = looks_trained(prepared(tmp_path / "b", "point_nav", "--seed", "1"))

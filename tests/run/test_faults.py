@@ -160,6 +160,79 @@ def test_ctrl_c_while_programs_compile_exits_cleanly(tmp_path, tiny_crl_args):
     assert "terminate called" not in result.stderr and "Traceback" not in result.stderr
 
 
+# `fieldgen train` given Ctrl-C a second into XLA's compile of its first program: "SIGINT at T" on stderr
+INTERRUPTED_COMPILING_IN_XLA = textwrap.dedent("""
+    import os, signal, sys, threading, time
+    import jax
+    from fieldgen.cli import app
+
+    signal.signal(signal.SIGINT, signal.default_int_handler)  # even where this process was started ignoring it
+    compiling, real_compile = threading.Event(), jax.stages.Lowered.compile
+
+    def compile(self, *args, **kwargs):
+        compiling.set()
+        return real_compile(self, *args, **kwargs)
+
+    def interrupt():
+        compiling.wait()
+        time.sleep(1)
+        print(f"SIGINT at {time.time()}", file=sys.stderr, flush=True)
+        os.kill(os.getpid(), signal.SIGINT)
+
+    jax.stages.Lowered.compile = compile
+    threading.Thread(target=interrupt, daemon=True).start()
+    app(sys.argv[1:])
+""")
+
+
+@pytest.mark.slow
+def test_ctrl_c_during_the_first_compile_acts_at_once_and_the_run_goes_on(tmp_path):
+    """An ant field's first compile takes minutes on a CPU, and XLA takes no signal meanwhile: Ctrl-C still
+    stops the command within seconds, saying how to go on, and both ways of going on open the run."""
+    import time
+
+    env = dict(os.environ, JAX_PLATFORMS="cpu", JAX_ENABLE_COMPILATION_CACHE="false")
+    command = ["train", "ant_nav", "--preset", "cpu", "--out", str(tmp_path), "--no-videos"]
+    result = subprocess.run([sys.executable, "-c", INTERRUPTED_COMPILING_IN_XLA, *command], env=env,
+                            capture_output=True, text=True, timeout=600)
+    ended = time.time()
+    assert result.returncode == 130, result.stdout[-2000:] + result.stderr[-3000:]
+    interrupted = float(result.stderr.split("SIGINT at ")[1].split()[0])
+    assert ended - interrupted < 5, f"Ctrl-C took {ended - interrupted:.0f} s to act"
+    run = tmp_path / "ant_nav-crl-0"
+    assert f"interrupted; no checkpoint yet. Start again with: fieldgen train --resume {run}" in " ".join(
+        result.stdout.split())
+    for again in (["train", "--resume", str(run)], command):
+        prepared = runner.invoke(app, [*again, "--prepare"])
+        assert prepared.exit_code == 0 and f"prepared {run}" in " ".join(prepared.output.split()), prepared.output
+
+
+@pytest.mark.slow
+def test_ctrl_c_while_a_chunk_trains_acts_at_once_and_the_run_goes_on(tmp_path):
+    """A chunk of training runs in XLA for a minute here (400k env steps of point_nav): Ctrl-C given a few
+    seconds after the first evaluation, once its checkpoint is written, stops the command within seconds."""
+    import time
+
+    env = dict(os.environ, JAX_PLATFORMS="cpu")
+    command = ["fieldgen", "train", "point_nav", "--envs", "256", "--steps", "4M", "--out", str(tmp_path),
+               "--no-videos"]
+    training = subprocess.Popen(command, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    output = ""
+    while "steps (" not in output:  # the line of the first evaluation
+        output += training.stdout.readline() or pytest.fail(output)
+    time.sleep(5)
+    training.send_signal(signal.SIGINT)
+    interrupted = time.time()
+    output += training.communicate(timeout=600)[0]
+    assert training.returncode == 130, output
+    assert time.time() - interrupted < 5, f"Ctrl-C took {time.time() - interrupted:.0f} s to act"
+    run = tmp_path / "point_nav-crl-0"
+    assert f"interrupted; the last checkpoint is intact. Continue with: fieldgen train --resume {run}" in " ".join(
+        output.split()), output
+    resumed = runner.invoke(app, ["train", "--resume", str(run), "--prepare"])
+    assert resumed.exit_code == 0 and f"prepared {run}" in " ".join(resumed.output.split()), resumed.output
+
+
 def test_opening_a_run_leaves_the_writes_of_its_training_alone(tmp_path, tiny_crl_args):
     """`fieldgen eval` or `compare` may open a run while it trains: the checkpoint being written stays."""
     from fieldgen.run import session

@@ -315,6 +315,27 @@ def test_ant_fields_get_the_ant_preset_under_a_config_file_and_set(tmp_path):
     assert crl.CRLConfig.layered(reference, agent="ant") == crl.CRLConfig()  # the reference's settings, back
 
 
+def test_the_cpu_preset_sizes_training_and_its_evaluations_for_a_laptop(tmp_path, env_cache):
+    """`--preset cpu` layers CPU-sized settings, evaluation included, over the field's agent preset for every
+    trainer, under a config file and --set; each fits an ant soccer field, and `fieldgen train` records it."""
+    from fieldgen.agents.registry import ALGORITHMS
+
+    soccer = env_cache("soccer_v2")
+    for algo in ALGORITHMS:
+        config = trainer(algo).config.layered(agent="ant", preset="cpu")
+        assert (config.num_envs, config.eval_envs, config.hidden, config.total_steps) == (16, 16, (64, 64), 200_000)
+        config.validate_env(soccer)
+    mine = crl.CRLConfig.layered(agent="ant", preset="cpu", sets=["crl.num_envs=32"])
+    assert (mine.layer_norm, mine.batch_size, mine.windows_per_env, mine.num_envs) == (True, 256, 1.0, 32)
+    with pytest.raises(ConfigError, match="unknown preset 'cpus'; did you mean 'cpu'"):
+        crl.CRLConfig.layered(preset="cpus")
+    result = runner.invoke(app, ["train", "ant_nav", "--preset", "cpu", "--out", str(tmp_path), "--prepare"])
+    assert result.exit_code == 0, result.output
+    assert "starts from crl_ant.yaml then cpu.yaml (--preset)" in " ".join(result.output.split())
+    saved = json.loads((tmp_path / "ant_nav-crl-0" / "run.json").read_text())["config"]
+    assert (saved["num_envs"], saved["eval_envs"], saved["layer_norm"]) == (16, 16, True)
+
+
 def test_a_config_comes_back_from_its_run_json_record(tiny_crl):
     """run.json keeps the config as JSON (tuples become lists); read back, it is the same hashable value."""
     config = tiny_crl(hidden=(32, 16), layer_norm=True)
