@@ -294,12 +294,12 @@ def evaluate(
         fail(f"--summary {summary_file}: there is no folder {summary_file.parent} to write it in")
     try:
         runs = judging.open_runs(run_dirs, None if field is None else field_source(field))
+        episodes = episodes or runs[0].config.eval_envs  # sized with training: a CPU-sized run evaluates quickly
         for run in runs:
             judging.check_memory(run, episodes)
     except (SpecError, ConfigError, record.RunError) as exc:
         fail(str(exc))
     path = summary_file or judging.summary_path(run_dirs, runs[0], field is not None)
-    episodes = episodes or runs[0].config.eval_envs  # sized with training: a CPU-sized run evaluates quickly
     evaluations = [judging.evaluate(run, episodes, seed, video and k == 0) for k, run in enumerate(runs)]
     result = judging.summarize(runs, evaluations, episodes, _command_line(ctx))
     length = runs[0].env.episode_length
