@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import functools
 import threading
+import weakref
 from concurrent.futures import Future
 from typing import Callable
 
@@ -24,6 +25,7 @@ from . import sharding
 
 SIDE_BY_SIDE: bool | None = None  # compile on worker threads; None: on every backend but the CPU
 COMPILE_THREAD = "compile"  # the name of each compile's thread
+_running: list[weakref.ref] = []  # a result of each program called, until it is computed (or no longer held)
 
 
 def side_by_side() -> bool:
@@ -52,7 +54,10 @@ class Compiling:
             self._done.set_exception(error)
 
     def __call__(self, *args):
-        return self._done.result()(*args)
+        results = self._done.result()(*args)
+        _running[:] = [ref for ref in _running if ref() is not None and not ref().is_ready()]
+        _running.extend(weakref.ref(leaf) for leaf in jax.tree.leaves(results)[:1])  # they come ready together
+        return results
 
 
 def computed(tree, fetch=jax.device_get):
@@ -75,7 +80,7 @@ def under_way() -> bool:
     """Whether a program is still compiling, or still running: one dispatched and not yet waited for, or one a
     caller stopped waiting for (`computed`)."""
     return any(t.name == COMPILE_THREAD and t.is_alive() for t in threading.enumerate()) or \
-        any(not array.is_ready() for array in jax.live_arrays())
+        any(ref() is not None and not ref().is_ready() for ref in _running)
 
 
 class Programs:
