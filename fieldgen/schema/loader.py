@@ -58,7 +58,11 @@ def validate(source: Source) -> FieldSpec:
     try:
         spec = FieldSpec.model_validate(source.data)
     except ValidationError as exc:
-        raise SpecError(messages.problems(source, exc.errors())) from None
+        problems = messages.problems(source, exc.errors())
+        if {error["loc"] for error in exc.errors()} == {("name",)}:  # the rest is sound: its sense is checked too
+            spec = FieldSpec.model_validate({**source.data, "name": "unnamed"})
+            problems += [source.problem(parts, message) for parts, message in physics_problems(spec)]
+        raise SpecError(problems) from None
     problems = [source.problem(parts, message) for parts, message in physics_problems(spec)]
     if problems:
         raise SpecError(problems)

@@ -10,7 +10,7 @@ import typing
 from pydantic import BaseModel
 
 from fieldgen.schema.errors import Problem
-from fieldgen.schema.models import FieldSpec, NotAsWritten
+from fieldgen.schema.models import PATTERN_WORDS, FieldSpec, NotAsWritten
 from fieldgen.schema.source import Source
 from fieldgen.suggest import did_you_mean
 
@@ -60,6 +60,9 @@ def _problem(source: Source, parts: tuple, errs: list[dict], model: type[BaseMod
     if kind == "literal_error" and isinstance(value, str):
         expected = re.findall(r"'([^']*)'", err["ctx"]["expected"])
         return source.problem(parts, f"{err['msg']} (got {value!r}{did_you_mean(value, expected)})")
+    if kind == "string_pattern_mismatch" and err["ctx"]["pattern"] in PATTERN_WORDS:
+        return source.problem(parts, f"a name is {PATTERN_WORDS[err['ctx']['pattern']]}, such as "
+                                     f"'{_named(value, err['ctx']['pattern'])}' (got {_shown(value)})")
     if kind in EXPECTED:
         return source.problem(parts, f"expected {_expected(err)} (got {_shown(value)})")
     return source.problem(parts, _plain(err))
@@ -91,6 +94,12 @@ def _plain(err: dict) -> str:
     if "input" in err and not isinstance(err["input"], (dict, list)):
         msg += f" (got {_shown(err['input'])})"
     return msg
+
+
+def _named(text: str, pattern: str) -> str:
+    """`text` made into a name `pattern` takes: lower case, each run of other characters one _."""
+    name = re.sub(r"[^a-z0-9]+", "_", text.lower()).strip("_") or "field"
+    return name if re.fullmatch(pattern, name) else f"x{name}"
 
 
 def _shown(value) -> str:

@@ -369,18 +369,25 @@ class ObservationSection(Section):
     ball_velocity: bool = Field(False, description="append the ball's velocity to the observation")
 
 
+NAME_PATTERN = r"^[a-z0-9][a-z0-9_\-]*$"  # a field's name: it names build folders and runs
+OBSTACLE_NAME_PATTERN = r"^[a-z0-9][a-z0-9_]*$"  # an obstacle's: it names its geom, obstacle_<name>
+# each pattern in the words a problem says instead of the regular expression
+PATTERN_WORDS = {NAME_PATTERN: "lower-case letters, digits, _ and -, beginning with a letter or digit",
+                 OBSTACLE_NAME_PATTERN: "lower-case letters, digits and _, beginning with a letter or digit"}
+
+
 class FieldSpec(Section):
     """A complete robot-soccer field: geometry, agent, task and simulation."""
 
     extends: str | None = Field(None, description="a bundled field name or a path relative to this file")
-    name: str = Field(pattern=r"^[a-z0-9][a-z0-9_\-]*$", max_length=64, description="lower-case identifier")
+    name: str = Field(pattern=NAME_PATTERN, max_length=64, description="lower-case identifier")
     description: str = Field("", description="what the field models and where its numbers come from")
     field: FieldSection = Field(default_factory=FieldSection, description="floor size and friction")
     walls: WallsSection = Field(default_factory=WallsSection, description="walls around the field")
     goal: GoalSection = Field(default_factory=GoalSection, description="the goal box, posts and crossbar")
     ball: BallSection = Field(default_factory=BallSection, description="the ball")
     agent: AgentSection = Field(default_factory=AgentSection, description="the controlled agent")
-    obstacles: dict[Annotated[str, Field(pattern=r"^[a-z0-9][a-z0-9_]*$", max_length=32)], Obstacle] = Field(
+    obstacles: dict[Annotated[str, Field(pattern=OBSTACLE_NAME_PATTERN, max_length=32)], Obstacle] = Field(
         default_factory=dict, max_length=MAX_OBSTACLES, description="named boxes, e.g. a goalie")
     task: TaskSection = Field(default_factory=TaskSection, description="target, success predicate, reward")
     episode: EpisodeSection = Field(default_factory=EpisodeSection, description="timing and termination")

@@ -29,7 +29,10 @@ BAD = [
     ("name: x\nobstacles:\n  goalie: {widht: 2}\n", 3, "obstacles.goalie.widht", "did you mean 'width'"),
     ("name: x\nballl: {}\n", 2, "balll", "did you mean 'ball'"),
     ("description: no name\n", 1, "name", "'name' is required"),
-    ("name: Bad Name\n", 1, "name", "should match pattern"),
+    ("name: Bad Name\n", 1, "name", "a name is lower-case letters, digits, _ and -, beginning with a letter or "
+     "digit, such as 'bad_name' (got 'Bad Name')"),
+    ("name: x\nobstacles:\n  Big-Rock: {x: 0, y: 3}\n", 3, "obstacles.Big-Rock", "a name is lower-case letters, "
+     "digits and _, beginning with a letter or digit, such as 'big_rock' (got 'Big-Rock')"),
     ("name: x\nname: y\n", 2, "name", "duplicate key 'name' (first given on line 1)"),
     ("name: x\ngoal: {width: 3\n", 3, "", "YAML syntax error"),
     ("- 1\n- 2\n", 1, "", "the document is a list"),
@@ -73,6 +76,13 @@ def test_bad_spec_names_line_key_and_reason(write_spec, text, line, path, phrase
 def test_every_problem_is_reported_not_just_the_first(write_spec):
     found = problems_of(write_spec("name: x\ngoal: {widht: 1, height: -1}\nball: {joint: rolling}\n"))
     assert {p.path for p in found} == {"goal.widht", "goal.height", "ball.joint"}
+
+
+def test_a_bad_or_missing_name_hides_none_of_the_specs_other_problems(write_spec):
+    """The name is checked with the rest; the physics checks, which need a whole spec, still run beside it."""
+    for name in ("name: My Field\n", ""):
+        found = problems_of(write_spec(f"{name}goal: {{distance: 30}}\n"))
+        assert [p.path for p in found] == ["name", "goal.distance"], found
 
 
 def test_unknown_key_lists_allowed_keys(write_spec):
