@@ -54,6 +54,48 @@ def test_unknown_field_name_is_a_clear_error():
     result = runner.invoke(app, ["build", "socer_v2"])
     assert result.exit_code == 1
     assert "neither a file nor a bundled field" in result.output and "Traceback" not in result.output
+    assert "did you mean 'soccer_v2'?" in result.output and "ant_ball" not in result.output  # not all 24 names
+
+
+def test_a_mistyped_path_or_a_curriculum_index_is_answered_with_what_was_meant(tmp_path, monkeypatch):
+    """A path to a file that is not there gets the nearest file of its folder; a curriculum's curriculum.yaml,
+    which reads as a field with five unknown keys, gets its folder."""
+    import shutil
+    from pathlib import Path
+
+    curriculum = tmp_path / "to_far"
+    shutil.copytree(Path(__file__).parents[1] / "curricula" / "point_nav_to_far", curriculum)
+    (tmp_path / "my_nav.yaml").write_text("extends: point_nav\nname: my_nav\n")
+    monkeypatch.chdir(tmp_path)
+    cases = [
+        (["validate", "my_nva.yaml"], "'my_nva.yaml' is not a file; did you mean 'my_nav.yaml'?"),
+        (["build", "fields/my_nav.yaml"], "'fields/my_nav.yaml' is not a file: there is no folder fields"),
+        (["build", "to_far/curriculum.yaml"], "to_far/curriculum.yaml lists the stages of a curriculum, not a "
+                                              "field: give the curriculum's folder, to_far, to validate, build"),
+        (["train", "to_far/curriculum.yaml"], "give the curriculum's folder, to_far"),
+    ]
+    for args, phrase in cases:
+        result = runner.invoke(app, args)
+        message = " ".join(result.output.split())
+        assert result.exit_code == 1 and phrase in message and "unknown key" not in message, message
+    checked = runner.invoke(app, ["validate", "to_far", "my_nav.yaml"])
+    assert checked.exit_code == 0 and "to_far: 4 stages, point_nav_to_far_s01 to point_nav_to_far_s04" in " ".join(
+        checked.output.split()), checked.output
+
+
+def test_a_curriculum_records_the_fields_as_they_were_named(tmp_path, monkeypatch):
+    """A bundled name stays a name in curriculum.yaml, its stage files and its messages, not the absolute path
+    of the bundled file (which differs between installs)."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "my_nav.yaml").write_text("extends: point_nav\nname: my_nav\nfield: {length: 12, width: 12}\n")
+    made = runner.invoke(app, ["curriculum", "point_nav", "--to", "my_nav.yaml", "--stages", "3", "-o", "c"])
+    assert made.exit_code == 0, made.output
+    written = "".join(p.read_text() for p in sorted((tmp_path / "c").iterdir()))
+    assert "from point_nav to my_nav.yaml" in written and str(bundled_fields()["point_nav"]) not in written
+    refused = runner.invoke(app, ["curriculum", "point_soccer", "--start-near", "1", "--stages", "3", "--then",
+                                  "soccer_v1", "-o", "d"])
+    assert refused.exit_code == 1
+    assert "point_soccer drives the point agent and soccer_v1 the ant" in " ".join(refused.output.split())
 
 
 def test_build_reports_then_hits_cache(tmp_path):

@@ -70,11 +70,24 @@ def fail(message: str) -> None:
 
 
 def spec_path(ref: str) -> Path:
+    """The YAML file a field named on the command line is in; a name or path that is not one, refused with
+    the nearest that is."""
+    from fieldgen.curriculum import INDEX, is_curriculum
+
     path = resolve_spec_path(ref)
-    if not path.exists():
-        names = ", ".join(bundled_fields())
-        fail(f"'{ref}' is neither a file nor a bundled field ({names})")
-    return path
+    if path.name == INDEX and is_curriculum(path.parent):
+        fail(f"{ref} lists the stages of a curriculum, not a field: give the curriculum's folder, {path.parent}, "
+             "to validate, build, render or train")
+    if path.exists():
+        return path
+    if path == Path(ref) and ("/" in ref or path.suffix):  # a path, not a bundled name
+        folder = path.parent
+        if not folder.is_dir():
+            fail(f"'{ref}' is not a file: there is no folder {folder}")
+        files = {p.stem: p for p in folder.iterdir() if p.suffix in (".yaml", ".yml")}
+        fail(f"'{ref}' is not a file{did_you_mean(path.stem, files, files) or '.'}")
+    fail(f"'{ref}' is neither a file nor a bundled field{did_you_mean(ref, bundled_fields()) or '.'} "
+         "`fieldgen list` shows the bundled fields.")
 
 
 def field_source(ref: str) -> Path:

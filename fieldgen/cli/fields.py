@@ -17,14 +17,26 @@ from fieldgen.schema import SpecError, bundled_fields, geometry, load_spec
 
 
 @app.command()
-def validate(specs: Annotated[list[str], typer.Argument(metavar="SPEC",
-                                                        help="YAML files or bundled field names")]) -> None:
-    """Check field specs and report every problem with file:line:column and key path.
+def validate(specs: Annotated[list[str], typer.Argument(
+        metavar="SPEC", help="YAML files, bundled field names or curriculum folders")]) -> None:
+    """Check field specs (or a curriculum's stages) and report every problem with file:line:column and key path.
 
     Example: fieldgen validate fields/soccer_v2.yaml my_field.yaml
     """
+    from fieldgen import curriculum
+
     failed = 0
     for ref in specs:
+        if curriculum.is_curriculum(Path(ref)):
+            try:
+                stages = curriculum.load(Path(ref)).stages
+            except curriculum.CurriculumError as exc:
+                failed += 1
+                err.print(str(exc), highlight=False)
+                continue
+            out.print(Text.assemble(("ok", "green"), f" {ref}: {len(stages)} stages, {stages[0].name} to "
+                                                     f"{stages[-1].name}"))
+            continue
         try:
             spec = load_spec(spec_path(ref))
         except SpecError as exc:
@@ -225,16 +237,18 @@ def make_curriculum(
     from fieldgen import curriculum
     from fieldgen.files import FolderError
 
-    base_path = spec_path(base)
+    typed = {ref: spec_path(ref) for ref in (base, to, *(then or ())) if ref is not None}
+    base_path = typed[base]
     try:
-        asked = curriculum.Asked(to=spec_path(to) if to is not None else None, stages=stages,
+        asked = curriculum.Asked(to=typed.get(to), stages=stages,
                                  geometric=tuple(geometric or ()), switch_at=switch_at, vary=tuple(vary or ()),
                                  listed=tuple(stage or ()), start_near=start_near, agent_near=agent_near,
-                                 then=tuple(spec_path(s) for s in then or ()), then_stages=then_stages)
+                                 then=tuple(typed[s] for s in then or ()), then_stages=then_stages)
         kind, variants = curriculum.variants(base_path, asked)
+        variants = [(changes, _as_typed(origin, typed)) for changes, origin in variants]
         c = curriculum.write(output, base, base_path, kind, variants, curriculum.Promotion(threshold, window), force)
     except (curriculum.CurriculumError, FolderError) as exc:
-        fail(str(exc))
+        fail(_as_typed(str(exc), typed))
     except OSError as exc:
         fail(f"cannot write {output}: {exc.strerror}; nothing was written: fix the folder's permissions or choose "
              "another -o")
@@ -248,6 +262,14 @@ def make_curriculum(
             out.print(Text(f"stage {i}: obstacle '{name}' stands between the agent's start ({sx:g}, {sy:g}) and the "
                            "ball: the agent must walk around it to reach the ball", style="yellow"))
     out.print(f"build them: fieldgen build {output}; see them: fieldgen render {output} -o sheet.png")
+
+
+def _as_typed(text: str, typed: dict[str, Path]) -> str:
+    """`text` with the files fields were found in written as the user named them (point_nav, not the bundled
+    file's absolute path, which differs between installs)."""
+    for ref, path in typed.items():
+        text = text.replace(str(path), ref)
+    return text
 
 
 def _flat_changes(tree: dict, prefix: str = "") -> str:
