@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 
 import imageio.v3 as iio
 from typer.testing import CliRunner
@@ -233,6 +234,37 @@ def test_help_reads_as_command_lines_do():
     assert re.search(r"--camera +top\|follow\|both ", render)
     root = runner.invoke(app, ["--help"], env={"COLUMNS": "200"}).output
     assert "--install-completion" in root and "--version" in root
+
+
+def test_help_fits_a_terminal_of_80_columns():
+    """Each option's help wraps beside it at word boundaries with room to read, a choice is never split, the
+    examples stay whole on their lines and the prose wraps to the terminal."""
+    for command in (["train"], ["eval"], ["compare"], ["curriculum"], ["sweep"], []):
+        result = runner.invoke(app, [*command, "--help"], env={"COLUMNS": "80"})
+        assert result.exit_code == 0, result.output
+        lines = result.output.splitlines()
+        assert all(len(line) <= 80 for line in lines if not line.lstrip().startswith("Example:")), result.output
+    train = runner.invoke(app, ["train", "--help"], env={"COLUMNS": "80"}).output
+    assert re.search(r"--logger none\|tensorboard\|wandb\n", train), train
+    assert re.search(r"--init-from RUN +start from the networks another run learned\n", train), train
+    assert "  Example: fieldgen train soccer_v2 --init-from runs/soccer_v1-crl-0 --seed 1\n" in train
+    assert "  Resumes exactly after an interrupt (--resume). A curriculum run moves to the\n  next stage" in train
+    wide = runner.invoke(app, ["train", "--help"], env={"COLUMNS": "200"}).output
+    assert "A curriculum run moves to the next stage when its promotion rule is met and reports" in wide
+
+
+def test_help_gives_the_defaults_of_steps_and_envs_the_configs_hold():
+    """--help loads no trainer, so it says them in words: checked here against the configs."""
+    from fieldgen.agents.registry import ALGORITHMS, trainer
+    from fieldgen.cli.training import ENVS, STEPS
+
+    defaults = {a: (trainer(a).config().total_steps, trainer(a).config().num_envs) for a in ALGORITHMS}
+    assert defaults == {a: (50_000_000, 2048) if a == "ppo" else (10_000_000, 1024) for a in ALGORITHMS}
+    assert {(c.total_steps, c.num_envs) for c in (trainer(a).config.layered(preset="cpu") for a in ALGORITHMS)} == \
+        {(200_000, 16)}
+    assert (STEPS, ENVS) == ("[default: 10M, ppo 50M; --preset cpu 200k]", "[default: 1024, ppo 2048; --preset cpu 16]")
+    train = " ".join(runner.invoke(app, ["train", "--help"], env={"COLUMNS": "80"}).output.split())
+    assert f"2e6 {STEPS}" in train and f"parallel environments {ENVS}" in train
 
 
 def test_choices_are_checked_before_anything_loads_and_complete_in_the_shell():

@@ -19,9 +19,12 @@ from fieldgen.schema import SpecError
 from fieldgen.video import FORMATS as VIDEO_FORMATS
 
 
+# --steps' and --envs' defaults, the config's total_steps and num_envs, in words: --help loads no trainer to read
+# them (tests/test_cli.py checks them against the configs)
+STEPS, ENVS = "[default: 10M, ppo 50M; --preset cpu 200k]", "[default: 1024, ppo 2048; --preset cpu 16]"
 Preset = Annotated[Optional[str], typer.Option(
-    help="bundled settings sized for a machine: cpu trains any field end to end in minutes on a "
-                         "laptop (agents/presets/cpu.yaml); a --config file, --set, --steps and --envs override it",
+    help="bundled settings sized for a machine: cpu trains any field end to end in minutes on a laptop "
+         "(agents/presets/cpu.yaml); a --config file, --set, --steps and --envs override it",
     **choice("preset", PRESETS))]
 VideoFormat = Annotated[Optional[str], typer.Option(
     "--video-format", help=f"videos as {' or '.join(VIDEO_FORMATS)}; by default mp4 where imageio-ffmpeg's encoder "
@@ -83,8 +86,8 @@ def train(
         help="a YAML file, bundled field name or build folder (omit with --resume)")] = None,
     algo: Annotated[str, typer.Option(help="training algorithm", **choice("algorithm", ALGORITHMS))] = "crl",
     steps: Annotated[Optional[int], typer.Option(parser=count, metavar="N",
-                                                 help="total env steps: 40000, 50M, 1.5k, 2e6")] = None,
-    envs: Annotated[Optional[int], typer.Option(parser=count, metavar="N", help="parallel environments")] = None,
+                                                 help=f"total env steps: 40000, 50M, 1.5k, 2e6 {STEPS}")] = None,
+    envs: Annotated[Optional[int], typer.Option(parser=count, metavar="N", help=f"parallel environments {ENVS}")] = None,
     seed: Annotated[int, typer.Option(help="random seed; names the run folder")] = 0,
     seeds: Annotated[int, typer.Option(metavar="K",
                                        help="train this many seeds at once (seed, seed+1, ...), vmapped")] = 1,
@@ -203,9 +206,9 @@ def compare(
     algos: Annotated[str, typer.Option(metavar="A,B,...",
                                        help=f"comma-separated algorithms: {', '.join(ALGORITHMS)}")] = "crl,ppo",
     steps: Annotated[Optional[int], typer.Option(parser=count, metavar="N",
-                                                 help="total env steps of each run: 40000, 50M, 1.5k")] = None,
+                                                 help=f"total env steps of each run: 40000, 50M, 1.5k {STEPS}")] = None,
     envs: Annotated[Optional[int], typer.Option(parser=count, metavar="N",
-                                                help="parallel environments of each run")] = None,
+                                                help=f"parallel environments of each run {ENVS}")] = None,
     seeds: Annotated[int, typer.Option(metavar="K", help="seeds per algorithm (0, 1, ...), vmapped in one run")] = 1,
     sets: Annotated[Optional[list[str]], typer.Option("--set", metavar="KEY=VALUE",
                                                       help="override a config key: sac.her=0.8")] = None,
