@@ -157,6 +157,14 @@ def train(
     try:
         loggers.require(logger)
         if resume is not None:
+            settings = [name for name, value in (("--steps", steps), ("--envs", envs), ("--set", sets),
+                                                 ("--config", config), ("--preset", preset)) if value]
+            if settings:
+                total = record.read_run(resume).config.get("total_steps")
+                fail(f"--resume goes on with the settings {resume} was set up with (its run.json: "
+                     f"{total:,} env steps in all), which {' and '.join(settings)} cannot change; to train "
+                     f"on from what it learned, start a new run from it: fieldgen train SPEC --init-from {resume} "
+                     "--steps N --out DIR")
             if init_from is not None:
                 fail(f"--init-from sets up a new run; {resume} goes on from its own checkpoint (or from what it "
                      "was set up to start from): drop --init-from, or train into another --out")

@@ -93,6 +93,7 @@ class RunRecord(BaseModel):
     mixed: StrictBool = False
     schedule: Annotated[StrictStr, AfterValidator(_schedule)] | None = None  # None (older runs): staged, or mixed
     levels: list[dict] = []  # an automatic curriculum's levels: each stage's coordinates on the named axes
+    curriculum: StrictStr = ""  # the name of the curriculum the run trains through; "" (left out): a field
     init_from: InitFrom | None = None
 
 

@@ -41,6 +41,7 @@ class Run:
     stage: int = 0  # the stage the next chunk trains on
     schedule_kind: str = "staged"  # curriculum.schedule.SCHEDULES: mixed and auto train every stage at once
     init_from: dict | None = None  # record.InitFrom of a run started from another run's networks
+    curriculum: str = ""  # the name of the curriculum it trains through (its folder's; -mixed, -auto), "" for a field
 
     @property
     def finished(self) -> bool:
@@ -50,6 +51,12 @@ class Run:
     def refills(self) -> bool:
         """Whether the run goes on from what it learned alone, with fresh episodes and its buffer filled anew."""
         return self.state is not None and not self.trainers[self.stage].holds_environments(self.state)
+
+    @property
+    def label(self) -> str:
+        """What the run trains on, as its progress and plot name it: its field, or its curriculum rather than
+        the curriculum's last stage."""
+        return self.curriculum or self.env.spec.name
 
     @property
     def env(self):
@@ -133,7 +140,7 @@ def new_run(source: Path, algo: str, seeds: Sequence[int], config, out: Path, mi
     for env in envs:
         config.validate_env(env, sharding.device_count(), len(seeds))
     dirs = [FIELD] if len(envs) == 1 else [f"{STAGES}/{k + 1:02d}" for k in range(len(envs))]
-    run = Run(folder, algo, envs, config, seeds, [], promotion, schedule_kind=kind)
+    run = Run(folder, algo, envs, config, seeds, [], promotion, schedule_kind=kind, curriculum=name or "")
     if trains_here:
         check_memory(run)
     run.seeds = seeds = list(seeds)
@@ -157,7 +164,8 @@ def new_run(source: Path, algo: str, seeds: Sequence[int], config, out: Path, mi
             files.write_atomic(folder / record.INITIAL, checkpoint.pieces(jax.device_get(run.state)))
         record.write_run(folder, envs[-1].spec.model_dump(mode="json"), algo, config, envs[0].layout.to_json(),
                          seeds, {"fields": dirs, "promotion": dataclasses.asdict(promotion), "mixed": run.mixed,
-                                 "schedule": kind, **({"levels": coordinates} if coordinates else {}),
+                                 "schedule": kind, **({"curriculum": name} if name else {}),
+                                 **({"levels": coordinates} if coordinates else {}),
                                  **({"init_from": run.init_from} if run.init_from else {}),
                                  **({"processes": processes} if processes else {})})
     except OSError as exc:
@@ -270,7 +278,8 @@ def open_run(folder: Path, load_state: bool = True, to_train: bool = False) -> R
     seeds = saved.seeds or [config.seed]
     rows = record.read_metrics(folder)
     kind = saved.schedule or ("mixed" if saved.mixed else "staged")
-    run = Run(folder, saved.algo, envs, config, seeds, rows, saved.promotion, schedule_kind=kind)
+    run = Run(folder, saved.algo, envs, config, seeds, rows, saved.promotion, schedule_kind=kind,
+              curriculum=saved.curriculum)
     if not load_state:
         return run  # only reported on
     if to_train:

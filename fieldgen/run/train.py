@@ -47,7 +47,7 @@ def _train(run: Run, console: Console, videos: bool, logger: str, video_format: 
                                                        **run.config.model_dump()})
     with contextlib.closing(log), display(console) as bar, background.Writer() as writer:
         first = run.rows[-1]["env_steps"] if run.rows else 0
-        task = bar.add_task(env.spec.name, total=config.total_steps, completed=first, rate="compiling...", stats="")
+        task = bar.add_task(run.label, total=config.total_steps, completed=first, rate="compiling...", stats="")
 
         def on_eval(state, index, stage, filmed):
             writer.wait()  # one snapshot at a time in host memory; a failed write stops training here
@@ -81,7 +81,7 @@ def _train(run: Run, console: Console, videos: bool, logger: str, video_format: 
             if not writes:
                 return
             record.write_metrics(run.folder, run.rows)
-            plot_success(run.folder, run.rows, f"{env.spec.name}: {run.algo}")
+            plot_success(run.folder, run.rows, f"{run.label}: {run.algo}")
             log.rows(rows)
             bar.update(task, completed=rows[0]["env_steps"], rate=rate(run.rows, config.total_steps),
                        stats=stats(rows))

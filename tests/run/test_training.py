@@ -120,6 +120,40 @@ def test_an_interrupt_says_whether_a_checkpoint_was_kept(tmp_path, monkeypatch, 
         assert unwrapped(f"{phrase}: fieldgen train --resume {run}") in unwrapped(result.output)
 
 
+def test_a_curriculum_run_is_named_by_its_curriculum_not_its_last_stage(tmp_path, monkeypatch, tiny_crl_args):
+    """Its progress and its plot name the curriculum, as it starts and as it resumes."""
+    from fieldgen.run import train as training
+
+    titles = []
+    monkeypatch.setattr(training, "plot_success", lambda folder, rows, title: titles.append(title))
+
+    def one_evaluation(trainers, seeds, num_evals, schedule, progress, *args, **kwargs):
+        progress(0, [{"eval": 0, "seed": 0, "env_steps": 0, "stage": 0, "success_any": 0.0, "time_at_goal": 0.0}])
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(loop, "run_staged", one_evaluation)
+    run = tmp_path / "point_nav_to_far-crl-0"
+    for command in (["train", str(ROOT / "curricula" / "point_nav_to_far"), "--out", str(tmp_path), "--no-videos",
+                     *tiny_crl_args], ["train", "--resume", str(run), "--no-videos"]):
+        result = runner.invoke(app, command)
+        assert result.exit_code == 130, result.output
+        assert "point_nav_to_far 0 of 1,900 steps (0%) stage 1 success 0.00" in " ".join(result.output.split())
+        assert "_s04" not in result.output and titles.pop() == "point_nav_to_far: crl"
+
+
+def test_resume_says_it_keeps_the_runs_own_settings(tmp_path, tiny_crl_args):
+    """--steps (or --envs, --set, --config, --preset) beside --resume would be ignored: refused, saying how to
+    train on instead, before anything loads."""
+    prepared = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path), "--prepare", *tiny_crl_args])
+    assert prepared.exit_code == 0, prepared.output
+    run = tmp_path / "point_nav-crl-0"
+    for extra, named in ((["--steps", "4000"], "--steps"), (["--envs", "4", "--set", "crl.repr_dim=4"], "--envs and --set")):
+        result = runner.invoke(app, ["train", "--resume", str(run), *extra])
+        message = " ".join(result.output.split())
+        assert result.exit_code == 1 and f"(its run.json: 1,900 env steps in all), which {named} cannot change" in \
+            message and f"fieldgen train SPEC --init-from {run} --steps N --out DIR" in message, message
+
+
 def test_a_full_disk_is_a_clear_error(tmp_path, monkeypatch, tiny_crl_args):
     def full(*args, **kwargs):
         raise OSError(28, "No space left on device", str(tmp_path / "point_nav-crl-0" / "checkpoint.msgpack"))
@@ -253,6 +287,8 @@ def test_bundled_config_files_hold_only_known_keys(path):
     (["--set", "crl.critic_lr=-0.001"], "crl.critic_lr must be greater than 0, not -0.001"),
     (["--set", "crl.discount=1"], "crl.discount must be less than 1, not 1"),
     (["--set", "crl.hidden=[256,0]"], "crl.hidden must be greater than 0"),
+    (["--set", "crl.hidden=64,64"], "crl.hidden must be a list of layer widths, whole numbers above 0, not '64,64'; "
+                                    "write it as a list, [64,64]"),
     (["--steps", "100"], "--steps 100 is too few"),
     (["--set", "crl.energy=cos"], "unknown energy 'cos'"),
     (["--algo", "ppo", "--set", "ppo.num_minibatches=3", "--set", "ppo.unroll_length=10"], "does not divide"),
