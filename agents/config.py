@@ -192,8 +192,9 @@ class RunConfig(BaseModel):
             if exc.errors()[0]["type"] == "literal_error":
                 unknown = next(m for m in fields[key].metadata if isinstance(m, Unknown))
                 raise ConfigError(unknown.message.format(value)) from None
+            listed = f"; write it as a list, [{value}]" if isinstance(value, str) and "," in value else ""
             raise ConfigError(f"{where}: {cls.algo}.{key} {_allowed(exc.errors()[0], fields[key])}, "
-                              f"not {value!r}") from None
+                              f"not {value!r}{listed}") from None
 
     def validate_env(self, env: Environment, devices: int = 1, seeds: int = 1) -> None:
         """Problems a run would hit after compiling, reported before. `seeds` trained at once on `devices`
