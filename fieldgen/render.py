@@ -21,6 +21,12 @@ PERSPECTIVE_ASPECT = 4 / 3
 MARKINGS, SIDE_VIEW = 1, 2
 MARKED = ("torso", "agent", "ball")  # geoms the top view puts a disc under: the ant's torso, the point, the ball
 MARK_RADIUS = 0.02  # of the top view's height
+# what the preview's legend names, and the geoms that show it: a name, or a prefix ending in _ (the first
+# geom found gives the colour; an entry with none, or only hidden ones, is left out)
+LEGEND = {"agent": ("torso", "agent"), "ball": ("ball",), "target": ("target",), "goal": ("goal_area",),
+          "walls": ("wall_",), "obstacles": ("obstacle_",), "field lines": ("line_",)}
+LEGEND_HEIGHT = 32  # pixels of the strip under the preview
+MAX_FOVY = 180  # mujoco takes no camera fovy of this or more, an orthographic camera's metres included
 
 
 class RenderError(RuntimeError):
@@ -64,8 +70,66 @@ def render_pose(model: mujoco.MjModel, qpos: np.ndarray | None = None, camera: s
 
 
 def preview(model: mujoco.MjModel) -> np.ndarray:
-    """The top-down view and the view from the agent's start, side by side."""
-    return np.concatenate([render_pose(model, camera=c) for c in CAMERAS], axis=1)
+    """The top-down view and the view from the agent's start, side by side, over a legend of their colours."""
+    views = np.concatenate([render_pose(model, camera=c) for c in CAMERAS], axis=1)
+    return np.concatenate([views, legend(model, views.shape[1])], axis=0)
+
+
+def legend(model: mujoco.MjModel, width: int) -> np.ndarray:
+    """A strip `width` pixels wide naming each colour the model shows (LEGEND), in a swatch of it."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Patch
+
+    names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, i) or "" for i in range(model.ngeom)]
+    entries = []
+    for label, shown_by in LEGEND.items():
+        geoms = [i for i, name in enumerate(names) if model.geom_rgba[i][3] > 0 and any(
+            name.startswith(s) if s.endswith("_") else name == s for s in shown_by)]
+        if geoms:
+            entries.append(Patch(facecolor=model.geom_rgba[geoms[0]][:3], edgecolor="0.6", label=label))
+    fig = plt.figure(figsize=(width / 100, LEGEND_HEIGHT / 100), dpi=100, facecolor="0.2")
+    fig.legend(handles=entries, loc="center", ncol=len(entries), frameon=False, labelcolor="white", fontsize=9,
+               handlelength=1.2, columnspacing=1.5)
+    fig.canvas.draw()
+    strip = np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
+    plt.close(fig)
+    return strip
+
+
+def same_scale(models: list[mujoco.MjModel], camera: str = "top") -> None:
+    """Point each model's orthographic `camera` at the region that all of them frame together, so that a metre
+    is as many pixels in each of their images and fields of different sizes look it. Fields framed in
+    perspective (too large for an orthographic view: fieldgen.compile.scene), or together too large for one,
+    keep their own views."""
+    cams = [model.cam(camera).id for model in models]
+    if any(model.cam_projection[cam] != mujoco.mjtProjection.mjPROJ_ORTHOGRAPHIC for model, cam in zip(models, cams)):
+        return
+    views = []
+    for model, cam in zip(models, cams):
+        (x, y, _), half_height = model.cam_pos[cam], model.cam_fovy[cam] / 2
+        w, h = model.cam_resolution[cam]
+        views.append((x - half_height * w / h, x + half_height * w / h, y - half_height, y + half_height))
+    x0, x1 = min(v[0] for v in views), max(v[1] for v in views)
+    y0, y1 = min(v[2] for v in views), max(v[3] for v in views)
+    height = models[0].cam_resolution[cams[0]][1]
+    width = max(16, 16 * round(height * (x1 - x0) / (y1 - y0) / 16))
+    fovy = max(y1 - y0, (x1 - x0) * height / width)
+    if fovy >= MAX_FOVY:
+        return
+    top = max(model.cam_pos[cam][2] for model, cam in zip(models, cams))
+    reach = max(abs(x0), abs(x1), abs(y0), abs(y1))
+    for model, cam in zip(models, cams):
+        model.cam_pos[cam] = ((x0 + x1) / 2, (y0 + y1) / 2, top)
+        model.cam_fovy[cam] = fovy
+        model.cam_resolution[cam] = (width, height)
+        model.vis.global_.offwidth = max(model.vis.global_.offwidth, width)
+        floor = model.geom("floor")
+        if floor.size[0] < reach:  # the floor drawn to the view's edges, its checks still a metre each
+            model.mat_texrepeat[floor.matid[0]] *= reach / floor.size[0]
+            floor.size[:2] = reach
 
 
 def render_rollout(model: mujoco.MjModel, qpos: np.ndarray, mocap_pos: np.ndarray, camera: str = "follow",
@@ -89,8 +153,9 @@ def png_bytes(image: np.ndarray) -> bytes:
     return buf.getvalue()
 
 
-def contact_sheet(images: list[np.ndarray], titles: list[str], columns: int = 3) -> bytes:
-    """PNG bytes of images in a grid, each under its title."""
+def contact_sheet(images: list[np.ndarray], titles: list[str], columns: int = 3,
+                  captions: list[str] | None = None) -> bytes:
+    """PNG bytes of images in a grid, each under its title and over its caption, if any."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -101,9 +166,10 @@ def contact_sheet(images: list[np.ndarray], titles: list[str], columns: int = 3)
     fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 2.7 * rows), squeeze=False)
     for ax in axes.flat:
         ax.axis("off")
-    for ax, image, title in zip(axes.flat, images, titles):
+    for ax, image, title, caption in zip(axes.flat, images, titles, captions or [""] * len(images)):
         ax.imshow(image)
         ax.set_title(title, fontsize=8)
+        ax.text(0.5, -0.03, caption, transform=ax.transAxes, ha="center", va="top", fontsize=8)
     fig.tight_layout()
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=100)

@@ -125,6 +125,8 @@ def test_schema_is_json_schema_with_descriptions():
 
 
 def test_render_top_and_follow(tmp_path):
+    from fieldgen.render import LEGEND_HEIGHT
+
     images = {}
     for camera in ("top", "follow", "both"):
         out = tmp_path / f"{camera}.png"
@@ -134,7 +136,7 @@ def test_render_top_and_follow(tmp_path):
         assert images[camera].std() > 10  # a picture, not a blank frame
     top = images["top"].shape[1]
     assert top < 480 and images["top"].shape == (480, top, 3)  # point_soccer is longer than wide
-    assert images["follow"].shape == (480, 640, 3) and images["both"].shape == (480, top + 640, 3)
+    assert images["follow"].shape == (480, 640, 3) and images["both"].shape == (480 + LEGEND_HEIGHT, top + 640, 3)
     result = runner.invoke(app, ["render", "point_soccer", "--camera", "side"])
     assert result.exit_code == 1 and "unknown camera 'side'" in result.output
 

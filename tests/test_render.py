@@ -33,7 +33,7 @@ def regions(image) -> dict:
     r, g, b = image[..., 0], image[..., 1], image[..., 2]
     return {
         "floor": (np.ptp(image, axis=-1) < 4) & (r < 120),
-        "goal": (b > r + 100) & (b > g + 40),
+        "goal": (b > r + 100) & (b > g + 40) & (r < 60),  # not the walls' lighter sky blue
         "target": (r > g + 80) & (g > b + 30),
         "ball": (r > 180) & (g > 180) & (b < 120),
         "agent": (r > g + 40) & (b > g + 20),
@@ -65,12 +65,72 @@ def test_target_goal_ball_and_agent_stand_out_for_colour_blind_readers(soccer):
     target_rows, target_cols = np.nonzero(parts["target"])
     assert goal_rows.min() <= target_rows.mean() <= goal_rows.max()  # the target shows inside the goal
     assert goal_cols.min() <= target_cols.mean() <= goal_cols.max()
-    linear = {name: (soccer[mask].mean(axis=0) / 255) ** 2.2 for name, mask in parts.items()}
+    assert_apart(soccer, parts, [("target", "goal"), ("target", "floor"), ("goal", "floor"), ("ball", "floor"),
+                                 ("agent", "floor"), ("ball", "target"), ("agent", "target")])
+
+
+def assert_apart(image, parts: dict, pairs: list[tuple[str, str]]) -> None:
+    """Each pair of parts' mean colours differ clearly, in normal vision and under each colour blindness."""
+    linear = {name: (image[mask].mean(axis=0) / 255) ** 2.2 for name, mask in parts.items()}
     for vision, matrix in [("normal", np.eye(3)), *COLOUR_BLINDNESS.items()]:
         seen = {name: 255 * np.clip(np.asarray(matrix) @ c, 0, 1) ** (1 / 2.2) for name, c in linear.items()}
-        for a, b in [("target", "goal"), ("target", "floor"), ("goal", "floor"), ("ball", "floor"),
-                     ("agent", "floor"), ("ball", "target"), ("agent", "target")]:
+        for a, b in pairs:
             assert np.linalg.norm(seen[a] - seen[b]) > 60, f"{a} and {b} look alike under {vision}"
+
+
+def test_walls_and_the_goalie_show_from_above_apart_from_the_lines_and_the_rest():
+    """soccer_v2 from above: its side walls stand on the white boundary lines and its goalie before the goal;
+    both show in colours of the palette (black, sky blue), not as lines or a dark dash on the dark floor."""
+    image = render_pose(model("soccer_v2"), camera="top").astype(int)
+    height, width, _ = image.shape
+    r, g, b = image[..., 0], image[..., 1], image[..., 2]
+    parts = {**regions(image), "walls": image.max(axis=-1) < 40, "goalie": (b > 200) & (g > 170) & (r < 140),
+             "lines": (r > 200) & (g > 200) & (b > 200)}
+    rows, cols = np.nonzero(parts["walls"])
+    assert cols.min() < 0.1 * width and cols.max() > 0.9 * width and rows.max() - rows.min() > 0.8 * height
+    rows, cols = np.nonzero(parts["goalie"])
+    assert len(rows) > 50 and abs(cols.mean() - width / 2) < 0.05 * width and rows.mean() < 0.3 * height
+    assert_apart(image, parts, [("walls", "lines"), ("walls", "floor"), ("walls", "goal"), ("goalie", "floor"),
+                                ("goalie", "walls"), ("goalie", "goal"), ("goalie", "target"), ("goalie", "lines"),
+                                ("goalie", "ball"), ("goalie", "agent")])
+
+
+def test_the_preview_has_a_legend_of_the_colours_its_field_shows():
+    """A strip under the two views names each colour in a swatch of it: those of the field's parts, only."""
+    from fieldgen.compile.scene import RGBA
+    from fieldgen.render import LEGEND_HEIGHT, preview
+
+    def swatches(name):
+        strip = preview(model(name))[-LEGEND_HEIGHT:].astype(int)
+        found = {part for part in ("wall", "obstacle", "ball", "goal_area", "target", "line")
+                 if (np.abs(strip - np.round(255 * np.asarray(RGBA[part][:3]))).max(axis=-1) <= 1).sum() > 20}
+        return found
+
+    assert swatches("soccer_v2") == {"wall", "obstacle", "ball", "goal_area", "target", "line"}
+    assert swatches("point_nav") == {"target", "line"}  # no ball, goal, walls or obstacles there
+
+
+def test_fields_of_different_sizes_drawn_at_one_scale(write_spec):
+    """same_scale frames every model alike, so a field twice as wide is drawn twice as wide."""
+    from fieldgen.render import same_scale
+
+    small, large = (compile_spec(load_spec(write_spec(f"extends: point_nav\nname: f{n}\nfield: {{length: {n}, "
+                                                      f"width: {n}}}\n", f"f{n}.yaml"))).model() for n in (10, 20))
+    same_scale([small, large])
+    widths = []
+    for m in (small, large):
+        image = render_pose(m, camera="top").astype(int)
+        cols = np.nonzero(((image > 200).all(axis=-1)).any(axis=0))[0]  # the white boundary lines
+        widths.append(cols.max() - cols.min())
+        assert image.shape == (480, 480, 3) and (image[:4] < 120).all()  # floor up to the frame's edge
+    assert widths[1] == pytest.approx(2 * widths[0], rel=0.05)
+    # a field framed in perspective (too large for an orthographic view) leaves every view as it is
+    vast = compile_spec(load_spec(write_spec("extends: point_nav\nname: vast\nfield: {length: 400, width: 400}\n",
+                                             "vast.yaml"))).model()
+    before = [(m.cam("top").pos.copy(), m.cam("top").fovy.copy()) for m in (small, vast)]
+    same_scale([small, vast])
+    for m, (pos, fovy) in zip((small, vast), before):
+        assert (m.cam("top").pos == pos).all() and (m.cam("top").fovy == fovy).all()
 
 
 def test_the_top_view_marks_the_agent_and_ball_wherever_they_go():
@@ -104,3 +164,21 @@ def test_a_field_as_large_as_the_schema_allows_builds_and_renders(write_spec, tm
     floor = np.median(frame.reshape(-1, 3), axis=0)
     marks = np.abs(frame.astype(int) - floor).max(axis=-1) > 60  # the agent's and the ball's, in colour on grey
     assert 20 < marks.sum() < 0.05 * marks.size
+
+
+def test_a_curriculum_sheet_draws_its_stages_at_one_scale_with_their_sizes(monkeypatch):
+    """point_nav_to_far's fields grow from 10 to 40 wide: drawn at one scale, each over its size."""
+    from pathlib import Path
+
+    from fieldgen import curriculum
+    from fieldgen.curriculum import sheet
+
+    drawn = {}
+    monkeypatch.setattr(sheet, "contact_sheet", lambda images, titles, captions: drawn.update(
+        images=images, captions=captions) or b"")
+    sheet.stage_sheet(curriculum.load(Path(__file__).parents[1] / "curricula" / "point_nav_to_far"), "top")
+    assert drawn["captions"] == [f"field {n} wide, {n} long" for n in (10, 20, 30, 40)]
+    assert len({image.shape for image in drawn["images"]}) == 1
+    lines = [(image.min(axis=-1) > 115) & (np.ptp(image, axis=-1) < 20) for image in drawn["images"]]  # light grey
+    spans = [np.ptp(np.nonzero(line.any(axis=0))[0]) for line in lines]
+    assert spans[-1] == pytest.approx(4 * spans[0], rel=0.1)  # the white boundary lines, 40 against 10 wide

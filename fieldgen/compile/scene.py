@@ -25,10 +25,11 @@ TOP_MARGIN = 0.05  # of the framed extent's longer side, on every side of the to
 ORTHOGRAPHIC_MAX_M = 170.0  # the tallest view the top camera frames orthographically (mujoco: fovy below 180)
 TOP_FOVY_DEG = 45.0  # the top camera's angle of view where a field is framed in perspective
 # Okabe and Ito's colour-blind-safe palette on a neutral floor: the target (vermillion), goal (blue),
-# ball (yellow) and agent (reddish purple, in fieldgen.compile.bodies) differ in hue and lightness alike.
+# ball (yellow), agent (reddish purple, in fieldgen.compile.bodies), obstacles such as a goalie (sky blue)
+# and walls (black) differ in hue and lightness alike, and from the white lines the walls stand on.
 RGBA = {
-    "wall": (0.72, 0.72, 0.74, 1.0),
-    "obstacle": (0.12, 0.12, 0.14, 1.0),
+    "wall": (0.0, 0.0, 0.0, 1.0),
+    "obstacle": (0.337, 0.706, 0.914, 1.0),
     "post": (0.95, 0.95, 0.95, 1.0),
     "net": (0.95, 0.95, 0.95, 0.25),
     "goal_region": (0.0, 0.447, 0.698, 0.2),
