@@ -1,9 +1,9 @@
 """Runs of several seeds, kept as metrics files, drawn and summarised as `fieldgen compare` does for run
 folders: the interquartile mean over seeds with its 95% stratified bootstrap interval (fieldgen.run.summary),
-success against env steps and wall clock, and each seed's last evaluation with the IQM line.
+success against env steps and wall clock, and each seed's last evaluation with the IQM line; a curriculum's runs are judged on its field (compare.on_field).
 
 Each LABEL names one setting, its rows from one or more metrics.jsonl files (seeds trained in separate
-programs, e.g. two GPUs, joined with '+'); rows of one evaluation index are one point.
+programs, e.g. two GPUs, joined with '+'); rows of one evaluation index are one point, drawn up to the last evaluation every seed reached.
 
     python bench/seed_bands.py preset=bench/results/ant_nav_fresh_seeds/preset_200to202.metrics.jsonl+... \\
         -o bench/results/ant_nav_fresh_seeds/preset.png --title "ant_nav, CRL preset, fresh seeds 200-204"
@@ -22,7 +22,9 @@ from fieldgen.run import compare, summary
 def setting(files: str) -> SimpleNamespace:
     """One setting's rows from '+'-joined metrics files, as compare.plot reads a run (rows, seeds, algo)."""
     rows = [json.loads(line) for f in files.split("+") for line in Path(f).read_text().splitlines() if line.strip()]
-    return SimpleNamespace(rows=rows, seeds=sorted({r["seed"] for r in rows}))
+    seeds = sorted({r["seed"] for r in rows})
+    common = min(max(r["eval"] for r in rows if r["seed"] == s) for s in seeds)
+    return SimpleNamespace(rows=[r for r in rows if r["eval"] <= common], seeds=seeds)
 
 
 def last_evaluation(run: SimpleNamespace) -> dict:
@@ -44,7 +46,7 @@ def main() -> None:
         runs.append(setting(files))
     for label, run in zip(labels, runs):
         rows = last_evaluation(run)
-        values = [rows[s]["success_any"] for s in run.seeds]
+        values = [compare.on_field(rows[s], "success_any") for s in run.seeds]
         low, high = summary.interval(values)
         steps = {r["env_steps"] for r in rows.values()}
         print(f"{label}: env steps {', '.join(f'{s:,}' for s in sorted(steps))}; success_any "

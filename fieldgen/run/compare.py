@@ -69,8 +69,21 @@ def curves(run: session.Run) -> dict:
         out["env_steps"].append(rows[0]["env_steps"])
         out["wall_seconds"].append(rows[0].get("wall_seconds", np.nan))
         for metric in plots.PANELS:
-            out[metric].append([r.get(metric, np.nan) for r in rows])
+            out[metric].append([on_field(r, metric) for r in rows])
     return out
+
+
+def on_field(row: dict, metric: str) -> float:
+    """`metric` of an evaluation row on the run's field itself, so that curricula compare with training on the
+    field alone: a run training several variants at once (a mixed or automatic curriculum) is evaluated on all
+    of them and judged on its last, the field; a staged curriculum's success is also measured on its last stage
+    at every evaluation (its other metrics only on the stage it trains). NaN where the row lacks the metric."""
+    variants = row.get("variants")
+    if variants is not None and metric in variants:
+        return variants[metric][-1]
+    if metric == "success_any" and "stage" in row and "last_stage_success_any" in row:
+        return row["last_stage_success_any"]
+    return row.get(metric, np.nan)
 
 
 def over_seeds(values: list) -> tuple[float, float, float]:

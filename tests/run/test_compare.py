@@ -132,3 +132,24 @@ def test_compare_of_one_seed_says_its_interval_is_its_value(tmp_path):
     row = json.loads((tmp_path / "compare.json").read_text())[0]
     assert row["summary"]["success_any"] == {"per_seed": {"0": 0.25}, "iqm": 0.25, "low": 0.25, "high": 0.25}
     assert "0.25 [0.25, 0.25]" in printed.getvalue() and "one seed each" in printed.getvalue()
+
+
+def test_a_curriculum_run_is_compared_on_its_field_not_on_the_mean_over_its_variants(tmp_path):
+    """A mixed or automatic curriculum's row holds success over every variant; beside a run on the field alone it
+    is drawn and tabled by its last variant, the field."""
+    from fieldgen.run import compare
+
+    run = hand_made_run(tmp_path, "crl", [[0.5, 0.5]])
+    for row, field in zip(run.rows, (0.0, 0.25)):
+        row["variants"] = {"success_any": [1.0, field], "time_at_goal": [400.0, 100 * field],
+                           "closest_distance": [0.2, 2.0], "weight": [0.5, 0.5]}
+    c = compare.curves(run)
+    assert c["success_any"] == [[0.0, 0.25]]
+    assert c["time_at_goal"] == [[0.0, 25.0]]
+    assert c["closest_distance"] == [[2.0, 2.0]]
+    assert compare.curves(hand_made_run(tmp_path, "td3", [[0.5, 0.5]]))["success_any"] == [[0.5, 0.5]]
+    staged = hand_made_run(tmp_path, "sac", [[0.5, 0.5]])
+    for row in staged.rows:
+        row.update(stage=0, last_stage_success_any=0.125)
+    assert compare.curves(staged)["success_any"] == [[0.125, 0.125]]
+    assert compare.curves(staged)["time_at_goal"] == [[50.0, 50.0]]  # measured on the stage it trains
