@@ -49,15 +49,22 @@ def _train(run, videos: bool, logger: str, fmt: str | None = None) -> None:
     """Train a run; Ctrl-C exits with 130 at once, leaving a compile or program under way unfinished, and a
     failed write, a diverged run or, in a run over several processes, one that stopped says what to do
     (training.train says how to go on)."""
-    from fieldgen.run import distributed, record
+    from fieldgen.run import distributed, record, supervisor
     from fieldgen.files import FolderError
     from fieldgen.run.train import train as train_run
 
+    def and_how_to_go_on(sentence: str) -> str:
+        return f"{sentence}. Start every process again with --resume {run.folder} to continue from its last checkpoint"
+
     def another_stopped(sentence: str) -> None:
-        err.print(Text.assemble(("error:", "bold red"), f" {sentence}. Start every process again with --resume "
-                                f"{run.folder} to continue from its last checkpoint"), highlight=False)
+        err.print(Text.assemble(("error:", "bold red"), " " + and_how_to_go_on(sentence)), highlight=False)
 
     distributed.watch(another_stopped)
+    import jax
+
+    if jax.process_count() > 1:
+        supervisor.leave_words(and_how_to_go_on(f"process 0 of {jax.process_count()} (the run's coordinator) "
+                                                f"stopped, so this one (process {jax.process_index()}) stops too"))
     try:
         train_run(run, out, videos, logger, fmt)
     except KeyboardInterrupt:
@@ -146,11 +153,13 @@ def train(
     fmt = video_format(video_fmt) if videos else None
     from fieldgen.agents import registry
     from fieldgen.files import FolderError
-    from fieldgen.run import distributed, loggers, record, session
+    from fieldgen.run import distributed, loggers, record, session, supervisor
     from fieldgen.agents.config import ConfigError
 
     try:
         where = distributed.layout(coordinator, num_processes, process_id)
+        if where is not None and supervisor.needed(where.process_id):
+            raise typer.Exit(supervisor.supervise())  # the same command trains in a child of this process
         processes = None if where is None else distributed.join(where, coordinator_timeout)
     except record.RunError as exc:
         fail(str(exc))

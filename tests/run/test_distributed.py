@@ -184,3 +184,37 @@ def test_a_process_killed_stops_the_other_with_one_line_and_resume_finishes_the_
     for i, process in enumerate(processes):
         ended(process, tmp_path / f"resumed{i}.log")
     assert results(run) == results(one_process)
+
+
+@pytest.mark.slow
+def test_the_coordinator_killed_stops_the_other_with_one_line_naming_it(tmp_path, two_seeds):
+    """Process 0 holds the coordination service, and JAX ends the others at once when it dies: process 1 says
+    so in one line, with how to go on, and no stack trace."""
+    processes = over_two_processes([*two_seeds, "--out", str(tmp_path)], tmp_path)
+    run = tmp_path / "point_nav-crl-0to1"
+    deadline = time.monotonic() + 900
+    while not (run / "checkpoint.msgpack").exists():
+        assert time.monotonic() < deadline and processes[1].poll() is None, (tmp_path / "process1.log").read_text()
+        time.sleep(0.05)
+    processes[0].kill()
+    assert processes[1].wait(distributed.HEARTBEAT_SECONDS + 60) == 1, (tmp_path / "process1.log").read_text()
+    log = (tmp_path / "process1.log").read_text()
+    errors = [line for line in log.splitlines() if line.startswith("error")]
+    assert errors == [f"error: process 0 of 2 (the run's coordinator) stopped, so this one (process 1) stops too. "
+                      f"Start every process again with --resume {run} to continue from its last checkpoint"], log
+    assert "stack trace" not in log and "Traceback" not in log
+
+
+def test_only_processes_other_than_the_coordinator_train_in_a_supervised_child(monkeypatch):
+    from fieldgen.run import supervisor
+
+    for variable in (supervisor.WORDS, *supervisor.RANKS):
+        monkeypatch.delenv(variable, raising=False)
+    assert supervisor.needed(1) and not supervisor.needed(0)
+    assert not supervisor.needed(None)  # a launcher's process of unknown rank: as JAX alone would run it
+    monkeypatch.setenv("SLURM_PROCID", "3")
+    assert supervisor.needed(None)
+    monkeypatch.setenv("SLURM_PROCID", "0")
+    assert not supervisor.needed(None)
+    monkeypatch.setenv(supervisor.WORDS, "/tmp/words")  # the child itself
+    assert not supervisor.needed(1)
