@@ -159,6 +159,7 @@ def train(
     try:
         where = distributed.layout(coordinator, num_processes, process_id)
         if where is not None and supervisor.needed(where.process_id):
+            distributed.reach(where, coordinator_timeout)  # one line here if it never answers
             raise typer.Exit(supervisor.supervise())  # the same command trains in a child of this process
         processes = None if where is None else distributed.join(where, coordinator_timeout)
     except record.RunError as exc:

@@ -67,8 +67,7 @@ def join(where: Layout, timeout: int) -> dict:
     the layout as run.json records it."""
     import jax
 
-    if where.coordinator is not None and where.process_id != 0:
-        _wait_for(where.coordinator, timeout)
+    reach(where, timeout)
     jax.config.update("jax_cpu_collectives_implementation", "gloo")  # CPU processes reach one another too
     # a process that stops is then noticed by asking the coordination service (`watch`), instead of JAX
     # aborting every other process with a stack trace
@@ -80,6 +79,12 @@ def join(where: Layout, timeout: int) -> dict:
     counts = [sum(d.process_index == p for d in jax.devices()) for p in range(jax.process_count())]
     return {"count": jax.process_count(), "devices_per_process": counts,
             "coordinator": where.coordinator or "from the launcher"}
+
+
+def reach(where: Layout, timeout: int) -> None:
+    """Wait until process 0's coordinator answers, for a process other than 0 given its address."""
+    if where.coordinator is not None and where.process_id != 0:
+        _wait_for(where.coordinator, timeout)
 
 
 def _wait_for(coordinator: str, timeout: int) -> None:
