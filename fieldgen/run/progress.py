@@ -88,13 +88,14 @@ def _duration(seconds: float) -> str:
     return f"{seconds / 60:.0f} min" if seconds < 5400 else f"{seconds / 3600:.1f} h"
 
 
-def stats(rows: list[dict]) -> str:
+def stats(rows: list[dict], stages: int = 1) -> str:
+    """The progress line's figures of one evaluation (its rows, a seed each), for a run of `stages` stages."""
     mean = lambda key: sum(r[key] for r in rows) / len(rows)  # noqa: E731
     text = f"success {mean('success_any'):.2f}  at goal {mean('time_at_goal'):.1f}"
     if "variants" in rows[0]:
         text += f"  last stage {mean('last_stage_success_any'):.2f}"
     if "stage" in rows[0]:
-        text = f"stage {rows[0].get('promoted_to', rows[0]['stage']) + 1}  " + text
+        text = f"stage {rows[0].get('promoted_to', rows[0]['stage']) + 1} of {stages}  " + text
     for name in ("critic_loss", "actor_loss", "policy_loss", "value_loss"):
         if name in rows[0]:
             text += f"  {name.removesuffix('_loss')} {mean(name):.3f}"

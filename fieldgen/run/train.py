@@ -84,7 +84,7 @@ def _train(run: Run, console: Console, videos: bool, logger: str, video_format: 
             plot_success(run.folder, run.rows, f"{run.label}: {run.algo}")
             log.rows(rows)
             bar.update(task, completed=rows[0]["env_steps"], rate=rate(run.rows, config.total_steps),
-                       stats=stats(rows))
+                       stats=stats(rows, len(run.envs)))
 
         # a run started from another's networks (--init-from) goes on from "evaluation -1": it evaluates them first
         resume = (run.state, run.rows[-1]["eval"] if run.rows else -1, run.stage) if run.state is not None else None

@@ -433,3 +433,14 @@ def test_progress_tells_the_time_left_from_the_last_two_evaluations():
     assert _rate(rows[:2], 10_000_000) == "25,000 steps/s, 9 min left"  # 9M steps at 60 s per million
     assert _rate(rows, 10_000_000) == "20,000 steps/s, 16 min left"  # 8M at 120 s per million
     assert _rate(rows, 2_000_000) == "20,000 steps/s"  # done
+
+
+def test_a_staged_runs_progress_says_its_stage_of_how_many():
+    from fieldgen.run.progress import stats
+
+    rows = [{"success_any": 0.5, "time_at_goal": 10.0, "stage": 1, "critic_loss": 1.0},
+            {"success_any": 0.25, "time_at_goal": 20.0, "stage": 1, "critic_loss": 2.0}]
+    assert stats(rows, 4) == "stage 2 of 4  success 0.38  at goal 15.0  critic 1.500"
+    rows[0]["promoted_to"] = 2
+    assert stats(rows, 4).startswith("stage 3 of 4  ")
+    assert stats([{"success_any": 1.0, "time_at_goal": 0.0}]) == "success 1.00  at goal 0.0"
