@@ -141,8 +141,9 @@ def _role(geom: str) -> str:
 @app.command()
 def render(
     spec: SpecArg,
-    output: Annotated[Path, typer.Option("-o", "--output", metavar="FILE",
-                                         help="PNG file to write")] = Path("field.png"),
+    output: Annotated[Optional[Path], typer.Option("-o", "--output", metavar="FILE", show_default=False,
+                                                   help="PNG file to write [default: field.png; with --levels, "
+                                                        "levels.png in the run's folder]")] = None,
     camera: Annotated[str, typer.Option(help="the view; both: side by side",
                                         **choice("camera", (*CAMERAS, "both")))] = "top",
     levels: Annotated[bool, typer.Option("--levels", help="SPEC is a run of an automatic (or mixed) curriculum: "
@@ -164,6 +165,7 @@ def render(
         from fieldgen.run.favoured import favoured_levels
         from fieldgen.run.record import RunError
 
+        output = output or Path(spec) / "levels.png"
         try:
             image_bytes, said = favoured_levels(Path(spec), "top" if camera == "both" else camera)
             write_atomic(output, image_bytes)
@@ -171,6 +173,7 @@ def render(
             fail(str(exc))
         out.print(f"wrote {output}: {said}")
         return
+    output = output or Path("field.png")
     if curriculum.is_curriculum(Path(spec)):
         from fieldgen.curriculum.sheet import stage_sheet
 

@@ -28,11 +28,12 @@ def favoured_levels(folder: Path, camera: str, top: int = 6) -> tuple[bytes, str
     success = np.mean([r["variants"]["success_any"] for r in last], axis=0)
     coordinates = record.read_run(folder).levels
     order = [int(k) for k in np.argsort(-share, kind="stable")[:top]]
+    kind = "level" if run.schedule_kind == "auto" else "stage"  # an automatic curriculum's variants are levels
     images, titles = [], []
     for k in order:
         images.append(render_pose(run.envs[k].artifact.model(), camera=camera, height=240))
         where = ", ".join(f"{axis} {value:.2f}" for axis, value in coordinates[k].items()) if coordinates else ""
-        name = "the field itself" if k == len(run.envs) - 1 else f"stage {k + 1}"
+        name = "the field itself" if k == len(run.envs) - 1 else f"{kind} {k + 1}"
         titles.append(f"{name}: {share[k]:.0%} of episodes, success {success[k]:.2f}" + (f"\n{where}" if where else ""))
     said = (f"the {len(order)} most played of {len(run.envs)} levels after evaluation {last[0]['eval']} "
             f"({last[0]['env_steps']:,} env steps)")

@@ -74,7 +74,7 @@ def test_weights_keep_the_frontier_and_the_target_fed():
 
 
 @pytest.mark.slow
-def test_auto_run_records_its_levels_and_weights_and_resumes(tmp_path):
+def test_auto_run_records_its_levels_and_weights_and_resumes(tmp_path, monkeypatch):
     """A tiny point_soccer run: every level batched, each evaluation's weights by level_weights of its
     success, recorded in run.json and the metrics; prepared and resumed as any run."""
     sets = ["crl.hidden=[32,32]", "crl.repr_dim=8", "crl.batch_size=64", "crl.unroll_length=25",
@@ -99,10 +99,16 @@ def test_auto_run_records_its_levels_and_weights_and_resumes(tmp_path):
         np.testing.assert_allclose(v["weight"], expected, atol=1e-6)
         assert row["last_stage_success_any"] == v["success_any"][-1]
     assert iio.imread(run / "success.png").shape == (360, 2500, 4)  # with the panel of where episodes go
-    sheet = runner.invoke(app, ["render", str(run), "--levels", "-o", str(tmp_path / "levels.png")])
+    from fieldgen import render
+
+    drawn = render.contact_sheet
+    titles = []
+    monkeypatch.setattr(render, "contact_sheet", lambda images, names: titles.extend(names) or drawn(images, names))
+    sheet = runner.invoke(app, ["render", str(run), "--levels"])  # into the run's folder by default
     assert sheet.exit_code == 0, sheet.output
     assert "most played of 4 levels after evaluation 2" in " ".join(sheet.output.split())
-    assert iio.imread(tmp_path / "levels.png").ndim == 3
+    assert iio.imread(run / "levels.png").ndim == 3
+    assert len(titles) == 4 and all(t.startswith(("level ", "the field itself")) for t in titles), titles
 
 
 @pytest.mark.parametrize(("extra", "says"), [
