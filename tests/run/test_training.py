@@ -137,7 +137,7 @@ def test_a_curriculum_run_is_named_by_its_curriculum_not_its_last_stage(tmp_path
                      *tiny_crl_args], ["train", "--resume", str(run), "--no-videos"]):
         result = runner.invoke(app, command)
         assert result.exit_code == 130, result.output
-        assert "point_nav_to_far 0 of 1,900 steps (0%) stage 1 success 0.00" in " ".join(result.output.split())
+        assert "point_nav_to_far 0 of 1,900 steps (0%) stage 1 of 4 success 0.00" in " ".join(result.output.split())
         assert "_s04" not in result.output and titles.pop() == "point_nav_to_far: crl"
 
 
