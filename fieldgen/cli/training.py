@@ -5,7 +5,7 @@ from __future__ import annotations
 import os
 import sys
 from pathlib import Path
-from typing import Annotated, Optional
+from typing import Annotated, NoReturn, Optional
 
 import typer
 from rich.table import Table
@@ -45,6 +45,19 @@ def _read_config(config: Path | None) -> None:
             raise ConfigError(f"{config} is not a config file: " + "; ".join(map(str, exc.problems))) from None
 
 
+def _exit_interrupted() -> NoReturn:
+    """Exit with Ctrl-C's status, 130, at once: leaving a compile or program under way unfinished (XLA takes no
+    signal mid-compile or mid-program, and waiting could take minutes) loses nothing, as every file a command
+    writes is replaced atomically or not yet written."""
+    from fieldgen.agents import programs
+
+    if programs.under_way():
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(130)  # a normal exit would wait for the compile's thread
+    raise typer.Exit(130) from None
+
+
 def _train(run, videos: bool, logger: str, fmt: str | None = None) -> None:
     """Train a run; Ctrl-C exits with 130 at once, leaving a compile or program under way unfinished, and a
     failed write, a diverged run or, in a run over several processes, one that stopped says what to do
@@ -68,13 +81,7 @@ def _train(run, videos: bool, logger: str, fmt: str | None = None) -> None:
     try:
         train_run(run, out, videos, logger, fmt)
     except KeyboardInterrupt:
-        from fieldgen.agents import programs
-
-        if programs.under_way():  # XLA takes no signal mid-compile or mid-program; waiting could take minutes
-            sys.stdout.flush()
-            sys.stderr.flush()
-            os._exit(130)  # the run's files are whole: each was replaced atomically, or is not yet written
-        raise typer.Exit(130) from None
+        _exit_interrupted()  # training.train said where the run stands
     except (record.RunError, FolderError) as exc:  # training diverged, or another process trains the run
         fail(str(exc))
     except OSError as exc:  # every file of a run is replaced atomically, so the last good ones remain
@@ -313,49 +320,59 @@ def evaluate(
         fail(f"--summary {summary_file} is a folder; name the file to write, such as {summary_file / summary.SUMMARY}")
     if summary_file is not None and not summary_file.parent.is_dir():
         fail(f"--summary {summary_file}: there is no folder {summary_file.parent} to write it in")
+    evaluating = (str(run_dirs[0]) if len(run_dirs) == 1 else f"{len(run_dirs)} runs") + \
+        (f" on {field}" if field is not None else "")
+    summary_written = False  # what Ctrl-C leaves: the summary and the video are each written whole or not at all
     try:
-        runs = judging.open_runs(run_dirs, None if field is None else field_source(field))
-        episodes = episodes or runs[0].config.eval_envs  # sized with training: a CPU-sized run evaluates quickly
-        for run in runs:
-            judging.check_memory(run, episodes)
-    except (SpecError, ConfigError, record.RunError) as exc:
-        fail(str(exc))
-    path = summary_file or judging.summary_path(run_dirs, runs[0], field is not None)
-    evaluations = [judging.evaluate(run, episodes, seed, video and k == 0) for k, run in enumerate(runs)]
-    result = judging.summarize(runs, evaluations, episodes, _command_line(ctx))
-    length = runs[0].env.episode_length
-    steps = sorted({e.env_steps for e in evaluations})
-    several = len(runs) > 1
-    judged = f"{len(runs)} runs of {result.algo}" if several else str(run_dirs[0])
-    at = f"{steps[0]:,}" if len(steps) == 1 else f"{steps[0]:,} to {steps[-1]:,}"
-    table = Table(*["run"] * several, "seed", "success_any", "time_at_goal", "closest", "length", "return",
-                  title=f"{judged} at {at} env steps on {runs[0].env.spec.name}, {episodes} episodes per seed")
-    for run, evaluation in zip(runs, evaluations):
-        metrics = evaluation.metrics
-        for i, s in enumerate(run.seeds):
-            table.add_row(*[run.folder.name] * several, str(s), f"{metrics['success_any'][i]:.3f}",
-                          f"{metrics['time_at_goal'][i]:.1f} of {length} steps",
-                          f"{metrics['closest_distance'][i]:.2f}", f"{metrics['episode_length'][i]:.0f}",
-                          f"{metrics['episode_return'][i]:.2f}")
-    table.add_section()
-    table.add_row(*[""] * several, result.label, result.success_any.text(3),
-                  f"{result.time_at_goal.text(1)} of {length} steps", "", "", "")
-    out.print(table)
-    # the headline again as a line of its own, which a terminal too narrow for the table still shows whole
-    out.print(f"{result.label}: success_any {result.success_any.text(3)}, time at goal "
-              f"{result.time_at_goal.text(1)} of {length} steps; " +
-              ("one seed: its value, and its interval the value alone" if len(result.seeds) == 1 else
-               f"the interquartile mean of the {len(result.seeds)} seeds [its 95% bootstrap interval]"))
-    try:
-        summary.write(result, path)
-    except WriteError as exc:
-        fail(str(exc))
-    out.print(f"summary: {path}")
-    if video:  # the first run's first seed's first evaluation episode
-        name = judging.video_path(runs[0], run_dirs[0], field is not None)
-        drawn = EpisodeRecorder(runs[0].env, camera, fmt).save(run_dirs[0], name, evaluations[0].episode, err)
-        if drawn is not None:
-            out.print(f"video: {name.with_suffix('.' + fmt)} ({drawn} frames, {camera} camera)")
+        try:
+            runs = judging.open_runs(run_dirs, None if field is None else field_source(field))
+            episodes = episodes or runs[0].config.eval_envs  # sized with training: a CPU-sized run evaluates quickly
+            for run in runs:
+                judging.check_memory(run, episodes)
+        except (SpecError, ConfigError, record.RunError) as exc:
+            fail(str(exc))
+        path = summary_file or judging.summary_path(run_dirs, runs[0], field is not None)
+        evaluations = [judging.evaluate(run, episodes, seed, video and k == 0) for k, run in enumerate(runs)]
+        result = judging.summarize(runs, evaluations, episodes, _command_line(ctx))
+        length = runs[0].env.episode_length
+        steps = sorted({e.env_steps for e in evaluations})
+        several = len(runs) > 1
+        judged = f"{len(runs)} runs of {result.algo}" if several else str(run_dirs[0])
+        at = f"{steps[0]:,}" if len(steps) == 1 else f"{steps[0]:,} to {steps[-1]:,}"
+        table = Table(*["run"] * several, "seed", "success_any", "time_at_goal", "closest", "length", "return",
+                      title=f"{judged} at {at} env steps on {runs[0].env.spec.name}, {episodes} episodes per seed")
+        for run, evaluation in zip(runs, evaluations):
+            metrics = evaluation.metrics
+            for i, s in enumerate(run.seeds):
+                table.add_row(*[run.folder.name] * several, str(s), f"{metrics['success_any'][i]:.3f}",
+                              f"{metrics['time_at_goal'][i]:.1f} of {length} steps",
+                              f"{metrics['closest_distance'][i]:.2f}", f"{metrics['episode_length'][i]:.0f}",
+                              f"{metrics['episode_return'][i]:.2f}")
+        table.add_section()
+        table.add_row(*[""] * several, result.label, result.success_any.text(3),
+                      f"{result.time_at_goal.text(1)} of {length} steps", "", "", "")
+        out.print(table)
+        # the headline again as a line of its own, which a terminal too narrow for the table still shows whole
+        out.print(f"{result.label}: success_any {result.success_any.text(3)}, time at goal "
+                  f"{result.time_at_goal.text(1)} of {length} steps; " +
+                  ("one seed: its value, and its interval the value alone" if len(result.seeds) == 1 else
+                   f"the interquartile mean of the {len(result.seeds)} seeds [its 95% bootstrap interval]"))
+        try:
+            summary.write(result, path)
+            summary_written = True
+        except WriteError as exc:
+            fail(str(exc))
+        out.print(f"summary: {path}")
+        if video:  # the first run's first seed's first evaluation episode
+            name = judging.video_path(runs[0], run_dirs[0], field is not None)
+            drawn = EpisodeRecorder(runs[0].env, camera, fmt).save(run_dirs[0], name, evaluations[0].episode, err)
+            if drawn is not None:
+                out.print(f"video: {name.with_suffix('.' + fmt)} ({drawn} frames, {camera} camera)")
+    except KeyboardInterrupt:
+        out.print(f"interrupted evaluating {evaluating}; " +
+                  (f"{path} was written, the video was not" if summary_written else "nothing was written"),
+                  soft_wrap=True)  # one line, its paths whole
+        _exit_interrupted()
 
 
 def _command_line(ctx: typer.Context) -> str:

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import jax
 
-from fieldgen.agents import loop, memory
+from fieldgen.agents import loop, memory, programs
 from fieldgen.run import record, session, summary
 from fieldgen.run.session import Run
 from fieldgen.run.videos import EpisodeRecorder
@@ -24,11 +24,13 @@ class Evaluation:
 
 
 def evaluate(run: Run, episodes: int, seed: int = 0, film: bool = True) -> Evaluation:
-    """`episodes` evaluation episodes per seed of the run's policy, on `run.env`."""
+    """`episodes` evaluation episodes per seed of the run's policy, on `run.env`. It compiles and runs as
+    training's programs do (agents.programs), so that Ctrl-C reaches the caller at once, mid-compile too."""
     trainer = dataclasses.replace(run, config=run.config.model_copy(update={"eval_envs": episodes})).judged_trainer
     filming = EpisodeRecorder.film if film else None
     judged = jax.vmap(functools.partial(loop.evaluate, trainer, film=filming), in_axes=(0, None))
-    metrics, frames = jax.device_get(jax.jit(judged)(run.state, jax.random.PRNGKey(seed)))
+    key = jax.random.PRNGKey(seed)
+    metrics, frames = programs.computed(programs.Compiling(jax.jit(judged), run.state, key)(run.state, key))
     steps = int(jax.device_get(run.state.env_steps)[0])
     episode = EpisodeRecorder(run.env).episode(loop.seed_slice(frames, 0)) if film else None
     return Evaluation(metrics, steps, episode)

@@ -8,6 +8,7 @@ base file that set it.
 
 from __future__ import annotations
 
+import itertools
 from importlib import resources
 from pathlib import Path
 
@@ -59,14 +60,57 @@ def validate(source: Source) -> FieldSpec:
         spec = FieldSpec.model_validate(source.data)
     except ValidationError as exc:
         problems = messages.problems(source, exc.errors())
-        if {error["loc"] for error in exc.errors()} == {("name",)}:  # the rest is sound: its sense is checked too
-            spec = FieldSpec.model_validate({**source.data, "name": "unnamed"})
-            problems += [source.problem(parts, message) for parts, message in physics_problems(spec)]
+        renamed = _validly_named(source.data, exc.errors())
+        if renamed is not None:  # only names are wrong: the rest's sense is checked too, under names that are right
+            data, written = renamed
+            try:
+                problems += _physics(source, FieldSpec.model_validate(data), written)
+            except ValidationError:
+                pass  # a check of the whole spec that the names kept from running: it runs once they are fixed
         raise SpecError(problems) from None
-    problems = [source.problem(parts, message) for parts, message in physics_problems(spec)]
+    problems = _physics(source, spec)
     if problems:
         raise SpecError(problems)
     return spec
+
+
+PLACEHOLDER = "unnamed"  # stands in for a name that is wrong while the rest of the spec is checked
+
+
+def _validly_named(data: dict, errors: list[dict]) -> tuple[dict, dict] | None:
+    """The spec's data with a placeholder for each name that is wrong (the field's, an obstacle's), and each
+    obstacle placeholder -> the name written; None where anything but a name is wrong."""
+    wrong = set()
+    for error in errors:
+        loc = error["loc"]
+        if loc == ("name",):
+            continue
+        if len(loc) == 3 and loc[0] == "obstacles" and loc[2] == "[key]":  # pydantic's location of a mapping's key
+            wrong.add(loc[1])
+            continue
+        return None
+    taken = set(data.get("obstacles") or ())
+    placeholders = (f"{PLACEHOLDER}_{i}" for i in itertools.count() if f"{PLACEHOLDER}_{i}" not in taken)
+    written, obstacles = {}, {}
+    for name, obstacle in (data.get("obstacles") or {}).items():
+        if name in wrong:
+            placeholder = next(placeholders)
+            written[placeholder], name = name, placeholder
+        obstacles[name] = obstacle
+    return {**data, "name": PLACEHOLDER, **({"obstacles": obstacles} if written else {})}, written
+
+
+def _physics(source: Source, spec: FieldSpec, written: dict | None = None) -> list:
+    """The spec's physics problems, at their lines; an obstacle checked under a placeholder (`written`:
+    placeholder -> the name written) is named as written."""
+    found = []
+    for parts, message in physics_problems(spec):
+        for placeholder, name in (written or {}).items():
+            if parts[:2] == ("obstacles", placeholder):
+                parts = ("obstacles", name, *parts[2:])
+            message = message.replace(f"'{placeholder}'", f"'{name}'")
+        found.append(source.problem(parts, message))
+    return found
 
 
 MAX_EXTENDS = 16  # files in one `extends` chain

@@ -153,3 +153,38 @@ def test_bad_evaluations_are_one_line_and_write_nothing(tmp_path):
     zero = runner.invoke(app, ["eval", str(nav), "--episodes", "0"])
     assert zero.exit_code == 2 and "'0' is not a positive whole count" in " ".join(zero.output.split())
     assert sorted(tmp_path.rglob("*")) == before
+
+
+def test_ctrl_c_says_what_an_evaluation_wrote_and_exits_as_train_does(tmp_path, monkeypatch):
+    """Stopped while it evaluates, an evaluation has written nothing; stopped while it draws its video, the
+    summary written whole before it is all there is. Either way one line says so, and the status is Ctrl-C's."""
+    import numpy as np
+
+    from fieldgen.run import evaluate as judging
+    from fieldgen.run.videos import EpisodeRecorder
+
+    run = looks_trained(prepared(tmp_path, "point_nav"))
+    before = sorted(tmp_path.rglob("*"))
+
+    def stop(*args):
+        raise KeyboardInterrupt
+
+    def evaluated(run, episodes, seed, film):
+        metrics = ("success_any", "time_at_goal", "closest_distance", "episode_length", "episode_return")
+        return judging.Evaluation({m: np.ones(len(run.seeds)) for m in metrics}, 0, {})
+
+    monkeypatch.setattr(judging, "open_runs", lambda folders, field: [session.open_run(f, load_state=False)
+                                                                     for f in folders])
+    monkeypatch.setattr(judging, "evaluate", stop)
+    result = runner.invoke(app, ["eval", str(run)])
+    assert result.exit_code == 130 and said(f"interrupted evaluating {run}; nothing was written", result.output)
+    assert "Traceback" not in result.output and "Aborted" not in result.output, result.output
+    assert sorted(tmp_path.rglob("*")) == before
+
+    monkeypatch.setattr(judging, "evaluate", evaluated)
+    monkeypatch.setattr(EpisodeRecorder, "save", stop)
+    result = runner.invoke(app, ["eval", str(run), "--field", "point_nav"])
+    written = run / "summary_point_nav.json"
+    assert result.exit_code == 130, result.output
+    assert said(f"interrupted evaluating {run} on point_nav; {written} was written, the video was not", result.output)
+    assert sorted(tmp_path.rglob("*")) == sorted([*before, written])

@@ -160,51 +160,100 @@ def test_ctrl_c_while_programs_compile_exits_cleanly(tmp_path, tiny_crl_args):
     assert "terminate called" not in result.stderr and "Traceback" not in result.stderr
 
 
-# `fieldgen train` given Ctrl-C a second into XLA's compile of its first program: "SIGINT at T" on stderr
+# a `fieldgen` command given Ctrl-C a second into the first of XLA's compiles that lasts that long (JAX tells each
+# program's compile start and end as it lowers and compiles it, whichever way it is jitted): "SIGINT at T" on stderr
 INTERRUPTED_COMPILING_IN_XLA = textwrap.dedent("""
     import os, signal, sys, threading, time
     import jax
     from fieldgen.cli import app
 
     signal.signal(signal.SIGINT, signal.default_int_handler)  # even where this process was started ignoring it
-    compiling, real_compile = threading.Event(), jax.stages.Lowered.compile
+    lowered, compiled, sent = [], [], threading.Event()
 
-    def compile(self, *args, **kwargs):
-        compiling.set()
-        return real_compile(self, *args, **kwargs)
+    def interrupt(program):
+        if len(compiled) < program and not sent.is_set():  # compiles on a CPU come one after another
+            sent.set()
+            print(f"SIGINT at {time.time()}", file=sys.stderr, flush=True)
+            os.kill(os.getpid(), signal.SIGINT)
 
-    def interrupt():
-        compiling.wait()
-        time.sleep(1)
-        print(f"SIGINT at {time.time()}", file=sys.stderr, flush=True)
-        os.kill(os.getpid(), signal.SIGINT)
+    def listen(event, duration, **kwargs):
+        if event == "/jax/core/compile/jaxpr_to_mlir_module_duration":  # lowered: its compile starts
+            lowered.append(event)
+            timer = threading.Timer(1, interrupt, (len(lowered),))
+            timer.daemon = True
+            timer.start()
+        elif event == "/jax/core/compile/backend_compile_duration":
+            compiled.append(event)
 
-    jax.stages.Lowered.compile = compile
-    threading.Thread(target=interrupt, daemon=True).start()
+    jax.monitoring.register_event_duration_secs_listener(listen)
     app(sys.argv[1:])
 """)
 
 
-@pytest.mark.slow
-def test_ctrl_c_during_the_first_compile_acts_at_once_and_the_run_goes_on(tmp_path):
-    """An ant field's first compile takes minutes on a CPU, and XLA takes no signal meanwhile: Ctrl-C still
-    stops the command within seconds, saying how to go on, and both ways of going on open the run."""
+def interrupted_compiling(command: list[str], env: dict) -> subprocess.CompletedProcess:
+    """The `fieldgen` command given Ctrl-C a second into a compile (INTERRUPTED_COMPILING_IN_XLA), once it has
+    ended: with Ctrl-C's status, within seconds of the signal."""
     import time
 
-    env = dict(os.environ, JAX_PLATFORMS="cpu", JAX_ENABLE_COMPILATION_CACHE="false")
-    command = ["train", "ant_nav", "--preset", "cpu", "--out", str(tmp_path), "--no-videos"]
     result = subprocess.run([sys.executable, "-c", INTERRUPTED_COMPILING_IN_XLA, *command], env=env,
                             capture_output=True, text=True, timeout=600)
     ended = time.time()
     assert result.returncode == 130, result.stdout[-2000:] + result.stderr[-3000:]
     interrupted = float(result.stderr.split("SIGINT at ")[1].split()[0])
     assert ended - interrupted < 5, f"Ctrl-C took {ended - interrupted:.0f} s to act"
+    return result
+
+
+@pytest.mark.slow
+def test_ctrl_c_during_the_first_compile_acts_at_once_and_the_run_goes_on(tmp_path):
+    """An ant field's first compile takes minutes on a CPU, and XLA takes no signal meanwhile: Ctrl-C still
+    stops the command within seconds, saying how to go on, and both ways of going on open the run."""
+    env = dict(os.environ, JAX_PLATFORMS="cpu", JAX_ENABLE_COMPILATION_CACHE="false")
+    command = ["train", "ant_nav", "--preset", "cpu", "--out", str(tmp_path), "--no-videos"]
+    result = interrupted_compiling(command, env)
     run = tmp_path / "ant_nav-crl-0"
     assert f"interrupted; no checkpoint yet. Start again with: fieldgen train --resume {run}" in " ".join(
         result.stdout.split())
     for again in (["train", "--resume", str(run)], command):
         prepared = runner.invoke(app, [*again, "--prepare"])
         assert prepared.exit_code == 0 and f"prepared {run}" in " ".join(prepared.output.split()), prepared.output
+
+
+def learned_nothing(out: Path, field: str, seed: int) -> Path:
+    """A CPU-sized CRL run set up by `fieldgen train --prepare`, given networks of zeros as what it learned and
+    an evaluation at 0 env steps: a run `fieldgen eval` judges, without the minutes of training one."""
+    import jax
+    import numpy as np
+
+    from fieldgen.agents import checkpoint
+    from fieldgen.run import record, session
+
+    result = runner.invoke(app, ["train", field, "--preset", "cpu", "--seed", str(seed), "--out", str(out),
+                                 "--prepare"])
+    assert result.exit_code == 0, result.output
+    run = session.open_run(out / f"{field}-crl-{seed}", load_state=False)
+    zeros = jax.tree.map(lambda leaf: np.zeros(leaf.shape, leaf.dtype), session.learned_template(run))
+    (run.folder / record.LEARNER).write_bytes(checkpoint.to_bytes(zeros))
+    record.write_metrics(run.folder, [{"eval": 0, "seed": s, "env_steps": 0} for s in run.seeds])
+    return run.folder
+
+
+@pytest.mark.slow
+def test_ctrl_c_during_evals_first_compile_acts_at_once_and_writes_nothing(tmp_path):
+    """`fieldgen eval` of an ant field's run compiles its evaluation for long on a CPU, and XLA takes no signal
+    meanwhile: Ctrl-C still stops it within seconds, as it stops training, one run or several on another field
+    alike, and leaves the run folders as they were."""
+    first, second = (learned_nothing(tmp_path / "runs", "ant_nav", seed) for seed in (0, 1))
+    # at XLA's usual optimization, not the tests' -O0 (conftest): a compile long enough that waiting it out shows
+    flags = os.environ.get("XLA_FLAGS", "").replace("--xla_backend_optimization_level=0", "")
+    env = dict(os.environ, JAX_PLATFORMS="cpu", JAX_ENABLE_COMPILATION_CACHE="false", XLA_FLAGS=flags)
+    before = sorted((p, p.stat().st_mtime_ns) for p in tmp_path.rglob("*"))
+    for command, judged in ((["eval", str(first)], str(first)),
+                            (["eval", str(first), str(second), "--field", "ant_nav"], "2 runs on ant_nav")):
+        result = interrupted_compiling(command, env)
+        assert f"interrupted evaluating {judged}; nothing was written\n" in result.stdout, result.stdout
+        assert "Traceback" not in result.stderr
+        assert sorted((p, p.stat().st_mtime_ns) for p in tmp_path.rglob("*")) == before
 
 
 @pytest.mark.slow

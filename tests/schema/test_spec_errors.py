@@ -85,6 +85,26 @@ def test_a_bad_or_missing_name_hides_none_of_the_specs_other_problems(write_spec
         assert [p.path for p in found] == ["name", "goal.distance"], found
 
 
+def test_a_bad_obstacle_name_hides_none_of_the_specs_other_problems(write_spec):
+    """An obstacle's name is checked with the rest too: the physics checks run with a valid name in its place, and
+    what they find of that obstacle names it as written, at its line; `fieldgen validate` says it all at once."""
+    from typer.testing import CliRunner
+
+    from fieldgen.cli import app
+
+    spec_file = write_spec("name: x\nobstacles:\n  unnamed_0: {x: 3, y: 3}\n  Big-Rock: {x: 0, y: 0}\n"
+                           "goal: {distance: 30}\n")
+    found = problems_of(spec_file)
+    assert [(p.line, p.path) for p in found] == [(4, "obstacles.Big-Rock"), (4, "obstacles.Big-Rock"),
+                                                 (5, "goal.distance")], found
+    assert "such as 'big_rock' (got 'Big-Rock')" in found[0].message
+    assert found[1].message == "obstacle 'Big-Rock' overlaps the agent's start at (0, 0)"
+    assert "beyond the field's end" in found[2].message
+    result = CliRunner().invoke(app, ["validate", str(spec_file)])
+    assert result.exit_code == 1 and "Traceback" not in result.output
+    assert result.output.splitlines() == ["3 problems in the field spec:", *(f"  {p}" for p in found)]
+
+
 def test_unknown_key_lists_allowed_keys(write_spec):
     (p,) = problems_of(write_spec("name: x\nwalls: {hieght: 1}\n"))
     assert "did you mean 'height'" in p.message
