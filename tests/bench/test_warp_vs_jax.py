@@ -1,0 +1,71 @@
+"""bench/warp_vs_jax.py on a CPU: the JAX rows run, the Warp rows are skipped with the reason (or, asked
+for, run on Warp's CPU kernels and agree with JAX), and bad input is one line."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+SCRIPT = ROOT / "bench" / "warp_vs_jax.py"
+# one batch size, and the agreement after as many steps as a timed call: one program to compile
+TINY = ["--fields", "point_nav", "--envs", "4", "--steps", "2", "--agree-steps", "2", "--repeats", "1"]
+
+
+def run(tmp_path: Path, *options: str) -> tuple[subprocess.CompletedProcess, list[dict]]:
+    out = tmp_path / "rows.jsonl"
+    result = subprocess.run([sys.executable, str(SCRIPT), *options, "--build", str(tmp_path / "build"),
+                             "--json", str(out)], capture_output=True, text=True, cwd=tmp_path, timeout=600)
+    rows = [json.loads(line) for line in out.read_text().splitlines()] if out.exists() else []
+    return result, rows
+
+
+def test_jax_rows_run_and_warp_rows_say_why_they_are_skipped(tmp_path):
+    result, rows = run(tmp_path, *TINY, "--iterations", "3", "--ls-iterations", "2")
+    assert result.returncode == 0, result.stderr[-2000:]
+    skipped = [line for line in result.stdout.splitlines() if line.startswith("Warp rows skipped: ")]
+    assert len(skipped) == 1 and ("no CUDA device" in skipped[0] or "warp-lang is not installed" in skipped[0])
+    assert [(r["field"], r["impl"], r["envs"]) for r in rows] == [("point_nav", "jax", 4)]
+    row = rows[0]
+    assert row["env_steps_per_second"] > 0 and row["ratio_to_jax"] == 1.0 and row["max_qpos_difference"] is None
+    assert row["steps"] == 2 and row["agree_steps"] == 2 and row["nonfinite_envs"] == 0
+    assert (row["iterations"], row["ls_iterations"]) == (3, 2)  # the solver's limits as given, not the field's
+    assert row["physics_steps"] >= 1 and row["backend"] == "cpu"
+
+
+@pytest.mark.parametrize("options, message", [
+    (["--envs", "many"], "--envs 'many': write comma-separated whole numbers"),
+    (["--impls", "cpp"], "--impls takes jax and/or warp"),
+    (["--fields", "no_such_field"], "no_such_field: no such file"),
+])
+def test_bad_input_is_one_clear_line(tmp_path, options, message):
+    result, rows = run(tmp_path, *options)
+    assert result.returncode != 0 and rows == []
+    assert message in result.stderr and "Traceback" not in result.stderr
+
+
+@pytest.mark.slow
+def test_warp_on_cpu_agrees_with_jax(tmp_path):
+    pytest.importorskip("warp")
+    result, rows = run(tmp_path, "--fields", "point_soccer", "--envs", "2", "--steps", "3", "--agree-steps", "3",
+                       "--repeats", "1", "--warp-on-cpu")
+    assert result.returncode == 0, result.stderr[-2000:]
+    assert [(r["impl"], r["graph_mode"]) for r in rows] == [("jax", None), ("warp", "JAX")]
+    warp = rows[1]
+    assert warp["max_qpos_difference"] < 1e-3 and warp["overflow"] == [] and warp["env_steps_per_second"] > 0
+    assert warp["ratio_to_jax"] > 0 and warp["naconmax"] > 0 and 0 <= warp["most_contacts"] <= warp["naconmax"]
+
+
+def test_overflow_flags_are_named():
+    pytest.importorskip("warp")
+    sys.path.insert(0, str(ROOT / "bench"))
+    try:
+        from warp_vs_jax import overflow_names
+    finally:
+        sys.path.remove(str(ROOT / "bench"))
+    assert overflow_names(0) == []
+    assert overflow_names(0b1001) == ["NEFC", "NARROWPHASE"]
