@@ -16,11 +16,11 @@ steps' share of the iteration's kernel time, small kernels' share of the kernel 
 chunk's fusion count is read from `jit(chunk).lower(state).compile().as_text()`.
 
     python bench/crl_step_profile.py --field build/ant_nav --envs 1024 --profile prof
-    python bench/crl_step_profile.py --field build/ant_nav --envs 1024 --windows 64 --set crl.batch_size=256
+    python bench/crl_step_profile.py --field build/ant_nav --envs 4096 --windows 64 --set crl.batch_size=256
 
---windows sets the windows of the two trainers compared (default: the iteration's own), so that their
-traces hold fewer steps. On a CPU the summary reads the host operations XLA's CPU runtime ran in place
-of device kernels, and says so.
+--windows caps the windows of the two trainers compared, so that their traces hold fewer gradient steps
+than the iteration's (the ant preset samples two windows per environment). On a CPU the summary reads
+the host operations XLA's CPU runtime ran in place of device kernels, and says so.
 """
 
 from __future__ import annotations
@@ -116,18 +116,26 @@ def hlo_loops(hlo_text: str) -> list[tuple[int, set[str]]]:
     return [(trips, under(body, set())) for trips, body in loops]
 
 
+def unroll(trips: int, steps: int) -> int | None:
+    """How many steps each iteration of a loop of `trips` iterations runs if it runs `steps` steps, the
+    remainder (fewer than that) outside it; None if it cannot."""
+    each = steps // trips if trips else 0
+    return each if each >= 1 and steps - each * trips < each else None
+
+
 def update_loop(loops: list, other_loops: list, steps: int, other_steps: int) -> tuple[set[str], int] | None:
-    """(the instructions of the loop of gradient steps, gradient steps its body runs per iteration) from two
-    compiled chunks that differ only in their gradient steps per iteration: the one loop whose trip count
-    changed with them, unrolled alike in both; None where no single loop did."""
+    """(the instructions of the loop of gradient steps, gradient steps its body runs per iteration) of a compiled
+    chunk, told from the other loops by a second chunk that differs only in its gradient steps per iteration:
+    the one loop of its trip count that runs `steps` as the other chunk runs `other_steps` in a loop of
+    another trip count, unrolled alike; None where not exactly one loop does."""
     trips = collections.Counter(t for t, _ in loops)
-    other = collections.Counter(t for t, _ in other_loops)
-    mine, theirs = list((trips - other).elements()), list((other - trips).elements())
-    if (len(mine) != 1 or len(theirs) != 1 or trips[mine[0]] != 1 or steps < mine[0]
-            or steps // mine[0] != other_steps // theirs[0]):
+    others = {t for t, _ in other_loops}
+    found = [t for t in trips if trips[t] == 1 and unroll(t, steps)
+             and any(o != t and unroll(o, other_steps) == unroll(t, steps) for o in others)]
+    if len(found) != 1:
         return None
-    body = [names for t, names in loops if t == mine[0]][0]
-    return body, mine[0] * (steps // mine[0])
+    body = next(names for t, names in loops if t == found[0])
+    return body, found[0] * unroll(found[0], steps)
 
 
 @dataclass
@@ -188,16 +196,16 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--field", default="build/ant_nav", help="a build folder or field name")
     parser.add_argument("--envs", type=int, default=1024)
-    parser.add_argument("--windows", type=int, help="windows of the pair compared for the gradient step "
-                        "(default: the iteration's own); the pair samples this many and twice as many")
-    parser.add_argument("--traced", type=int, default=2, help="iterations traced after the warm-up")
+    parser.add_argument("--windows", type=int, default=256, help="windows of the two trainers compared for the "
+                        "gradient step, at most the iteration's own; the second samples twice as many")
+    parser.add_argument("--traced", type=int, default=1, help="iterations traced after the warm-up")
     parser.add_argument("--small-us", type=float, default=5.0, help="a kernel shorter than this (µs) is small")
     parser.add_argument("--top", type=int, default=10, help="kernels listed by time")
     parser.add_argument("--set", action="append", default=[], metavar="crl.KEY=VALUE", help="config overrides")
     parser.add_argument("--profile", type=Path, help="keep the traces in this folder (default: a temporary one)")
     parser.add_argument("--json", type=Path, help="append the two summaries here, one JSON object per line")
     args = parser.parse_args()
-    if min(args.envs, args.traced, args.top) < 1 or (args.windows is not None and args.windows < 1):
+    if min(args.envs, args.traced, args.top, args.windows) < 1:
         parser.error("--envs, --traced, --top and --windows are positive")
     xla_flags.apply()  # before JAX starts its backend, as every fieldgen command does
     crl = registry.trainer("crl")
@@ -205,7 +213,7 @@ def main() -> None:
         env = fieldgen.make(Path(args.field) if Path(args.field).exists() else args.field)
         iteration_config = config_for("crl", env, args.envs, 1, args.set)
         own_windows = buffer.gradient_steps(iteration_config, env.episode_length)[0]
-        windows = args.windows or own_windows
+        windows = min(args.windows, own_windows)
         pair_configs = {w: config_for(f"crl:windows={w}", env, args.envs, 1, args.set)
                         for w in (windows, 2 * windows)}
     except (SpecError, ConfigError) as error:

@@ -235,11 +235,13 @@ def main() -> None:
                 ratio = sps / reference_sps if reference_sps else float("nan")
                 compared = run.impl == "warp" and reference_qpos is not None
                 drift = float(jnp.max(jnp.abs(agreed - reference_qpos))) if compared else None
-                flags = overflow_names(int(overflow))
+                flags = overflow_names(int(overflow)) if run.impl == "warp" else []
                 nonfinite = int(jnp.sum(~jnp.all(jnp.isfinite(data.qpos), axis=1)))
-                warp_part = (f"; qpos vs jax after {args.agree_steps} steps {drift if drift is None else f'{drift:.2e}'}"
-                             f"; most contacts {int(most_contacts)} of {naconmax * n}; overflow {','.join(flags) or 'none'}"
-                             if run.impl == "warp" else "")
+                warp_part = ""
+                if run.impl == "warp":
+                    gap = "no jax row" if drift is None else f"{drift:.2e}"
+                    warp_part = (f"; qpos vs jax after {args.agree_steps} steps {gap}; most contacts "
+                                 f"{int(most_contacts)} of {naconmax * n}; overflow {','.join(flags) or 'none'}")
                 print(f"{env.name:>16s} {run.label:>18s} {n:>7d} envs {sps:>13,.0f} env steps/s   "
                       f"{ratio:5.2f}x jax{warp_part}; non-finite envs {nonfinite}", flush=True)
                 append_jsonl(args.json, {

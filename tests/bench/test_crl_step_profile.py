@@ -79,6 +79,9 @@ def test_the_loop_of_gradient_steps_is_the_one_whose_trip_count_changed():
         (10, ["cosine_fusion"]), (6, ["adam_fusion.2", "call.3", "dot.7"])]
     # 13 and 25 gradient steps, two a loop iteration: the body runs 12 of the 13
     assert profile.update_loop(loops, other, 13, 25) == ({"adam_fusion.2", "call.3", "dot.7"}, 12)
+    # a loop the other chunk has once more (the physics steps of each variant, say) is no gradient step
+    assert profile.update_loop([(5, {"step"}), (6, {"dot.7"})], [(5, set()), (5, set()), (12, set())], 12, 25) == (
+        {"dot.7"}, 12)
     assert profile.update_loop(loops, loops, 13, 13) is None  # nothing changed
     assert profile.update_loop(profile.hlo_loops(chunk_hlo(10)), other, 20, 25) is None  # two loops of 10
 
@@ -99,5 +102,8 @@ def test_the_script_profiles_a_tiny_run_on_cpu(tmp_path):
     assert iteration["kernels"] > 0 and iteration["kernel_us"] > 0 and iteration["fusions"] > 0
     assert iteration["gradient_steps"] >= 1 and iteration["flops"] > 0 and 1 <= len(iteration["top"]) <= 3
     assert step["gradient_steps"][1] > step["gradient_steps"][0] == iteration["gradient_steps"]
+    # a CPU's trace names each operation's HLO instruction: the gradient step is the loop's body, not a difference
+    assert step["method"].startswith("the kernels of the compiled loop of gradient steps")
+    assert 0 < step["kernels"] < iteration["kernels"] and 0 < step["kernel_us"] < iteration["kernel_us"]
     assert step["windows"][1] == 2 * step["windows"][0]
     assert sorted(p.name for p in (tmp_path / "traces").iterdir()) == ["iteration", f"windows_{step['windows'][1]}"]
