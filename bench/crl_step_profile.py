@@ -216,6 +216,8 @@ def main() -> None:
         windows = min(args.windows, own_windows)
         pair_configs = {w: config_for(f"crl:windows={w}", env, args.envs, 1, args.set)
                         for w in (windows, 2 * windows)}
+        for config in (iteration_config, *pair_configs.values()):
+            config.validate_env(env)  # as training checks its settings against the field
     except (SpecError, ConfigError) as error:
         raise SystemExit(f"error: {error}") from None
     preset = crl.config.preset(env.spec.agent.kind)

@@ -86,6 +86,18 @@ def test_the_loop_of_gradient_steps_is_the_one_whose_trip_count_changed():
     assert profile.update_loop(profile.hlo_loops(chunk_hlo(10)), other, 20, 25) is None  # two loops of 10
 
 
+@pytest.mark.parametrize("options, message", [
+    (["--field", "no_such_field"], "no_such_field: no such file"),
+    (["--field", "point_nav", "--set", "crl.batch_size=100000"], "hold fewer transitions than one batch"),
+    (["--traced", "0"], "--envs, --traced, --top and --windows are positive"),
+])
+def test_bad_input_is_one_clear_line(monkeypatch, capsys, options, message):
+    monkeypatch.setattr(sys, "argv", ["crl_step_profile.py", *options])
+    with pytest.raises(SystemExit) as stopped:
+        profile.main()
+    assert stopped.value.code != 0 and message in str(stopped.value.code) + capsys.readouterr().err
+
+
 @pytest.mark.slow
 def test_the_script_profiles_a_tiny_run_on_cpu(tmp_path):
     out = tmp_path / "rows.jsonl"
