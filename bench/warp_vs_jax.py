@@ -100,7 +100,12 @@ class Implementation:
 
         self.env, self.model, self.impl = env, model, impl
         self.mjx_model = mjx.put_model(model, impl=impl, **({"graph_mode": mode} if mode is not None else {}))
-        self.mode_name = self.mjx_model.opt._impl.graph_mode.name if impl == "warp" else None
+        self.mode_name = None
+        if impl == "warp":
+            self.mode_name = self.mjx_model.opt._impl.graph_mode.name
+            # Warp's kernels still flag each overflow in the data; a printed warning per world and step would
+            # flood the output and slow the kernels timed
+            self.mjx_model = self.mjx_model.tree_replace({"opt._impl.warn_overflow": 0})
         self.naconmax_per_env, self.njmax = naconmax_per_env, njmax
 
     @property

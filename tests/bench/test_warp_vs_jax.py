@@ -19,14 +19,14 @@ sys.path.remove(str(ROOT / "bench"))
 TINY = ["--fields", "point_nav", "--envs", "4", "--steps", "2", "--agree-steps", "2", "--repeats", "1"]
 
 
-def run(tmp_path: Path, monkeypatch, capsys, *options: str) -> tuple[str, list[dict]]:
+def run(tmp_path: Path, monkeypatch, capture, *options: str) -> tuple[str, list[dict]]:
     """The script's printed lines and JSON rows, run in this process (its imports and compiled programs shared)."""
     out = tmp_path / "rows.jsonl"
     monkeypatch.setattr(sys, "argv", ["warp_vs_jax.py", *options, "--build", str(tmp_path / "build"),
                                       "--json", str(out)])
     warp_vs_jax.main()
     rows = [json.loads(line) for line in out.read_text().splitlines()] if out.exists() else []
-    return capsys.readouterr().out, rows
+    return capture.readouterr().out, rows
 
 
 def test_jax_rows_run_and_warp_rows_say_why_they_are_skipped(tmp_path, monkeypatch, capsys):
@@ -54,14 +54,18 @@ def test_bad_input_is_one_clear_line(tmp_path, monkeypatch, capsys, options, mes
 
 
 @pytest.mark.slow
-def test_warp_on_cpu_agrees_with_jax(tmp_path, monkeypatch, capsys):
+def test_warp_on_cpu_steps_the_ant_beside_jax(tmp_path, monkeypatch, capfd):
     pytest.importorskip("warp")
-    printed, rows = run(tmp_path, monkeypatch, capsys, "--fields", "point_soccer", "--envs", "2", "--steps", "3",
+    printed, rows = run(tmp_path, monkeypatch, capfd, "--fields", "ant_nav", "--envs", "2", "--steps", "3",
                         "--agree-steps", "3", "--repeats", "1", "--warp-on-cpu")
     assert [(r["impl"], r["graph_mode"]) for r in rows] == [("jax", None), ("warp", "JAX")]
     warp = rows[1]
-    assert warp["max_qpos_difference"] < 1e-3 and warp["overflow"] == [] and warp["env_steps_per_second"] > 0
-    assert warp["ratio_to_jax"] > 0 and warp["naconmax"] > 0 and 0 <= warp["most_contacts"] <= warp["naconmax"]
+    assert warp["env_steps_per_second"] > 0 and warp["ratio_to_jax"] > 0 and warp["nonfinite_envs"] == 0
+    assert 0 < warp["max_qpos_difference"] < 0.1  # the same start and actions; the solvers differ
+    assert 1 <= warp["most_contacts"] <= warp["naconmax"]
+    # ant_nav's one solver iteration is flagged as reached; no contact or constraint capacity overflows
+    assert set(warp["overflow"]) <= {"ITERATIONS", "LS_ITERATIONS"}
+    assert "limit reached" not in printed  # Warp's kernels print no warning of their own (capfd: C's stdout too)
 
 
 def test_overflow_flags_are_named():
