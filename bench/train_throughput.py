@@ -24,8 +24,6 @@ from __future__ import annotations
 
 import argparse
 import collections
-import gzip
-import json
 import time
 from pathlib import Path
 
@@ -37,6 +35,7 @@ from fieldgen.agents import buffer, loop, registry, sharding
 from fieldgen.agents.config import ReplayConfig
 from fieldgen.env.throughput import append_jsonl, measure
 from fieldgen.run.train import peak_memory_mb
+from kernel_trace import busy_us, device_kernels, span_us, trace_events
 
 
 def config_for(entry: str, env, num_envs: int, iterations: int, sets: list[str]):
@@ -73,26 +72,15 @@ def time_chunk(trainer, seeds: int, devices: int | None = None, profile: Path | 
 def kernel_table(profile: Path, top: int = 20) -> str:
     """The device's kernels in the newest trace under `profile`, by total time: name, calls, share of the
     time from the first kernel's start to the last one's end, and the share of that span no kernel ran."""
-    trace = json.load(gzip.open(max(profile.rglob("perfetto_trace.json.gz"), key=lambda p: p.stat().st_mtime)))
-    events = trace["traceEvents"] if isinstance(trace, dict) else trace
-    devices = {e["pid"] for e in events if e.get("ph") == "M" and e.get("name") == "process_name"
-               and e["args"]["name"].startswith("/device:")}
-    kernels = [e for e in events if e.get("ph") == "X" and e["pid"] in devices and e.get("dur")]
+    kernels = device_kernels(trace_events(profile))
     if not kernels:
         return "no device kernels in the trace (a CPU backend traces host threads only)"
     total, calls = collections.Counter(), collections.Counter()
     for e in kernels:
         total[e["name"]] += e["dur"]
         calls[e["name"]] += 1
-    busy, end = 0.0, None
-    for e in sorted(kernels, key=lambda e: e["ts"]):  # the union of kernel intervals, over all streams
-        start, stop = e["ts"], e["ts"] + e["dur"]
-        if end is None or start > end:
-            busy, end = busy + stop - start, stop
-        elif stop > end:
-            busy, end = busy + stop - end, stop
-    span = max(e["ts"] + e["dur"] for e in kernels) - min(e["ts"] for e in kernels)
-    rows = [f"{len(kernels):,} kernels in {span / 1e6:.3f} s; device idle {1 - busy / span:.1%} of it"]
+    span = span_us(kernels)
+    rows = [f"{len(kernels):,} kernels in {span / 1e6:.3f} s; device idle {1 - busy_us(kernels) / span:.1%} of it"]
     rows += [f"{t / span:7.1%} {calls[name]:>8,} x {t / calls[name]:8.1f} us  {name[:100]}"
              for name, t in total.most_common(top)]
     return "\n".join(rows)
