@@ -192,7 +192,8 @@ def level_weights(success: jnp.ndarray) -> jnp.ndarray:
 
 @dataclasses.dataclass(frozen=True)
 class Auto(Mixed):
-    """Every level at once, in one batched simulation, each weighted by `level_weights`."""
+    """Every level at once, in one batched simulation: with kick-off points, drawn from the level buffer
+    (`next_levels`); a run set up without them (before the buffer), each level weighted by `level_weights`."""
 
     def variant_weights(self, success):
         return level_weights(success)

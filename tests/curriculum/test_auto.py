@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import time
 
 import imageio.v3 as iio
 import jax
@@ -16,6 +17,7 @@ from fieldgen.cli import app
 from fieldgen.curriculum.auto import (BUFFER, FLOOR, FRONTIER_SHARE, HARDER, KEPT, PRIOR, REPLACED, TARGET_SHARE, Auto,
                                      initial_buffer, kickoff_tables, level_weights, levels, next_levels, path)
 from fieldgen.curriculum.levels import LevelError, LevelSpace
+from fieldgen.env import FieldEnv
 from fieldgen.curriculum.schedule import sampling_weights
 from fieldgen.schema import bundled_fields, load_spec
 
@@ -152,9 +154,21 @@ def test_levels_of_a_run_of_one_stage_is_one_sentence(tmp_path):
 
 
 @pytest.mark.slow
-def test_an_auto_run_killed_and_resumed_continues_its_levels_exactly(tmp_path, interrupt_after_eval):
-    """The level weights live in the training state (each environment's next draw), so a run stopped after an
-    evaluation and resumed weighs and plays its levels exactly as the run never stopped."""
+def test_an_auto_run_killed_and_resumed_continues_its_levels_exactly(tmp_path, interrupt_after_eval, monkeypatch):
+    """The level buffer lives in the training state (each environment's weights and counts), so a run stopped
+    after an evaluation and resumed weighs, counts and mutates its levels exactly as the run never stopped."""
+    from fieldgen.agents import programs
+
+    running = programs.under_way
+
+    def settled() -> bool:
+        """The next chunk, dispatched before the evaluation's metrics were written, ends first: the stop then
+        leaves `fieldgen train` as a wait would, rather than by os._exit, which would end the test's process."""
+        while running():
+            time.sleep(0.05)
+        return False
+
+    monkeypatch.setattr(programs, "under_way", settled)
     sets = ["crl.hidden=[32,32]", "crl.repr_dim=8", "crl.batch_size=64", "crl.unroll_length=25",
             "crl.min_replay_rows=100", "crl.max_replay_rows=400", "crl.num_evals=3", "crl.eval_envs=8"]
     args = ["train", "point_soccer", "--curriculum", "auto", "--levels", "3", "--steps", "5000", "--envs", "8",
@@ -173,6 +187,8 @@ def test_an_auto_run_killed_and_resumed_continues_its_levels_exactly(tmp_path, i
                 for line in (folder / "metrics.jsonl").read_text().splitlines()]
 
     assert rows(cut) == rows(tmp_path / "whole" / "point_soccer-auto-crl-0")
+    shares = [row["variants"]["kickoff_share"] for row in rows(cut)]
+    assert shares[-1] != shares[1]  # the buffer moved after the cut
 
 
 # -- kick-off points and the level buffer ------------------------------------------------------------------
@@ -272,6 +288,7 @@ def test_a_buffer_whose_levels_are_solved_moves_towards_the_spec():
     assert means[-1] > min(means) + 0.2 and means[-1] > means[-4], means
 
 
+@pytest.mark.slow
 def test_a_field_starts_from_a_kickoff_point_and_counts_its_levels(env_cache):
     """An environment of two levels of point_soccer with 3 kick-off points each: an episode starts where its
     point puts the ball and the agent, new episodes draw only weighted levels, and every episode that ends
@@ -280,9 +297,11 @@ def test_a_field_starts_from_a_kickoff_point_and_counts_its_levels(env_cache):
     made = levels(spec, 2)
     tables = kickoff_tables(spec, made, 3)
     tables[1][0] = None  # a point the schema refused
-    env = Auto().environments(Auto().stage_environments([level.spec for level in made]), tables)[0]
+    starts = np.array([[row[1:] if row else [np.nan] * 6 for row in level] for level in tables])
+    artifacts = [e.artifact for e in Auto().stage_environments([level.spec for level in made])]
+    env = FieldEnv(artifacts, episode_length=2, kickoffs=starts, kickoff_coordinates=starts[..., 0] * 0 + 0.5)
     assert env.kickoff_coordinates.shape == (2, 3) and np.isnan(env.kickoff_coordinates[1, 0])
-    n = 6
+    n = 16
     state = jax.vmap(env.reset_variant, in_axes=(0, None, None))(jax.random.split(jax.random.PRNGKey(0), n), 1, 1)
     layout = env.layout
     np.testing.assert_allclose(state.pipeline_state.qpos[:, np.asarray(layout.agent_qpos[:2])],
@@ -293,7 +312,7 @@ def test_a_field_starts_from_a_kickoff_point_and_counts_its_levels(env_cache):
     state = env.with_level_weights(state, weights, jnp.ones((2, 3)))
     step = jax.jit(jax.vmap(env.step))
     drawn = set()
-    for _ in range(2 * env.episode_length):
+    for _ in range(2 * env.episode_length):  # two episodes each
         state = step(state, jnp.zeros((n, env.action_size)))
         drawn |= {(int(v), int(k)) for v, k, d in zip(state.info["variant"], state.info["kickoff"], state.done) if d}
     assert drawn == {(0, 0), (1, 2)}
