@@ -119,11 +119,13 @@ def initial_buffer(playable: np.ndarray) -> np.ndarray:
     out = np.zeros_like(playable, bool)
     for level, row in enumerate(playable):
         points = np.flatnonzero(row)
-        out[level, points[np.round(np.linspace(0, len(points) - 1, max(1, BUFFER // len(playable)))).astype(int)]] = True
+        spread = np.round(np.linspace(0, len(points) - 1, max(1, BUFFER // len(playable)))).astype(int)
+        out[level, points[spread]] = True
     return out
 
 
-def next_levels(counts: jax.Array, weights: jax.Array, playable: np.ndarray, key: jax.Array) -> tuple[jax.Array, jax.Array]:
+def next_levels(counts: jax.Array, weights: jax.Array, playable: np.ndarray,
+                key: jax.Array) -> tuple[jax.Array, jax.Array]:
     """The level buffer after an evaluation: (the weights [level, kick-off point] new episodes are drawn with,
     the share of each level's episode counts kept). The buffer is every level of positive weight, first
     `initial_buffer` (where the environment's own weights hold fewer levels); each level's success p is

@@ -49,9 +49,10 @@ class State(Protocol):
         the next episode's start is drawn from), `truncation` (1.0 where an episode ended because time ran
         out, not by a fall), `episode` (episodes ended so far: a replay buffer tells episodes apart by it)
         and `episode_step` (control steps of the current episode). Where the environment has kick-off points
-        (`Environment.kickoff_coordinates`) it also holds `level_counts` [2, variant_count, kickoff points]:
-        the episodes that ended on each level since the caller last scaled them (`with_level_weights`), and
-        of those the ones with a successful step."""
+        (`Environment.kickoff_coordinates`) it also holds `level_weights` [variant_count, kickoff points], the
+        weights its next episodes' levels are drawn from, and `level_counts` [2, variant_count, kickoff
+        points]: the episodes that ended on each level since the caller last scaled them
+        (`with_level_weights`), and of those the ones with a successful step."""
 
     def replace(self, **changes: Any) -> State:
         """The state with the named fields changed (a trainer swaps `info`, or whole episodes)."""

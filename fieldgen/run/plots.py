@@ -23,8 +23,8 @@ def plot_success(run_dir: Path, rows: list[dict], title: str) -> None:
     staged curriculum one colour per stage and a line for the last stage; for a mixed one a line per stage.
     A run of several variants (a mixed or automatic curriculum) also draws which share of new episodes each
     stage was given after each evaluation, and one whose levels start from kick-off points (an automatic
-    curriculum's level buffer) which share went to each stretch of the kick-off. A last panel holds the training losses (each `*_loss` of the rows,
-    mean over seeds) once training has begun."""
+    curriculum's level buffer) which share went to each stretch of the kick-off. A last panel holds the
+    training losses (each `*_loss` of the rows, mean over seeds) once training has begun."""
     import matplotlib
 
     matplotlib.use("Agg")

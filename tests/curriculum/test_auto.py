@@ -249,7 +249,8 @@ def test_buffer_levels_stay_inside_the_grid_on_playable_points_and_mutate_harder
         added, removed = np.argwhere(member & ~before), np.argwhere(before & ~member)
         assert len(added) == len(removed) <= REPLACED
         for level, point in added:
-            assert any(before[level - dl, point - dp] for dl, dp in HARDER if 0 <= level - dl < 6 and 0 <= point - dp < 12)
+            assert any(before[level - dl, point - dp] for dl, dp in HARDER
+                       if 0 <= level - dl < 6 and 0 <= point - dp < 12)
         swapped += len(added)
     assert swapped > 9
 
@@ -306,7 +307,8 @@ def test_a_field_starts_from_a_kickoff_point_and_counts_its_levels(env_cache):
     layout = env.layout
     np.testing.assert_allclose(state.pipeline_state.qpos[:, np.asarray(layout.agent_qpos[:2])],
                                np.tile(tables[1][1][5:], (n, 1)), atol=0.15)  # the start, and its noise
-    np.testing.assert_allclose(state.pipeline_state.qpos[:, np.asarray(layout.ball_qpos[1])], tables[1][1][2], atol=1e-5)
+    ball_y = state.pipeline_state.qpos[:, np.asarray(layout.ball_qpos[1])]
+    np.testing.assert_allclose(ball_y, tables[1][1][2], atol=1e-5)
     assert np.all(np.asarray(state.info["kickoff"]) == 1)
     weights = jnp.zeros((2, 3)).at[0, 0].set(0.5).at[1, 2].set(0.5)
     state = env.with_level_weights(state, weights, jnp.ones((2, 3)))

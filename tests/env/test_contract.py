@@ -128,8 +128,8 @@ KINDS = {
     "playground": lambda cache: PlaygroundField(cache("point_nav")),
     "brax": brax_adapter,
 }
-CHEAP_TO_STEP = ("mjx", "generalized", "batched", "kickoffs", "playground", "brax")  # point agents; the ant fields step in
-# test_ant_fields_step_under_jit_and_vmap
+CHEAP_TO_STEP = ("mjx", "generalized", "batched", "kickoffs", "playground", "brax")  # point agents; the ant
+# fields step in test_ant_fields_step_under_jit_and_vmap
 
 
 def check_members(env) -> None:
