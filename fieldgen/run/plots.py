@@ -75,7 +75,7 @@ def _plot_weights(fig, ax, rows: list[dict], key: str = "weight") -> None:
         ax.set(xlabel="env steps", ylabel="stage (last: the field itself)", title="where episodes go",
                yticks=np.arange(1, shares.shape[0] + 1))
     else:
-        ax.set(xlabel="env steps", ylabel="kick-off (0: next to the target, 1: the field's own)",
+        ax.set(xlabel="env steps", ylabel="kick-off (0: easy end, 1: the field's)",
                title="where episodes start")
     ax.grid(False)
 
