@@ -6,7 +6,9 @@ member means): brax-style `reset(rng)` and `step(state, action)`; `obs = concat(
 and `action_names` (trainers that split a body among controllers pick by name); `goal_reached(state, goal)`
 (the success predicate, for hindsight relabelling), `success_goal_entries` (the goal's entries the success
 reads) and `success_depends_on_goal`; `name`, for messages; `variant_count`, `reset_variant(rng, variant)` and
-`with_variant_weights(state, weights)` for an environment of several variants (1 for a plain field). `State.metrics` holds `success` and every
-reward term. Nothing here imports fieldgen's internals but that contract (and fieldgen.suggest, the
-wording of a did-you-mean hint), and fieldgen/compile never imports this package.
+`with_variant_weights(state, weights)` for an environment of several variants (1 for a plain field);
+`kickoff_coordinates` and `with_level_weights(state, weights, keep)` for variants with kick-off points.
+`State.metrics` holds `success` and every reward term. Nothing here imports fieldgen's internals but that
+contract (and fieldgen.suggest, the wording of a did-you-mean hint), and fieldgen/compile never imports this
+package.
 """

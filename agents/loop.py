@@ -24,6 +24,8 @@ from .programs import Programs, computed
 from .sharding import from_host, to_host
 
 EVAL_STREAM = 0x5EED  # evaluation keys: fold_in(fold_in(seed key, EVAL_STREAM), evaluation index)
+LEVEL_STREAM = 0x1E7E1  # a schedule's choice of levels: fold_in(the training state's key, LEVEL_STREAM)
+KICKOFF_BINS = 10  # a row's share of new episodes by kick-off: bins evenly from the easiest start to the field's own
 
 
 class Schedule(Protocol):
@@ -36,6 +38,13 @@ class Schedule(Protocol):
     def variant_weights(self, success: jax.Array) -> jax.Array:
         """How often each variant of an environment of several starts an episode, from an evaluation's
         success_any on each; pure and jittable."""
+
+    def next_levels(self, counts: jax.Array, weights: jax.Array, playable: np.ndarray,
+                    key: jax.Array) -> tuple[jax.Array, jax.Array]:
+        """Asked instead of `variant_weights` where the environment has kick-off points: (how often each level
+        starts an episode next, how much of each level's episode counts to keep) [variant, point], from the
+        training episodes counted on each level ([2, variant, point]: ended, succeeded), the weights so far
+        and which levels are `playable`; pure and jittable, `key` for any random choice."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -156,9 +165,12 @@ class VariantResults:
     closest_distance: jax.Array
     weight: jax.Array
 
+    kickoff_share: jax.Array | None = None  # with kick-off points: the new episodes' share by kick-off (KICKOFF_BINS)
+
     def per_seed(self, i: int) -> dict[str, list[float]]:
         """Seed i's results (of a batch vmapped over seeds), as a row of metrics.jsonl keeps them."""
-        return {f.name: [float(x) for x in getattr(self, f.name)[i]] for f in dataclasses.fields(self)}
+        return {f.name: [float(x) for x in getattr(self, f.name)[i]] for f in dataclasses.fields(self)
+                if getattr(self, f.name) is not None}
 
 
 def evaluate(trainer: Trainer, state, key: jax.Array, film: Callable | None = None) -> tuple[dict, object]:
@@ -166,12 +178,25 @@ def evaluate(trainer: Trainer, state, key: jax.Array, film: Callable | None = No
     return evaluate_policy(trainer.env, functools.partial(trainer.act, state), key, trainer.config.eval_envs, film)
 
 
-def adapt(trainer: Trainer, state, variants: VariantResults, weigh: Callable) -> tuple[object, VariantResults]:
-    """Re-weight the variants of an environment of several by `weigh` (a schedule's `variant_weights`) of an
-    evaluation's success on each; the results come back with the weights recorded."""
-    weights = weigh(variants.success_any)
-    return state.replace(env_state=trainer.env.with_variant_weights(state.env_state, weights)), \
-        variants.replace(weight=weights)
+def adapt(trainer: Trainer, state, variants: VariantResults, schedule: Schedule) -> tuple[object, VariantResults]:
+    """Re-weight the variants of an environment of several by the schedule's `variant_weights` of an
+    evaluation's success on each, or, where the environment has kick-off points, its levels by the schedule's
+    `next_levels` of the training episodes counted on each; the results come back with each variant's weight
+    recorded (and, with kick-off points, the weights' share by kick-off)."""
+    env = trainer.env
+    coordinates = env.kickoff_coordinates
+    if not coordinates.shape[1]:
+        weights = schedule.variant_weights(variants.success_any)
+        return state.replace(env_state=env.with_variant_weights(state.env_state, weights)), \
+            variants.replace(weight=weights)
+    info = state.env_state.info
+    counts = jnp.sum(info["level_counts"], axis=0)  # over the batch of environments
+    levels, keep = schedule.next_levels(counts, info["level_weights"][0], np.isfinite(coordinates),
+                                        jax.random.fold_in(state.key, LEVEL_STREAM))
+    bins = np.clip(np.floor(np.nan_to_num(coordinates) * KICKOFF_BINS), 0, KICKOFF_BINS - 1).astype(int)
+    share = jnp.zeros(KICKOFF_BINS).at[bins.ravel()].add(levels.ravel())
+    return state.replace(env_state=env.with_level_weights(state.env_state, levels, keep)), \
+        variants.replace(weight=jnp.sum(levels, axis=-1), kickoff_share=share)
 
 
 def eval_key(seed_key: jax.Array, index) -> jax.Array:
@@ -186,7 +211,7 @@ def pure_train(trainer: Trainer, num_evals: int, schedule: Schedule = OneStage()
             state, metrics = trainer.chunk(state)
             metrics.update(evaluate(trainer, state, eval_key(key, index))[0])
             if "variants" in metrics:
-                state, metrics["variants"] = adapt(trainer, state, metrics["variants"], schedule.variant_weights)
+                state, metrics["variants"] = adapt(trainer, state, metrics["variants"], schedule)
             return state, metrics
 
         return jax.lax.scan(interval, trainer.start(key), jnp.arange(1, num_evals + 1))
@@ -222,7 +247,7 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
     Training starts on stage 0; after each evaluation it goes on with `schedule.next_stage(history, stage,
     stages)` (every row so far), keeping everything it learned (networks, optimizers, replay buffer,
     normalizer) and starting fresh episodes of the next stage; an environment of several variants is
-    re-weighted by `schedule.variant_weights` of its results on each. With several stages every row also holds
+    re-weighted by `schedule.variant_weights` of its results on each (`adapt`). With several stages every row also holds
     `stage` and `last_stage_success_any` (the same policy evaluated on the last stage), and
     a promoting row `promoted_to`. `on_eval(state, index, stage, episode)` gets the stage the next
     chunk trains on and, with `film`, the first seed's episode filmed by the evaluation just done
@@ -240,7 +265,7 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
         trainer = trainers[k]
         kept = (len(seeds), film, schedule)
         if kept not in trainer.compiled:
-            weighed = functools.partial(adapt, weigh=schedule.variant_weights)
+            weighed = functools.partial(adapt, schedule=schedule)
             trainer.compiled[kept] = Programs(trainer, keys, film, evaluate, weighed)
         return trainer.compiled[kept]
 

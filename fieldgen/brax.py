@@ -56,6 +56,8 @@ class FieldAdapter:
     variant_count = _read_through("variant_count")
     reset_variant = _read_through("reset_variant")
     with_variant_weights = _read_through("with_variant_weights")
+    kickoff_coordinates = _read_through("kickoff_coordinates")
+    with_level_weights = _read_through("with_level_weights")
 
 
 class BraxField(FieldAdapter):

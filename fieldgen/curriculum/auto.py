@@ -14,24 +14,41 @@ level at p = 0 a share as small as a solved one, so the frontier starves. Here t
 solved (the frontier) always holds FRONTIER_SHARE of the episodes, learnable levels share the rest by
 p(1 - p), and the spec itself (the last level) keeps TARGET_SHARE throughout, so its success is always
 learnt from as well as measured.
+
+Between a level and the easy end lie KICKOFFS kick-off points (`kickoff_tables`): the level's spec with its
+kick-off moved back towards the target, each validated up front, so that a point the schema refuses is never
+played. A point differs from its level only in where the ball and the agent start, so every point of every
+level plays in the one compiled simulation. Where the environment has them, `next_levels` keeps a buffer of
+about BUFFER levels (a level, one of its points) in the environments' own state, as ACCEL does: it starts
+spread from the easy end to the spec, each level's success is estimated from the training episodes that ended
+on it, episodes go to the learnable by p(1 - p), and after each evaluation the REPLACED lowest-scoring levels
+give way to mutations of the highest-scoring ones.
 """
 
 from __future__ import annotations
 
 import dataclasses
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
 from fieldgen.curriculum.levels import LevelError, LevelSpace
 from fieldgen.curriculum.schedule import Mixed
-from fieldgen.schema import FieldSpec
+from fieldgen.schema import FieldSpec, SpecError
 
 LEVELS = 8  # levels on the path from the easy end to the spec, the spec included
 SOLVED = 0.8  # a level at this success or above is behind the frontier
 TARGET_SHARE = 0.2  # of new episodes, on the spec itself
 FRONTIER_SHARE = 0.3  # of new episodes, on the easiest level not yet solved
 FLOOR = 0.05  # of new episodes, spread evenly over every level but the spec: none is ever forgotten
+KICKOFFS = 32  # kick-off points of each level, from the easy end's kick-off to the level's own
+BUFFER = 32  # levels (a level and one of its kick-off points) episodes are drawn from
+REPLACED = 4  # of the buffer's levels, replaced after each evaluation by mutations of the best
+PRIOR = 2.0  # episodes at success 0.5 every estimate starts from: a level new to the buffer is learnable
+KEPT = 0.5  # of a level's episode counts, kept at each evaluation: older episodes count for less, and a level
+# left unplayed drifts back to the prior, so it is played again (its staleness)
+HARDER = ((0, 1), (0, 2), (1, 0), (-1, 0))  # the mutations of a level: (level, kick-off point) moved by
 
 
 @dataclasses.dataclass(frozen=True)
@@ -72,6 +89,92 @@ def levels(spec: FieldSpec, count: int = LEVELS) -> list[Level]:
     return out + [Level(tuple(1.0 for _ in space.axes), spec)]
 
 
+def kickoff_tables(spec: FieldSpec, chosen: list[Level], count: int = KICKOFFS) -> list[list[list[float] | None]]:
+    """For each level, its `count` kick-off points from the easy end's kick-off to its own (the last), each
+    as [kick-off coordinate, ball spawn x0, y0, x1, y1, agent start x, y]; None where the schema refuses the
+    point's spec (a ball start inside an obstacle...). What the environment needs to start an episode there."""
+    if count < 2:
+        raise LevelError(f"{count} kick-off points: a level needs at least 2 (the easy end's and its own)")
+    space = LevelSpace.of(spec)
+    tables = []
+    for level in chosen:
+        rows = []
+        for j in range(count):
+            point = (level.coordinates[0] * j / (count - 1), *level.coordinates[1:])
+            try:
+                at = level.spec if j == count - 1 else space.spec_at(point)
+            except SpecError:
+                rows.append(None)
+                continue
+            spawn = at.ball.spawn
+            rows.append([point[0], spawn.x[0], spawn.y[0], spawn.x[1], spawn.y[1], *at.agent.start])
+        tables.append(rows)
+    return tables
+
+
+def initial_buffer(playable: np.ndarray) -> np.ndarray:
+    """The buffer's first levels [level, kick-off point]: BUFFER // levels playable points of each level (at
+    least one), evenly spread from its easiest to its own kick-off, so that it starts from the easy end to the
+    spec and moves from there."""
+    out = np.zeros_like(playable, bool)
+    for level, row in enumerate(playable):
+        points = np.flatnonzero(row)
+        spread = np.round(np.linspace(0, len(points) - 1, max(1, BUFFER // len(playable)))).astype(int)
+        out[level, points[spread]] = True
+    return out
+
+
+def next_levels(counts: jax.Array, weights: jax.Array, playable: np.ndarray,
+                key: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """The level buffer after an evaluation: (the weights [level, kick-off point] new episodes are drawn with,
+    the share of each level's episode counts kept). The buffer is every level of positive weight, first
+    `initial_buffer` (where the environment's own weights hold fewer levels); each level's success p is
+    estimated from `counts` (training episodes ended, succeeded) and PRIOR. After that the REPLACED
+    lowest-scoring levels give way to mutations (HARDER) of the highest-scoring ones, each a playable level
+    not yet in the buffer; the spec (the last level's own kick-off) never leaves. The spec keeps TARGET_SHARE,
+    every other level FLOOR spread evenly, the rest goes by learnability p(1 - p)."""
+    levels, points = playable.shape
+    episodes, successes = counts.reshape(2, -1)
+    p = (successes + PRIOR / 2) / (episodes + PRIOR)
+    score = p * (1 - p)
+    target = jnp.arange(levels * points) == levels * points - 1
+    start = initial_buffer(playable).ravel()
+    member = weights.ravel() > 0
+    first = jnp.sum(member) < start.sum()  # the environment's own weights: the buffer starts here
+    member = jnp.where(first, jnp.asarray(start), member)
+    playable_cells, moves = jnp.asarray(playable.ravel()), jnp.asarray(HARDER)
+
+    def mutate(tried, carry):
+        member, added, replaced, key = carry
+        key, k_move = jax.random.split(key)
+        parent = jnp.argsort(jnp.where(member, -score, jnp.inf))[tried]  # the buffer's levels, best first
+        level, point = parent // points + moves[:, 0], parent % points + moves[:, 1]
+        inside = (level >= 0) & (level < levels) & (point >= 0) & (point < points)
+        child = jnp.where(inside, level * points + point, 0)
+        fresh = inside & playable_cells[child] & ~member[child]
+        chosen = child[jax.random.categorical(k_move, jnp.where(fresh, 0.0, -jnp.inf))]
+        removable = member & ~target & ~added
+        victim = jnp.argmin(jnp.where(removable, score, jnp.inf))  # the lowest-scoring level not just added
+        swap = ~first & member[parent] & jnp.any(fresh) & jnp.any(removable) & (replaced < REPLACED)
+        member = jnp.where(swap, member.at[victim].set(False).at[chosen].set(True), member)
+        added = jnp.where(swap, added.at[chosen].set(True), added)
+        return member, added, replaced + swap, key
+
+    member, *_ = jax.lax.fori_loop(0, int(start.sum()), mutate,
+                                   (member, jnp.zeros_like(member), jnp.zeros((), jnp.int32), key))
+    member = member | target
+    others = member & ~target
+    count = jnp.maximum(jnp.sum(others), 1)
+    learnable = jnp.where(others, score, 0.0)
+    total = jnp.sum(learnable)
+    rest = jnp.where(total > 0, learnable / jnp.where(total > 0, total, 1.0), others / count)
+    share = jnp.where(others, FLOOR / count + (1 - FLOOR) * rest, 0.0)
+    out = jnp.where(target, TARGET_SHARE, (1 - TARGET_SHARE) * share)
+    out = jnp.where(jnp.any(others), out, target.astype(out.dtype))
+    return out.reshape(levels, points).astype(weights.dtype), \
+        jnp.where(member, KEPT, 0.0).reshape(levels, points).astype(weights.dtype)
+
+
 def level_weights(success: jnp.ndarray) -> jnp.ndarray:
     """How often each level starts an episode next, from each level's success (the spec's last)."""
     n = success.shape[-1] - 1
@@ -91,7 +194,22 @@ def level_weights(success: jnp.ndarray) -> jnp.ndarray:
 
 @dataclasses.dataclass(frozen=True)
 class Auto(Mixed):
-    """Every level at once, in one batched simulation, each weighted by `level_weights`."""
+    """Every level at once, in one batched simulation: with kick-off points, drawn from the level buffer
+    (`next_levels`); a run set up without them (before the buffer), each level weighted by `level_weights`."""
 
     def variant_weights(self, success):
         return level_weights(success)
+
+    def next_levels(self, counts, weights, playable, key):
+        return next_levels(counts, weights, playable, key)
+
+    def environments(self, envs, kickoffs=()) -> list:
+        """What the trainer trains on: one environment batching every level, with each level's kick-off points
+        (`kickoff_tables`, as run.json keeps them) where given."""
+        if not kickoffs:
+            return super().environments(envs)
+        from fieldgen.env.make import environment
+
+        starts = np.array([[row[1:] if row else [np.nan] * 6 for row in level] for level in kickoffs], np.float32)
+        where = np.array([[row[0] if row else np.nan for row in level] for level in kickoffs])
+        return [environment([e.artifact for e in envs], kickoffs=starts, kickoff_coordinates=where)]

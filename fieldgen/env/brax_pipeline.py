@@ -78,8 +78,8 @@ class BraxFieldEnv(FieldEnv):
         self._pipeline = PIPELINES[self.backend]
         self.sys = load_system(self.artifact.xml, self.mj_model)
 
-    def _fresh(self, variant: jax.Array, key: jax.Array):
-        data, goal = super()._fresh(variant, key)
+    def _fresh(self, variant: jax.Array, key: jax.Array, kickoff: jax.Array | None = None):
+        data, goal = super()._fresh(variant, key, kickoff)
         return BraxData(self._pipeline.init(self.sys, data.qpos, data.qvel), data.mocap_pos), goal
 
     def _advance(self, sys, data: BraxData, action: jax.Array) -> BraxData:

@@ -6,7 +6,10 @@ free to change everything else. The trainers import this module, so it imports n
 An environment may batch several variants of a field, each environment of the batch playing its own: its
 last three members say how many, start an episode of a given one, and set how often each starts the
 episodes to come (a plain field is one variant). Why a variant is played is the caller's business (a
-curriculum's schedule); the environment only plays what it is given.
+curriculum's schedule); the environment only plays what it is given. A variant may also offer several
+kick-off points (where the ball and the agent start): a level is a variant and one of its points; the last
+two members say where each lies and set how often each level starts the episodes to come, and such an
+environment counts the episodes that ended on each level (`State.info`), for the caller to weigh them by.
 """
 
 from __future__ import annotations
@@ -45,7 +48,11 @@ class State(Protocol):
         """Holds at least `goal` (the target the success is judged against), `rng` (the episode's key, which
         the next episode's start is drawn from), `truncation` (1.0 where an episode ended because time ran
         out, not by a fall), `episode` (episodes ended so far: a replay buffer tells episodes apart by it)
-        and `episode_step` (control steps of the current episode)."""
+        and `episode_step` (control steps of the current episode). Where the environment has kick-off points
+        (`Environment.kickoff_coordinates`) it also holds `level_weights` [variant_count, kickoff points], the
+        weights its next episodes' levels are drawn from, and `level_counts` [2, variant_count, kickoff
+        points]: the episodes that ended on each level since the caller last scaled them
+        (`with_level_weights`), and of those the ones with a successful step."""
 
     def replace(self, **changes: Any) -> State:
         """The state with the named fields changed (a trainer swaps `info`, or whole episodes)."""
@@ -119,3 +126,14 @@ class Environment(Protocol):
     def with_variant_weights(self, state: State, weights: jax.Array) -> State:
         """`state` (a batch, environments on axis 0) drawing the variants of its next episodes from `weights`
         [variant_count], which sum to 1."""
+
+    @property
+    def kickoff_coordinates(self) -> np.ndarray:
+        """[variant_count, kickoff points]: where each kick-off point of each variant lies, from the easiest
+        start (0) to the field's own (1); NaN where a point is never played; each variant's last point is its
+        own start, where `reset_variant` starts. No columns where the variants have no kick-off points."""
+
+    def with_level_weights(self, state: State, weights: jax.Array, keep: jax.Array) -> State:
+        """`state` (a batch) drawing the levels of its next episodes from `weights` [variant_count, kickoff
+        points], which sum to 1 and are 0 where a point is not played, and its `level_counts` multiplied by
+        `keep` (same shape: 1 keeps a level's counts, 0 forgets them)."""

@@ -50,10 +50,16 @@ class FieldEnv:
     batched simulation; each new episode draws its variant from `info["variant_weights"]`,
     which whoever trains sets (`with_variant_weights`): the environment plays the variants it
     is given and knows nothing of why they were chosen.
+
+    Given `kickoffs` as well ([variant, point] -> the ball's spawn region x0, y0, x1, y1 and the agent's
+    start x, y; NaN where a point is not played, the last point of each variant its own start), an episode
+    starts from a level, a variant and one of its kick-off points (`info["kickoff"]`), drawn from
+    `info["level_weights"]` [variant, point] (`with_level_weights`); every environment counts the episodes
+    that ended on each level and those that succeeded (`info["level_counts"]`), which the trainer reads.
     """
 
     def __init__(self, artifacts: Artifact | Sequence[Artifact], episode_length: int | None = None,
-                 auto_reset: bool = True):
+                 auto_reset: bool = True, kickoffs: np.ndarray | None = None, kickoff_coordinates=None):
         artifacts = [artifacts] if isinstance(artifacts, Artifact) else list(artifacts)
         self.artifacts = artifacts
         self.artifact = artifacts[-1]  # an environment of several variants is judged on its last
@@ -87,6 +93,22 @@ class FieldEnv:
         self._ball_qvel = jnp.asarray(self.layout.ball_qvel)
         self._is_ant = spec.agent.kind == "ant"
         self._agent_z = geometry.POINT_RADIUS
+        self._kickoffs, self.kickoff_coordinates = None, np.zeros((self.variant_count, 0))
+        if kickoffs is not None:
+            self._set_kickoffs(np.asarray(kickoffs, np.float32), kickoff_coordinates)
+
+    def _set_kickoffs(self, kickoffs: np.ndarray, coordinates) -> None:
+        coordinates = np.asarray(coordinates, np.float64)
+        shape = (self.variant_count, coordinates.shape[-1], 6)
+        if kickoffs.shape != shape or coordinates.shape != shape[:2]:
+            raise ValueError(f"{self.name}: kick-off tables of shape {kickoffs.shape} and {coordinates.shape} for "
+                             f"{self.variant_count} variants; they should be {shape} and {shape[:2]}")
+        playable = np.all(np.isfinite(kickoffs), axis=-1) & np.isfinite(coordinates)
+        if not np.all(playable[:, -1]):
+            raise ValueError(f"{self.name}: each variant's last kick-off point is its own start, always played")
+        # an unplayed point is never drawn; its row holds the variant's own start so no NaN reaches the physics
+        self._kickoffs = jnp.asarray(np.where(playable[..., None], kickoffs, kickoffs[:, -1:]))
+        self.kickoff_coordinates = np.where(playable, coordinates, np.nan)
 
     # -- what brax's wrappers and MuJoCo Playground users reach for ----------------
 
@@ -115,13 +137,28 @@ class FieldEnv:
         """How many variants this environment batches (1 for a plain field)."""
         return len(self.rules)
 
+    @property
+    def kickoff_count(self) -> int:
+        """Kick-off points of each variant an episode may start from (0: each variant's own start alone)."""
+        return self.kickoff_coordinates.shape[1]
+
     def with_variant_weights(self, env_state: State, weights: jax.Array) -> State:
-        """`env_state` (environments batched on axis 0) drawing its next episodes' variants from `weights`;
-        a field of one variant plays it whatever the weights."""
+        """`env_state` (environments batched on axis 0) drawing its next episodes' variants from `weights`,
+        each from its own start; a field of one variant plays it whatever the weights."""
         if self.variant_count == 1:
             return env_state
+        if self.kickoff_count:
+            own = jnp.zeros((self.variant_count, self.kickoff_count)).at[:, -1].set(weights)
+            return self.with_level_weights(env_state, own, jnp.ones_like(own))
         shape = env_state.info["variant_weights"].shape
         return env_state.replace(info=dict(env_state.info, variant_weights=jnp.broadcast_to(weights, shape)))
+
+    def with_level_weights(self, env_state: State, weights: jax.Array, keep: jax.Array) -> State:
+        """`env_state` (a batch) drawing its next episodes' levels from `weights` [variant, kick-off point],
+        its episode counts scaled by `keep` (same shape: 0 forgets a level's, 1 keeps them)."""
+        info = env_state.info
+        return env_state.replace(info=dict(info, level_weights=jnp.broadcast_to(weights, info["level_weights"].shape),
+                                           level_counts=info["level_counts"] * keep))
 
     def _by_variant(self, variant: jax.Array, fn):
         """fn(the variant's episode rules), for a traced variant index (every branch runs under vmap: all are cheap)."""
@@ -144,16 +181,24 @@ class FieldEnv:
         rng, k_variant = jax.random.split(rng)
         return self.reset_variant(rng, jax.random.randint(k_variant, (), 0, self.variant_count))
 
-    def reset_variant(self, rng: jax.Array, variant) -> State:
+    def reset_variant(self, rng: jax.Array, variant, kickoff=None) -> State:
+        """A fresh episode of `variant`, from its kick-off point `kickoff` (by default its own start)."""
         rng, episode_key = jax.random.split(rng)
         variant = jnp.asarray(variant, jnp.int32)
-        data, goal = self._fresh(variant, episode_key)
+        if self.kickoff_count:
+            kickoff = jnp.asarray(self.kickoff_count - 1 if kickoff is None else kickoff, jnp.int32)
+        data, goal = self._fresh(variant, episode_key, kickoff)
         zero = jnp.zeros(())
         info = {"rng": rng, "goal": goal, "episode_step": jnp.zeros((), jnp.int32),
                 "down_steps": jnp.zeros((), jnp.int32),
                 "truncation": zero,
                 "episode": jnp.zeros((), jnp.int32)}
-        if self.variant_count > 1:
+        if self.kickoff_count:
+            levels = (self.variant_count, self.kickoff_count)
+            info.update(variant=variant, kickoff=kickoff, succeeded=zero,
+                        level_weights=jnp.zeros(levels).at[:, -1].set(1.0 / self.variant_count),
+                        level_counts=jnp.zeros((2, *levels)))
+        elif self.variant_count > 1:
             n = self.variant_count
             info.update(variant=variant, variant_weights=jnp.full(n, 1.0 / n))
         metrics = {name: zero for name in self.metric_names}
@@ -188,16 +233,25 @@ class FieldEnv:
         fell = fell | broken
         done = truncated | fell
         info = dict(state.info, episode_step=steps, down_steps=down, truncation=(truncated & ~fell).astype(jnp.float32))
+        kickoff = state.info.get("kickoff")
+        if self.kickoff_count:
+            info.update(self._counted(state.info, variant, kickoff, metrics["success"], done))
         obs = self._obs(data, goal)
         start = None
         if self.auto_reset:
             rng, key = jax.random.split(state.info["rng"])
-            if self.variant_count > 1:
+            if self.kickoff_count:
+                key, k_level = jax.random.split(key)
+                drawn = jax.random.categorical(k_level, jnp.log(state.info["level_weights"]).ravel())
+                variant = jnp.where(done, drawn // self.kickoff_count, variant).astype(jnp.int32)
+                kickoff = jnp.where(done, drawn % self.kickoff_count, kickoff).astype(jnp.int32)
+                info.update(variant=variant, kickoff=kickoff)
+            elif self.variant_count > 1:
                 key, k_variant = jax.random.split(key)
                 drawn = jax.random.categorical(k_variant, jnp.log(state.info["variant_weights"]))
                 variant = jnp.where(done, drawn, variant).astype(jnp.int32)
                 info.update(variant=variant)
-            fresh, fresh_goal = self._fresh(variant, key)
+            fresh, fresh_goal = self._fresh(variant, key, kickoff)
             fresh_obs = self._obs(fresh, fresh_goal)
             data = self._restart(done, fresh, data)
             goal = jnp.where(done, fresh_goal, goal)
@@ -224,9 +278,20 @@ class FieldEnv:
 
     # -- physics (brax_pipeline.BraxFieldEnv steps brax's pipelines instead) --
 
-    def _fresh(self, variant: jax.Array, key: jax.Array):
-        """(physics state, goal) of a new episode of `variant`, drawn from `key`."""
-        return self._by_variant(variant, lambda r: r.fresh_episode(key))
+    def _fresh(self, variant: jax.Array, key: jax.Array, kickoff: jax.Array | None = None):
+        """(physics state, goal) of a new episode of `variant` (from its kick-off point `kickoff`, where the
+        field has kick-off points), drawn from `key`."""
+        if not self.kickoff_count:
+            return self._by_variant(variant, lambda r: r.fresh_episode(key))
+        start = self._kickoffs[variant, kickoff]
+        return self._by_variant(variant, lambda r: r.fresh_episode(key, start))
+
+    def _counted(self, info: dict, variant: jax.Array, kickoff: jax.Array, success: jax.Array, done: jax.Array) -> dict:
+        """The episode's success so far, and the level counts with an episode that ended now added to its level's."""
+        succeeded = jnp.maximum(info["succeeded"], success)
+        ended = done.astype(jnp.float32)
+        counts = info["level_counts"].at[:, variant, kickoff].add(jnp.stack([ended, ended * succeeded]))
+        return {"succeeded": jnp.where(done, 0.0, succeeded), "level_counts": counts}
 
     def _advance(self, sys, data: mjx.Data, action: jax.Array) -> mjx.Data:
         """The physics steps of one control step."""

@@ -24,19 +24,25 @@ class EpisodeRules:
         self.layout = layout
         self.is_ant = spec.agent.kind == "ant"
 
-    def fresh_episode(self, key: jax.Array):
-        """Agent pose noise, target and ball spawn: new draws from `key`."""
+    def fresh_episode(self, key: jax.Array, kickoff: jax.Array | None = None):
+        """Agent pose noise, target and ball spawn: new draws from `key`. With `kickoff` (the ball's spawn
+        region's corners x0, y0, x1, y1 and the agent's start x, y), the episode starts there instead of
+        where the spec starts it: a start moved changes no compiled program."""
         k_q, k_v, k_target, k_ball = jax.random.split(key, 4)
         noise, layout = self.spec.agent.reset_noise, self.layout
         agent_noise = jax.random.uniform(k_q, (len(layout.agent_qpos),), minval=-noise.qpos, maxval=noise.qpos)
         if self.is_ant:
             agent_noise = agent_noise.at[3:7].set(0.0)  # keep the torso quaternion a unit quaternion
-        qpos = self.home_qpos.at[jnp.asarray(layout.agent_qpos)].add(agent_noise)
+        home = self.home_qpos if kickoff is None else \
+            self.home_qpos.at[jnp.asarray(layout.agent_qpos[:2])].set(kickoff[4:6])
+        qpos = home.at[jnp.asarray(layout.agent_qpos)].add(agent_noise)
         qvel = jnp.zeros(self.data0.qvel.shape).at[jnp.asarray(layout.agent_qvel)].set(
             noise.qvel * jax.random.normal(k_v, (len(layout.agent_qvel),)))
         target = self._sample_target(k_target)
         if self.spec.ball.enabled:
-            qpos = qpos.at[jnp.asarray(layout.ball_qpos[:2])].set(self._sample_ball(k_ball, target))
+            ball = self._sample_ball(k_ball, target) if kickoff is None else \
+                jax.random.uniform(k_ball, (2,), minval=kickoff[0:2], maxval=kickoff[2:4])
+            qpos = qpos.at[jnp.asarray(layout.ball_qpos[:2])].set(ball)
         data = self.data0.replace(qpos=qpos, qvel=qvel, mocap_pos=self.data0.mocap_pos.at[0, :2].set(target))
         return data, target
 

@@ -22,8 +22,9 @@ def plot_success(run_dir: Path, rows: list[dict], title: str) -> None:
     """success_any, time_at_goal and closest_distance against env steps: one line per seed; for a
     staged curriculum one colour per stage and a line for the last stage; for a mixed one a line per stage.
     A run of several variants (a mixed or automatic curriculum) also draws which share of new episodes each
-    stage was given after each evaluation. A last panel holds the training losses (each `*_loss` of the rows,
-    mean over seeds) once training has begun."""
+    stage was given after each evaluation, and one whose levels start from kick-off points (an automatic
+    curriculum's level buffer) which share went to each stretch of the kick-off. A last panel holds the
+    training losses (each `*_loss` of the rows, mean over seeds) once training has begun."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -32,7 +33,8 @@ def plot_success(run_dir: Path, rows: list[dict], title: str) -> None:
     metrics = [m for m in PANELS if any(m in r for r in rows)]
     losses = list(dict.fromkeys(k for r in rows for k in r if k.endswith("_loss")))
     weighted = "weight" in rows[0].get("variants", {})
-    count = len(metrics) + weighted + bool(losses)
+    kickoffs = "kickoff_share" in rows[0].get("variants", {})
+    count = len(metrics) + weighted + kickoffs + bool(losses)
     fig, axes = plt.subplots(1, count, figsize=(5 * count, 3.6), sharex=True)  # losses begin after the first evaluation
     panels = dict(zip(metrics, axes))
     (_plot_variants if "variants" in rows[0] else _plot_groups)(panels, rows)
@@ -41,6 +43,8 @@ def plot_success(run_dir: Path, rows: list[dict], title: str) -> None:
         ax.set(xlabel="env steps", ylabel=label, title=name, ylim=limits)
     if weighted:
         _plot_weights(fig, axes[len(metrics)], rows)
+    if kickoffs:
+        _plot_weights(fig, axes[len(metrics) + 1], rows, "kickoff_share")
     if losses:
         _plot_losses(axes[-1], rows, losses)
     save_figure(fig, axes, title, run_dir / PLOT)
@@ -55,19 +59,24 @@ def _plot_losses(ax, rows: list[dict], losses: list[str]) -> None:
     ax.set(xlabel="env steps", ylabel="loss", title="training losses")
 
 
-def _plot_weights(fig, ax, rows: list[dict]) -> None:
+def _plot_weights(fig, ax, rows: list[dict], key: str = "weight") -> None:
     """Each stage's share of the new episodes after each evaluation (mean over seeds), as a heat map: where a
-    mixed or automatic curriculum put its training over time, the last stage (the field itself) on top."""
+    mixed or automatic curriculum put its training over time, the last stage (the field itself) on top; with
+    `key` "kickoff_share", each stretch of the kick-off's share, from the easiest start up to the field's own."""
     steps = sorted({r["env_steps"] for r in rows})
-    shares = np.array([np.mean([r["variants"]["weight"] for r in rows if r["env_steps"] == s], axis=0)
-                       for s in steps]).T  # [stage, evaluation]
+    shares = np.array([np.mean([r["variants"][key] for r in rows if r["env_steps"] == s], axis=0)
+                       for s in steps]).T  # [stage or kick-off stretch, evaluation]
     edges = np.concatenate([[steps[0]], (np.array(steps[1:]) + steps[:-1]) / 2, [steps[-1]]]) if len(steps) > 1 \
         else np.array([steps[0] - 0.5, steps[0] + 0.5])
-    mesh = ax.pcolormesh(edges, np.arange(shares.shape[0] + 1) + 0.5, shares, cmap="viridis", vmin=0,
-                         vmax=max(float(shares.max()), 1e-9))
+    rows_at = np.arange(shares.shape[0] + 1) + 0.5 if key == "weight" else np.linspace(0, 1, shares.shape[0] + 1)
+    mesh = ax.pcolormesh(edges, rows_at, shares, cmap="viridis", vmin=0, vmax=max(float(shares.max()), 1e-9))
     fig.colorbar(mesh, ax=ax, label="share of new episodes")
-    ax.set(xlabel="env steps", ylabel="stage (last: the field itself)", title="where episodes go",
-           yticks=np.arange(1, shares.shape[0] + 1))
+    if key == "weight":
+        ax.set(xlabel="env steps", ylabel="stage (last: the field itself)", title="where episodes go",
+               yticks=np.arange(1, shares.shape[0] + 1))
+    else:
+        ax.set(xlabel="env steps", ylabel="kick-off (0: easy end, 1: the field's)",
+               title="where episodes start")
     ax.grid(False)
 
 

@@ -93,6 +93,9 @@ class RunRecord(BaseModel):
     mixed: StrictBool = False
     schedule: Annotated[StrictStr, AfterValidator(_schedule)] | None = None  # None (older runs): staged, or mixed
     levels: list[dict] = []  # an automatic curriculum's levels: each stage's coordinates on the named axes
+    # and each level's kick-off points (curriculum.auto.kickoff_tables): [coordinate, ball spawn x0, y0, x1, y1,
+    # agent start x, y], null where the point is not played
+    kickoffs: list[list[Annotated[list[float], Field(min_length=7, max_length=7)] | None]] = []
     curriculum: StrictStr = ""  # the name of the curriculum the run trains through; "" (left out): a field
     init_from: InitFrom | None = None
 

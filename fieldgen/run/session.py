@@ -42,6 +42,7 @@ class Run:
     schedule_kind: str = "staged"  # curriculum.schedule.SCHEDULES: mixed and auto train every stage at once
     init_from: dict | None = None  # record.InitFrom of a run started from another run's networks
     curriculum: str = ""  # the name of the curriculum it trains through (its folder's; -mixed, -auto), "" for a field
+    kickoffs: list = dataclasses.field(default_factory=list)  # an automatic curriculum's kick-off points (run.json)
 
     @property
     def finished(self) -> bool:
@@ -78,7 +79,9 @@ class Run:
         """What trains: the trainers of the environments the schedule trains on (a trainer per stage, or
         for a mixed run one on every stage batched together)."""
         make_train = registry.trainer(self.algo).make_train
-        return [make_train(self.config, env) for env in self.schedule.environments(self.envs)]
+        envs = self.schedule.environments(self.envs, self.kickoffs) if self.kickoffs else \
+            self.schedule.environments(self.envs)
+        return [make_train(self.config, env) for env in envs]
 
     @property
     def judged_trainer(self) -> loop.Trainer:
@@ -111,12 +114,12 @@ def new_run(source: Path, algo: str, seeds: Sequence[int], config, out: Path, mi
     each, and written by the first alone. Nothing is written before every setting is known good, the memory
     the run needs included where it `trains_here` (a run prepared to train elsewhere is checked where it
     resumes); `seeds` may be a range."""
-    promotion, name, kind, coordinates = Promotion(), None, "mixed" if mixed else "staged", []
+    promotion, name, kind, coordinates, kickoffs = Promotion(), None, "mixed" if mixed else "staged", [], []
     if auto:
         if mixed or curriculum.is_curriculum(source):
             raise record.RunError(f"--curriculum auto makes its own levels from one field and trains them all at "
                                   f"once; give it a field (YAML or build folder), without --mixed{'' if mixed else f', not the curriculum folder {source}'}")
-        envs, coordinates = auto_environments(source, levels)
+        envs, coordinates, kickoffs = auto_environments(source, levels)
         kind, name = "auto", f"{envs[-1].spec.name}-auto"
     elif curriculum.is_curriculum(source):
         try:
@@ -140,7 +143,8 @@ def new_run(source: Path, algo: str, seeds: Sequence[int], config, out: Path, mi
     for env in envs:
         config.validate_env(env, sharding.device_count(), len(seeds))
     dirs = [FIELD] if len(envs) == 1 else [f"{STAGES}/{k + 1:02d}" for k in range(len(envs))]
-    run = Run(folder, algo, envs, config, seeds, [], promotion, schedule_kind=kind, curriculum=name or "")
+    run = Run(folder, algo, envs, config, seeds, [], promotion, schedule_kind=kind, curriculum=name or "",
+              kickoffs=kickoffs)
     if trains_here:
         check_memory(run)
     run.seeds = seeds = list(seeds)
@@ -165,7 +169,7 @@ def new_run(source: Path, algo: str, seeds: Sequence[int], config, out: Path, mi
         record.write_run(folder, envs[-1].spec.model_dump(mode="json"), algo, config, envs[0].layout.to_json(),
                          seeds, {"fields": dirs, "promotion": dataclasses.asdict(promotion), "mixed": run.mixed,
                                  "schedule": kind, **({"curriculum": name} if name else {}),
-                                 **({"levels": coordinates} if coordinates else {}),
+                                 **({"levels": coordinates, "kickoffs": kickoffs} if coordinates else {}),
                                  **({"init_from": run.init_from} if run.init_from else {}),
                                  **({"processes": processes} if processes else {})})
     except OSError as exc:
@@ -187,20 +191,21 @@ def check_memory(run: Run) -> None:
                      f"training {seeds:,} seed{'s' * (seeds > 1)} of {algo} with {run.config.num_envs:,} envs", lower)
 
 
-def auto_environments(source: Path, count: int | None) -> tuple[list, list[dict]]:
+def auto_environments(source: Path, count: int | None) -> tuple[list, list[dict], list]:
     """The environments of `count` levels from `source`'s easy end to the field itself (curriculum.auto),
-    built to one structure, and each level's coordinates by axis name for run.json."""
-    from fieldgen.curriculum.auto import LEVELS, levels as auto_levels
+    built to one structure, each level's coordinates by axis name and its kick-off points, for run.json."""
+    from fieldgen.curriculum.auto import LEVELS, kickoff_tables, levels as auto_levels
     from fieldgen.curriculum.levels import LevelError, LevelSpace
 
     try:
         spec = load_artifact(source).spec if source.is_dir() else load_spec(source)
         chosen = auto_levels(spec, LEVELS if count is None else count)
         envs = schedule("auto").stage_environments([level.spec for level in chosen])
+        kickoffs = kickoff_tables(spec, chosen)
     except (LevelError, VariantError, ArtifactError, ValueError) as exc:
         raise record.RunError(str(exc)) from None
     names = [axis.name for axis in LevelSpace.of(spec).axes]
-    return envs, [dict(zip(names, level.coordinates)) for level in chosen]
+    return envs, [dict(zip(names, level.coordinates)) for level in chosen], kickoffs
 
 
 def learned_template(run: Run):
@@ -278,8 +283,14 @@ def open_run(folder: Path, load_state: bool = True, to_train: bool = False) -> R
     seeds = saved.seeds or [config.seed]
     rows = record.read_metrics(folder)
     kind = saved.schedule or ("mixed" if saved.mixed else "staged")
+    points = {len(level) for level in saved.kickoffs}
+    if saved.kickoffs and (len(saved.kickoffs) != len(envs) or len(points) > 1 or min(points) < 2
+                           or any(level[-1] is None for level in saved.kickoffs)):
+        raise record.RunError(f"{folder / record.RUN} holds kick-off points that do not fit its {len(envs)} levels "
+                              "(as many points for each, at least 2, the last its own); it was edited or damaged: "
+                              "start the run again in a new folder")
     run = Run(folder, saved.algo, envs, config, seeds, rows, saved.promotion, schedule_kind=kind,
-              curriculum=saved.curriculum)
+              curriculum=saved.curriculum, kickoffs=saved.kickoffs)
     if not load_state:
         return run  # only reported on
     if to_train:

@@ -3,16 +3,21 @@
 from __future__ import annotations
 
 import json
+import time
 
 import imageio.v3 as iio
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from fieldgen.agents.loop import KICKOFF_BINS
 from fieldgen.cli import app
-from fieldgen.curriculum.auto import FRONTIER_SHARE, TARGET_SHARE, level_weights, levels, path
+from fieldgen.curriculum.auto import (BUFFER, FLOOR, FRONTIER_SHARE, HARDER, KEPT, PRIOR, REPLACED, TARGET_SHARE, Auto,
+                                     initial_buffer, kickoff_tables, level_weights, levels, next_levels, path)
 from fieldgen.curriculum.levels import LevelError, LevelSpace
+from fieldgen.env import FieldEnv
 from fieldgen.curriculum.schedule import sampling_weights
 from fieldgen.schema import bundled_fields, load_spec
 
@@ -75,8 +80,9 @@ def test_weights_keep_the_frontier_and_the_target_fed():
 
 @pytest.mark.slow
 def test_auto_run_records_its_levels_and_weights_and_resumes(tmp_path, monkeypatch):
-    """A tiny point_soccer run: every level batched, each evaluation's weights by level_weights of its
-    success, recorded in run.json and the metrics; prepared and resumed as any run."""
+    """A tiny point_soccer run: every level batched with its kick-off points (run.json), episodes drawn from
+    the level buffer, which starts spread from the easy end to the spec and moves; each evaluation's weights
+    by level and by kick-off recorded in the metrics; prepared and resumed as any run."""
     sets = ["crl.hidden=[32,32]", "crl.repr_dim=8", "crl.batch_size=64", "crl.unroll_length=25",
             "crl.min_replay_rows=100", "crl.max_replay_rows=400", "crl.num_evals=2", "crl.eval_envs=8"]
     args = ["train", "point_soccer", "--curriculum", "auto", "--levels", "4", "--steps", "4000", "--envs", "8",
@@ -89,16 +95,27 @@ def test_auto_run_records_its_levels_and_weights_and_resumes(tmp_path, monkeypat
     record = json.loads((run / "run.json").read_text())
     assert record["schedule"] == "auto" and record["mixed"] and len(record["levels"]) == 4
     assert record["levels"][0]["kickoff"] == 0.0 and all(v == 1.0 for v in record["levels"][-1].values())
+    spec = load_spec(FIELDS["point_soccer"])
+    assert record["kickoffs"] == kickoff_tables(spec, levels(spec, 4))
     result = runner.invoke(app, ["train", "--resume", str(run)])
     assert result.exit_code == 0, result.output
     rows = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
     assert [r["eval"] for r in rows] == [0, 1, 2]
-    for row in rows[1:]:
+    coordinates = np.array([[row[0] if row else np.nan for row in level] for level in record["kickoffs"]])
+    start = initial_buffer(np.isfinite(coordinates))  # no episode yet: every level but the spec alike
+    first = np.where(start, (1 - TARGET_SHARE) / (start.sum() - 1), 0.0)
+    first[-1, -1] = TARGET_SHARE
+    np.testing.assert_allclose(rows[0]["variants"]["weight"], first.sum(axis=1), atol=1e-6)
+    by_kickoff = np.bincount(np.minimum(coordinates[start] * KICKOFF_BINS, KICKOFF_BINS - 1).astype(int),
+                             first[start], KICKOFF_BINS)
+    np.testing.assert_allclose(rows[0]["variants"]["kickoff_share"], by_kickoff, atol=1e-6)
+    for row in rows:
         v = row["variants"]
-        expected = level_weights(jnp.asarray(v["success_any"]))
-        np.testing.assert_allclose(v["weight"], expected, atol=1e-6)
+        assert sum(v["weight"]) == pytest.approx(1.0) and sum(v["kickoff_share"]) == pytest.approx(1.0)
+        assert v["weight"][-1] >= TARGET_SHARE - 1e-6
         assert row["last_stage_success_any"] == v["success_any"][-1]
-    assert iio.imread(run / "success.png").shape == (360, 2500, 4)  # with the panel of where episodes go
+    assert rows[-1]["variants"]["kickoff_share"] != rows[0]["variants"]["kickoff_share"]  # the buffer moved
+    assert iio.imread(run / "success.png").shape == (360, 3000, 4)  # with the panels of where episodes go and start
     from fieldgen import render
 
     drawn = render.contact_sheet
@@ -143,9 +160,21 @@ def test_levels_of_a_run_of_one_stage_is_one_sentence(tmp_path):
 
 
 @pytest.mark.slow
-def test_an_auto_run_killed_and_resumed_continues_its_levels_exactly(tmp_path, interrupt_after_eval):
-    """The level weights live in the training state (each environment's next draw), so a run stopped after an
-    evaluation and resumed weighs and plays its levels exactly as the run never stopped."""
+def test_an_auto_run_killed_and_resumed_continues_its_levels_exactly(tmp_path, interrupt_after_eval, monkeypatch):
+    """The level buffer lives in the training state (each environment's weights and counts), so a run stopped
+    after an evaluation and resumed weighs, counts and mutates its levels exactly as the run never stopped."""
+    from fieldgen.agents import programs
+
+    running = programs.under_way
+
+    def settled() -> bool:
+        """The next chunk, dispatched before the evaluation's metrics were written, ends first: the stop then
+        leaves `fieldgen train` as a wait would, rather than by os._exit, which would end the test's process."""
+        while running():
+            time.sleep(0.05)
+        return False
+
+    monkeypatch.setattr(programs, "under_way", settled)
     sets = ["crl.hidden=[32,32]", "crl.repr_dim=8", "crl.batch_size=64", "crl.unroll_length=25",
             "crl.min_replay_rows=100", "crl.max_replay_rows=400", "crl.num_evals=3", "crl.eval_envs=8"]
     args = ["train", "point_soccer", "--curriculum", "auto", "--levels", "3", "--steps", "5000", "--envs", "8",
@@ -164,3 +193,139 @@ def test_an_auto_run_killed_and_resumed_continues_its_levels_exactly(tmp_path, i
                 for line in (folder / "metrics.jsonl").read_text().splitlines()]
 
     assert rows(cut) == rows(tmp_path / "whole" / "point_soccer-auto-crl-0")
+    shares = [row["variants"]["kickoff_share"] for row in rows(cut)]
+    assert shares[-1] != shares[1]  # the buffer moved after the cut
+
+
+# -- kick-off points and the level buffer ------------------------------------------------------------------
+
+def test_kickoff_points_run_from_the_easy_end_to_each_levels_own_and_refused_ones_are_marked():
+    """Each level's points move its kick-off alone, from the easy end's to its own (the last point, the level
+    itself); a point whose spec the schema refuses is None, every other one validates."""
+    spec = load_spec(FIELDS["soccer_v2"])
+    made = levels(spec, 4)
+    space = LevelSpace.of(spec)
+    tables = kickoff_tables(spec, made, 9)
+    assert [len(t) for t in tables] == [9] * 4
+    for level, table in zip(made, tables):
+        own = level.spec
+        assert table[-1] == [level.coordinates[0], own.ball.spawn.x[0], own.ball.spawn.y[0], own.ball.spawn.x[1],
+                             own.ball.spawn.y[1], *own.agent.start]
+        for j, row in enumerate(table):
+            point = (level.coordinates[0] * j / 8, *level.coordinates[1:])
+            assert (row is not None) == space.playable(point)
+            if row is not None:
+                at = space.spec_at(point)
+                assert row == [point[0], at.ball.spawn.x[0], at.ball.spawn.y[0], at.ball.spawn.x[1],
+                               at.ball.spawn.y[1], *at.agent.start]
+    assert any(row is None for row in tables[-1])  # the full goalie leaves no room for some kick-offs
+    with pytest.raises(LevelError, match="at least 2"):
+        kickoff_tables(spec, made, 1)
+
+
+def own_kickoffs(playable: np.ndarray) -> jnp.ndarray:
+    """The weights an environment starts with: each level from its own kick-off, evenly."""
+    return jnp.zeros(playable.shape).at[:, -1].set(1.0 / playable.shape[0])
+
+
+def test_buffer_levels_stay_inside_the_grid_on_playable_points_and_mutate_harder():
+    """Over many evaluations with random outcomes: no weight ever on a refused point, the spec always at its
+    share; the buffer starts spread over each level's playable points, then each evaluation swaps at most
+    REPLACED levels, each new one a harder neighbour (HARDER) of a level it held."""
+    rng = np.random.default_rng(0)
+    playable = rng.random((6, 12)) > 0.3
+    playable[:, -1] = True
+    weights = own_kickoffs(playable)
+    start = initial_buffer(playable)
+    assert start.sum() <= BUFFER and np.all(start[:, -1]) and not np.any(start & ~playable)
+    assert all(row.sum() == min(BUFFER // 6, ok.sum()) for row, ok in zip(start, playable))
+    swapped = 0
+    for i in range(10):
+        before = np.asarray(weights) > 0
+        counts = jnp.asarray(rng.integers(0, 20, (2, 6, 12)), jnp.float32)
+        counts = counts.at[1].set(jnp.minimum(counts[0], counts[1]))
+        weights, keep = next_levels(counts, weights, playable, jax.random.PRNGKey(i))
+        member = np.asarray(weights) > 0
+        assert not np.any(member & ~playable) and member[-1, -1]
+        assert float(weights[-1, -1]) == pytest.approx(TARGET_SHARE) and float(jnp.sum(weights)) == pytest.approx(1.0)
+        assert np.all(np.asarray(keep) == np.where(member, KEPT, 0.0))
+        if i == 0:
+            assert np.array_equal(member, start)
+            continue
+        added, removed = np.argwhere(member & ~before), np.argwhere(before & ~member)
+        assert len(added) == len(removed) <= REPLACED
+        for level, point in added:
+            assert any(before[level - dl, point - dp] for dl, dp in HARDER
+                       if 0 <= level - dl < 6 and 0 <= point - dp < 12)
+        swapped += len(added)
+    assert swapped > 9
+
+
+def test_buffer_weights_on_hand_set_counts():
+    """Success estimated from PRIOR and the counts; the spec keeps TARGET_SHARE, every other level FLOOR
+    evenly and the rest by p(1 - p): most to the level at one success in two and to levels not yet played."""
+    playable = np.ones((2, 4), bool)
+    weights = jnp.full((2, 4), 1 / 8)  # a full buffer: every level of the grid
+    episodes = jnp.array([[10.0, 10, 10, 0], [0, 0, 0, 30]])
+    successes = jnp.array([[10.0, 5, 0, 0], [0, 0, 0, 3]])
+    new, keep = next_levels(jnp.stack([episodes, successes]), weights, playable, jax.random.PRNGKey(0))
+    p = (np.asarray(successes) + PRIOR / 2) / (np.asarray(episodes) + PRIOR)
+    score = (p * (1 - p)).ravel()[:-1]
+    expected = (1 - TARGET_SHARE) * (FLOOR / 7 + (1 - FLOOR) * score / score.sum())
+    np.testing.assert_allclose(np.asarray(new).ravel(), [*expected, TARGET_SHARE], rtol=1e-5)
+    assert float(new[0, 1]) > float(new[0, 0]) and float(new[0, 1]) > float(new[0, 2])
+    assert float(new[1, 0]) == pytest.approx(float(new[0, 1]))  # unplayed: the prior's p = 0.5
+    assert np.all(np.asarray(keep) == KEPT)
+
+
+def test_a_buffer_whose_levels_are_solved_moves_towards_the_spec():
+    """A policy whose frontier (success 0.5) moves out along the kick-off: the buffer gives up levels solved or
+    out of reach for harder neighbours of the learnable ones, so its levels move towards the spec's kick-off."""
+    playable = np.ones((4, 32), bool)
+    weights = own_kickoffs(playable)
+    coordinate = np.tile(np.arange(32) / 31, (4, 1))
+    means = []
+    for i in range(16):
+        member = np.asarray(weights) > 0
+        success = np.clip((0.2 + 0.04 * i - coordinate) / 0.2 + 0.5, 0.0, 1.0)
+        episodes = np.where(member, 20.0, 0.0)
+        weights, _ = next_levels(jnp.asarray(np.stack([episodes, episodes * success])), weights, playable,
+                                 jax.random.PRNGKey(i))
+        means.append(float(coordinate[np.asarray(weights) > 0].mean()))
+    assert means[-1] > min(means) + 0.2 and means[-1] > means[-4], means
+
+
+@pytest.mark.slow
+def test_a_field_starts_from_a_kickoff_point_and_counts_its_levels(env_cache):
+    """An environment of two levels of point_soccer with 3 kick-off points each: an episode starts where its
+    point puts the ball and the agent, new episodes draw only weighted levels, and every episode that ends
+    is counted on its level; a plain field keeps the state it always had."""
+    spec = load_spec(FIELDS["point_soccer"])
+    made = levels(spec, 2)
+    tables = kickoff_tables(spec, made, 3)
+    tables[1][0] = None  # a point the schema refused
+    starts = np.array([[row[1:] if row else [np.nan] * 6 for row in level] for level in tables])
+    artifacts = [e.artifact for e in Auto().stage_environments([level.spec for level in made])]
+    env = FieldEnv(artifacts, episode_length=2, kickoffs=starts, kickoff_coordinates=starts[..., 0] * 0 + 0.5)
+    assert env.kickoff_coordinates.shape == (2, 3) and np.isnan(env.kickoff_coordinates[1, 0])
+    n = 16
+    state = jax.vmap(env.reset_variant, in_axes=(0, None, None))(jax.random.split(jax.random.PRNGKey(0), n), 1, 1)
+    layout = env.layout
+    np.testing.assert_allclose(state.pipeline_state.qpos[:, np.asarray(layout.agent_qpos[:2])],
+                               np.tile(tables[1][1][5:], (n, 1)), atol=0.15)  # the start, and its noise
+    ball_y = state.pipeline_state.qpos[:, np.asarray(layout.ball_qpos[1])]
+    np.testing.assert_allclose(ball_y, tables[1][1][2], atol=1e-5)
+    assert np.all(np.asarray(state.info["kickoff"]) == 1)
+    weights = jnp.zeros((2, 3)).at[0, 0].set(0.5).at[1, 2].set(0.5)
+    state = env.with_level_weights(state, weights, jnp.ones((2, 3)))
+    step = jax.jit(jax.vmap(env.step))
+    drawn = set()
+    for _ in range(2 * env.episode_length):  # two episodes each
+        state = step(state, jnp.zeros((n, env.action_size)))
+        drawn |= {(int(v), int(k)) for v, k, d in zip(state.info["variant"], state.info["kickoff"], state.done) if d}
+    assert drawn == {(0, 0), (1, 2)}
+    counts = np.asarray(state.info["level_counts"]).sum(0)
+    assert counts[0, 1, 1] == n and counts[0].sum() == float(np.sum(state.info["episode"]))
+    assert np.all(counts[1] <= counts[0])
+    plain = env_cache("point_soccer")
+    assert plain.kickoff_coordinates.shape == (1, 0) and "kickoff" not in plain.reset(jax.random.PRNGKey(0)).info

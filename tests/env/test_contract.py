@@ -102,6 +102,15 @@ def batched_fields():
     return environment(compile_variants([first, FieldSpec.model_validate(last)]))
 
 
+@functools.cache
+def batched_with_kickoffs():
+    """The batched fields with two kick-off points each: the agent a metre aside of its own start, and its own."""
+    env = batched_fields()
+    start = [*env.spec.agent.start]
+    table = np.array([[[0, 0, 0, 0, start[0] + 1.0, start[1]], [0, 0, 0, 0, *start]]] * 2, np.float32)
+    return environment([e for e in env.artifacts], kickoffs=table, kickoff_coordinates=[[0.5, 1.0]] * 2)
+
+
 def brax_adapter(env_cache):
     """What brax's registry gives."""
     fieldgen.brax.register()
@@ -115,11 +124,12 @@ KINDS = {
     **{backend: lambda cache, b=backend: cache(on_backend(b)[0], **on_backend(b)[1])
        for backend in ("spring", "positional", "generalized")},
     "batched": lambda cache: batched_fields(),
+    "kickoffs": lambda cache: batched_with_kickoffs(),
     "playground": lambda cache: PlaygroundField(cache("point_nav")),
     "brax": brax_adapter,
 }
-CHEAP_TO_STEP = ("mjx", "generalized", "batched", "playground", "brax")  # point agents; the ant fields step in
-# test_ant_fields_step_under_jit_and_vmap
+CHEAP_TO_STEP = ("mjx", "generalized", "batched", "kickoffs", "playground", "brax")  # point agents; the ant
+# fields step in test_ant_fields_step_under_jit_and_vmap
 
 
 def check_members(env) -> None:
@@ -133,6 +143,8 @@ def check_members(env) -> None:
     assert isinstance(env.name, str) and env.name
     assert isinstance(env.success_depends_on_goal, bool)
     assert isinstance(env.variant_count, int) and env.variant_count >= 1
+    points = np.asarray(env.kickoff_coordinates)
+    assert points.ndim == 2 and points.shape[0] == env.variant_count and np.all(np.isfinite(points[:, -1:]))
     goal, judged = np.asarray(env.goal_indices), np.asarray(env.success_goal_entries)
     assert goal.dtype.kind == judged.dtype.kind == "i" and goal.ndim == judged.ndim == 1 and len(judged) >= 2
     assert np.all((goal >= 0) & (goal < env.state_dim)) and np.all((judged >= 0) & (judged < len(goal)))
@@ -158,6 +170,13 @@ def check_one_step(env) -> None:
     batch = jax.vmap(env.reset_variant, in_axes=(0, None))(jax.random.split(jax.random.PRNGKey(2), 3), last)
     weights = jnp.full(env.variant_count, 1.0 / env.variant_count)
     assert jax.tree.structure(env.with_variant_weights(batch, weights)) == jax.tree.structure(batch)
+    if np.asarray(env.kickoff_coordinates).shape[1]:
+        levels = jnp.zeros(env.kickoff_coordinates.shape).at[:, 0].set(weights)
+        assert jax.tree.structure(env.with_level_weights(batch, levels, jnp.ones_like(levels))) == \
+            jax.tree.structure(batch)
+        aside = jax.jit(env.reset_variant)(jax.random.PRNGKey(1), last, 0)
+        moved = aside.obs[np.asarray(env.goal_indices)] - first.obs[np.asarray(env.goal_indices)]
+        assert float(moved[0]) == pytest.approx(1.0, abs=0.2) and "level_counts" in aside.info
     if env.success_depends_on_goal:
         achieved = state.obs[np.asarray(env.goal_indices)]
         assert float(env.goal_reached(state.obs[:env.state_dim], achieved)) == 1.0
