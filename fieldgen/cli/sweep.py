@@ -74,7 +74,8 @@ def sweep(
     except plan.SweepError as exc:
         fail(str(exc))
     except KeyboardInterrupt:
-        out.print(f"interrupted; the runs keep their last checkpoints: fieldgen sweep {file} continues them")
+        out.print(f"interrupted; the runs keep their last checkpoints: fieldgen sweep {file} continues them",
+                  soft_wrap=True)  # one line: the command stays whole to copy
         raise typer.Exit(130) from None
     _report(planned, standing, command)
 

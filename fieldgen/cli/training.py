@@ -215,7 +215,8 @@ def train(
     except (SpecError, ConfigError, record.RunError, FolderError) as exc:
         fail(str(exc))
     if prepare:
-        out.print(f"prepared {run.folder}; start it with: fieldgen train --resume {run.folder}")
+        out.print(f"prepared {run.folder}; start it with: fieldgen train --resume {run.folder}",
+                  soft_wrap=True)  # one line: the command stays whole to copy
         try:
             session.check_memory(run)
         except ConfigError as exc:

@@ -99,7 +99,8 @@ def _train(run: Run, console: Console, videos: bool, logger: str, video_format: 
             writer.wait()
             saved = record.has_trained(run.folder)
             console.print(f"interrupted; {'the last checkpoint is intact' if saved else 'no checkpoint yet'}. "
-                          f"{'Continue' if saved else 'Start again'} with: fieldgen train --resume {run.folder}")
+                          f"{'Continue' if saved else 'Start again'} with: fieldgen train --resume {run.folder}",
+                          soft_wrap=True)  # one line: the command stays whole to copy
             raise
     summary(run, console)
 
