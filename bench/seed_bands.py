@@ -28,8 +28,8 @@ def setting(files: str) -> SimpleNamespace:
 
 
 def last_evaluation(run: SimpleNamespace) -> dict:
-    """Each seed's row at the last evaluation every seed reached."""
-    last = min(max(r["eval"] for r in run.rows if r["seed"] == s) for s in run.seeds)
+    """Each seed's row at the last evaluation every seed reached (`setting` keeps no later rows)."""
+    last = max(r["eval"] for r in run.rows)
     return {r["seed"]: r for r in run.rows if r["eval"] == last}
 
 
