@@ -15,9 +15,9 @@ solved (the frontier) always holds FRONTIER_SHARE of the episodes, learnable lev
 p(1 - p), and the spec itself (the last level) keeps TARGET_SHARE throughout, so its success is always
 learnt from as well as measured.
 
-Between a level and the easy end lie KICKOFFS kick-off points (`kickoff_tables`): the level's spec with its
-kick-off moved back towards the target, each validated up front, so that a point the schema refuses is never
-played. A point differs from its level only in where the ball and the agent start, so every point of every
+Each level has up to KICKOFFS kick-off points (`kickoff_tables`): the level's spec with its kick-off moved
+back towards the target, over the stretch of the kick-off no level before it covers, each validated up front,
+so that a point the schema refuses is never played and no start belongs to two levels. A point differs from its level only in where the ball and the agent start, so every point of every
 level plays in the one compiled simulation. Where the environment has them, `next_levels` keeps a buffer of
 about BUFFER levels (a level, one of its points) in the environments' own state, as ACCEL does: it starts
 spread from the easy end to the spec, each level's success is estimated from the training episodes that ended
@@ -48,7 +48,8 @@ REPLACED = 4  # of the buffer's levels, replaced after each evaluation by mutati
 PRIOR = 2.0  # episodes at success 0.5 every estimate starts from: a level new to the buffer is learnable
 KEPT = 0.5  # of a level's episode counts, kept at each evaluation: older episodes count for less, and a level
 # left unplayed drifts back to the prior, so it is played again (its staleness)
-HARDER = ((0, 1), (0, 2), (1, 0), (-1, 0))  # the mutations of a level: (level, kick-off point) moved by
+HARDER = ((0, 1), (0, 2), (1, 0), (-1, 0))  # the mutations of a level: (level, kick-off point) moved by, in
+# reading order over the [level, point] grid, so one point past a level's own is the next level's first
 
 
 @dataclasses.dataclass(frozen=True)
@@ -90,24 +91,34 @@ def levels(spec: FieldSpec, count: int = LEVELS) -> list[Level]:
 
 
 def kickoff_tables(spec: FieldSpec, chosen: list[Level], count: int = KICKOFFS) -> list[list[list[float] | None]]:
-    """For each level, its `count` kick-off points from the easy end's kick-off to its own (the last), each
-    as [kick-off coordinate, ball spawn x0, y0, x1, y1, agent start x, y]; None where the schema refuses the
-    point's spec (a ball start inside an obstacle...). What the environment needs to start an episode there."""
+    """For each level, its `count` kick-off points up to its own (the last), each as [kick-off coordinate, ball
+    spawn x0, y0, x1, y1, agent start x, y]; None where the schema refuses the point's spec (a ball start inside
+    an obstacle...) or where the level has no point there. No two levels share a point, so that no start is
+    counted, weighted and mutated as several levels at once: a level of the geometry of the level before it
+    (the path's first half moves the kick-off alone) takes the stretch of the kick-off beyond that level's own,
+    up to its own; a level of new geometry the whole stretch from the easy end's kick-off, so its geometry is
+    met first with the ball near the target; the easy end is its own point alone."""
     if count < 2:
         raise LevelError(f"{count} kick-off points: a level needs at least 2 (the easy end's and its own)")
     space = LevelSpace.of(spec)
     tables = []
-    for level in chosen:
+    for i, level in enumerate(chosen):
+        own, geometry = level.coordinates[0], level.coordinates[1:]
+        before = chosen[i - 1].coordinates if i else None
+        banded = before is not None and tuple(before[1:]) == tuple(geometry)
         rows = []
         for j in range(count):
-            point = (level.coordinates[0] * j / (count - 1), *level.coordinates[1:])
+            kickoff = before[0] + (own - before[0]) * (j + 1) / count if banded else own * j / (count - 1)
+            if j < count - 1 and (kickoff == own or (banded and kickoff <= before[0])):
+                rows.append(None)  # the level's own point, or the level before's: not a point of this level
+                continue
             try:
-                at = level.spec if j == count - 1 else space.spec_at(point)
+                at = level.spec if j == count - 1 else space.spec_at((kickoff, *geometry))
             except SpecError:
                 rows.append(None)
                 continue
             spawn = at.ball.spawn
-            rows.append([point[0], spawn.x[0], spawn.y[0], spawn.x[1], spawn.y[1], *at.agent.start])
+            rows.append([kickoff, spawn.x[0], spawn.y[0], spawn.x[1], spawn.y[1], *at.agent.start])
         tables.append(rows)
     return tables
 
@@ -148,9 +159,9 @@ def next_levels(counts: jax.Array, weights: jax.Array, playable: np.ndarray,
         member, added, replaced, key = carry
         key, k_move = jax.random.split(key)
         parent = jnp.argsort(jnp.where(member, -score, jnp.inf))[tried]  # the buffer's levels, best first
-        level, point = parent // points + moves[:, 0], parent % points + moves[:, 1]
-        inside = (level >= 0) & (level < levels) & (point >= 0) & (point < points)
-        child = jnp.where(inside, level * points + point, 0)
+        child = parent + moves[:, 0] * points + moves[:, 1]  # in reading order: past a level's own, the next's first
+        inside = (child >= 0) & (child < levels * points)
+        child = jnp.where(inside, child, 0)
         fresh = inside & playable_cells[child] & ~member[child]
         chosen = child[jax.random.categorical(k_move, jnp.where(fresh, 0.0, -jnp.inf))]
         removable = member & ~target & ~added

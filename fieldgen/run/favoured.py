@@ -28,7 +28,7 @@ def favoured_levels(folder: Path, camera: str, top: int = 6) -> tuple[bytes, str
     success = np.mean([r["variants"]["success_any"] for r in last], axis=0)
     coordinates = record.read_run(folder).levels
     order = [int(k) for k in np.argsort(-share, kind="stable")[:top]]
-    kind = "level" if run.schedule_kind == "auto" else "stage"  # an automatic curriculum's variants are levels
+    kind = run.variant_name
     images, titles = [], []
     for k in order:
         images.append(render_pose(run.envs[k].artifact.model(), camera=camera, height=240))

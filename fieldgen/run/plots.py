@@ -18,13 +18,14 @@ PANELS = {"success_any": ("success_any", "episodes with a success", (-0.02, 1.02
           "closest_distance": ("distance", "closest approach to the goal", None)}
 
 
-def plot_success(run_dir: Path, rows: list[dict], title: str) -> None:
+def plot_success(run_dir: Path, rows: list[dict], title: str, variant: str = "stage") -> None:
     """success_any, time_at_goal and closest_distance against env steps: one line per seed; for a
     staged curriculum one colour per stage and a line for the last stage; for a mixed one a line per stage.
     A run of several variants (a mixed or automatic curriculum) also draws which share of new episodes each
     stage was given after each evaluation, and one whose levels start from kick-off points (an automatic
     curriculum's level buffer) which share went to each stretch of the kick-off. A last panel holds the
-    training losses (each `*_loss` of the rows, mean over seeds) once training has begun."""
+    training losses (each `*_loss` of the rows, mean over seeds) once training has begun. `variant` names a
+    variant of a mixed run in the legends ("level" for an automatic curriculum's)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -37,12 +38,15 @@ def plot_success(run_dir: Path, rows: list[dict], title: str) -> None:
     count = len(metrics) + weighted + kickoffs + bool(losses)
     fig, axes = plt.subplots(1, count, figsize=(5 * count, 3.6), sharex=True)  # losses begin after the first evaluation
     panels = dict(zip(metrics, axes))
-    (_plot_variants if "variants" in rows[0] else _plot_groups)(panels, rows)
+    if "variants" in rows[0]:
+        _plot_variants(panels, rows, variant)
+    else:
+        _plot_groups(panels, rows)
     for metric, ax in panels.items():
         label, name, limits = PANELS[metric]
         ax.set(xlabel="env steps", ylabel=label, title=name, ylim=limits)
     if weighted:
-        _plot_weights(fig, axes[len(metrics)], rows)
+        _plot_weights(fig, axes[len(metrics)], rows, variant=variant)
     if kickoffs:
         _plot_weights(fig, axes[len(metrics) + 1], rows, "kickoff_share")
     if losses:
@@ -59,7 +63,7 @@ def _plot_losses(ax, rows: list[dict], losses: list[str]) -> None:
     ax.set(xlabel="env steps", ylabel="loss", title="training losses")
 
 
-def _plot_weights(fig, ax, rows: list[dict], key: str = "weight") -> None:
+def _plot_weights(fig, ax, rows: list[dict], key: str = "weight", variant: str = "stage") -> None:
     """Each stage's share of the new episodes after each evaluation (mean over seeds), as a heat map: where a
     mixed or automatic curriculum put its training over time, the last stage (the field itself) on top; with
     `key` "kickoff_share", each stretch of the kick-off's share, from the easiest start up to the field's own."""
@@ -72,7 +76,7 @@ def _plot_weights(fig, ax, rows: list[dict], key: str = "weight") -> None:
     mesh = ax.pcolormesh(edges, rows_at, shares, cmap="viridis", vmin=0, vmax=max(float(shares.max()), 1e-9))
     fig.colorbar(mesh, ax=ax, label="share of new episodes")
     if key == "weight":
-        ax.set(xlabel="env steps", ylabel="stage (last: the field itself)", title="where episodes go",
+        ax.set(xlabel="env steps", ylabel=f"{variant} (last: the field itself)", title="where episodes go",
                yticks=np.arange(1, shares.shape[0] + 1))
     else:
         ax.set(xlabel="env steps", ylabel="kick-off (0: easy end, 1: the field's)",
@@ -120,8 +124,8 @@ def _plot_groups(panels: dict, rows: list[dict]) -> None:
         panels["success_any"].plot(*_series(rows, "last_stage_success_any"), color="black", label="last stage")
 
 
-def _plot_variants(panels: dict, rows: list[dict]) -> None:
-    """A mixed run: one line per stage (mean over seeds), the last stage in black."""
+def _plot_variants(panels: dict, rows: list[dict], variant: str) -> None:
+    """A mixed run: one line per stage or level (mean over seeds), the last in black."""
     count = len(rows[0]["variants"]["success_any"])
     steps = sorted({r["env_steps"] for r in rows})
     for k in range(count):
@@ -129,4 +133,4 @@ def _plot_variants(panels: dict, rows: list[dict]) -> None:
         style = {"color": "black", "lw": 2} if last else {}
         for metric, ax in panels.items():
             values = [np.mean([r["variants"][metric][k] for r in rows if r["env_steps"] == s]) for s in steps]
-            ax.plot(steps, values, marker="o", label=f"stage {k + 1}" + (" (last)" if last else ""), **style)
+            ax.plot(steps, values, marker="o", label=f"{variant} {k + 1}" + (" (last)" if last else ""), **style)

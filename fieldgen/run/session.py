@@ -70,6 +70,11 @@ class Run:
         return self.schedule_kind != "staged"
 
     @property
+    def variant_name(self) -> str:
+        """What the run's figures call a variant: an automatic curriculum's are levels, others' stages."""
+        return "level" if self.schedule_kind == "auto" else "stage"
+
+    @property
     def schedule(self) -> Staged | Mixed:
         """How the run moves through its stages (the curriculum's; a plain run has one stage)."""
         return schedule(self.schedule_kind, self.promotion)

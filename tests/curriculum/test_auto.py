@@ -199,25 +199,41 @@ def test_an_auto_run_killed_and_resumed_continues_its_levels_exactly(tmp_path, i
 
 # -- kick-off points and the level buffer ------------------------------------------------------------------
 
-def test_kickoff_points_run_from_the_easy_end_to_each_levels_own_and_refused_ones_are_marked():
-    """Each level's points move its kick-off alone, from the easy end's to its own (the last point, the level
-    itself); a point whose spec the schema refuses is None, every other one validates."""
+def test_kickoff_points_cover_the_kickoff_once_and_refused_ones_are_marked():
+    """Each level's points move its kick-off alone, up to its own (the last point, the level itself): a level of
+    the geometry before it over the stretch beyond that level's own, a level of new geometry from the easy end's
+    kick-off; no start belongs to two levels; a point whose spec the schema refuses is None, every other one
+    validates."""
     spec = load_spec(FIELDS["soccer_v2"])
-    made = levels(spec, 4)
+    made = levels(spec, 6)
     space = LevelSpace.of(spec)
     tables = kickoff_tables(spec, made, 9)
-    assert [len(t) for t in tables] == [9] * 4
-    for level, table in zip(made, tables):
+    assert [len(t) for t in tables] == [9] * 6
+    starts = set()
+    for i, (level, table) in enumerate(zip(made, tables)):
         own = level.spec
         assert table[-1] == [level.coordinates[0], own.ball.spawn.x[0], own.ball.spawn.y[0], own.ball.spawn.x[1],
                              own.ball.spawn.y[1], *own.agent.start]
+        before = made[i - 1].coordinates if i else None
+        banded = before is not None and before[1:] == level.coordinates[1:]
         for j, row in enumerate(table):
-            point = (level.coordinates[0] * j / 8, *level.coordinates[1:])
+            kickoff = before[0] + (level.coordinates[0] - before[0]) * (j + 1) / 9 if banded \
+                else level.coordinates[0] * j / 8
+            point = (kickoff, *level.coordinates[1:])
+            if i == 0 and j < 8:
+                assert row is None  # the easy end is its own point alone
+                continue
             assert (row is not None) == space.playable(point)
             if row is not None:
                 at = space.spec_at(point)
-                assert row == [point[0], at.ball.spawn.x[0], at.ball.spawn.y[0], at.ball.spawn.x[1],
-                               at.ball.spawn.y[1], *at.agent.start]
+                assert row == pytest.approx([point[0], at.ball.spawn.x[0], at.ball.spawn.y[0], at.ball.spawn.x[1],
+                                             at.ball.spawn.y[1], *at.agent.start])
+                start = (*level.coordinates[1:], *row[1:])
+                assert start not in starts  # no start counted as two levels
+                starts.add(start)
+        if banded:
+            assert all(row is None or row[0] > before[0] for row in table)
+    assert [row[0] for row in tables[-2] if row is not None][0] == 0.0  # new geometry: from the easy end's kick-off
     assert any(row is None for row in tables[-1])  # the full goalie leaves no room for some kick-offs
     with pytest.raises(LevelError, match="at least 2"):
         kickoff_tables(spec, made, 1)
@@ -254,9 +270,9 @@ def test_buffer_levels_stay_inside_the_grid_on_playable_points_and_mutate_harder
             continue
         added, removed = np.argwhere(member & ~before), np.argwhere(before & ~member)
         assert len(added) == len(removed) <= REPLACED
-        for level, point in added:
-            assert any(before[level - dl, point - dp] for dl, dp in HARDER
-                       if 0 <= level - dl < 6 and 0 <= point - dp < 12)
+        for level, point in added:  # moves in reading order: past a level's last point, the next level's first
+            parents = [level * 12 + point - dl * 12 - dp for dl, dp in HARDER]
+            assert any(before.ravel()[f] for f in parents if 0 <= f < 6 * 12)
         swapped += len(added)
     assert swapped > 9
 

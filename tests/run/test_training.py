@@ -125,7 +125,7 @@ def test_a_curriculum_run_is_named_by_its_curriculum_not_its_last_stage(tmp_path
     from fieldgen.run import train as training
 
     titles = []
-    monkeypatch.setattr(training, "plot_success", lambda folder, rows, title: titles.append(title))
+    monkeypatch.setattr(training, "plot_success", lambda folder, rows, title, *_: titles.append(title))
 
     def one_evaluation(trainers, seeds, num_evals, schedule, progress, *args, **kwargs):
         progress(0, [{"eval": 0, "seed": 0, "env_steps": 0, "stage": 0, "success_any": 0.0, "time_at_goal": 0.0}])

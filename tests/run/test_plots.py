@@ -1,0 +1,22 @@
+"""success.png's legends and axes name a run's variants as the run does: an automatic curriculum's are levels."""
+
+from __future__ import annotations
+
+import pytest
+
+from fieldgen.run import plots
+
+
+def rows_of_two_variants() -> list[dict]:
+    return [{"eval": e, "seed": 0, "env_steps": 1000 * (e + 1), "success_any": 0.1 * e,
+             "variants": {"success_any": [0.2 * e, 0.1 * e], "weight": [0.8, 0.2]}} for e in range(3)]
+
+
+@pytest.mark.parametrize("variant", ["stage", "level"])
+def test_a_mixed_runs_figure_names_its_variants(tmp_path, monkeypatch, variant):
+    drawn = {}
+    monkeypatch.setattr(plots, "save_figure", lambda fig, axes, title, path: drawn.update(axes=axes))
+    plots.plot_success(tmp_path, rows_of_two_variants(), "title", variant)
+    labels = drawn["axes"][0].get_legend_handles_labels()[1]
+    assert labels == [f"{variant} 1", f"{variant} 2 (last)"]
+    assert drawn["axes"][1].get_ylabel() == f"{variant} (last: the field itself)"
