@@ -19,7 +19,7 @@ import socket
 import sys
 import threading
 import time
-from typing import Callable
+from typing import Callable, Sequence
 
 from fieldgen.run.record import RunError
 
@@ -102,6 +102,23 @@ def _wait_for(coordinator: str, timeout: int) -> None:
                                "start process 0 (--process-id 0 runs it) on that host, and check the address "
                                "and that the port is open between the hosts") from None
             time.sleep(0.5)
+
+
+def free_port() -> int:
+    """A port nobody on this host listens on now: where a coordinator can be started for the processes of a
+    run on one machine (the ones a test or a benchmark starts)."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def only_devices(platform: str, devices: Sequence[int | str]) -> dict[str, str]:
+    """The environment variables that give a process started on this machine these devices alone: GPUs by
+    index (or UUID); on the CPU as many devices as listed, which XLA makes up (`platform` is "gpu" or "cpu")."""
+    if platform == "gpu":
+        return {"CUDA_VISIBLE_DEVICES": ",".join(map(str, devices))}
+    flags = f"{os.environ.get('XLA_FLAGS', '')} --xla_force_host_platform_device_count={len(devices)}"
+    return {"JAX_PLATFORMS": "cpu", "XLA_FLAGS": flags.strip()}
 
 
 def watch(say: Callable[[str], None]) -> None:
