@@ -61,7 +61,7 @@ def platform_of(choice: str) -> tuple[str, str]:
                             "print(jax.default_backend(), len(d), d[0].device_kind, sep='|')"],
                            capture_output=True, text=True)
     if found.returncode != 0:
-        sys.exit(f"error: JAX could not start here: {found.stderr.strip().splitlines()[-1:]}")
+        sys.exit(f"error: JAX could not start here: {(found.stderr.strip().splitlines() or ['no output'])[-1]}")
     backend, count, kind = found.stdout.strip().splitlines()[-1].split("|")
     if backend != "gpu":
         if choice == "gpu":
