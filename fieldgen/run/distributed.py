@@ -19,7 +19,7 @@ import socket
 import sys
 import threading
 import time
-from typing import Callable
+from typing import Callable, Sequence
 
 from fieldgen.run.record import RunError
 
@@ -104,6 +104,23 @@ def _wait_for(coordinator: str, timeout: int) -> None:
             time.sleep(0.5)
 
 
+def free_port() -> int:
+    """A port nobody on this host listens on now: where a coordinator can be started for the processes of a
+    run on one machine (the ones a test or a benchmark starts)."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def only_devices(platform: str, devices: Sequence[int | str]) -> dict[str, str]:
+    """The environment variables that give a process started on this machine these devices alone: GPUs by
+    index (or UUID); on the CPU as many devices as listed, which XLA makes up (`platform` is "gpu" or "cpu")."""
+    if platform == "gpu":
+        return {"CUDA_VISIBLE_DEVICES": ",".join(map(str, devices))}
+    flags = f"{os.environ.get('XLA_FLAGS', '')} --xla_force_host_platform_device_count={len(devices)}"
+    return {"JAX_PLATFORMS": "cpu", "XLA_FLAGS": flags.strip()}
+
+
 def watch(say: Callable[[str], None]) -> None:
     """From now on until `finished`, as soon as the coordination service misses a process (by its heartbeat),
     `say` a sentence naming it and stop this one, whatever it is doing: computing, compiling or waiting for
@@ -146,7 +163,9 @@ def stop_if_another_stopped(error: BaseException, say: Callable[[str], None]) ->
 
 def _client():
     """The coordination service's client JAX keeps (None in a run of one process): whether the others live
-    and what they said are not asked of JAX otherwise."""
+    and what they said are not asked of JAX otherwise. Its public API has no way to it: jax.distributed only
+    starts and stops the runtime, and multihost_utils.live_devices is a barrier every process must enter
+    (no watcher thread can call it) and reads no keys."""
     from jax._src import distributed
 
     return distributed.global_state.client

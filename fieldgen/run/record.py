@@ -25,6 +25,9 @@ from fieldgen.files import Output, write_atomic
 RUN, METRICS, CSV, CHECKPOINT, PLOT = "run.json", "metrics.jsonl", "metrics.csv", "checkpoint.msgpack", "success.png"
 LEARNER, INITIAL, VIDEOS = "learner.msgpack", "initial.msgpack", "videos"
 RUN_FOLDER = Output("fieldgen train", (), RUN)  # written into file by file, never replaced whole
+# the metrics that time the run rather than say what it learned: the only ones in which the same run, trained
+# again or over other processes, may differ
+TIMINGS = ("wall_seconds", "steps_per_second", "peak_memory_mb")
 
 
 def run_name(field: str, algo: str, seeds: list[int]) -> str:

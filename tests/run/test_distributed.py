@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import json
 import os
-import socket
 import subprocess
 import sys
 import time
@@ -17,7 +16,7 @@ import pytest
 from typer.testing import CliRunner
 
 from fieldgen.cli import app
-from fieldgen.run import distributed
+from fieldgen.run import distributed, record
 from fieldgen.run.record import RunError
 
 runner = CliRunner()
@@ -57,9 +56,7 @@ def test_a_launcher_of_several_tasks_is_joined_and_one_process_alone_is_not(monk
 
 
 def test_a_coordinator_that_never_answers_is_one_line_after_the_timeout(tmp_path):
-    with socket.socket() as s:  # a port nobody listens on
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
+    port = distributed.free_port()  # nobody listens on it
     began = time.monotonic()
     with pytest.raises(RunError, match=rf"no coordinator answered at 127.0.0.1:{port} within 2 s"):
         distributed._wait_for(f"127.0.0.1:{port}", 2)
@@ -105,13 +102,9 @@ def test_a_process_gone_ends_this_one_with_one_sentence_naming_it(monkeypatch):
 
 # Two `fieldgen train` processes on the CPU, one device each, train as one run over both (their collectives go
 # through gloo); the same run in one process over two devices is what they must reproduce.
-TIMING = {"wall_seconds", "steps_per_second", "peak_memory_mb"}  # the only numbers two layouts may differ in
-
-
 def fieldgen_train(args: list[str], log: Path, devices: int = 1) -> subprocess.Popen:
     """`fieldgen train ARGS` in its own process on `devices` CPU devices, its output in `log`."""
-    env = {**os.environ, "JAX_PLATFORMS": "cpu",
-           "XLA_FLAGS": f"{os.environ.get('XLA_FLAGS', '')} --xla_force_host_platform_device_count={devices}"}
+    env = {**os.environ, **distributed.only_devices("cpu", range(devices))}
     with log.open("w") as output:
         return subprocess.Popen([sys.executable, "-m", "fieldgen", "train", *args], stdout=output,
                                 stderr=subprocess.STDOUT, env=env)
@@ -119,9 +112,7 @@ def fieldgen_train(args: list[str], log: Path, devices: int = 1) -> subprocess.P
 
 def over_two_processes(args: list[str], folder: Path, logs: str = "process") -> list[subprocess.Popen]:
     """The two processes of one run, started by hand as on two hosts (process 1 first: it waits for 0)."""
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
+    port = distributed.free_port()
     return [fieldgen_train([*args, "--coordinator", f"127.0.0.1:{port}", "--num-processes", "2", "--process-id",
                             str(i)], folder / f"{logs}{i}.log") for i in (1, 0)][::-1]
 
@@ -135,7 +126,7 @@ def ended(process: subprocess.Popen, log: Path, timeout: float = 900) -> str:
 def results(run: Path) -> tuple[list[dict], bytes, bytes]:
     """A run's metrics without their timings, its checkpoint and its learner, as written."""
     rows = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
-    return ([{k: v for k, v in row.items() if k not in TIMING} for row in rows],
+    return ([{k: v for k, v in row.items() if k not in record.TIMINGS} for row in rows],
             (run / "checkpoint.msgpack").read_bytes(), (run / "learner.msgpack").read_bytes())
 
 

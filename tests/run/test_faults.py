@@ -16,6 +16,7 @@ from typer.testing import CliRunner
 
 from fieldgen.agents import loop
 from fieldgen.cli import app
+from fieldgen.run import record
 
 runner = CliRunner()
 
@@ -55,8 +56,7 @@ def train(tmp_path: Path, moment: str, at: int, *args: str) -> subprocess.Comple
 
 
 def rows(run: Path) -> list[dict]:
-    timing = {"wall_seconds", "steps_per_second", "peak_memory_mb"}
-    return [{k: v for k, v in json.loads(line).items() if k not in timing}
+    return [{k: v for k, v in json.loads(line).items() if k not in record.TIMINGS}
             for line in (run / "metrics.jsonl").read_text().splitlines()]
 
 
