@@ -23,7 +23,7 @@ import optax
 
 from . import buffer as replay
 from .config import CRLConfig
-from .contrastive import energy, infonce, logsumexp_penalty, paired_energy, weighted_mean
+from .contrastive import critic_terms, energy, paired_energy, weighted_mean
 from .loop import Trainer
 from .networks import Stacked, gaussian_head, sample_tanh_gaussian
 from .optim import adam_by_group
@@ -122,10 +122,10 @@ def make_train(config: CRLConfig, env, team: Team | None = None, shared: bool = 
         taken = jnp.concatenate([mine, team.own_actions(batch["action"])], -1)
         actor_out, phi, psi = nets.apply(params, [controller_input, taken, goals])
         energy_ = energies(phi, psi, log_temperature)  # [controllers, batch, batch]
-        contrastive = jax.vmap(lambda x: infonce(c.contrastive_loss, x, w))(energy_)
-        penalty = jax.vmap(lambda x: logsumexp_penalty(x, w))(energy_)
+        positives = paired_energies(phi, psi, log_temperature)  # its diagonal: [controllers, batch]
+        contrastive, penalty, accuracy = jax.vmap(
+            lambda x, p: critic_terms(c.contrastive_loss, x, p, w))(energy_, positives)
         critic = contrastive + c.logsumexp_penalty * penalty
-        accuracy = mean_w((jnp.argmax(energy_, axis=2) == jnp.arange(len(w))).astype(jnp.float32))
 
         # [controllers, batch, own], [controllers, batch]
         action, log_prob = sample_tanh_gaussian(key, *gaussian_head(actor_out))

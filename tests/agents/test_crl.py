@@ -6,7 +6,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from fieldgen.agents.contrastive import ENERGIES, diagonal, energy, infonce, logsumexp_penalty, paired_energy
+from fieldgen.agents.contrastive import ENERGIES, LOSSES, critic_terms, energy, paired_energy
 from fieldgen.agents.optim import adam_by_group
 
 PHI = jnp.array([[0.0, 0.0], [1.0, 0.0]])
@@ -28,8 +28,8 @@ def test_paired_energy_is_the_diagonal_and_near_pairs_keep_their_distance():
     phi = jnp.asarray(rng.normal(0, 5, (6, 64)), jnp.float32)
     psi = phi + jnp.asarray(rng.normal(0, 1e-2, (6, 64)), jnp.float32)  # positives close to their rows
     for kind in ENERGIES:
-        np.testing.assert_allclose(paired_energy(kind, phi, psi, jnp.log(0.5)),
-                                   jnp.diagonal(energy(kind, phi, psi, jnp.log(0.5))), rtol=1e-5, atol=1e-6)
+        np.testing.assert_array_equal(paired_energy(kind, phi, psi, jnp.log(0.5)),  # to the bit: critic_terms
+                                      jnp.diagonal(energy(kind, phi, psi, jnp.log(0.5))))  # reads it as the diagonal
     direct = -np.linalg.norm(np.asarray(phi)[:, None] - np.asarray(psi)[None], axis=-1)
     np.testing.assert_allclose(energy("norm", phi, psi), direct, rtol=1e-3, atol=1e-3)
 
@@ -55,24 +55,92 @@ def test_the_energy_matrix_and_its_gradient_equal_every_pair_taken_apart():
                 np.testing.assert_allclose(a, b, rtol=1e-3, atol=1e-4)
 
 
-def test_infonce_by_hand():
+def terms(kind: str, logits: jnp.ndarray, weight: jnp.ndarray) -> tuple:
+    return critic_terms(kind, logits, jnp.diagonal(logits), weight)
+
+
+def test_critic_terms_by_hand():
     logits = jnp.array([[2.0, 0.0], [1.0, 3.0]])
     fwd = np.mean([-(2 - np.log(np.exp(2) + 1)), -(3 - np.log(np.exp(1) + np.exp(3)))])
     bwd = np.mean([-(2 - np.log(np.exp(2) + np.exp(1))), -(3 - np.log(1 + np.exp(3)))])
-    assert float(infonce("fwd_infonce", logits, ONES)) == pytest.approx(fwd, rel=1e-5)
-    assert float(infonce("bwd_infonce", logits, ONES)) == pytest.approx(bwd, rel=1e-5)
-    assert float(infonce("sym_infonce", logits, ONES)) == pytest.approx((fwd + bwd) / 2, rel=1e-5)
+    assert float(terms("fwd_infonce", logits, ONES)[0]) == pytest.approx(fwd, rel=1e-5)
+    assert float(terms("bwd_infonce", logits, ONES)[0]) == pytest.approx(bwd, rel=1e-5)
+    assert float(terms("sym_infonce", logits, ONES)[0]) == pytest.approx((fwd + bwd) / 2, rel=1e-5)
     only_first = -(2 - np.log(np.exp(2) + 1))
-    assert float(infonce("fwd_infonce", logits, jnp.array([1.0, 0.0]))) == pytest.approx(only_first, rel=1e-5)
+    assert float(terms("fwd_infonce", logits, jnp.array([1.0, 0.0]))[0]) == pytest.approx(only_first, rel=1e-5)
     lse = np.mean([np.log(np.exp(2) + 1) ** 2, np.log(np.exp(1) + np.exp(3)) ** 2])
-    assert float(logsumexp_penalty(logits, ONES)) == pytest.approx(lse, rel=1e-5)
+    assert float(terms("fwd_infonce", logits, ONES)[1]) == pytest.approx(lse, rel=1e-5)
+    assert float(terms("fwd_infonce", logits, ONES)[2]) == 1.0
+    assert float(terms("fwd_infonce", jnp.array([[2.0, 5.0], [1.0, 3.0]]), ONES)[2]) == 0.5
+
+
+def taken_apart(kind: str, logits, weight) -> tuple:
+    """The critic's three terms as the reference implementation writes them: a log-softmax per axis, the
+    diagonal read off it, a logsumexp of its own for the penalty, an argmax for the accuracy."""
+    import jax
+
+    def mean(x):
+        return jnp.sum(x * weight) / jnp.maximum(jnp.sum(weight), 1.0)
+
+    fwd = -jnp.diagonal(jax.nn.log_softmax(logits, axis=1))
+    bwd = -jnp.diagonal(jax.nn.log_softmax(logits, axis=0))
+    per_row = {"fwd_infonce": fwd, "bwd_infonce": bwd, "sym_infonce": 0.5 * (fwd + bwd)}[kind]
+    accuracy = (jnp.argmax(logits, axis=1) == jnp.arange(len(logits))).astype(jnp.float32)
+    return mean(per_row), mean(jax.nn.logsumexp(logits, axis=1) ** 2), mean(accuracy)
+
+
+@pytest.mark.parametrize("kind", LOSSES)
+def test_critic_terms_and_their_gradients_equal_the_terms_taken_apart(kind):
+    """From representations through every energy: the same loss, penalty and accuracy, and the same
+    gradients for phi and psi, as each term taken apart."""
+    import jax
+
+    rng = np.random.default_rng(1)
+    phi, psi = (jnp.asarray(rng.normal(0, 1, (16, 8)), jnp.float32) for _ in range(2))
+    weight = jnp.asarray(rng.random(16) > 0.2, jnp.float32)
+    for energy_kind in ENERGIES:
+        def fused(phi, psi):
+            logits = energy(energy_kind, phi, psi, jnp.log(0.5))
+            loss, penalty, accuracy = critic_terms(kind, logits, paired_energy(energy_kind, phi, psi, jnp.log(0.5)),
+                                                   weight)
+            return loss + 0.1 * penalty, (loss, penalty, accuracy)
+
+        def reference(phi, psi):
+            loss, penalty, accuracy = taken_apart(kind, energy(energy_kind, phi, psi, jnp.log(0.5)), weight)
+            return loss + 0.1 * penalty, (loss, penalty, accuracy)
+
+        (_, got), got_grads = jax.value_and_grad(fused, argnums=(0, 1), has_aux=True)(phi, psi)
+        (_, want), want_grads = jax.value_and_grad(reference, argnums=(0, 1), has_aux=True)(phi, psi)
+        np.testing.assert_allclose(got, want, rtol=1e-5, atol=1e-6, err_msg=energy_kind)
+        for g, w in zip(got_grads, want_grads):
+            np.testing.assert_allclose(g, w, rtol=1e-4, atol=1e-6, err_msg=energy_kind)
+
+
+def test_critic_terms_reduce_the_matrix_fewer_times_than_the_terms_taken_apart():
+    """Each reduction over the [B, B] logits is a GPU kernel at every gradient step: the loss, penalty and
+    accuracy with their gradient compile to fewer of them than the three terms taken apart."""
+    import jax
+
+    logits, weight = jnp.zeros((64, 64)), jnp.ones(64)
+
+    def reductions(terms_of) -> int:
+        def loss(logits):
+            a, b, c = terms_of(logits)
+            return a + 0.1 * b, c
+
+        text = jax.jit(jax.grad(loss, has_aux=True)).lower(logits).as_text()
+        return sum(1 for line in text.splitlines() if "reduce" in line and "64x64" in line)
+
+    fused = reductions(lambda x: critic_terms("fwd_infonce", x, jnp.diagonal(x), weight))
+    apart = reductions(lambda x: taken_apart("fwd_infonce", x, weight))
+    assert 0 < fused < apart, (fused, apart)
 
 
 def test_unknown_names_are_refused():
     with pytest.raises(ValueError, match="unknown energy 'cos'"):
         energy("cos", PHI, PSI)
     with pytest.raises(ValueError, match="unknown contrastive loss"):
-        infonce("nce", PHI @ PSI.T, ONES)
+        critic_terms("nce", PHI @ PSI.T, ONES, ONES)
 
 
 def test_adam_by_group_equals_one_adam_per_group():
@@ -98,15 +166,6 @@ def test_adam_by_group_equals_one_adam_per_group():
         groups = optax.apply_updates(groups, updates)
     with pytest.raises(ValueError, match="2 learning rates"):
         grouped.init(groups[:1])
-
-
-def test_diagonal_and_its_gradient():
-    import jax
-
-    x = jnp.arange(9.0).reshape(3, 3)
-    np.testing.assert_allclose(diagonal(x), [0.0, 4.0, 8.0])
-    np.testing.assert_allclose(jax.grad(lambda m: jnp.sum(diagonal(m) * jnp.arange(1.0, 4.0)))(x),
-                               np.diag([1.0, 2.0, 3.0]))
 
 
 @pytest.mark.slow

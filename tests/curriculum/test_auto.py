@@ -19,6 +19,7 @@ from fieldgen.curriculum.auto import (BUFFER, FLOOR, FRONTIER_SHARE, HARDER, KEP
 from fieldgen.curriculum.levels import LevelError, LevelSpace
 from fieldgen.env import FieldEnv
 from fieldgen.curriculum.schedule import sampling_weights
+from fieldgen.run import record
 from fieldgen.schema import bundled_fields, load_spec
 
 runner = CliRunner()
@@ -189,7 +190,7 @@ def test_an_auto_run_killed_and_resumed_continues_its_levels_exactly(tmp_path, i
     assert resumed.exit_code == 0, resumed.output
 
     def rows(folder):
-        return [{k: v for k, v in json.loads(line).items() if k not in ("wall_seconds", "steps_per_second")}
+        return [{k: v for k, v in json.loads(line).items() if k not in record.TIMINGS}
                 for line in (folder / "metrics.jsonl").read_text().splitlines()]
 
     assert rows(cut) == rows(tmp_path / "whole" / "point_soccer-auto-crl-0")
