@@ -38,6 +38,15 @@ def needed(process_id: int | None) -> bool:
 
 def supervise() -> int:
     """Run this command again as a child, relay what it prints, and return the exit status to end with."""
+    previous = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        return _relay()
+    finally:  # the caller (a test, a program calling fieldgen's app) keeps its own handlers
+        for sig, handler in previous.items():
+            signal.signal(sig, signal.SIG_DFL if handler is None else handler)
+
+
+def _relay() -> int:
     with tempfile.TemporaryDirectory(prefix="fieldgen-supervisor-") as folder:
         words = Path(folder) / "words"
         child = subprocess.Popen([sys.executable, "-m", "fieldgen", *sys.argv[1:]], stderr=subprocess.PIPE,

@@ -209,3 +209,17 @@ def test_only_processes_other_than_the_coordinator_train_in_a_supervised_child(m
     assert not supervisor.needed(None)
     monkeypatch.setenv(supervisor.WORDS, "/tmp/words")  # the child itself
     assert not supervisor.needed(1)
+
+
+def test_a_supervised_command_gives_back_the_signal_handlers_it_took(monkeypatch):
+    """The parent ignores Ctrl-C while its child trains; once the child is done, whoever called the app (a test,
+    a program) has its own handlers again, and the processes it starts later can be stopped by SIGINT."""
+    import signal
+    import sys
+
+    from fieldgen.run import supervisor
+
+    before = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
+    monkeypatch.setattr(sys, "argv", ["fieldgen", "--help"])
+    assert supervisor.supervise() == 0
+    assert {sig: signal.getsignal(sig) for sig in before} == before
