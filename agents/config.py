@@ -299,6 +299,9 @@ class CRLConfig(ReplayConfig):
     contrastive_loss: Loss = "fwd_infonce"
     logsumexp_penalty: Annotated[Float, Field(ge=0)] = 0.1
     target_entropy_per_action: Float = -0.5
+    # share of the actor's goals that are the episode's commanded goal rather than a later state of it (the
+    # critic learns from the later states alone): the actor then practises the goals it is asked for
+    actor_commanded_goals: Share = 0.0
 
     def validate_env(self, env: Environment, devices: int = 1, seeds: int = 1) -> None:
         super().validate_env(env, devices, seeds)

@@ -63,6 +63,7 @@ def make_train(config: CRLConfig, env, team: Team | None = None, shared: bool = 
                    c.layer_norm, team.size, shared, c.skip_every, c.matmul)
     tx = adam_by_group(jnp.array([c.actor_lr, c.critic_lr, c.critic_lr]), c.critic_lr, c.alpha_lr)
     target_entropy = c.target_entropy_per_action * own
+    commanded = c.actor_commanded_goals > 0  # the buffer keeps each step's commanded goal only when used
     energies = jax.vmap(functools.partial(energy, c.energy))
     paired_energies = jax.vmap(functools.partial(paired_energy, c.energy))
 
@@ -73,6 +74,8 @@ def make_train(config: CRLConfig, env, team: Team | None = None, shared: bool = 
         env_state = jax.vmap(env.reset)(jax.random.split(k_env, c.num_envs))
         example = {"state": jnp.zeros(state_dim), "action": jnp.zeros(action_size),
                    "episode": jnp.zeros((), jnp.int32)}
+        if commanded:
+            example["commanded"] = jnp.zeros(goal_size)
         return TrainState(params, log_temperature, log_alpha, tx.init((params, log_temperature, log_alpha)),
                           env_state, replay.init(c.max_replay_rows, c.num_envs, example), key,
                           jnp.zeros((), jnp.int32), jnp.zeros((), jnp.int32))
@@ -98,6 +101,8 @@ def make_train(config: CRLConfig, env, team: Team | None = None, shared: bool = 
             env_state = carry
             action = policy(actor, env_state.obs, key)
             row = {"state": env_state.obs[:, :state_dim], "action": action, "episode": env_state.info["episode"]}
+            if commanded:
+                row["commanded"] = env_state.obs[:, state_dim:]
             nxt = jax.vmap(env.step)(env_state, action)
             fell = nxt.done * (1.0 - nxt.info["truncation"])
             return nxt, (row, {"train_success": nxt.metrics["success"], "train_falls": fell})
@@ -114,9 +119,12 @@ def make_train(config: CRLConfig, env, team: Team | None = None, shared: bool = 
         Each part reads the others' parameters through stop_gradient, so the one gradient equals the
         three separate ones taken at the same parameters, while the goals are encoded once. The critic
         is each controller's InfoNCE on its own view and actions; the actor maximises the energy of its own
-        sampled action towards the goal; alpha grows while a policy is below its target entropy."""
+        sampled action towards its goal (the critic's, or for `actor_commanded_goals` of the rows the goal the
+        episode commanded); alpha grows while a policy is below its target entropy."""
         params, log_temperature, log_alpha = learner
-        controller_input, mine, goals = controller_obs(batch["state"], batch["goal"])
+        _, mine, goals = controller_obs(batch["state"], batch["goal"])
+        # the actor's goals: the critic's (later states), or for a share of rows the commanded goal
+        controller_input, _, actor_goals = controller_obs(batch["state"], batch.get("actor_goal", batch["goal"]))
         w = batch["weight"]
         mean_w = jax.vmap(lambda x: weighted_mean(x, w))
         taken = jnp.concatenate([mine, team.own_actions(batch["action"])], -1)
@@ -132,8 +140,9 @@ def make_train(config: CRLConfig, env, team: Team | None = None, shared: bool = 
         # the whole stack again, frozen, for phi of the actor's own action: a stack call costs the
         # same kernels as one network, and slicing phi's weights out would cost copies
         frozen = jax.lax.stop_gradient(params)
-        phi_pi = nets.apply(frozen, [controller_input, jnp.concatenate([mine, action], -1), goals])[1]
-        q = paired_energies(phi_pi, jax.lax.stop_gradient(psi), jax.lax.stop_gradient(log_temperature))
+        _, phi_pi, psi_goal = nets.apply(frozen, [controller_input, jnp.concatenate([mine, action], -1), actor_goals])
+        psi_goal = psi_goal if commanded else jax.lax.stop_gradient(psi)  # the critic's goals: its own pass's
+        q = paired_energies(phi_pi, psi_goal, jax.lax.stop_gradient(log_temperature))
         alpha = jnp.exp(log_alpha)[:, None]
         actor_ = mean_w(jax.lax.stop_gradient(alpha) * log_prob - q)
         alpha_ = mean_w(alpha * jax.lax.stop_gradient(-log_prob - target_entropy))
@@ -152,10 +161,16 @@ def make_train(config: CRLConfig, env, team: Team | None = None, shared: bool = 
 
     def update_epoch(ts: TrainState) -> tuple[TrainState, dict]:
         """Windows from the buffer, hindsight goals, then one pass of shuffled minibatch updates."""
-        key, k_batch, k_perm, k_upd = jax.random.split(ts.key, 4)
+        if commanded:
+            key, k_batch, k_perm, k_upd, k_ask = jax.random.split(ts.key, 5)
+        else:
+            key, k_batch, k_perm, k_upd = jax.random.split(ts.key, 4)
         sampled = replay.hindsight_batch(ts.buffer, k_batch, windows, window, c.discount, goal_indices)
         batch = {"state": sampled["state"], "action": sampled["action"], "goal": sampled["future_goal"],
                  "weight": sampled["has_future"].astype(jnp.float32)}
+        if commanded:
+            asked = jax.random.uniform(k_ask, (windows * window,)) < c.actor_commanded_goals
+            batch["actor_goal"] = jnp.where(asked[:, None], sampled["commanded"], sampled["future_goal"])
         perm = jax.random.permutation(k_perm, windows * window)[:updates * c.batch_size]
         batch = jax.tree.map(lambda x: x[perm].reshape((updates, c.batch_size) + x.shape[1:]), batch)
 

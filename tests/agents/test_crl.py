@@ -170,8 +170,9 @@ def test_adam_by_group_equals_one_adam_per_group():
 
 @pytest.mark.slow
 @pytest.mark.parametrize("network", [dict(hidden=(64, 64)),
-                                     dict(hidden=(64, 64, 64), skip_every=2, layer_norm=True)],
-                         ids=["mlp", "residual_layer_norm"])
+                                     dict(hidden=(64, 64, 64), skip_every=2, layer_norm=True),
+                                     dict(hidden=(64, 64), actor_commanded_goals=0.5)],
+                         ids=["mlp", "residual_layer_norm", "actor_on_commanded_goals"])
 def test_crl_learns_point_nav(env_cache, network):
     """From an untrained policy to reaching a random target 3 away in at least 80% of episodes, in 40k steps,
     with the plain MLPs and with residual blocks of Dense -> LayerNorm -> swish."""
@@ -184,3 +185,30 @@ def test_crl_learns_point_nav(env_cache, network):
     assert history[0]["success_any"] <= 0.3
     assert history[-1]["success_any"] >= 0.8
     assert history[-1]["time_at_goal"] > 30
+
+
+def test_the_buffer_keeps_the_commanded_goal_only_for_an_actor_that_learns_from_it(env_cache, tiny_crl):
+    """With `actor_commanded_goals` the buffer keeps each step's commanded goal (point_nav's target, one per
+    episode); without it the buffer, and so a checkpoint, is as it was."""
+    import jax
+
+    from fieldgen.agents.crl import make_train
+
+    env = env_cache("point_nav")
+    plain = make_train(tiny_crl(), env).start(jax.random.PRNGKey(0))
+    assert "commanded" not in plain.buffer.data
+    asked = make_train(tiny_crl(actor_commanded_goals=0.5), env).start(jax.random.PRNGKey(0))
+    commanded, episode = (np.asarray(asked.buffer.data[k]) for k in ("commanded", "episode"))
+    stored = np.abs(commanded).sum(-1) > 0
+    assert stored.any() and commanded.shape[-1] == len(env.goal_indices)
+    for env_index in range(episode.shape[1]):  # one goal per episode
+        for e in np.unique(episode[stored[:, env_index], env_index]):
+            rows = commanded[(episode[:, env_index] == e) & stored[:, env_index], env_index]
+            assert np.allclose(rows, rows[0])
+
+
+def test_a_share_of_commanded_goals_outside_zero_to_one_is_refused(tiny_crl):
+    from fieldgen.agents.config import ConfigError
+
+    with pytest.raises((ConfigError, ValueError), match="actor_commanded_goals"):
+        tiny_crl(actor_commanded_goals=1.5)
