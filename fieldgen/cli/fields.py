@@ -154,6 +154,7 @@ def render(
 
     Example: fieldgen render fields/soccer_v2.yaml -o v2.png --camera follow
     Example: fieldgen render runs/soccer_v2-auto-crl-0 --levels -o levels.png
+    Example: fieldgen render runs/soccer_v2-auto-crl-0 -o all_levels.png  (every level the run has built)
     """
     from fieldgen.compile.artifact import ArtifactError, compile_spec, load_artifact
     from fieldgen.files import write_atomic
@@ -184,6 +185,19 @@ def render(
         except (curriculum.CurriculumError, RenderError, OSError) as exc:
             fail(str(exc))
         out.print(f"wrote {output}: {len(c.stages)} stages of {spec}, camera {view}")
+        return
+    from fieldgen.curriculum.sheet import built_fields
+
+    built = built_fields(Path(spec))
+    if built:  # a folder of built fields: a curriculum run's levels or stages, or a build folder
+        from fieldgen.curriculum.sheet import built_sheet
+
+        view = "top" if camera == "both" else camera
+        try:
+            write_atomic(output, built_sheet(built, view))
+        except (ArtifactError, RenderError, OSError) as exc:
+            fail(str(exc))
+        out.print(f"wrote {output}: {len(built)} built fields of {spec}, camera {view}")
         return
     try:
         path = Path(spec)

@@ -3,7 +3,9 @@ one scale with its field's size written under it."""
 
 from __future__ import annotations
 
-from fieldgen.compile.artifact import compile_spec
+from pathlib import Path
+
+from fieldgen.compile.artifact import META, compile_spec, load_artifact
 from fieldgen.curriculum.folder import Curriculum
 from fieldgen.render import contact_sheet, render_pose, same_scale
 
@@ -11,9 +13,30 @@ from fieldgen.render import contact_sheet, render_pose, same_scale
 def stage_sheet(c: Curriculum, camera: str) -> bytes:
     """PNG bytes of a grid of the stages, numbered from 1, each compiled in memory (nothing is built)."""
     specs = c.specs()
-    models = [compile_spec(spec).model() for spec in specs]
+    return _sheet([compile_spec(spec) for spec in specs], [stage.name for stage in c.stages], camera)
+
+
+def built_fields(folder: Path) -> list[Path]:
+    """The built fields in `folder`, or in its `stages/` (a curriculum run's variants), in name order; none
+    where it holds none (or is a built field itself)."""
+    for where in (folder, folder / "stages"):
+        if where.is_dir() and not (where / META).exists():
+            found = sorted(p for p in where.iterdir() if (p / META).is_file())
+            if found:
+                return found
+    return []
+
+
+def built_sheet(folders: list[Path], camera: str) -> bytes:
+    """PNG bytes of a grid of built fields (`built_fields`), numbered from 1 under their folders' names."""
+    artifacts = [load_artifact(f) for f in folders]
+    return _sheet(artifacts, [f"{f.name}: {a.spec.name}" for f, a in zip(folders, artifacts)], camera)
+
+
+def _sheet(artifacts: list, names: list[str], camera: str) -> bytes:
+    models = [a.model() for a in artifacts]
     if camera == "top":
         same_scale(models, camera)
     images = [render_pose(model, camera=camera, height=240) for model in models]
-    sizes = [f"field {spec.field.width:g} wide, {spec.field.length:g} long" for spec in specs]
-    return contact_sheet(images, [f"{i}. {stage.name}" for i, stage in enumerate(c.stages, 1)], captions=sizes)
+    sizes = [f"field {a.spec.field.width:g} wide, {a.spec.field.length:g} long" for a in artifacts]
+    return contact_sheet(images, [f"{i}. {name}" for i, name in enumerate(names, 1)], captions=sizes)

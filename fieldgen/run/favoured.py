@@ -21,8 +21,8 @@ def favoured_levels(folder: Path, camera: str, top: int = 6) -> tuple[bytes, str
         raise record.RunError(f"{folder} trains one stage at a time; --levels draws the levels a mixed or automatic "
                               "curriculum weighs (fieldgen train SPEC --curriculum auto)")
     if not run.rows:
-        raise record.RunError(f"{folder} has no evaluation yet: the levels are weighed after each one; draw its "
-                              "stages with fieldgen render STAGE_FOLDER, or train it first")
+        raise record.RunError(f"{folder} has no evaluation yet: the levels are weighed after each one; draw all of "
+                              f"them with fieldgen render {folder}, or train it first")
     last = [r for r in run.rows if r["eval"] == run.rows[-1]["eval"]]
     share = np.mean([r["variants"]["weight"] for r in last], axis=0)
     success = np.mean([r["variants"]["success_any"] for r in last], axis=0)

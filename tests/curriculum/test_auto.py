@@ -93,6 +93,9 @@ def test_auto_run_records_its_levels_and_weights_and_resumes(tmp_path, monkeypat
     run = tmp_path / "point_soccer-auto-crl-0"
     early = runner.invoke(app, ["render", str(run), "--levels", "-o", str(tmp_path / "early.png")])
     assert early.exit_code != 0 and "has no evaluation yet" in " ".join(early.output.split())
+    assert f"drawallofthemwithfieldgenrender{run}" in "".join(early.output.split())  # wrapped or not
+    every = runner.invoke(app, ["render", str(run), "-o", str(tmp_path / "every.png")])
+    assert every.exit_code == 0 and "4 built fields" in " ".join(every.output.split()), every.output
     record = json.loads((run / "run.json").read_text())
     assert record["schedule"] == "auto" and record["mixed"] and len(record["levels"]) == 4
     assert record["levels"][0]["kickoff"] == 0.0 and all(v == 1.0 for v in record["levels"][-1].values())

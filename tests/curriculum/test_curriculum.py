@@ -228,6 +228,24 @@ def test_a_curriculum_renders_as_a_sheet_of_its_stages(tmp_path):
     assert image.ndim == 3 and image.std() > 10
 
 
+def test_a_folder_of_built_fields_renders_as_a_sheet_of_them(tmp_path):
+    """A build folder of several fields, or a curriculum run whose `stages/` holds its built levels, draws as a
+    sheet of every field in it, in name order."""
+    import imageio.v3 as iio
+
+    for where in ("build", "run/stages"):
+        built = runner.invoke(app, ["build", "point_nav", "point_soccer", "--out", str(tmp_path / where),
+                                    "--no-preview"])
+        assert built.exit_code == 0, built.output
+    for folder in ("build", "run"):
+        sheet = tmp_path / f"{folder}.png"
+        result = runner.invoke(app, ["render", str(tmp_path / folder), "-o", str(sheet)])
+        assert result.exit_code == 0 and "2 built fields of" in " ".join(result.output.split()), result.output
+        assert iio.imread(sheet).std() > 10
+    one = runner.invoke(app, ["render", str(tmp_path / "build" / "point_nav"), "-o", str(tmp_path / "one.png")])
+    assert one.exit_code == 0 and "camera top" in one.output and "built fields" not in one.output
+
+
 @pytest.mark.parametrize("edit,phrase", [
     (lambda t: t.replace("file: stage_01.yaml", "file: ../../outside.yaml"), "curriculum.yaml:10:3: stages[0].file: "
      "should name a .yaml file in the curriculum's folder, such as stage_01.yaml (got '../../outside.yaml')"),
