@@ -191,10 +191,11 @@ def render(
     built = built_fields(Path(spec))
     if built:  # a folder of built fields: a curriculum run's levels or stages, or a build folder
         from fieldgen.curriculum.sheet import built_sheet
+        from fieldgen.run.favoured import level_captions
 
         view = "top" if camera == "both" else camera
         try:
-            write_atomic(output, built_sheet(built, view))
+            write_atomic(output, built_sheet(built, view, level_captions(Path(spec), len(built))))
         except (ArtifactError, RenderError, OSError) as exc:
             fail(str(exc))
         out.print(f"wrote {output}: {len(built)} built fields of {spec}, camera {view}")

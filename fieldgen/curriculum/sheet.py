@@ -27,16 +27,17 @@ def built_fields(folder: Path) -> list[Path]:
     return []
 
 
-def built_sheet(folders: list[Path], camera: str) -> bytes:
-    """PNG bytes of a grid of built fields (`built_fields`), numbered from 1 under their folders' names."""
+def built_sheet(folders: list[Path], camera: str, captions: list[str] | None = None) -> bytes:
+    """PNG bytes of a grid of built fields (`built_fields`), numbered from 1 under their folders' names, each
+    with its caption (by default its field's size)."""
     artifacts = [load_artifact(f) for f in folders]
-    return _sheet(artifacts, [f"{f.name}: {a.spec.name}" for f, a in zip(folders, artifacts)], camera)
+    return _sheet(artifacts, [f"{f.name}: {a.spec.name}" for f, a in zip(folders, artifacts)], camera, captions)
 
 
-def _sheet(artifacts: list, names: list[str], camera: str) -> bytes:
+def _sheet(artifacts: list, names: list[str], camera: str, captions: list[str] | None = None) -> bytes:
     models = [a.model() for a in artifacts]
     if camera == "top":
         same_scale(models, camera)
     images = [render_pose(model, camera=camera, height=240) for model in models]
-    sizes = [f"field {a.spec.field.width:g} wide, {a.spec.field.length:g} long" for a in artifacts]
-    return contact_sheet(images, [f"{i}. {name}" for i, name in enumerate(names, 1)], captions=sizes)
+    captions = captions or [f"field {a.spec.field.width:g} wide, {a.spec.field.length:g} long" for a in artifacts]
+    return contact_sheet(images, [f"{i}. {name}" for i, name in enumerate(names, 1)], captions=captions)

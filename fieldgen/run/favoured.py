@@ -32,9 +32,24 @@ def favoured_levels(folder: Path, camera: str, top: int = 6) -> tuple[bytes, str
     images, titles = [], []
     for k in order:
         images.append(render_pose(run.envs[k].artifact.model(), camera=camera, height=240))
-        where = ", ".join(f"{axis} {value:.2f}" for axis, value in coordinates[k].items()) if coordinates else ""
+        where = level_text(coordinates[k]) if coordinates else ""
         name = "the field itself" if k == len(run.envs) - 1 else f"{kind} {k + 1}"
         titles.append(f"{name}: {share[k]:.0%} of episodes, success {success[k]:.2f}" + (f"\n{where}" if where else ""))
     said = (f"the {len(order)} most played of {len(run.envs)} levels after evaluation {last[0]['eval']} "
             f"({last[0]['env_steps']:,} env steps)")
     return contact_sheet(images, titles), said
+
+
+def level_text(coordinates: dict) -> str:
+    """A level's place on its curriculum's axes, as its drawings say it: "kickoff 0.29, walls 0.00"."""
+    return ", ".join(f"{axis} {value:.2f}" for axis, value in coordinates.items())
+
+
+def level_captions(folder: Path, count: int) -> list[str] | None:
+    """Under each of an automatic curriculum run's `count` built levels, its place on the axes (run.json's
+    `levels`); None for any other folder."""
+    try:
+        coordinates = record.read_run(folder).levels
+    except record.RunError:
+        return None
+    return [level_text(c) for c in coordinates] if len(coordinates) == count else None

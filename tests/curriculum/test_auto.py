@@ -96,6 +96,9 @@ def test_auto_run_records_its_levels_and_weights_and_resumes(tmp_path, monkeypat
     assert f"drawallofthemwithfieldgenrender{run}" in "".join(early.output.split())  # wrapped or not
     every = runner.invoke(app, ["render", str(run), "-o", str(tmp_path / "every.png")])
     assert every.exit_code == 0 and "4 built fields" in " ".join(every.output.split()), every.output
+    from fieldgen.run.favoured import level_captions
+
+    assert level_captions(run, 4)[1].startswith("kickoff 0.67, ")  # under each level, its place on the axes
     record = json.loads((run / "run.json").read_text())
     assert record["schedule"] == "auto" and record["mixed"] and len(record["levels"]) == 4
     assert record["levels"][0]["kickoff"] == 0.0 and all(v == 1.0 for v in record["levels"][-1].values())

@@ -242,6 +242,9 @@ def test_a_folder_of_built_fields_renders_as_a_sheet_of_them(tmp_path):
         result = runner.invoke(app, ["render", str(tmp_path / folder), "-o", str(sheet)])
         assert result.exit_code == 0 and "2 built fields of" in " ".join(result.output.split()), result.output
         assert iio.imread(sheet).std() > 10
+    from fieldgen.run.favoured import level_captions
+
+    assert level_captions(tmp_path / "build", 2) is None  # no run: each field's size under it
     one = runner.invoke(app, ["render", str(tmp_path / "build" / "point_nav"), "-o", str(tmp_path / "one.png")])
     assert one.exit_code == 0 and "camera top" in one.output and "built fields" not in one.output
 
