@@ -7,6 +7,9 @@ programs, e.g. two GPUs, joined with '+'); rows of one evaluation index are one 
 
     python bench/seed_bands.py preset=bench/results/ant_nav_fresh_seeds/preset_200to202.metrics.jsonl+... \\
         -o bench/results/ant_nav_fresh_seeds/preset.png --title "ant_nav, CRL preset, fresh seeds 200-204"
+
+--threshold T also prints, for each seed, the first evaluation whose success on the field reached T (its env
+steps and wall clock, from every row the seed has, also those past the last evaluation all seeds reached).
 """
 
 from __future__ import annotations
@@ -24,7 +27,32 @@ def setting(files: str) -> SimpleNamespace:
     rows = [json.loads(line) for f in files.split("+") for line in Path(f).read_text().splitlines() if line.strip()]
     seeds = sorted({r["seed"] for r in rows})
     common = min(max(r["eval"] for r in rows if r["seed"] == s) for s in seeds)
-    return SimpleNamespace(rows=[r for r in rows if r["eval"] <= common], seeds=seeds)
+    return SimpleNamespace(rows=[r for r in rows if r["eval"] <= common], seeds=seeds, every_row=rows)
+
+
+def first_reaching(rows: list[dict], threshold: float) -> dict[int, dict | None]:
+    """Each seed's first evaluation row whose success on the field (compare.on_field) reached `threshold`, in
+    env-step order; None for a seed none of whose rows did."""
+    out: dict[int, dict | None] = {}
+    for row in sorted(rows, key=lambda r: r["env_steps"]):
+        seed = row["seed"]
+        out.setdefault(seed, None)
+        if out[seed] is None and compare.on_field(row, "success_any") >= threshold:
+            out[seed] = row
+    return out
+
+
+def reaching_text(rows: list[dict], threshold: float) -> str:
+    """One line: each seed's env steps and wall clock to `threshold`, or the env steps it got to without."""
+    parts = []
+    for seed, row in first_reaching(rows, threshold).items():
+        if row is None:
+            last = max(r["env_steps"] for r in rows if r["seed"] == seed)
+            parts.append(f"{seed}: not by {last / 1e6:.1f}M")
+        else:
+            wall = row.get("wall_seconds")
+            parts.append(f"{seed}: {row['env_steps'] / 1e6:.1f}M" + (f" ({wall:,.0f} s)" if wall is not None else ""))
+    return f"first success_any >= {threshold:g} on the field: " + ", ".join(parts)
 
 
 def last_evaluation(run: SimpleNamespace) -> dict:
@@ -38,6 +66,7 @@ def main() -> None:
     parser.add_argument("settings", nargs="+", metavar="LABEL=FILE[+FILE...]")
     parser.add_argument("-o", "--out", type=Path, required=True, help="the plot (PNG)")
     parser.add_argument("--title", default="")
+    parser.add_argument("--threshold", type=float, help="also print each seed's first evaluation reaching it")
     args = parser.parse_args()
     labels, runs = [], []
     for entry in args.settings:
@@ -52,6 +81,8 @@ def main() -> None:
         print(f"{label}: env steps {', '.join(f'{s:,}' for s in sorted(steps))}; success_any "
               + ", ".join(f"{s}: {v:.3f}" for s, v in zip(run.seeds, values))
               + f"; IQM {summary.iqm(values):.3f} [{low:.3f}, {high:.3f}] over {len(values)} seeds")
+        if args.threshold is not None:
+            print(f"{label}: {reaching_text(run.every_row, args.threshold)}")
     compare.plot(runs, args.out, args.title, labels=labels)
     print(f"plot: {args.out}")
 

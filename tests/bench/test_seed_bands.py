@@ -1,0 +1,28 @@
+"""seed_bands: each seed's time to a success rate, judged on the field as a curriculum's runs are."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "bench"))
+import seed_bands  # noqa: E402
+
+sys.path.remove(str(ROOT / "bench"))
+
+
+def row(seed: int, steps: int, field: float, easiest: float) -> dict:
+    """A mixed or automatic curriculum's evaluation row: success on every variant, the field last."""
+    return {"seed": seed, "eval": steps, "env_steps": steps * 1_000_000, "wall_seconds": steps * 10.0,
+            "success_any": (field + easiest) / 2, "variants": {"success_any": [easiest, field]}}
+
+
+def test_each_seed_reaches_the_threshold_on_the_field_not_on_its_easy_levels():
+    rows = [row(0, 1, 0.0, 0.9), row(0, 2, 0.4, 0.9), row(0, 3, 0.2, 0.9),  # the easy level alone is no success
+            row(1, 1, 0.1, 0.5), row(1, 2, 0.2, 0.6), row(1, 3, 0.5, 0.6), row(1, 4, 0.6, 0.7),
+            row(2, 1, 0.0, 0.8)]
+    first = seed_bands.first_reaching(list(reversed(rows)), 0.3)  # in env-step order, whatever the files' order
+    assert {seed: r and r["env_steps"] for seed, r in first.items()} == {0: 2_000_000, 1: 3_000_000, 2: None}
+    text = seed_bands.reaching_text(rows, 0.3)
+    assert text == "first success_any >= 0.3 on the field: 0: 2.0M (20 s), 1: 3.0M (30 s), 2: not by 1.0M"
