@@ -12,17 +12,20 @@ import jax.numpy as jnp
 ENERGIES = ("norm", "l2", "dot", "cosine")
 
 
-def energy(kind: str, phi: jax.Array, psi: jax.Array, log_temperature: jax.Array | None = None) -> jax.Array:
+def energy(kind: str, phi: jax.Array, psi: jax.Array, log_temperature: jax.Array | None = None,
+           positives: jax.Array | None = None) -> jax.Array:
     """Pairwise energies between rows of phi [B, d] and psi [B, d] -> [B, B].
 
     Every pair comes from one matrix product (distances as |a|^2 + |b|^2 - 2 a.b), not from the
     [B, B, d] differences: reducing those over d is the slower at the batches CRL trains with, on a GPU
     and far more on a CPU (bench/energy_matrix.py; its timings in bench/results/). The diagonal, the
     positive pairs, whose small distances that form would round away, is `paired_energy`'s own, for every
-    energy, so that the positive pairs `critic_terms` is given are the matrix's diagonal to the bit."""
+    energy, so that the positive pairs `critic_terms` is given are the matrix's diagonal to the bit; a caller that
+    has them already (`paired_energy` of the same rows) passes them as `positives`."""
     if kind not in ENERGIES:
         raise ValueError(f"unknown energy {kind!r}; choose one of {', '.join(ENERGIES)}")
-    positives = paired_energy(kind, phi, psi, log_temperature)
+    if positives is None:
+        positives = paired_energy(kind, phi, psi, log_temperature)
     if kind == "cosine":
         phi, psi = _unit(phi), _unit(psi)
     cross = jnp.matmul(phi, psi.T, precision=jax.lax.Precision.HIGHEST)

@@ -122,15 +122,16 @@ def make_train(config: CRLConfig, env, team: Team | None = None, shared: bool = 
         sampled action towards its goal (the critic's, or for `actor_commanded_goals` of the rows the goal the
         episode commanded); alpha grows while a policy is below its target entropy."""
         params, log_temperature, log_alpha = learner
-        _, mine, goals = controller_obs(batch["state"], batch["goal"])
-        # the actor's goals: the critic's (later states), or for a share of rows the commanded goal
-        controller_input, _, actor_goals = controller_obs(batch["state"], batch.get("actor_goal", batch["goal"]))
+        controller_input, mine, goals = controller_obs(batch["state"], batch["goal"])
+        actor_goals = goals  # the critic's (later states), or for a share of rows the commanded goal
+        if commanded:
+            controller_input, _, actor_goals = controller_obs(batch["state"], batch["actor_goal"])
         w = batch["weight"]
         mean_w = jax.vmap(lambda x: weighted_mean(x, w))
         taken = jnp.concatenate([mine, team.own_actions(batch["action"])], -1)
         actor_out, phi, psi = nets.apply(params, [controller_input, taken, goals])
-        energy_ = energies(phi, psi, log_temperature)  # [controllers, batch, batch]
-        positives = paired_energies(phi, psi, log_temperature)  # its diagonal: [controllers, batch]
+        positives = paired_energies(phi, psi, log_temperature)  # [controllers, batch]
+        energy_ = energies(phi, psi, log_temperature, positives)  # [controllers, batch, batch], positives its diagonal
         contrastive, penalty, accuracy = jax.vmap(
             lambda x, p: critic_terms(c.contrastive_loss, x, p, w))(energy_, positives)
         critic = contrastive + c.logsumexp_penalty * penalty

@@ -17,8 +17,9 @@ learnt from as well as measured.
 
 Each level has up to KICKOFFS kick-off points (`kickoff_tables`): the level's spec with its kick-off moved
 back towards the target, over the stretch of the kick-off no level before it covers, each validated up front,
-so that a point the schema refuses is never played and no start belongs to two levels. A point differs from its level only in where the ball and the agent start, so every point of every
-level plays in the one compiled simulation. Where the environment has them, `next_levels` keeps a buffer of
+so that a point the schema refuses is never played and no start belongs to two levels. A point differs from
+its level only in where the ball and the agent start, so every point of every level plays in the one compiled
+simulation. Where the environment has them, `next_levels` keeps a buffer of
 about BUFFER levels (a level, one of its points) in the environments' own state, as ACCEL does: it starts
 spread from the easy end to the spec, each level's success is estimated from the training episodes that ended
 on it, episodes go to the learnable by p(1 - p), and after each evaluation the REPLACED lowest-scoring levels
@@ -109,8 +110,8 @@ def kickoff_tables(spec: FieldSpec, chosen: list[Level], count: int = KICKOFFS) 
         rows = []
         for j in range(count):
             kickoff = before[0] + (own - before[0]) * (j + 1) / count if banded else own * j / (count - 1)
-            if j < count - 1 and (kickoff == own or (banded and kickoff <= before[0])):
-                rows.append(None)  # the level's own point, or the level before's: not a point of this level
+            if j < count - 1 and kickoff == own:
+                rows.append(None)  # the easy end: its own point alone
                 continue
             try:
                 at = level.spec if j == count - 1 else space.spec_at((kickoff, *geometry))

@@ -140,9 +140,6 @@ def plot(runs_: list[session.Run], path: Path, title: str, labels: list[str] | N
     axes[2].set(xlabel="env steps", ylabel="steps at goal per episode (IQM)", title="time at goal")
     axes[3].set(xlabel="env steps", ylabel="distance (IQM)", title="closest approach to the goal")
     handles, names = axes[0].get_legend_handles_labels()  # one legend under the panels, none over the curves
-    for ax in axes:
-        for line in ax.get_lines():
-            line.set_label(f"_{line.get_label()}")
     fig.legend(handles, names, loc="lower center", ncol=min(len(names), 3), fontsize=9, frameon=False)
     plots.save_figure(fig, axes, title, path)
 

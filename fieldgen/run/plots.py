@@ -85,13 +85,13 @@ def _plot_weights(fig, ax, rows: list[dict], key: str = "weight", variant: str =
 
 
 def save_figure(fig, axes, title: str, path: Path) -> None:
-    """Grids, legends where there are labels, the title, room for a legend of the whole figure; then the PNG,
-    written atomically."""
+    """Grids, a legend on each panel with labelled lines unless the figure has a legend of its own (then room for
+    it under the panels), the title; then the PNG, written atomically."""
     import matplotlib.pyplot as plt
 
     for ax in axes:
         ax.grid(alpha=0.3)
-        if ax.get_legend_handles_labels()[0]:
+        if ax.get_legend_handles_labels()[0] and not fig.legends:
             ax.legend(fontsize=8)
     fig.suptitle(title)
     room = 0.0  # a legend of the whole figure sits under the panels
