@@ -42,6 +42,19 @@ def test_differences_are_the_largest_of_each_metric_and_array_timings_left_out()
     assert bench.largest({"w": 4.0, "n": 0.0}) == "4 (w)" and bench.largest({"n": 0.0}) == "0"
 
 
+def test_a_failed_process_is_named_by_the_line_that_says_why(tmp_path):
+    log = tmp_path / "p.log"
+    log.write_text("ant_nav 1,000 of 2,000 steps\nF1127 20:17:03.1 client.cc:12] Check failed: ok\n"
+                   "*** Check failure stack trace: ***\n    @     0x657a05  _start\n")
+    assert bench.cause(log).startswith("F1127 ") and "Check failed" in bench.cause(log)
+    log.write_text("Traceback (most recent call last):\n  File x\nValueError: no field\n\n")
+    assert bench.cause(log) == "ValueError: no field"
+    log.write_text("step 1\nkilled\n")
+    assert bench.cause(log) == "killed"
+    log.write_text("")
+    assert bench.cause(log) == "(no output)"
+
+
 @pytest.mark.parametrize("options, message", [
     (["--seeds", "0"], "--seeds, --envs, --steps and --evals are positive"),
     (["--field", "no_such_field", "--platform", "cpu"], "error: one process: process 0 ended with status 1: error:"),
