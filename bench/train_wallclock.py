@@ -12,6 +12,7 @@ so that both hold every compile, each run compiling from an empty cache as a mac
     python bench/train_wallclock.py --field build/soccer_v1 --steps 12000000 --evals 4
     pip install --no-deps --target /tmp/previous fieldgen-previous.whl
     python bench/train_wallclock.py --field build/soccer_v1 --roots /tmp/previous,. --json out.jsonl
+    python bench/train_wallclock.py --field build/ant_nav --steps 5000000 --evals 10 --seeds 4 --no-videos
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from __future__ import annotations
 import argparse
 import os
 import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -30,12 +32,16 @@ from fieldgen.env.throughput import append_jsonl, run_arguments, run_command
 def run_once(root: Path, args) -> dict:
     """One `fieldgen train` run with `root`'s code; its end-to-end and chunk rates."""
     with tempfile.TemporaryDirectory(prefix="fieldgen-wallclock-") as out:
-        command = run_command(args, out, *([] if args.videos else ["--no-videos"]))
+        command = run_command(args, out, "--seeds", str(args.seeds), *([] if args.videos else ["--no-videos"]))
         paths = [] if str(root) == "." else [str(root.resolve())]
         env = {**os.environ, "PYTHONPATH": os.pathsep.join([*paths, os.environ.get("PYTHONPATH", "")]),
                "JAX_COMPILATION_CACHE_DIR": str(Path(out) / "xla-cache")}
         started = time.perf_counter()
-        subprocess.run(command, env=env, check=True, stdout=subprocess.DEVNULL)
+        done = subprocess.run(command, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        if done.returncode != 0:
+            said = (done.stderr.strip().splitlines() or ["(no output)"])[-1]
+            sys.exit(f"error: {root}: fieldgen train ended with status {done.returncode}: {said} "
+                     f"(its command: {' '.join(command)})")
         total = time.perf_counter() - started
         run = next(p for p in Path(out).iterdir() if p.name != "xla-cache")  # the one run folder
         rows = record.read_metrics(run)
@@ -53,6 +59,8 @@ def main() -> None:
     parser = run_arguments(__doc__)
     parser.add_argument("--roots", default=".", help="comma-separated folders holding an installed fieldgen; '.': this Python's")
     parser.add_argument("--videos", action=argparse.BooleanOptionalAction, default=True)
+    parser.add_argument("--seeds", type=int, default=1, help="seeds trained at once (vmapped), each one's replay "
+                        "buffer in the checkpoint; env steps/s are a seed's")
     args = parser.parse_args()
     first = None
     for root in [Path(r) for r in args.roots.split(",")]:
@@ -66,6 +74,7 @@ def main() -> None:
               f"{result['process_seconds']:.0f} s in all; checkpoint {result['checkpoint_bytes'] / 1e9:.2f} GB",
               flush=True)
         append_jsonl(args.json, {"root": str(root), "field": args.field, "algo": args.algo, "envs": args.envs,
+                                 "seeds": args.seeds,
                                  "steps": args.steps, "evals": args.evals, "videos": args.videos,
                                  "over_first_root": over_first, **result})
 

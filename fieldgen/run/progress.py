@@ -67,18 +67,27 @@ def display(console: Console) -> TrainingProgress | PlainProgress:
     return TrainingProgress(console) if console.is_terminal else PlainProgress(console)
 
 
+CHECKPOINT_BOUND = 0.8  # the share of a chunk's time spent on checkpoints past which they, not training, set its pace
+
+
 def rate(history: list[dict], total: int) -> str:
     """The last chunk's env steps/s and the time left, from the wall clock between the last two evaluations
-    (chunk, evaluation, checkpoint and video together)."""
+    (chunk, evaluation, checkpoint and video together); and a word where the chunk waited on checkpoints
+    (the device trains while the host writes, so a chunk shorter than a write waits for it)."""
     last = history[-1]
     if "steps_per_second" not in last:
         return ""
     text = f"{last['steps_per_second']:,.0f} steps/s"
     evals = [r for r in history if r.get("seed") == last.get("seed")]
-    if len(evals) > 1 and evals[-2]["env_steps"] < last["env_steps"] < total:
+    if len(evals) > 1 and evals[-2]["env_steps"] < last["env_steps"]:
         before = evals[-2]
-        per_step = (last["wall_seconds"] - before["wall_seconds"]) / (last["env_steps"] - before["env_steps"])
-        text += f", {_duration((total - last['env_steps']) * per_step)} left"
+        if last["env_steps"] < total:
+            per_step = (last["wall_seconds"] - before["wall_seconds"]) / (last["env_steps"] - before["env_steps"])
+            text += f", {_duration((total - last['env_steps']) * per_step)} left"
+        chunk = (last["env_steps"] - before["env_steps"]) / last["steps_per_second"]
+        if last.get("checkpoint_wait_seconds", 0) >= CHECKPOINT_BOUND * chunk:
+            text += (f", checkpoints set the pace ({last['checkpoint_wait_seconds']:.0f} of its {chunk:.0f} s): "
+                     "fewer evaluations (num_evals) train faster")
     return text
 
 

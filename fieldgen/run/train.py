@@ -49,12 +49,22 @@ def _train(run: Run, console: Console, videos: bool, logger: str, video_format: 
         first = run.rows[-1]["env_steps"] if run.rows else 0
         task = bar.add_task(run.label, total=config.total_steps, completed=first, rate="compiling...", stats="")
 
+        waited = []  # seconds the last on_eval held the training thread: they fall in the next chunk's time
+        skipped = [False]  # whether the last evaluation's whole checkpoint was left out
+
         def on_eval(state, index, stage, filmed):
-            writer.wait()  # one snapshot at a time in host memory; a failed write stops training here
-            snapshot = sharding.to_host(state)  # every process takes part in gathering it
+            began = time.perf_counter()
+            skipped[0] = skip_checkpoint(writer.busy, skipped[0], index == config.num_evals)
+            if skipped[0]:  # what it learned alone, megabytes: the write under way is not waited for
+                snapshot = sharding.to_host(trainers[0].learned(state))
+            else:
+                writer.wait()  # one snapshot at a time in host memory; a failed write stops training here
+                snapshot = sharding.to_host(state)  # every process takes part in gathering it
+            waited[:] = [time.perf_counter() - began]
             if not writes:
                 return
-            writer.submit(write_atomic, run.folder / record.CHECKPOINT, checkpoint.pieces(snapshot))
+            if not skipped[0]:
+                writer.submit(write_atomic, run.folder / record.CHECKPOINT, checkpoint.pieces(snapshot))
             writer.submit(write_atomic, run.folder / record.LEARNER, checkpoint.pieces(trainers[0].learned(snapshot)))
             if filmed is not None:  # the episode just evaluated (a mixed run films its last stage)
                 filmed_stage, frames = filmed
@@ -75,6 +85,8 @@ def _train(run: Run, console: Console, videos: bool, logger: str, video_format: 
             memory = peak_memory_mb()
             for row in rows:
                 row["wall_seconds"] = time.perf_counter() - started
+                if waited and "steps_per_second" in row:  # the checkpoint work done while this row's chunk trained
+                    row["checkpoint_wait_seconds"] = waited[0]
                 if memory is not None:
                     row["peak_memory_mb"] = memory
             run.rows.extend(rows)
@@ -103,6 +115,15 @@ def _train(run: Run, console: Console, videos: bool, logger: str, video_format: 
                           soft_wrap=True)  # one line: the command stays whole to copy
             raise
     summary(run, console)
+
+
+def skip_checkpoint(writing: bool, skipped_last: bool, last: bool) -> bool:
+    """Whether an evaluation leaves its whole checkpoint (replay buffer included, gigabytes) out and writes
+    what was learned alone: only while the writer is still busy with an earlier write that training would
+    otherwise wait for, never twice in a row (a resume goes on from the last whole checkpoint, exactly, and
+    trains again the chunks after it, whose rows it drops), never at the run's end, and
+    never across processes, which must all gather the same state at the same evaluation."""
+    return writing and not skipped_last and not last and jax.process_count() == 1
 
 
 def stop_if_diverged(run: Run, index: int, rows: list[dict]) -> None:

@@ -17,6 +17,7 @@ from fieldgen.agents.buffer import gradient_steps
 from fieldgen.agents.config import ConfigError
 from fieldgen.agents.registry import trainer
 from fieldgen.cli import app
+from fieldgen.run import record
 
 runner = CliRunner()
 
@@ -99,6 +100,53 @@ def test_a_run_copied_without_its_whole_checkpoint_goes_on_from_what_it_learned(
     rows = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
     assert [r["eval"] for r in rows] == [0, 1, 2] and rows[-1]["env_steps"] == 1280 + 800 + 6 * 80  # refilled
     assert (run / "checkpoint.msgpack").exists()
+
+
+def test_a_checkpoint_is_left_out_only_while_another_is_written_never_twice_in_a_row_nor_last():
+    from fieldgen.run.train import skip_checkpoint
+
+    assert skip_checkpoint(writing=True, skipped_last=False, last=False)
+    assert not skip_checkpoint(writing=False, skipped_last=False, last=False)
+    assert not skip_checkpoint(writing=True, skipped_last=True, last=False)
+    assert not skip_checkpoint(writing=True, skipped_last=False, last=True)
+
+
+@pytest.mark.slow
+def test_a_run_whose_checkpoints_are_left_out_resumes_to_the_run_never_stopped(tmp_path, monkeypatch,
+                                                                               interrupt_after_eval, tiny_crl_args):
+    """With the writer always busy, every other evaluation leaves its whole checkpoint out (the learner is still
+    written) and the last never does; stopped at its last evaluation, two chunks after its last whole
+    checkpoint, the run goes on from that checkpoint, trains both chunks again, and ends with the metrics and
+    checkpoint of a run never stopped."""
+    from fieldgen.run import train as training
+
+    args = ["--no-videos", *tiny_crl_args, "--set", "crl.num_evals=5"]
+    assert runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path / "whole"), *args]).exit_code == 0
+    reference = tmp_path / "whole" / "point_nav-crl-0"
+    written, write_atomic, skip = [], training.write_atomic, training.skip_checkpoint
+
+    def noted(path, data):
+        written.append(path.name)
+        return write_atomic(path, data)
+
+    monkeypatch.setattr(training, "write_atomic", noted)
+    monkeypatch.setattr(training, "skip_checkpoint", lambda writing, skipped_last, last: skip(True, skipped_last, last))
+    interrupt_after_eval(5)  # the last: no chunk is under way, so the interrupt reaches the command's handler
+    assert runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path), *args]).exit_code == 130
+    assert written.count("checkpoint.msgpack") == 2 and written.count("learner.msgpack") == 5  # evaluations 1, 3; 0-4
+    run = tmp_path / "point_nav-crl-0"
+    interrupt_after_eval(None)
+    result = runner.invoke(app, ["train", "--resume", str(run)])
+    assert result.exit_code == 0, result.output
+    assert written.count("checkpoint.msgpack") == 3  # evaluation 4's left out again, the last one kept
+
+    def untimed(folder):
+        return [{k: v for k, v in json.loads(line).items() if k not in record.TIMINGS}
+                for line in (folder / "metrics.jsonl").read_text().splitlines()]
+
+    assert [r["eval"] for r in untimed(run)] == [0, 1, 2, 3, 4, 5] and untimed(run) == untimed(reference)
+    for name in ("checkpoint.msgpack", "learner.msgpack"):
+        assert (run / name).read_bytes() == (reference / name).read_bytes()
 
 
 def test_an_interrupt_says_whether_a_checkpoint_was_kept(tmp_path, monkeypatch, tiny_crl_args):
@@ -216,6 +264,8 @@ def test_cli_run_folder_and_resume_of_a_finished_run(tmp_path, monkeypatch, tiny
     assert sorted(p.name for p in (run / "videos").iterdir()) == ["eval_000.mp4", "eval_001.mp4", "eval_002.mp4"]
     rows = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
     assert [r["eval"] for r in rows] == [0, 1, 2] and rows[-1]["env_steps"] == 800 + 12 * 80  # prefill + 2 x 6 iterations
+    # each chunk records the checkpoint work of the evaluation before it, done while it trained
+    assert "checkpoint_wait_seconds" not in rows[0] and all(r["checkpoint_wait_seconds"] >= 0 for r in rows[1:])
     assert (run / "metrics.csv").read_text().splitlines()[0].startswith("eval,seed,env_steps")
     again = runner.invoke(app, args)
     assert again.exit_code == 1 and "--resume" in again.output
@@ -433,6 +483,10 @@ def test_progress_tells_the_time_left_from_the_last_two_evaluations():
     assert _rate(rows[:2], 10_000_000) == "25,000 steps/s, 9 min left"  # 9M steps at 60 s per million
     assert _rate(rows, 10_000_000) == "20,000 steps/s, 16 min left"  # 8M at 120 s per million
     assert _rate(rows, 2_000_000) == "20,000 steps/s"  # done
+    waiting = [*rows[:2], {**rows[2], "checkpoint_wait_seconds": 40.0}]  # of the chunk's 50 s
+    assert _rate(waiting, 2_000_000) == ("20,000 steps/s, checkpoints set the pace (40 of its 50 s): fewer "
+                                         "evaluations (num_evals) train faster")
+    assert _rate([*rows[:2], {**rows[2], "checkpoint_wait_seconds": 39.0}], 2_000_000) == "20,000 steps/s"
 
 
 def test_a_staged_runs_progress_says_its_stage_of_how_many():
