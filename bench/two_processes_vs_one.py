@@ -15,7 +15,7 @@ in the run's metrics.jsonl (each chunk timed alone, every compile done before th
 after the first, or over the first where it is the only one. A chunk also waits for the checkpoint of the
 evaluation before it (`fieldgen train` writes it while the next chunk trains; across processes it is first
 gathered from every device), so a chunk that trains for less time than a checkpoint takes to gather and
-write measures the checkpoint: two seeds of CRL's ant preset hold a 2.9 GiB state. The defaults (6M env
+write measures the checkpoint: two seeds of CRL's ant preset hold gigabytes (their replay buffers). The defaults (6M env
 steps, one evaluation) give one chunk of about 4.9M env steps a seed. The whole processes' wall clock, start and
 compiles included, is printed beside it. Sameness is the largest absolute difference of each logged
 metric over every row (timings left out: fieldgen.run.record.TIMINGS) and of each array of
