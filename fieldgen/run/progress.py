@@ -67,13 +67,23 @@ def display(console: Console) -> TrainingProgress | PlainProgress:
     return TrainingProgress(console) if console.is_terminal else PlainProgress(console)
 
 
-CHECKPOINT_BOUND = 0.8  # the share of a chunk's time spent on checkpoints past which they, not training, set its pace
+WRITE_BOUND = 0.8  # the share of a chunk's time spent waiting on writes past which they, not training, set its pace
+
+
+def waited_on_writes(row: dict, before: dict) -> float | None:
+    """The seconds `row`'s chunk (after evaluation `before`) waited on the writes of the evaluation before it
+    (checkpoint, video: `write_wait_seconds`) where they set its pace, else None."""
+    if "steps_per_second" not in row or row["env_steps"] <= before["env_steps"]:
+        return None
+    chunk = (row["env_steps"] - before["env_steps"]) / row["steps_per_second"]
+    wait = row.get("write_wait_seconds", 0.0)
+    return wait if wait >= WRITE_BOUND * chunk else None
 
 
 def rate(history: list[dict], total: int) -> str:
     """The last chunk's env steps/s and the time left, from the wall clock between the last two evaluations
-    (chunk, evaluation, checkpoint and video together); and a word where the chunk waited on checkpoints
-    (the device trains while the host writes, so a chunk shorter than a write waits for it)."""
+    (chunk, evaluation, checkpoint and video together); and how long it waited on writes where they set its
+    pace (the device trains while the host writes, so a chunk shorter than a write waits for it)."""
     last = history[-1]
     if "steps_per_second" not in last:
         return ""
@@ -84,10 +94,9 @@ def rate(history: list[dict], total: int) -> str:
         if last["env_steps"] < total:
             per_step = (last["wall_seconds"] - before["wall_seconds"]) / (last["env_steps"] - before["env_steps"])
             text += f", {_duration((total - last['env_steps']) * per_step)} left"
-        chunk = (last["env_steps"] - before["env_steps"]) / last["steps_per_second"]
-        if last.get("checkpoint_wait_seconds", 0) >= CHECKPOINT_BOUND * chunk:
-            text += (f", checkpoints set the pace ({last['checkpoint_wait_seconds']:.0f} of its {chunk:.0f} s): "
-                     "fewer evaluations (num_evals) train faster")
+        if (wait := waited_on_writes(last, before)) is not None:
+            chunk = (last["env_steps"] - before["env_steps"]) / last["steps_per_second"]
+            text += f", {wait:.0f} of its {chunk:.0f} s waiting on writes"
     return text
 
 
@@ -125,6 +134,12 @@ def summary(run: Run, console: Console) -> None:
                       f"{last['episode_return']:.1f}",
                       f"{last['steps_per_second']:,.0f}" if "steps_per_second" in last else "")
     console.print(table)
+    mine = [r for r in run.rows if r.get("seed", run.seeds[0]) == run.seeds[0]]
+    bound = sum(waited_on_writes(row, before) is not None for before, row in zip(mine, mine[1:]))
+    if bound:
+        console.print(f"{bound} of {len(mine) - 1} chunks waited most of their time on the writes of the evaluation "
+                      f"before them (checkpoint, video): fewer evaluations (--set {run.algo}.num_evals=N) or "
+                      "--no-videos train faster")
     for row in run.rows:
         if "promoted_to" in row and row["seed"] == run.seeds[0]:
             name = run.envs[row["promoted_to"]].spec.name

@@ -27,7 +27,7 @@ LEARNER, INITIAL, VIDEOS = "learner.msgpack", "initial.msgpack", "videos"
 RUN_FOLDER = Output("fieldgen train", (), RUN)  # written into file by file, never replaced whole
 # the metrics that time the run rather than say what it learned: the only ones in which the same run, trained
 # again or over other processes, may differ
-TIMINGS = ("wall_seconds", "steps_per_second", "peak_memory_mb", "checkpoint_wait_seconds")
+TIMINGS = ("wall_seconds", "steps_per_second", "peak_memory_mb", "write_wait_seconds")
 
 
 def run_name(field: str, algo: str, seeds: list[int]) -> str:

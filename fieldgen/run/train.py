@@ -86,7 +86,7 @@ def _train(run: Run, console: Console, videos: bool, logger: str, video_format: 
             for row in rows:
                 row["wall_seconds"] = time.perf_counter() - started
                 if waited and "steps_per_second" in row:  # the checkpoint work done while this row's chunk trained
-                    row["checkpoint_wait_seconds"] = waited[0]
+                    row["write_wait_seconds"] = waited[0]
                 if memory is not None:
                     row["peak_memory_mb"] = memory
             run.rows.extend(rows)

@@ -265,7 +265,7 @@ def test_cli_run_folder_and_resume_of_a_finished_run(tmp_path, monkeypatch, tiny
     rows = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
     assert [r["eval"] for r in rows] == [0, 1, 2] and rows[-1]["env_steps"] == 800 + 12 * 80  # prefill + 2 x 6 iterations
     # each chunk records the checkpoint work of the evaluation before it, done while it trained
-    assert "checkpoint_wait_seconds" not in rows[0] and all(r["checkpoint_wait_seconds"] >= 0 for r in rows[1:])
+    assert "write_wait_seconds" not in rows[0] and all(r["write_wait_seconds"] >= 0 for r in rows[1:])
     assert (run / "metrics.csv").read_text().splitlines()[0].startswith("eval,seed,env_steps")
     again = runner.invoke(app, args)
     assert again.exit_code == 1 and "--resume" in again.output
@@ -483,10 +483,13 @@ def test_progress_tells_the_time_left_from_the_last_two_evaluations():
     assert _rate(rows[:2], 10_000_000) == "25,000 steps/s, 9 min left"  # 9M steps at 60 s per million
     assert _rate(rows, 10_000_000) == "20,000 steps/s, 16 min left"  # 8M at 120 s per million
     assert _rate(rows, 2_000_000) == "20,000 steps/s"  # done
-    waiting = [*rows[:2], {**rows[2], "checkpoint_wait_seconds": 40.0}]  # of the chunk's 50 s
-    assert _rate(waiting, 2_000_000) == ("20,000 steps/s, checkpoints set the pace (40 of its 50 s): fewer "
-                                         "evaluations (num_evals) train faster")
-    assert _rate([*rows[:2], {**rows[2], "checkpoint_wait_seconds": 39.0}], 2_000_000) == "20,000 steps/s"
+    waiting = [*rows[:2], {**rows[2], "write_wait_seconds": 40.0}]  # of the chunk's 50 s
+    assert _rate(waiting, 2_000_000) == "20,000 steps/s, 40 of its 50 s waiting on writes"
+    assert _rate([*rows[:2], {**rows[2], "write_wait_seconds": 39.0}], 2_000_000) == "20,000 steps/s"
+    from fieldgen.run.progress import waited_on_writes
+
+    assert waited_on_writes(waiting[2], rows[1]) == 40.0 and waited_on_writes(rows[2], rows[1]) is None
+    assert waited_on_writes(rows[0], rows[0]) is None  # the untrained evaluation: no chunk
 
 
 def test_a_staged_runs_progress_says_its_stage_of_how_many():
