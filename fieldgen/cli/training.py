@@ -304,8 +304,9 @@ def evaluate(
         "--summary", metavar="PATH", help="where to write the summary over seeds (default: RUN/summary.json; "
                                           "for several runs, summary.json in the first one's parent folder)")] = None,
 ) -> None:
-    """Evaluate runs' last checkpoints (on a curriculum's last stage, or --field): each seed's success rate, time
-    at goal, return, and over the seeds the interquartile mean with a 95% bootstrap interval (summary.json); video.
+    """Evaluate runs' policies as of their last evaluation (on a curriculum's last stage, or --field): each seed's
+    success rate, time at goal, return, and over the seeds the interquartile mean with a 95% bootstrap interval
+    (summary.json); video.
 
     Example: fieldgen eval runs/point_nav-crl-0to4 --episodes 256
     Example: fieldgen eval runs/point_nav-crl-0 runs/point_nav-crl-1 runs/point_nav-crl-2 --summary runs/crl.json

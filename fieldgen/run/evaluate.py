@@ -73,7 +73,7 @@ def open_runs(folders: list[Path], field: Path | None = None) -> list[Run]:
                 raise record.RunError(f"seed {s} is in both {owners[s]} and {folder}: each seed counts once in a "
                                       "summary; leave one of them out")
             owners[s] = folder
-    runs = [session.open_run(folder) for folder in folders]
+    runs = [session.open_run(folder, learned=True) for folder in folders]
     return runs if field is None else [session.on_field(run, field) for run in runs]
 
 

@@ -22,7 +22,7 @@ class Exported:
 
 def export(run_dir: Path, out: Path, seed: int | None = None) -> Exported:
     """Write the policy of `seed` (the run's first by default) to `out`, replacing what was there."""
-    run = session.open_run(run_dir)
+    run = session.open_run(run_dir, learned=True)
     if run.state is None:
         raise record.RunError(f"{run_dir} has not trained yet, so it has no policy; start it with: "
                               f"fieldgen train --resume {run_dir}")

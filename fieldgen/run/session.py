@@ -254,10 +254,13 @@ def started_from(run: Run, source: Path) -> tuple[object, dict]:
     return state, {"run": str(source), "env_steps": int(last["env_steps"]), "eval": int(last["eval"])}
 
 
-def open_run(folder: Path, load_state: bool = True, to_train: bool = False) -> Run:
+def open_run(folder: Path, load_state: bool = True, to_train: bool = False, learned: bool = False) -> Run:
     """A run folder with its fields loaded from the run's own copies and (with load_state) its last
     checkpoint; without, the run's record and metrics alone, enough to report on a finished run. To train it
-    further, it is refused first where this machine's memory cannot hold its training (set up elsewhere)."""
+    further, it is refused first where this machine's memory cannot hold its training (set up elsewhere).
+    With `learned`, the state is what the run learned alone (learner.msgpack, megabytes, written at every
+    evaluation) where that file is there: all an evaluation or an export reads, and never older than the
+    whole checkpoint (gigabytes, left out of an evaluation while the one before is still being written)."""
     saved = record.read_run(folder)
     envs = []
     for sub in saved.fields or [FIELD]:
@@ -323,7 +326,9 @@ def open_run(folder: Path, load_state: bool = True, to_train: bool = False) -> R
                                   f"past its last ({len(envs)}); {damaged}")
     trainer = run.trainers[run.stage]
     path, template = folder / record.CHECKPOINT, jax.eval_shape(jax.vmap(trainer.start), loop.seed_keys(seeds))
-    if not path.exists():  # e.g. copied without it: what it learned goes on, its buffer filled anew
+    if not path.exists() or (learned and (folder / record.LEARNER).exists()):
+        # what it learned alone: asked for, or the run was copied without its checkpoint (it goes on from
+        # there, its buffer filled anew)
         path, template = folder / record.LEARNER, learned_template(run)
     try:
         run.state = checkpoint.load(path, template)

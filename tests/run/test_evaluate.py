@@ -91,6 +91,19 @@ def test_eval_summarizes_every_seed_alike_from_one_run_or_one_run_per_seed(train
     assert single.time_at_goal.per_seed == {1: value} and single.time_at_goal.low == single.time_at_goal.high == value
     assert not list(singles[1].glob("summary*.json"))
 
+    # an evaluation reads what the run learned alone (learner.msgpack), not the whole checkpoint: the same
+    # summary with the checkpoint unreadable
+    whole = (trained / record.CHECKPOINT).read_bytes()
+    try:
+        (trained / record.CHECKPOINT).write_bytes(b"not read")
+        learned = runner.invoke(app, ["eval", str(trained), *judged, "--summary", str(tmp_path / "learned.json")],
+                                env=WIDE)
+    finally:
+        (trained / record.CHECKPOINT).write_bytes(whole)
+    assert learned.exit_code == 0, learned.output
+    again = SeedSummary.model_validate_json((tmp_path / "learned.json").read_text())
+    assert again.success_any == together.success_any and again.time_at_goal == together.time_at_goal
+
 
 def prepared(out: Path, field: str, *args: str) -> Path:
     """A run folder set up without training (`fieldgen train --prepare`)."""
