@@ -70,14 +70,14 @@ def display(console: Console) -> TrainingProgress | PlainProgress:
 WRITE_BOUND = 0.8  # the share of a chunk's time spent waiting on writes past which they, not training, set its pace
 
 
-def waited_on_writes(row: dict, before: dict) -> float | None:
-    """The seconds `row`'s chunk (after evaluation `before`) waited on the writes of the evaluation before it
-    (checkpoint, video: `write_wait_seconds`) where they set its pace, else None."""
+def waited_on_writes(row: dict, before: dict) -> tuple[float, float] | None:
+    """How long `row`'s chunk (after evaluation `before`) waited on the writes of the evaluation before it
+    (checkpoint, video: `write_wait_seconds`) and how long the chunk took, where the writes set its pace; else None."""
     if "steps_per_second" not in row or row["env_steps"] <= before["env_steps"]:
         return None
     chunk = (row["env_steps"] - before["env_steps"]) / row["steps_per_second"]
     wait = row.get("write_wait_seconds", 0.0)
-    return wait if wait >= WRITE_BOUND * chunk else None
+    return (wait, chunk) if wait >= WRITE_BOUND * chunk else None
 
 
 def rate(history: list[dict], total: int) -> str:
@@ -94,9 +94,8 @@ def rate(history: list[dict], total: int) -> str:
         if last["env_steps"] < total:
             per_step = (last["wall_seconds"] - before["wall_seconds"]) / (last["env_steps"] - before["env_steps"])
             text += f", {_duration((total - last['env_steps']) * per_step)} left"
-        if (wait := waited_on_writes(last, before)) is not None:
-            chunk = (last["env_steps"] - before["env_steps"]) / last["steps_per_second"]
-            text += f", {wait:.0f} of its {chunk:.0f} s waiting on writes"
+        if (waited := waited_on_writes(last, before)) is not None:
+            text += f", {waited[0]:.0f} of its {waited[1]:.0f} s waiting on writes"
     return text
 
 

@@ -85,7 +85,7 @@ def _train(run: Run, console: Console, videos: bool, logger: str, video_format: 
             memory = peak_memory_mb()
             for row in rows:
                 row["wall_seconds"] = time.perf_counter() - started
-                if waited and "steps_per_second" in row:  # the checkpoint work done while this row's chunk trained
+                if waited and "steps_per_second" in row:  # the writes waited on while this row's chunk trained
                     row["write_wait_seconds"] = waited[0]
                 if memory is not None:
                     row["peak_memory_mb"] = memory

@@ -488,7 +488,7 @@ def test_progress_tells_the_time_left_from_the_last_two_evaluations():
     assert _rate([*rows[:2], {**rows[2], "write_wait_seconds": 39.0}], 2_000_000) == "20,000 steps/s"
     from fieldgen.run.progress import waited_on_writes
 
-    assert waited_on_writes(waiting[2], rows[1]) == 40.0 and waited_on_writes(rows[2], rows[1]) is None
+    assert waited_on_writes(waiting[2], rows[1]) == (40.0, 50.0) and waited_on_writes(rows[2], rows[1]) is None
     assert waited_on_writes(rows[0], rows[0]) is None  # the untrained evaluation: no chunk
 
 
