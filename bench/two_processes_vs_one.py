@@ -102,14 +102,19 @@ def train(layout: str, args, platform: str, out: Path, logs: Path) -> Trained:
             processes.append((subprocess.Popen(command, env={**os.environ, **variables}, stdout=output,
                                                stderr=subprocess.STDOUT), log))
     try:
-        for index, (process, log) in enumerate(processes):
-            status = process.wait(max(1.0, args.timeout - (time.perf_counter() - began)))
-            if status != 0:
+        while True:  # the first process to fail is the one to name: the others wait for it until JAX aborts them
+            states = [process.poll() for process, _ in processes]
+            failed = next((i for i, state in enumerate(states) if state not in (None, 0)), None)
+            if failed is not None:
+                log = processes[failed][1]
                 kept = f"its output: {log}" if args.out else "--out DIR keeps the processes' output"
-                sys.exit(f"error: {layout}: process {index} ended with status {status}: {cause(log)} (its command: "
-                         f"{shown[index]}; {kept})")
-    except subprocess.TimeoutExpired:
-        sys.exit(f"error: {layout}: the run did not end within --timeout {args.timeout} s")
+                sys.exit(f"error: {layout}: process {failed} ended with status {states[failed]}: {cause(log)} (its "
+                         f"command: {shown[failed]}; {kept})")
+            if all(state == 0 for state in states):
+                break
+            if time.perf_counter() - began > args.timeout:
+                sys.exit(f"error: {layout}: the run did not end within --timeout {args.timeout} s")
+            time.sleep(0.5)
     finally:
         for process, _ in processes:  # ours alone, whichever did not end
             if process.poll() is None:

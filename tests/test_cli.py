@@ -353,3 +353,17 @@ def test_validate_says_when_a_moved_goal_leaves_a_wall_across_the_goal_line(writ
             "(or field.length: 30); for no wall there, walls.front: false")
     assert result.exit_code == 0 and "".join(said.split()) in message
     assert message.endswith("oksoccer_v2:soccer_v2")  # its goal is on the goal line: nothing to say
+
+
+def test_a_child_fieldgen_started_in_a_checkout_runs_the_installed_package(tmp_path):
+    """A sweep's runs and a run's supervised processes start `fieldgen` as a child; from a checkout's top
+    folder its own fieldgen/ (no fieldgen.agents there) must not shadow the installed package."""
+    import subprocess
+
+    from fieldgen.command import fieldgen_command
+
+    shadow = tmp_path / "fieldgen"
+    shadow.mkdir()
+    (shadow / "__init__.py").write_text("raise ImportError('the checkout was imported, not the package')\n")
+    done = subprocess.run(fieldgen_command("--version"), cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0 and "the checkout was imported" not in done.stderr, done.stderr

@@ -8,13 +8,14 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
 
 import jax
 import jax.numpy as jnp
+
+from fieldgen.command import fieldgen_command
 
 
 @dataclass(frozen=True)
@@ -69,10 +70,8 @@ def append_jsonl(path: Path | None, row: dict) -> None:
 
 
 def train_command(field, algo: str, out, *options: str) -> list[str]:
-    """`fieldgen train FIELD --algo ALGO --out OUT OPTIONS...` in a fresh interpreter of this Python, run
-    with -P so that a checkout's own fieldgen/, agents/ and fields/ never shadow the fieldgen it imports."""
-    return [sys.executable, "-P", "-m", "fieldgen.cli", "train", str(field), "--algo", algo, "--out", str(out),
-            *options]
+    """`fieldgen train FIELD --algo ALGO --out OUT OPTIONS...` in a fresh interpreter of this Python."""
+    return fieldgen_command("train", str(field), "--algo", algo, "--out", str(out), *options)
 
 
 def run_command(args: argparse.Namespace, out, *options: str) -> list[str]:

@@ -18,6 +18,8 @@ import sys
 import tempfile
 from pathlib import Path
 
+from fieldgen.command import fieldgen_command
+
 WORDS = "FIELDGEN_WORDS_IF_COORDINATOR_LOST"  # set in the child: where it leaves its line for the parent
 RANKS = ("SLURM_PROCID", "OMPI_COMM_WORLD_RANK")  # a launcher's process id, before JAX is joined
 LOST = ("Polled an error from coordination service", "Failed to send RPC to coordination service",
@@ -49,7 +51,7 @@ def supervise() -> int:
 def _relay() -> int:
     with tempfile.TemporaryDirectory(prefix="fieldgen-supervisor-") as folder:
         words = Path(folder) / "words"
-        child = subprocess.Popen([sys.executable, "-m", "fieldgen", *sys.argv[1:]], stderr=subprocess.PIPE,
+        child = subprocess.Popen(fieldgen_command(*sys.argv[1:]), stderr=subprocess.PIPE,
                                  env={**os.environ, WORDS: str(words)}, preexec_fn=_die_with_parent, text=True,
                                  errors="replace")
         signal.signal(signal.SIGINT, signal.SIG_IGN)  # the terminal's Ctrl-C reaches the child itself

@@ -16,12 +16,12 @@ import queue
 import shutil
 import socket
 import subprocess
-import sys
 import threading
 import time
 from pathlib import Path
 from typing import Callable
 
+from fieldgen.command import fieldgen_command
 from fieldgen.files import write_atomic
 from fieldgen.sweep.plan import PLAN, PlannedRun, Sweep, check_plan, shell
 
@@ -63,7 +63,7 @@ def execute(folder: Path, run: PlannedRun, environment: dict | None = None,
     with log.open("ab") as out:
         out.write(f"\n$ {' '.join(['fieldgen', *command])}\n".encode())
         out.flush()
-        process = subprocess.Popen([sys.executable, "-m", "fieldgen", *command], stdout=out, stderr=subprocess.STDOUT,
+        process = subprocess.Popen(fieldgen_command(*command), stdout=out, stderr=subprocess.STDOUT,
                                    stdin=subprocess.DEVNULL, env={**os.environ, **(environment or {})})
         _write_json(log_path(folder, run, ".started"), {"host": socket.gethostname(), "pid": process.pid,
                                                         "time": time.time(), "command": list(command)})

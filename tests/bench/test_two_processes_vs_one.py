@@ -3,6 +3,7 @@ in one line, and the whole script on a CPU, tiny: two processes train what one p
 
 from __future__ import annotations
 
+import argparse
 import json
 import math
 import subprocess
@@ -54,6 +55,21 @@ def test_a_failed_process_is_named_by_the_line_that_says_why(tmp_path):
     log.write_text("")
     assert bench.cause(log) == "(no output)"
 
+
+
+WAITS_UNLESS_PROCESS_1 = ("import sys, time\n"
+                          "sys.exit('error: process 1 could not start') if sys.argv[-1] == '1' else time.sleep(300)")
+
+
+def test_the_process_that_fails_is_named_while_the_others_still_wait_for_it(tmp_path, monkeypatch):
+    """Process 0 waits for a process 1 that died at its start (JAX aborts it only minutes later): the
+    benchmark names process 1 and why, not process 0's abort or its own timeout."""
+    monkeypatch.setattr(bench, "run_command", lambda args, out, *options: [sys.executable, "-c",
+                                                                           WAITS_UNLESS_PROCESS_1, *options])
+    args = argparse.Namespace(seeds=1, timeout=60, out=tmp_path)
+    with pytest.raises(SystemExit) as stopped:
+        bench.train("two processes", args, "cpu", tmp_path / "runs", tmp_path)
+    assert "process 1 ended with status 1: error: process 1 could not start" in str(stopped.value)
 
 @pytest.mark.parametrize("options, message", [
     (["--seeds", "0"], "--seeds, --envs, --steps and --evals are positive"),
