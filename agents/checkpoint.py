@@ -64,8 +64,10 @@ def to_bytes(state) -> bytes:
     return b"".join(pieces(state))
 
 
-def load(path: Path, template):
-    """The saved state, in the structure of `template` (arrays or jax.ShapeDtypeStructs)."""
+def load(path: Path, template, then=None):
+    """The saved state, in the structure of `template` (arrays or jax.ShapeDtypeStructs). With `then`, the
+    file may go on after `template`'s arrays with `then`'s, which later versions write there (a file written
+    before holds none): the result is (the state, `then`'s part or None)."""
     try:
         blob = path.read_bytes()
     except FileNotFoundError:
@@ -88,7 +90,8 @@ def load(path: Path, template):
         raise
     except Exception:  # msgpack raises many types on damaged input
         raise CheckpointError(f"{corrupt}; it may also be truncated") from None
-    expected, treedef = jax.tree.flatten(template)
+    older = then is not None and len(leaves) == len(jax.tree.leaves(template))  # written before `then` was kept
+    expected, treedef = jax.tree.flatten(template if then is None or older else (template, then))
     if len(leaves) != len(expected):
         raise CheckpointError(f"{path} holds {len(leaves)} arrays but this run has {len(expected)}: "
                               "it was written by a different algorithm, network or field, or by an earlier "
@@ -98,7 +101,8 @@ def load(path: Path, template):
             raise CheckpointError(f"{path}: array {i} is {got.dtype}{list(got.shape)} but this run expects "
                                   f"{want.dtype}{list(want.shape)}: the config or the field's "
                                   "observation layout differs from the run that wrote it")
-    return jax.tree.unflatten(treedef, [jax.numpy.asarray(x) for x in leaves])
+    loaded = jax.tree.unflatten(treedef, [jax.numpy.asarray(x) for x in leaves])
+    return (loaded, None) if older else loaded
 
 
 def _joined(leaf) -> np.ndarray:

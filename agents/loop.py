@@ -199,6 +199,36 @@ def adapt(trainer: Trainer, state, variants: VariantResults, schedule: Schedule)
         variants.replace(weight=jnp.sum(levels, axis=-1), kickoff_share=share)
 
 
+# how a batch of environments draws its next episodes (`adapt` sets it): info entry -> (its environment axis,
+# counted from the end so that a leading seed axis changes nothing; whether the batch's entries are summed
+# into one, or are one value, the same in every environment)
+SAMPLING = {"level_weights": (-3, False), "level_counts": (-4, True), "variant_weights": (-2, False)}
+
+
+def episode_sampling(env_state) -> dict:
+    """How a batch of environments draws its next episodes and what decides it: the weights of its variants
+    or levels, and the episodes counted on each level, once for the batch. Of a batch's state it alone
+    outlives the episodes, so `learner.msgpack` keeps it beside what was learned: a run going on from there
+    (`run_staged`'s `sampling`) draws its levels as before instead of starting its curriculum over. Empty for
+    an environment of one variant. Host or device arrays, with or without a leading seed axis."""
+    kept = {}
+    for name, (axis, summed) in SAMPLING.items():
+        if name in env_state.info:
+            entry = env_state.info[name]
+            kept[name] = entry.sum(axis=axis) if summed else entry[(..., 0) + (slice(None),) * (-axis - 1)]
+    return kept
+
+
+def with_episode_sampling(env_state, sampling: dict):
+    """One seed's batch of environments (on axis 0) drawing its episodes as `sampling` (`episode_sampling`)
+    says: the weights in every environment, the counts in the first (only their sum is read)."""
+    info = dict(env_state.info)
+    for name, kept in sampling.items():
+        summed = SAMPLING[name][1]
+        info[name] = jnp.zeros_like(info[name]).at[0].set(kept) if summed else jnp.broadcast_to(kept, info[name].shape)
+    return env_state.replace(info=info)
+
+
 def eval_key(seed_key: jax.Array, index) -> jax.Array:
     return jax.random.fold_in(jax.random.fold_in(seed_key, EVAL_STREAM), index)
 
@@ -237,10 +267,16 @@ def run(trainer: Trainer, seeds: Sequence[int], num_evals: int,
                       lambda state, index, stage, episode: on_eval(state, index), staged_resume)
 
 
+def drawing_as(state, sampling: dict, placement):
+    """A refilled state (seeds stacked) whose environments draw their episodes as `sampling` says; in place."""
+    put = jax.vmap(lambda s, kept: s.replace(env_state=with_episode_sampling(s.env_state, kept)))
+    return jax.jit(put, donate_argnums=0, out_shardings=placement)(state, sampling)
+
+
 def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int, schedule: Schedule,
                progress: Callable[[int, list[dict]], None] = lambda index, rows: None,
                on_eval: Callable = lambda state, index, stage, episode: None, resume: tuple | None = None,
-               film: Callable | None = None):
+               film: Callable | None = None, sampling: dict | None = None):
     """`run` through a sequence of trainers (a curriculum's stages) whose environments share one observation
     layout, as `schedule` says.
 
@@ -253,7 +289,8 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
     chunk trains on and, with `film`, the first seed's episode filmed by the evaluation just done
     (`evaluate_policy`) with the stage it was filmed on, `(stage, film)`, else None;
     `resume=(state, index, stage)` continues from there; a state that is only what it learned
-    (`Trainer.learned`) goes on with fresh episodes and a buffer filled anew. An evaluation is handed
+    (`Trainer.learned`) goes on with fresh episodes and a buffer filled anew, drawn as `sampling` says
+    (`episode_sampling`, seeds stacked) where given. An evaluation is handed
     to `progress` and `on_eval` once the next chunk has been dispatched, so that the GPU trains while
     the host writes.
     """
@@ -294,6 +331,8 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
     else:
         state, index, _ = resume
         state = programs(stage).refill(state) if refilling else from_host(state, programs(stage).placement)
+        if refilling and sampling:
+            state = drawing_as(state, sampling, programs(stage).placement)
         first, previous = index + 1, int(to_host(state.env_steps)[0])
     for index in range(0 if resume is None else first, num_evals + 1):
         began = time.perf_counter()

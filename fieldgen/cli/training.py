@@ -187,8 +187,9 @@ def train(
                      "was set up to start from): drop --init-from, or train into another --out")
             run = session.open_run(resume, to_train=True)
             if run.refills and run.rows:
+                drawn = "; its episodes drawn as they were (its levels and their counts)" if run.sampling else ""
                 out.print(f"{resume} holds no {record.CHECKPOINT}: it goes on from {record.LEARNER} with fresh "
-                          "episodes and a replay buffer filled anew by its policy (those env steps count)")
+                          f"episodes and a replay buffer filled anew by its policy (those env steps count){drawn}")
         else:
             if spec is None:
                 fail("name a field to train on, or --resume a run folder")

@@ -43,6 +43,7 @@ class Run:
     init_from: dict | None = None  # record.InitFrom of a run started from another run's networks
     curriculum: str = ""  # the name of the curriculum it trains through (its folder's; -mixed, -auto), "" for a field
     kickoffs: list = dataclasses.field(default_factory=list)  # an automatic curriculum's kick-off points (run.json)
+    sampling: dict | None = None  # how a state of what was learned alone drew its episodes (loop.episode_sampling)
 
     @property
     def finished(self) -> bool:
@@ -219,6 +220,19 @@ def learned_template(run: Run):
     return trainer.learned(jax.eval_shape(jax.vmap(trainer.start), loop.seed_keys(run.seeds)))
 
 
+def sampling_template(trainer: loop.Trainer, seeds: Sequence[int]):
+    """The shapes of how a batch of the trainer's environments draws its episodes, as `learner.msgpack`
+    keeps it after what was learned (loop.episode_sampling); one environment's reset tells them."""
+    reset = jax.vmap(jax.vmap(trainer.env.reset))
+    return jax.eval_shape(lambda keys: loop.episode_sampling(reset(keys)), jax.random.split(jax.random.key(0), (len(seeds), 1)))
+
+
+def learner_contents(trainer: loop.Trainer, state, sampling: dict) -> tuple:
+    """What `learner.msgpack` holds, in this order: what `state` learned (Trainer.learned), then how its
+    episodes were drawn (`sampling_template`); `open_run` reads them back."""
+    return trainer.learned(state), sampling
+
+
 def started_from(run: Run, source: Path) -> tuple[object, dict]:
     """What `source`, another run, learned, as the start of `run`: its networks, optimizers and normalizer,
     with the env steps counted from 0 and the randomness of `run`'s own seeds, so that fine-tuning one
@@ -240,8 +254,8 @@ def started_from(run: Run, source: Path) -> tuple[object, dict]:
     if len(other.seeds) != len(run.seeds):
         raise record.RunError(f"--init-from {source}: it trained {len(other.seeds)} seeds at once, {here} "
                               f"{len(run.seeds)}; give --seeds {len(other.seeds)}")
-    try:
-        state = checkpoint.load(learner, learned_template(run))
+    try:  # its networks alone: how its episodes were drawn belongs to its own levels
+        state, _ = checkpoint.load(learner, learned_template(run), sampling_template(other.trainers[0], other.seeds))
     except checkpoint.CheckpointError as exc:
         theirs, mine = other.config.model_dump(), run.config.model_dump()
         differ = [f"{run.algo}.{k} ({json.dumps(theirs[k])} there, {json.dumps(mine[k])} here)"
@@ -326,12 +340,15 @@ def open_run(folder: Path, load_state: bool = True, to_train: bool = False, lear
                                   f"past its last ({len(envs)}); {damaged}")
     trainer = run.trainers[run.stage]
     path, template = folder / record.CHECKPOINT, jax.eval_shape(jax.vmap(trainer.start), loop.seed_keys(seeds))
-    if not path.exists() or (learned and (folder / record.LEARNER).exists()):
-        # what it learned alone: asked for, or the run was copied without its checkpoint (it goes on from
-        # there, its buffer filled anew)
-        path, template = folder / record.LEARNER, learned_template(run)
+    alone = not path.exists() or (learned and (folder / record.LEARNER).exists())
+    if alone:  # what it learned alone: asked for, or the run was copied without its checkpoint (it goes on from
+        # there, its buffer filled anew, its episodes drawn as they were)
+        path = folder / record.LEARNER
     try:
-        run.state = checkpoint.load(path, template)
+        if alone:
+            run.state, run.sampling = checkpoint.load(path, learned_template(run), sampling_template(trainer, seeds))
+        else:
+            run.state = checkpoint.load(path, template)
     except checkpoint.CheckpointError as exc:
         raise record.RunError(str(exc)) from None
     done = int(jax.device_get(run.state.env_steps)[0])

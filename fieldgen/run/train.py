@@ -13,7 +13,7 @@ from rich.console import Console
 
 from fieldgen.agents import checkpoint, loop, sharding
 from fieldgen.files import locked, remove_leftovers, write_atomic
-from fieldgen.run import background, record
+from fieldgen.run import background, record, session
 from fieldgen.run.loggers import open_logger
 from fieldgen.run.plots import plot_success
 from fieldgen.run.progress import display, rate, stats, summary
@@ -57,15 +57,18 @@ def _train(run: Run, console: Console, videos: bool, logger: str, video_format: 
             skipped[0] = skip_checkpoint(writer.busy, skipped[0], index == config.num_evals)
             if skipped[0]:  # what it learned alone, megabytes: the write under way is not waited for
                 snapshot = sharding.to_host(trainers[0].learned(state))
+                sampling = sharding.to_host(loop.episode_sampling(state.env_state))
             else:
                 writer.wait()  # one snapshot at a time in host memory; a failed write stops training here
                 snapshot = sharding.to_host(state)  # every process takes part in gathering it
+                sampling = loop.episode_sampling(snapshot.env_state)
             waited[:] = [time.perf_counter() - began]
             if not writes:
                 return
             if not skipped[0]:
                 writer.submit(write_atomic, run.folder / record.CHECKPOINT, checkpoint.pieces(snapshot))
-            writer.submit(write_atomic, run.folder / record.LEARNER, checkpoint.pieces(trainers[0].learned(snapshot)))
+            writer.submit(write_atomic, run.folder / record.LEARNER,
+                          checkpoint.pieces(session.learner_contents(trainers[0], snapshot, sampling)))
             if filmed is not None:  # the episode just evaluated (a mixed run films its last stage)
                 filmed_stage, frames = filmed
                 if filmed_stage not in recorders:
@@ -102,7 +105,7 @@ def _train(run: Run, console: Console, videos: bool, logger: str, video_format: 
         resume = (run.state, run.rows[-1]["eval"] if run.rows else -1, run.stage) if run.state is not None else None
         try:
             loop.run_staged(trainers, run.seeds, config.num_evals, run.schedule, progress, on_eval, resume,
-                            film=EpisodeRecorder.film if videos else None)
+                            film=EpisodeRecorder.film if videos else None, sampling=run.sampling)
             done = run.rows[-1]["env_steps"]  # whole iterations can stop short of --steps
             bar.update(task, total=done, rate=rate(run.rows, done))
         except KeyboardInterrupt:

@@ -65,3 +65,20 @@ def test_flipped_bytes_or_a_folder_are_reported_as_such(tmp_path):
     folder.mkdir()
     with pytest.raises(checkpoint.CheckpointError, match=f"cannot read the checkpoint {folder}"):
         checkpoint.load(folder, template)
+
+
+def test_a_part_written_after_the_state_comes_back_beside_it_and_an_older_file_gives_none(tmp_path):
+    """learner.msgpack holds what was learned, then how the run drew its episodes; a file written before the
+    second part was kept still loads, with None for it, and a part of another shape is refused."""
+    state, then = {"w": np.ones((2, 3), np.float32)}, {"weights": np.full((2, 4), 0.25, np.float32)}
+    shapes = jax.tree.map(lambda x: jax.ShapeDtypeStruct(x.shape, x.dtype), (state, then))
+    both, older = tmp_path / "both.msgpack", tmp_path / "older.msgpack"
+    write_atomic(both, checkpoint.pieces((state, then)))
+    write_atomic(older, checkpoint.pieces(state))
+    loaded, part = checkpoint.load(both, *shapes)
+    np.testing.assert_array_equal(loaded["w"], state["w"])
+    np.testing.assert_array_equal(part["weights"], then["weights"])
+    loaded, part = checkpoint.load(older, *shapes)
+    assert part is None and loaded["w"].shape == (2, 3)
+    with pytest.raises(checkpoint.CheckpointError, match=r"array 1 is float32\[2, 4\] but this run expects"):
+        checkpoint.load(both, shapes[0], {"weights": jax.ShapeDtypeStruct((2, 5), np.float32)})

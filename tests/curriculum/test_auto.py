@@ -204,6 +204,60 @@ def test_an_auto_run_killed_and_resumed_continues_its_levels_exactly(tmp_path, i
     assert shares[-1] != shares[1]  # the buffer moved after the cut
 
 
+
+@pytest.mark.slow
+def test_an_auto_run_copied_without_its_checkpoint_draws_its_levels_as_it_did(tmp_path, interrupt_after_eval,
+                                                                             monkeypatch):
+    """learner.msgpack keeps how the run drew its episodes (the level buffer's weights and counts) after what
+    it learned, so a run moved without its gigabytes of checkpoint goes on with its curriculum where it was,
+    its replay buffer alone filled anew, instead of spreading its episodes from the easy end again."""
+    from fieldgen.agents import checkpoint, loop, programs
+    from fieldgen.run import session, train
+
+    running = programs.under_way
+
+    def settled() -> bool:  # as above: the stop leaves `fieldgen train` as a wait would
+        while running():
+            time.sleep(0.05)
+        return False
+
+    monkeypatch.setattr(programs, "under_way", settled)
+    monkeypatch.setattr(train, "skip_checkpoint", lambda *args: False)  # checkpoint and learner of one evaluation
+    sets = ["crl.hidden=[32,32]", "crl.repr_dim=8", "crl.batch_size=64", "crl.unroll_length=25",
+            "crl.min_replay_rows=100", "crl.max_replay_rows=400", "crl.num_evals=3", "crl.eval_envs=8"]
+    args = ["train", "point_soccer", "--curriculum", "auto", "--levels", "3", "--steps", "5000", "--envs", "8",
+            "--no-videos", "--seeds", "2", "--out", str(tmp_path), *[x for s in sets for x in ("--set", s)]]
+    interrupt_after_eval(2)
+    assert runner.invoke(app, args).exit_code == 130
+    interrupt_after_eval(None)
+    run = tmp_path / "point_soccer-auto-crl-0to1"
+    whole = session.open_run(run)
+    drawn = loop.episode_sampling(whole.state.env_state)
+    assert set(drawn) == {"level_weights", "level_counts"} and float(np.sum(drawn["level_counts"])) > 0
+    (run / record.CHECKPOINT).unlink()
+    moved = session.open_run(run)
+    assert moved.refills and set(moved.sampling) == set(drawn)
+    for name in drawn:
+        np.testing.assert_array_equal(moved.sampling[name], drawn[name])
+    for i, seed in enumerate(moved.seeds):  # the weights its last evaluation recorded
+        row = [r for r in moved.rows if r["seed"] == seed][-1]
+        np.testing.assert_allclose(drawn["level_weights"][i].sum(-1), row["variants"]["weight"], atol=1e-6)
+
+    put = []
+    drawing_as = loop.drawing_as
+    monkeypatch.setattr(loop, "drawing_as", lambda *a: put.append(drawing_as(*a)) or put[-1])
+    resumed = runner.invoke(app, ["train", "--resume", str(run)])
+    assert resumed.exit_code == 0, resumed.output
+    assert "its episodes drawn as they were" in " ".join(resumed.output.split())
+    assert len(put) == 1
+    for name, kept in loop.episode_sampling(put[0].env_state).items():
+        np.testing.assert_allclose(kept, drawn[name], rtol=1e-6)
+    assert json.loads((run / "metrics.jsonl").read_text().splitlines()[-1])["eval"] == 3
+    _, sampling = checkpoint.load(run / record.LEARNER, session.learned_template(moved),
+                                  session.sampling_template(moved.trainers[0], moved.seeds))
+    assert set(sampling) == set(drawn)  # the resumed run's learner keeps it too
+
+
 # -- kick-off points and the level buffer ------------------------------------------------------------------
 
 def test_kickoff_points_cover_the_kickoff_once_and_refused_ones_are_marked():
