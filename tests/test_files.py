@@ -217,6 +217,7 @@ STOPPED_AT = textwrap.dedent("""
     from fieldgen.cli import app
 
     signal.signal(signal.SIGINT, signal.default_int_handler)  # even where this process was started ignoring it
+    signal.signal(signal.SIGHUP, signal.SIG_DFL)  # likewise where it was started under nohup
     moment, sig, target = sys.argv[1], getattr(signal, sys.argv[2]), sys.argv[3]
     real_unlink, real_replace = os.unlink, os.replace
 
