@@ -223,8 +223,8 @@ def learned_template(run: Run):
 def sampling_template(trainer: loop.Trainer, seeds: Sequence[int]):
     """The shapes of how a batch of the trainer's environments draws its episodes, as `learner.msgpack`
     keeps it after what was learned (loop.episode_sampling); one environment's reset tells them."""
-    reset = jax.vmap(jax.vmap(trainer.env.reset))
-    return jax.eval_shape(lambda keys: loop.episode_sampling(reset(keys)), jax.random.split(jax.random.key(0), (len(seeds), 1)))
+    reset, keys = jax.vmap(jax.vmap(trainer.env.reset)), jax.random.split(jax.random.key(0), (len(seeds), 1))
+    return jax.eval_shape(lambda k: loop.episode_sampling(reset(k)), keys)
 
 
 def learner_contents(trainer: loop.Trainer, state, sampling: dict) -> tuple:

@@ -133,7 +133,8 @@ def test_how_a_batch_draws_its_episodes_is_kept_once_and_put_back_in_every_envir
     np.testing.assert_array_equal(kept["level_counts"], counts.sum(axis=0))
     seeds = Batch({name: np.stack([x, 2 * x]) for name, x in batch.info.items()})  # two seeds stacked
     np.testing.assert_array_equal(loop.episode_sampling(seeds)["level_counts"][1], 2 * counts.sum(axis=0))
-    fresh = Batch({"level_weights": np.zeros_like(weights), "level_counts": np.zeros_like(counts), "rng": batch.info["rng"]})
+    fresh = Batch({"level_weights": np.zeros_like(weights), "level_counts": np.zeros_like(counts),
+                   "rng": batch.info["rng"]})
     put = loop.with_episode_sampling(fresh, kept)
     np.testing.assert_array_equal(put.info["level_weights"], weights)
     np.testing.assert_array_equal(np.asarray(put.info["level_counts"]).sum(axis=0), counts.sum(axis=0))
