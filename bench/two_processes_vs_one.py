@@ -161,15 +161,15 @@ def metric_differences(rows: list[dict], others: list[dict]) -> dict[str, float]
 
 
 def learned_arrays(folder: Path) -> dict[str, object]:
-    """The arrays of the run's `learner.msgpack`, by their path in its state."""
+    """The arrays of the run's `learner.msgpack` (what it learned, then how it drew its episodes), by their path."""
     import jax
 
     jax.config.update("jax_platforms", "cpu")  # this process leaves the GPUs to the runs
     from fieldgen.agents import checkpoint
-    from fieldgen.run.session import learned_template, open_run
+    from fieldgen.run.session import learner_template, open_run
 
-    state = checkpoint.load(folder / record.LEARNER, learned_template(open_run(folder, load_state=False)))
-    return {jax.tree_util.keystr(path): leaf for path, leaf in jax.tree_util.tree_flatten_with_path(state)[0]}
+    contents = checkpoint.load(folder / record.LEARNER, *learner_template(open_run(folder, load_state=False)))
+    return {jax.tree_util.keystr(path): leaf for path, leaf in jax.tree_util.tree_flatten_with_path(contents)[0]}
 
 
 def array_differences(arrays: dict, others: dict) -> dict[str, float]:

@@ -214,23 +214,17 @@ def auto_environments(source: Path, count: int | None) -> tuple[list, list[dict]
     return envs, [dict(zip(names, level.coordinates)) for level in chosen], kickoffs
 
 
-def learned_template(run: Run):
-    """The shapes of what the run's trainer keeps of a state in `learner.msgpack` (Trainer.learned)."""
+def learner_contents(trainer: loop.Trainer, state) -> tuple:
+    """What `learner.msgpack` holds of `state`, in this order: what it learned (Trainer.learned), then how its
+    environments draw their episodes (loop.episode_sampling: a curriculum's weights and level counts)."""
+    return trainer.learned(state), loop.episode_sampling(state.env_state)
+
+
+def learner_template(run: Run) -> tuple:
+    """The shapes of what `learner.msgpack` holds for the run's trainer (`learner_contents`)."""
     trainer = run.trainers[run.stage]
-    return trainer.learned(jax.eval_shape(jax.vmap(trainer.start), loop.seed_keys(run.seeds)))
-
-
-def sampling_template(trainer: loop.Trainer, seeds: Sequence[int]):
-    """The shapes of how a batch of the trainer's environments draws its episodes, as `learner.msgpack`
-    keeps it after what was learned (loop.episode_sampling); one environment's reset tells them."""
-    reset, keys = jax.vmap(jax.vmap(trainer.env.reset)), jax.random.split(jax.random.key(0), (len(seeds), 1))
-    return jax.eval_shape(lambda k: loop.episode_sampling(reset(k)), keys)
-
-
-def learner_contents(trainer: loop.Trainer, state, sampling: dict) -> tuple:
-    """What `learner.msgpack` holds, in this order: what `state` learned (Trainer.learned), then how its
-    episodes were drawn (`sampling_template`); `open_run` reads them back."""
-    return trainer.learned(state), sampling
+    shapes = jax.eval_shape(jax.vmap(trainer.start), loop.seed_keys(run.seeds))
+    return jax.eval_shape(functools.partial(learner_contents, trainer), shapes)
 
 
 def started_from(run: Run, source: Path) -> tuple[object, dict]:
@@ -255,7 +249,7 @@ def started_from(run: Run, source: Path) -> tuple[object, dict]:
         raise record.RunError(f"--init-from {source}: it trained {len(other.seeds)} seeds at once, {here} "
                               f"{len(run.seeds)}; give --seeds {len(other.seeds)}")
     try:  # its networks alone: how its episodes were drawn belongs to its own levels
-        state, _ = checkpoint.load(learner, learned_template(run), sampling_template(other.trainers[0], other.seeds))
+        state, _ = checkpoint.load(learner, learner_template(run)[0], learner_template(other)[1])
     except checkpoint.CheckpointError as exc:
         theirs, mine = other.config.model_dump(), run.config.model_dump()
         differ = [f"{run.algo}.{k} ({json.dumps(theirs[k])} there, {json.dumps(mine[k])} here)"
@@ -325,7 +319,7 @@ def open_run(folder: Path, load_state: bool = True, to_train: bool = False, lear
         run.rows = []  # prepared, or stopped before its first checkpoint: it starts from the beginning
         if run.init_from:
             try:
-                run.state = checkpoint.load(folder / record.INITIAL, learned_template(run))
+                run.state = checkpoint.load(folder / record.INITIAL, learner_template(run)[0])
             except checkpoint.CheckpointError as exc:
                 raise record.RunError(f"{exc}; it holds what the run was set up to start from "
                                       f"({run.init_from['run']}): set the run up again with --init-from") from None
@@ -338,17 +332,16 @@ def open_run(folder: Path, load_state: bool = True, to_train: bool = False, lear
         if run.stage >= len(envs):
             raise record.RunError(f"{folder / record.METRICS}'s last row puts the run at stage {run.stage + 1}, "
                                   f"past its last ({len(envs)}); {damaged}")
-    trainer = run.trainers[run.stage]
-    path, template = folder / record.CHECKPOINT, jax.eval_shape(jax.vmap(trainer.start), loop.seed_keys(seeds))
+    path = folder / record.CHECKPOINT
     alone = not path.exists() or (learned and (folder / record.LEARNER).exists())
-    if alone:  # what it learned alone: asked for, or the run was copied without its checkpoint (it goes on from
-        # there, its buffer filled anew, its episodes drawn as they were)
-        path = folder / record.LEARNER
     try:
-        if alone:
-            run.state, run.sampling = checkpoint.load(path, learned_template(run), sampling_template(trainer, seeds))
+        if alone:  # what it learned alone: asked for, or the run was copied without its checkpoint (it goes on
+            # from there, its buffer filled anew, its episodes drawn as they were)
+            path = folder / record.LEARNER
+            run.state, run.sampling = checkpoint.load(path, *learner_template(run))
         else:
-            run.state = checkpoint.load(path, template)
+            trainer = run.trainers[run.stage]
+            run.state = checkpoint.load(path, jax.eval_shape(jax.vmap(trainer.start), loop.seed_keys(seeds)))
     except checkpoint.CheckpointError as exc:
         raise record.RunError(str(exc)) from None
     done = int(jax.device_get(run.state.env_steps)[0])

@@ -56,19 +56,17 @@ def _train(run: Run, console: Console, videos: bool, logger: str, video_format: 
             began = time.perf_counter()
             skipped[0] = skip_checkpoint(writer.busy, skipped[0], index == config.num_evals)
             if skipped[0]:  # what it learned alone, megabytes: the write under way is not waited for
-                snapshot = sharding.to_host(trainers[0].learned(state))
-                sampling = sharding.to_host(loop.episode_sampling(state.env_state))
+                learned = sharding.to_host(session.learner_contents(trainers[0], state))
             else:
                 writer.wait()  # one snapshot at a time in host memory; a failed write stops training here
                 snapshot = sharding.to_host(state)  # every process takes part in gathering it
-                sampling = loop.episode_sampling(snapshot.env_state)
+                learned = session.learner_contents(trainers[0], snapshot)
             waited[:] = [time.perf_counter() - began]
             if not writes:
                 return
             if not skipped[0]:
                 writer.submit(write_atomic, run.folder / record.CHECKPOINT, checkpoint.pieces(snapshot))
-            writer.submit(write_atomic, run.folder / record.LEARNER,
-                          checkpoint.pieces(session.learner_contents(trainers[0], snapshot, sampling)))
+            writer.submit(write_atomic, run.folder / record.LEARNER, checkpoint.pieces(learned))
             if filmed is not None:  # the episode just evaluated (a mixed run films its last stage)
                 filmed_stage, frames = filmed
                 if filmed_stage not in recorders:

@@ -253,8 +253,7 @@ def test_an_auto_run_copied_without_its_checkpoint_draws_its_levels_as_it_did(tm
     for name, kept in loop.episode_sampling(put[0].env_state).items():
         np.testing.assert_allclose(kept, drawn[name], rtol=1e-6)
     assert json.loads((run / "metrics.jsonl").read_text().splitlines()[-1])["eval"] == 3
-    _, sampling = checkpoint.load(run / record.LEARNER, session.learned_template(moved),
-                                  session.sampling_template(moved.trainers[0], moved.seeds))
+    _, sampling = checkpoint.load(run / record.LEARNER, *session.learner_template(moved))
     assert set(sampling) == set(drawn)  # the resumed run's learner keeps it too
 
 

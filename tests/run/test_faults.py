@@ -237,7 +237,7 @@ def learned_nothing(out: Path, field: str, seed: int) -> Path:
                                  "--prepare"])
     assert result.exit_code == 0, result.output
     run = session.open_run(out / f"{field}-crl-{seed}", load_state=False)
-    zeros = jax.tree.map(lambda leaf: np.zeros(leaf.shape, leaf.dtype), session.learned_template(run))
+    zeros = jax.tree.map(lambda leaf: np.zeros(leaf.shape, leaf.dtype), session.learner_template(run)[0])
     (run.folder / record.LEARNER).write_bytes(checkpoint.to_bytes(zeros))
     record.write_metrics(run.folder, [{"eval": 0, "seed": s, "env_steps": 0} for s in run.seeds])
     return run.folder

@@ -40,7 +40,7 @@ def test_a_run_starts_from_what_another_learned_and_trains_on(tmp_path, source, 
     # set up but not trained (as if killed before its first checkpoint): it opens at what it starts from
     opened = session.open_run(run)
     assert opened.rows == [] and opened.init_from["run"] == str(source)
-    learned = checkpoint.load(source / record.LEARNER, session.learned_template(opened))
+    learned, _ = checkpoint.load(source / record.LEARNER, *session.learner_template(opened))
     for a, b in zip(jax.tree.leaves(opened.state.nets), jax.tree.leaves(learned.nets)):
         np.testing.assert_array_equal(a, b)
     assert int(opened.state.env_steps[0]) == 0
