@@ -8,7 +8,9 @@ that a machine that warms up or slows down over the run weighs on every arm alik
 `NAME: KEY=VALUE ...`: XLA_FLAGS and PYTHONPATH add to what this process's environment holds (the
 flags after it, the path before it), any other variable is set. The first arm is the reference; each
 arm's figure is the median over rounds of each row's `train_steps_per_second`, printed as a ratio to
-the reference's same row. --json appends a row per arm and benchmark row.
+the reference's same row. --json appends a row per arm and benchmark row. Each round of each arm prints
+its rates as it ends, and a stop (Ctrl-C, or the TERM of a time limit) still prints the table and writes
+the rows over the rounds that ended, marked as incomplete, then exits with status 130.
 
     python bench/process_ab.py --arm 'default:' \\
         --arm 'loops as graphs: XLA_FLAGS=--xla_gpu_enable_command_buffer=FUSION,CUBLAS,CUBLASLT,CUSTOM_CALL,CUDNN,CONDITIONAL,WHILE' \\
@@ -23,6 +25,7 @@ import argparse
 import json
 import os
 import re
+import signal
 import statistics
 import subprocess
 import sys
@@ -82,7 +85,16 @@ def run_arm(name: str, variables: dict[str, str], arguments: list[str], folder: 
     if done.returncode != 0 or not out.exists():
         said = (done.stderr.strip() or done.stdout.strip() or "(no output)").splitlines()[-1]
         sys.exit(f"error: arm {name!r}, round {round_ + 1}: train_throughput ended with status {done.returncode}: {said}")
-    return [json.loads(line) for line in out.read_text().splitlines() if line.strip()]
+    rows = [json.loads(line) for line in out.read_text().splitlines() if line.strip()]
+    for row in rows:
+        print(f"  {' '.join(str(v) for v in row_name(row))}: {row['train_steps_per_second']:,.0f} env steps/s",
+              flush=True)
+    return rows
+
+
+def stop(signum, frame):
+    """A TERM (a time limit's) stops the comparison as Ctrl-C does: the rounds that ended are reported."""
+    raise KeyboardInterrupt
 
 
 def main() -> None:
@@ -102,13 +114,22 @@ def main() -> None:
     if "--json" in arguments:
         parser.error("give --json before '--': the arms' own rows are read from files of this script's")
     rows: dict[str, list[dict]] = {name: [] for name in names}
+    complete, before = True, signal.signal(signal.SIGTERM, stop)
     with tempfile.TemporaryDirectory(prefix="fieldgen-ab-") as scratch:
-        for round_ in range(args.rounds):
-            for name, variables in args.arm:
-                rows[name] += run_arm(name, variables, arguments, Path(scratch), round_)
+        try:
+            for round_ in range(args.rounds):
+                for name, variables in args.arm:
+                    rows[name] += run_arm(name, variables, arguments, Path(scratch), round_)
+        except KeyboardInterrupt:  # subprocess.run has ended the arm's process
+            complete = False
+            print(f"stopped in round {round_ + 1}, arm {name!r}: the table holds the rounds that ended", flush=True)
+        finally:
+            signal.signal(signal.SIGTERM, before)
     reference = medians(rows[names[0]])
     print(f"\n{'arm':<20s} {'row':<40s} {'env steps/s (median)':>21s} {'rounds':>7s} {'/ ' + names[0]:>12s}")
     for (name, variables) in args.arm:
+        if not rows[name]:
+            print(f"{name:<20s} (no round ended)")
         for key, rate in medians(rows[name]).items():
             ratio = rate / reference[key] if key in reference else None
             count = sum(row_name(r) == key for r in rows[name])
@@ -118,7 +139,10 @@ def main() -> None:
             append_jsonl(args.json, {"arm": name, "variables": variables, **dict(zip(KEYS, key)),
                                      "train_steps_per_second": rate, "rounds": count,
                                      "rates": [r["train_steps_per_second"] for r in rows[name] if row_name(r) == key],
-                                     "reference": names[0], "over_reference": ratio, "arguments": arguments})
+                                     "reference": names[0], "over_reference": ratio, "complete": complete,
+                                     "arguments": arguments})
+    if not complete:
+        sys.exit(130)
 
 
 if __name__ == "__main__":

@@ -23,6 +23,12 @@ metric over every row (timings left out: fieldgen.run.record.TIMINGS) and of eac
 bytes. --json appends a row per layout (a difference is null where one run lacks the metric or array, or
 the two cannot be compared: no numbers, or other shapes).
 
+A GPU need not give the same bits twice for the same program (XLA's scatters add in whatever order
+their threads come), and an RL run grows the smallest difference into another run. `--control` trains the
+one process a second time, so that a difference between the layouts can be read beside the one that the
+same layout shows with itself; XLA_FLAGS in this script's environment reaches every process (e.g.
+`--xla_gpu_deterministic_ops=true`, for runs that should match bit for bit).
+
     python bench/two_processes_vs_one.py --field build/ant_nav --envs 1024 --json out.jsonl
     python bench/two_processes_vs_one.py --field point_nav --steps 1900 --envs 8 --evals 2 \\
         --set crl.hidden=[32,32] --set crl.min_replay_rows=100 --set crl.max_replay_rows=400   # a CPU, tiny
@@ -44,7 +50,8 @@ from pathlib import Path
 from fieldgen.env.throughput import append_jsonl, run_arguments, run_command
 from fieldgen.run import distributed, record
 
-LAYOUTS = {"one process": [[0, 1]], "two processes": [[0], [1]]}  # layout -> the devices of each process
+LAYOUTS = {"one process": [[0, 1]], "two processes": [[0], [1]],  # layout -> the devices of each process
+           "one process again": [[0, 1]]}  # the control: trained only with --control
 
 
 @dataclasses.dataclass
@@ -200,6 +207,50 @@ def finite(gap: float) -> float | None:
     return gap if math.isfinite(gap) else None
 
 
+@dataclasses.dataclass
+class Sameness:
+    """How far one run is from another: each metric's and each learned array's largest difference, and
+    whether their checkpoints hold the same bytes."""
+
+    metrics: dict[str, float]
+    arrays: dict[str, float]
+    same_checkpoint: bool
+
+    @classmethod
+    def of(cls, rows: dict[str, list[dict]], runs: dict[str, Trained], one: str, other: str) -> "Sameness":
+        return cls(metric_differences(rows[one], rows[other]),
+                   array_differences(learned_arrays(runs[one].folder), learned_arrays(runs[other].folder)),
+                   (runs[one].folder / record.CHECKPOINT).read_bytes() == (runs[other].folder / record.CHECKPOINT).read_bytes())
+
+    @property
+    def identical(self) -> bool:
+        return max(self.metrics.values()) == 0 and max(self.arrays.values()) == 0 and self.same_checkpoint
+
+    def lines(self, rows: int) -> list[str]:
+        return [f"metrics: {len(self.metrics)} over {rows} rows; largest difference {largest(self.metrics)}",
+                f"learner: {len(self.arrays)} arrays; largest difference {largest(self.arrays)}",
+                f"checkpoint.msgpack: {'the same bytes' if self.same_checkpoint else 'different bytes'}"]
+
+    def row(self) -> dict:
+        return {"identical": self.identical,
+                "metrics_max_abs_difference": {k: finite(v) for k, v in self.metrics.items()},
+                "learner_max_abs_difference": finite(max(self.arrays.values())),
+                "checkpoint_same_bytes": self.same_checkpoint}
+
+
+def verdict(split: Sameness, control: Sameness | None) -> str:
+    """Whether the two layouts trained the same run, read beside the control where there is one."""
+    if split.identical:
+        return "identical: yes"
+    if control is None:
+        return "identical: no (--control tells whether one process gives the same run twice here)"
+    if control.identical:
+        return "identical: no, while one process trained twice is: the split into processes changed the run"
+    return (f"identical: no, nor is one process trained twice (largest learner difference "
+            f"{largest(control.arrays)}): this platform does not repeat a run bit for bit, so the layouts cannot "
+            "be told apart by sameness here")
+
+
 def main() -> None:
     parser = run_arguments(__doc__)
     parser.set_defaults(field="build/ant_nav", steps=6_000_000, evals=1)
@@ -208,6 +259,8 @@ def main() -> None:
     parser.add_argument("--timeout", type=float, default=3600, help="seconds each layout may take in all")
     parser.add_argument("--out", type=Path, help="keep both runs and the processes' output here "
                         "(default: a temporary folder, removed at the end)")
+    parser.add_argument("--control", action="store_true", help="train the one process a second time and "
+                        "report how far it is from the first, beside the layouts' difference")
     args = parser.parse_args()
     if min(args.seeds, args.envs, args.steps, args.evals) < 1:
         sys.exit("error: --seeds, --envs, --steps and --evals are positive")
@@ -217,28 +270,26 @@ def main() -> None:
     with tempfile.TemporaryDirectory(prefix="fieldgen-processes-") as scratch:
         root = args.out or Path(scratch)
         runs = {}
-        for layout in LAYOUTS:
+        for layout in list(LAYOUTS)[:3 if args.control else 2]:
             out = root / layout.replace(" ", "_")
             out.mkdir(parents=True, exist_ok=True)
             runs[layout] = train(layout, args, platform, out, root)
             print(f"{layout}: trained in {runs[layout].process_seconds:.0f} s", flush=True)
-        one, two = runs.values()
         rows = {name: record.read_metrics(run.folder) for name, run in runs.items()}
         rates = {name: chunk_rate(rows[name], args.seeds) for name in runs}
-        metrics = metric_differences(rows["one process"], rows["two processes"])
-        arrays = array_differences(learned_arrays(one.folder), learned_arrays(two.folder))
-        same_checkpoint = (one.folder / record.CHECKPOINT).read_bytes() == (two.folder / record.CHECKPOINT).read_bytes()
+        split = Sameness.of(rows, runs, "one process", "two processes")
+        control = Sameness.of(rows, runs, "one process", "one process again") if args.control else None
     ratio = rates["two processes"] / rates["one process"]
-    identical = max(metrics.values()) == 0 and max(arrays.values()) == 0 and same_checkpoint
     print(f"\n{'layout':<14s} {'processes':>9s} {'env steps/s (chunks)':>21s} {'processes wall s':>17s}")
     for name, run in runs.items():
         print(f"{name:<14s} {len(LAYOUTS[name]):>9d} {rates[name]:>21,.0f} {run.process_seconds:>17.1f}")
     print(f"two processes / one process: {ratio:.3f} (env steps per second of the training chunks, from "
           f"steps_per_second in metrics.jsonl, compiles excluded)")
-    print(f"metrics: {len(metrics)} over {len(rows['one process'])} rows; largest difference {largest(metrics)}")
-    print(f"learner: {len(arrays)} arrays; largest difference {largest(arrays)}")
-    print(f"checkpoint.msgpack: {'the same bytes' if same_checkpoint else 'different bytes'}")
-    print(f"identical: {'yes' if identical else 'no'}")
+    print("\n".join(split.lines(len(rows["one process"]))))
+    if control is not None:
+        print("one process again, against the first:")
+        print("\n".join(f"  {line}" for line in control.lines(len(rows["one process"]))))
+    print(verdict(split, control))
     print("commands:")
     for run in runs.values():
         for command in run.commands:
@@ -249,10 +300,8 @@ def main() -> None:
             "evals": args.evals, "sets": args.set, "platform": platform, "device": kind, "layout": name,
             "processes": len(LAYOUTS[name]), "devices_per_process": [len(d) for d in LAYOUTS[name]],
             "chunk_steps_per_second": rates[name], "process_seconds": run.process_seconds,
-            "over_one_process": rates[name] / rates["one process"], "identical": identical,
-            "metrics_max_abs_difference": {k: finite(v) for k, v in metrics.items()},
-            "learner_max_abs_difference": finite(max(arrays.values())), "checkpoint_same_bytes": same_checkpoint,
-            "commands": run.commands})
+            "over_one_process": rates[name] / rates["one process"], **split.row(),
+            "control": None if control is None else control.row(), "commands": run.commands})
 
 
 if __name__ == "__main__":

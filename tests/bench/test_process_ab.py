@@ -56,6 +56,33 @@ def test_bad_input_is_one_clear_line(options, message):
     assert "Traceback" not in result.stderr
 
 
+def test_a_stop_reports_the_rounds_that_ended_and_exits_130(tmp_path, monkeypatch, capsys):
+    """A time limit's TERM in round 2 (here the arm raising as the handler does): round 1's rates are the
+    table and the rows, marked incomplete."""
+    done = []
+
+    def run_arm(name, variables, arguments, folder, round_):
+        if round_ == 1 and name == "other":
+            raise KeyboardInterrupt
+        done.append((name, round_))
+        return [{"field": "f", "algo": "crl", "envs": 8, "seeds": 1, "devices": 1,
+                 "train_steps_per_second": 100.0 if name == "reference" else 150.0 + round_}]
+
+    monkeypatch.setattr(bench, "run_arm", run_arm)
+    out = tmp_path / "ab.jsonl"
+    monkeypatch.setattr(sys, "argv", ["process_ab.py", "--arm", "reference:", "--arm", "other: A=1", "--arm",
+                                      "third: B=1", "--rounds", "2", "--json", str(out), "--", "--envs", "8"])
+    with pytest.raises(SystemExit) as stopped:
+        bench.main()
+    assert stopped.value.code == 130
+    assert done == [("reference", 0), ("other", 0), ("third", 0), ("reference", 1)]
+    said = capsys.readouterr().out
+    assert "stopped in round 2, arm 'other'" in said
+    rows = {row["arm"]: row for row in map(json.loads, out.read_text().splitlines())}
+    assert rows["other"]["rounds"] == 1 and rows["other"]["over_reference"] == 1.5
+    assert rows["reference"]["rounds"] == 2 and not any(row["complete"] for row in rows.values())
+
+
 @pytest.mark.slow
 def test_two_arms_on_a_cpu_are_timed_in_turn_and_compared(tmp_path):
     out = tmp_path / "ab.jsonl"
@@ -68,6 +95,6 @@ def test_two_arms_on_a_cpu_are_timed_in_turn_and_compared(tmp_path):
     lines = result.stdout.splitlines()
     assert [line.split(",")[0] for line in lines if line.startswith("round ")] == ["round 1", "round 1"]
     reference, other = (json.loads(line) for line in out.read_text().splitlines())
-    assert (reference["arm"], reference["over_reference"]) == ("reference", 1.0)
+    assert (reference["arm"], reference["over_reference"], reference["complete"]) == ("reference", 1.0, True)
     assert other["variables"] == {"FIELDGEN_AB_ARM": "1"} and other["train_steps_per_second"] > 0
     assert other["over_reference"] == pytest.approx(other["train_steps_per_second"] / reference["train_steps_per_second"])

@@ -43,6 +43,19 @@ def test_differences_are_the_largest_of_each_metric_and_array_timings_left_out()
     assert bench.largest({"w": 4.0, "n": 0.0}) == "4 (w)" and bench.largest({"n": 0.0}) == "0"
 
 
+def test_the_verdict_reads_the_layouts_difference_beside_the_controls():
+    same = bench.Sameness({"loss": 0.0}, {"w": 0.0}, True)
+    apart = bench.Sameness({"loss": 0.5}, {"w": 2.5}, False)
+    assert bench.verdict(same, None) == bench.verdict(same, apart) == "identical: yes"
+    assert "--control tells" in bench.verdict(apart, None)
+    assert "the split into processes changed the run" in bench.verdict(apart, same)
+    assert "nor is one process trained twice (largest learner difference 2.5 (w))" in bench.verdict(apart, apart)
+    assert bench.Sameness({"loss": 0.0}, {"w": 0.0}, False).identical is False  # the bytes count too
+    row = apart.row()
+    assert row["identical"] is False and row["learner_max_abs_difference"] == 2.5
+    assert bench.Sameness({"loss": math.inf}, {"w": math.inf}, False).row()["learner_max_abs_difference"] is None
+
+
 def test_a_failed_process_is_named_by_the_line_that_says_why(tmp_path):
     log = tmp_path / "p.log"
     log.write_text("ant_nav 1,000 of 2,000 steps\nF1127 20:17:03.1 client.cc:12] Check failed: ok\n"
@@ -54,7 +67,6 @@ def test_a_failed_process_is_named_by_the_line_that_says_why(tmp_path):
     assert bench.cause(log) == "killed"
     log.write_text("")
     assert bench.cause(log) == "(no output)"
-
 
 
 WAITS_UNLESS_PROCESS_1 = ("import sys, time\n"
@@ -86,12 +98,14 @@ def test_bad_input_is_one_clear_line(tmp_path, options, message):
 def test_two_processes_on_a_cpu_train_what_one_process_trains(tmp_path, tiny_crl_args):
     out = tmp_path / "rows.jsonl"
     result = subprocess.run([sys.executable, str(SCRIPT), "--platform", "cpu", "--field", "point_nav", "--seeds", "2",
-                             "--evals", "2", *tiny_crl_args, "--json", str(out)],
+                             "--evals", "2", *tiny_crl_args, "--control", "--json", str(out)],
                             capture_output=True, text=True, cwd=tmp_path, timeout=1800)
     assert result.returncode == 0, result.stderr[-3000:]
-    assert "identical: yes" in result.stdout and "checkpoint.msgpack: the same bytes" in result.stdout
+    assert "\nidentical: yes\n" in result.stdout and "checkpoint.msgpack: the same bytes" in result.stdout
     assert "two processes / one process: " in result.stdout
-    one, two = (json.loads(line) for line in out.read_text().splitlines())
+    one, two, again = (json.loads(line) for line in out.read_text().splitlines())
+    assert again["layout"] == "one process again" and again["control"] == two["control"]
+    assert two["control"]["identical"] and "one process again, against the first:" in result.stdout
     assert (one["layout"], one["processes"], one["devices_per_process"]) == ("one process", 1, [2])
     assert (two["layout"], two["processes"], two["devices_per_process"]) == ("two processes", 2, [1, 1])
     assert two["identical"] and two["checkpoint_same_bytes"] and two["learner_max_abs_difference"] == 0
