@@ -276,7 +276,8 @@ def drawing_as(state, sampling: dict, placement):
 def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int, schedule: Schedule,
                progress: Callable[[int, list[dict]], None] = lambda index, rows: None,
                on_eval: Callable = lambda state, index, stage, episode: None, resume: tuple | None = None,
-               film: Callable | None = None, sampling: dict | None = None):
+               film: Callable | None = None, sampling: dict | None = None,
+               stop: Callable[[float | None], bool] = lambda longest: False):
     """`run` through a sequence of trainers (a curriculum's stages) whose environments share one observation
     layout, as `schedule` says.
 
@@ -292,7 +293,9 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
     (`Trainer.learned`) goes on with fresh episodes and a buffer filled anew, drawn as `sampling` says
     (`episode_sampling`, seeds stacked) where given. An evaluation is handed
     to `progress` and `on_eval` once the next chunk has been dispatched, so that the GPU trains while
-    the host writes.
+    the host writes. Before each chunk `stop(longest)` is asked, with the longest time a chunk and its
+    evaluation have taken in this call (None before the first): True ends the run there, its last
+    evaluation handed on as at the end (a time limit: the run goes on later from it).
     """
     keys = seed_keys(seeds)
     staged, last = len(trainers) > 1, len(trainers) - 1
@@ -334,7 +337,10 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
         if refilling and sampling:
             state = drawing_as(state, sampling, programs(stage).placement)
         first, previous = index + 1, int(to_host(state.env_steps)[0])
+    took: list[float] = []  # seconds each chunk and its evaluation took
     for index in range(0 if resume is None else first, num_evals + 1):
+        if index > 0 and stop(max(took, default=None)):
+            break
         began = time.perf_counter()
         metrics = {}
         if index > 0:
@@ -372,6 +378,8 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
             for row in rows:
                 row["promoted_to"] = stage
         reported = (index, rows, state, stage, episode)
+        if index > 0:
+            took.append(time.perf_counter() - began)
     if reported is not None:
         report(*reported)
     return state, history

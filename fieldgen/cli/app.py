@@ -3,6 +3,7 @@ resolving a field named on the command line, and failing with one paragraph."""
 
 from __future__ import annotations
 
+import re
 from decimal import Decimal, InvalidOperation
 from pathlib import Path
 from typing import Annotated
@@ -61,6 +62,20 @@ def count(text: str | int) -> int:
         raise typer.BadParameter(f"'{text}' is not a positive whole count; write it as 40000, 50M, 1.5k or 2e6 "
                                  "(k, M and G stand for thousand, million and billion)")
     return int(value)
+
+
+DURATION = re.compile(r"(?:(\d+(?:\.\d*)?)h)?(?:(\d+(?:\.\d*)?)m)?(?:(\d+(?:\.\d*)?)s?)?")
+
+
+def duration(text: str | float) -> float:
+    """Seconds as people write a time limit: 570, 570s, 9m30s, 45m, 1.5h or 2h30m."""
+    match = DURATION.fullmatch(str(text).strip().lower().replace(" ", ""))
+    hours, minutes, seconds = (float(part or 0) for part in match.groups()) if match and any(match.groups()) \
+        else (0.0, 0.0, 0.0)
+    total = hours * 3600 + minutes * 60 + seconds
+    if not 0 < total < 10**9:
+        raise typer.BadParameter(f"'{text}' is not a length of time; write it as 570 (seconds), 9m30s, 45m or 1.5h")
+    return total
 
 
 def fail(message: str) -> None:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import sys
+import time
 from pathlib import Path
 from typing import Annotated, NoReturn, Optional
 
@@ -12,7 +13,7 @@ from rich.table import Table
 from rich.text import Text
 
 from fieldgen.agents.registry import ALGORITHMS, PRESETS
-from fieldgen.cli.app import app, choice, count, err, fail, field_source, out, video_format
+from fieldgen.cli.app import app, choice, count, duration, err, fail, field_source, out, video_format
 from fieldgen.compile.cameras import CAMERAS
 from fieldgen.run.loggers import LOGGERS
 from fieldgen.schema import SpecError
@@ -58,10 +59,13 @@ def _exit_interrupted() -> NoReturn:
     raise typer.Exit(130) from None
 
 
-def _train(run, videos: bool, logger: str, fmt: str | None = None) -> None:
+TIME_LIMIT_STATUS = 75  # sysexits' EX_TEMPFAIL, "try again later": a run stopped by --time-limit, to be continued
+
+
+def _train(run, videos: bool, logger: str, fmt: str | None = None, deadline: float | None = None) -> None:
     """Train a run; Ctrl-C exits with 130 at once, leaving a compile or program under way unfinished, and a
     failed write, a diverged run or, in a run over several processes, one that stopped says what to do
-    (training.train says how to go on)."""
+    (training.train says how to go on). A run the deadline stopped exits with TIME_LIMIT_STATUS."""
     from fieldgen.run import distributed, record, supervisor
     from fieldgen.files import FolderError
     from fieldgen.run.train import train as train_run
@@ -79,7 +83,7 @@ def _train(run, videos: bool, logger: str, fmt: str | None = None) -> None:
         supervisor.leave_words(and_how_to_go_on(f"process 0 of {jax.process_count()} (the run's coordinator) "
                                                 f"stopped, so this one (process {jax.process_index()}) stops too"))
     try:
-        train_run(run, out, videos, logger, fmt)
+        complete = train_run(run, out, videos, logger, fmt, deadline)
     except KeyboardInterrupt:
         _exit_interrupted()  # training.train said where the run stands
     except (record.RunError, FolderError) as exc:  # training diverged, or another process trains the run
@@ -92,6 +96,8 @@ def _train(run, videos: bool, logger: str, fmt: str | None = None) -> None:
         distributed.stop_if_another_stopped(exc, another_stopped)
         raise
     distributed.finished()
+    if not complete:
+        raise typer.Exit(TIME_LIMIT_STATUS)
 
 
 @app.command()
@@ -144,6 +150,11 @@ def train(
     coordinator_timeout: Annotated[int, typer.Option(
         metavar="SECONDS", rich_help_panel="One run over several processes",
         help="how long to wait for the coordinator and the other processes")] = 300,
+    time_limit: Annotated[Optional[float], typer.Option(
+        parser=duration, metavar="DURATION",
+        help="a job's time limit (570, 9m30s, 1.5h), counted from this command's start: training stops at the "
+             f"last evaluation whose next chunk and checkpoint would not end in time, exit status "
+             f"{TIME_LIMIT_STATUS}; continue with --resume")] = None,
 ) -> None:
     """Train an agent on a field or through a curriculum folder's stages; writes runs/<name>-<algo>-<seed>/.
 
@@ -156,7 +167,9 @@ def train(
     Example: fieldgen train soccer_v2 --init-from runs/soccer_v1-crl-0 --seed 1
     Example: fieldgen train soccer_v1 --curriculum auto --steps 50M
     Example: fieldgen train point_nav --seeds 8 --coordinator node01:12345 --num-processes 2 --process-id 0
+    Example: fieldgen train --resume runs/soccer_v2-crl-0 --time-limit 55m
     """
+    started = time.monotonic()
     fmt = video_format(video_fmt) if videos else None
     from fieldgen.agents import registry
     from fieldgen.files import FolderError
@@ -223,7 +236,7 @@ def train(
         except ConfigError as exc:
             out.print(Text(f"note: {exc}; resume it on a machine that holds it", style="yellow"))
         return
-    _train(run, videos, logger, fmt)
+    _train(run, videos, logger, fmt, None if time_limit is None else started + time_limit)
 
 
 @app.command()

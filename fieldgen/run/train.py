@@ -1,14 +1,16 @@
 """Training a run in its folder: the chunks between evaluations, and after each a checkpoint, the
 metrics, the plot and a video, written beside training and sent to a logger (TensorBoard, W&B); a run
-whose numbers stop being finite stops."""
+whose numbers stop being finite stops, and one given a deadline stops at the last evaluation before it."""
 
 from __future__ import annotations
 
 import contextlib
 import math
+import statistics
 import time
 
 import jax
+import numpy as np
 from rich.console import Console
 
 from fieldgen.agents import checkpoint, loop, sharding
@@ -21,16 +23,63 @@ from fieldgen.run.session import Run
 from fieldgen.run.videos import EpisodeRecorder, video_name
 
 
-def train(run: Run, console: Console, videos: bool = True, logger: str = "none", video_format: str | None = None) -> None:
+def train(run: Run, console: Console, videos: bool = True, logger: str = "none", video_format: str | None = None,
+          deadline: float | None = None) -> bool:
     """Train until the run's last evaluation, filming each in `video_format` (fieldgen.video.choose) and logging
     to `logger` (loggers.LOGGERS) too; Ctrl-C leaves the last checkpoint intact. In a run over several
     processes every process trains and only the first writes (the folder, metrics, videos, checkpoints); the
-    folder is locked meanwhile by the one that writes: another command training it is refused."""
+    folder is locked meanwhile by the one that writes: another command training it is refused.
+
+    With `deadline` (a time.monotonic() instant, a job's time limit) training stops at the last evaluation
+    after which the next chunk, its evaluation and the whole checkpoint written then would not all end
+    before it (`Deadline`), and says how to go on: a scheduler's kill would lose the chunk under way. True
+    once the run is complete, False where the deadline stopped it."""
     with locked(run.folder) if jax.process_index() == 0 else contextlib.nullcontext():
-        _train(run, console, videos, logger, video_format)
+        return _train(run, console, videos, logger, video_format, Deadline(deadline, run.rows))
 
 
-def _train(run: Run, console: Console, videos: bool, logger: str, video_format: str | None) -> None:
+class Deadline:
+    """Whether the next chunk fits before a deadline: the longest a chunk with its evaluation has taken (in
+    this command, else the median gap between the run's evaluations so far) and the longest that handing an
+    evaluation on and writing its whole checkpoint took. Before anything is measured, the chunk runs."""
+
+    def __init__(self, at: float | None, rows: list[dict]) -> None:
+        self.at, self.rows = at, rows
+        self.handing: list[float] = []  # seconds each on_eval held the training thread
+        self.writing: list[float] = []  # seconds each whole checkpoint took to write, in the writer's thread
+        self.needed: float | None = None  # what the chunk refused would have taken, by the estimate
+        self.reached = False
+
+    def earlier_interval(self) -> float | None:
+        """The median gap of wall-clock time between the run's evaluations so far (earlier commands' too)."""
+        walls = sorted({row["eval"]: row["wall_seconds"] for row in self.rows if "wall_seconds" in row}.items())
+        gaps = [b - a for (_, a), (_, b) in zip(walls, walls[1:]) if b > a]
+        return statistics.median(gaps) if gaps else None
+
+    def stop(self, longest: float | None) -> bool:
+        """loop.run_staged's `stop`: every process of a run takes process 0's answer, so that all stop at
+        the same evaluation."""
+        interval = longest if longest is not None else self.earlier_interval()
+        if self.at is not None and interval is not None:
+            self.needed = interval + max(self.handing, default=0.0) + max(self.writing, default=0.0)
+            self.reached = time.monotonic() + self.needed > self.at
+        if jax.process_count() > 1:
+            from jax.experimental import multihost_utils
+
+            self.reached = bool(multihost_utils.broadcast_one_to_all(np.asarray(self.reached)))
+        return self.reached
+
+    def timed(self, job):
+        """`job`, its seconds kept as a checkpoint's write time."""
+        def run(*args):
+            began = time.perf_counter()
+            job(*args)
+            self.writing.append(time.perf_counter() - began)
+        return run
+
+
+def _train(run: Run, console: Console, videos: bool, logger: str, video_format: str | None,
+           deadline: Deadline) -> bool:
     writes = jax.process_index() == 0
     if not writes:  # it films all the same: every process runs the same programs
         console, logger = Console(quiet=True), "none"
@@ -39,7 +88,7 @@ def _train(run: Run, console: Console, videos: bool, logger: str, video_format: 
     config, env = run.config, run.env
     if run.state is not None and run.finished:
         console.print(f"{run.folder} is already complete ({run.rows[-1]['env_steps']:,} env steps)")
-        return
+        return True
     trainers = run.trainers
     recorders: dict[int, EpisodeRecorder] = {}
     started = time.perf_counter() - (run.rows[-1].get("wall_seconds", 0.0) if run.rows else 0.0)  # over resumes
@@ -54,7 +103,7 @@ def _train(run: Run, console: Console, videos: bool, logger: str, video_format: 
 
         def on_eval(state, index, stage, filmed):
             began = time.perf_counter()
-            skipped[0] = skip_checkpoint(writer.busy, skipped[0], index == config.num_evals)
+            skipped[0] = skip_checkpoint(writer.busy, skipped[0], index == config.num_evals or deadline.reached)
             if skipped[0]:  # what it learned alone, megabytes: the write under way is not waited for
                 learned = sharding.to_host(session.learner_contents(trainers[0], state))
             else:
@@ -62,10 +111,11 @@ def _train(run: Run, console: Console, videos: bool, logger: str, video_format: 
                 snapshot = sharding.to_host(state)  # every process takes part in gathering it
                 learned = session.learner_contents(trainers[0], snapshot)
             waited[:] = [time.perf_counter() - began]
+            deadline.handing.append(waited[0])
             if not writes:
                 return
             if not skipped[0]:
-                writer.submit(write_atomic, run.folder / record.CHECKPOINT, checkpoint.pieces(snapshot))
+                writer.submit(deadline.timed(write_atomic), run.folder / record.CHECKPOINT, checkpoint.pieces(snapshot))
             writer.submit(write_atomic, run.folder / record.LEARNER, checkpoint.pieces(learned))
             if filmed is not None:  # the episode just evaluated (a mixed run films its last stage)
                 filmed_stage, frames = filmed
@@ -103,9 +153,11 @@ def _train(run: Run, console: Console, videos: bool, logger: str, video_format: 
         resume = (run.state, run.rows[-1]["eval"] if run.rows else -1, run.stage) if run.state is not None else None
         try:
             loop.run_staged(trainers, run.seeds, config.num_evals, run.schedule, progress, on_eval, resume,
-                            film=EpisodeRecorder.film if videos else None, sampling=run.sampling)
-            done = run.rows[-1]["env_steps"]  # whole iterations can stop short of --steps
-            bar.update(task, total=done, rate=rate(run.rows, done))
+                            film=EpisodeRecorder.film if videos else None, sampling=run.sampling,
+                            stop=deadline.stop)
+            if not deadline.reached:
+                done = run.rows[-1]["env_steps"]  # whole iterations can stop short of --steps
+                bar.update(task, total=done, rate=rate(run.rows, done))
         except KeyboardInterrupt:
             if writer.busy:
                 console.print("finishing the checkpoint being written...")
@@ -116,6 +168,13 @@ def _train(run: Run, console: Console, videos: bool, logger: str, video_format: 
                           soft_wrap=True)  # one line: the command stays whole to copy
             raise
     summary(run, console)
+    if deadline.reached:
+        last = run.rows[-1] if run.rows else {"eval": -1, "env_steps": 0}
+        console.print(f"stopped at the time limit after evaluation {last['eval']} of {config.num_evals} "
+                      f"({last['env_steps']:,} of {config.total_steps:,} env steps): the next chunk with its "
+                      f"evaluation and checkpoint (about {deadline.needed:.0f} s) would not have ended in time. "
+                      f"Continue with: fieldgen train --resume {run.folder}", soft_wrap=True)
+    return not deadline.reached
 
 
 def skip_checkpoint(writing: bool, skipped_last: bool, last: bool) -> bool:

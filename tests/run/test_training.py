@@ -158,6 +158,58 @@ def test_a_run_whose_checkpoints_are_left_out_resumes_to_the_run_never_stopped(t
         assert (run / name).read_bytes() == (reference / name).read_bytes()
 
 
+def test_the_deadline_weighs_the_longest_chunk_and_checkpoint_and_lets_an_unmeasured_chunk_run(monkeypatch):
+    from fieldgen.run import train as training
+
+    assert not training.Deadline(None, []).stop(10**6)  # no time limit
+    monkeypatch.setattr(training.time, "monotonic", lambda: 1000.0)
+    deadline = training.Deadline(1100.0, [])
+    assert not deadline.stop(None) and deadline.needed is None  # nothing measured yet: the chunk runs
+    deadline.handing += [2.0, 5.0]
+    deadline.writing += [10.0]
+    assert not deadline.stop(84.0) and deadline.needed == 99.0
+    assert deadline.stop(86.0) and deadline.needed == 101.0 and deadline.reached
+    walls = {0: 50.0, 1: 80.0, 2: 100.0, 3: 130.0}  # gaps 30, 20, 30 over two seeds' rows: their median, 30
+    rows = [{"eval": e, "seed": s, "wall_seconds": w} for e, w in walls.items() for s in (0, 1)]
+    assert training.Deadline(1031.0, rows).earlier_interval() == 30.0
+    assert not training.Deadline(1031.0, rows).stop(None) and training.Deadline(1029.0, rows).stop(None)
+
+
+@pytest.mark.parametrize("limit", ["0", "9x", "-5", "m"])
+def test_a_time_limit_that_is_no_length_of_time_is_one_line(tmp_path, limit):
+    result = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path), "--time-limit", limit])
+    said = " ".join(result.output.replace("│", " ").split())  # the words of the error's box
+    assert result.exit_code == 2 and f"'{limit}' is not a length of time; write it as 570 (seconds), 9m30s, 45m or " \
+        "1.5h" in said and "Traceback" not in result.output
+
+
+@pytest.mark.slow
+def test_a_time_limit_stops_at_an_evaluation_and_resume_ends_as_the_run_never_stopped(tmp_path, tiny_crl_args):
+    """A run from nothing trains its first chunk (nothing measured yet says how long one takes), then its time
+    being up it stops there with status 75, that evaluation's whole checkpoint written; a resume whose time is
+    up at once trains nothing; one without a limit ends with the metrics and files of a run never stopped."""
+    args = ["--no-videos", *tiny_crl_args]
+    assert runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path / "whole"), *args]).exit_code == 0
+    reference, run = tmp_path / "whole" / "point_nav-crl-0", tmp_path / "point_nav-crl-0"
+
+    def untimed(folder):
+        return [{k: v for k, v in json.loads(line).items() if k not in record.TIMINGS}
+                for line in (folder / "metrics.jsonl").read_text().splitlines()]
+
+    for command in (["point_nav", "--out", str(tmp_path), *args], ["--resume", str(run)]):
+        result = runner.invoke(app, ["train", *command, "--time-limit", "0.01s"])
+        assert result.exit_code == 75, result.output
+        said = unwrapped(result.output)
+        assert unwrapped("stopped at the time limit after evaluation 1 of 2 (1,280 of 1,900 env steps)") in said
+        assert unwrapped(f"would not have ended in time. Continue with: fieldgen train --resume {run}") in said
+        assert [r["eval"] for r in untimed(run)] == [0, 1] and (run / "checkpoint.msgpack").exists()
+    result = runner.invoke(app, ["train", "--resume", str(run)])
+    assert result.exit_code == 0, result.output
+    assert untimed(run) == untimed(reference)
+    for name in ("checkpoint.msgpack", "learner.msgpack"):
+        assert (run / name).read_bytes() == (reference / name).read_bytes()
+
+
 def test_an_interrupt_says_whether_a_checkpoint_was_kept(tmp_path, monkeypatch, tiny_crl_args):
     """Ctrl-C exits with 130 and tells how to go on, before and after the first checkpoint."""
     args = ["train", "point_nav", "--out", str(tmp_path), "--no-videos", *tiny_crl_args]
