@@ -139,7 +139,7 @@ def evaluate_policy(env, act: Callable, key: jax.Array, n_envs: int, film: Calla
         frame = None if film is None else (jax.tree.map(lambda x: x[filmed], film(env_state)), nxt.done[filmed])
         return (nxt, still, closest), (out, frame)
 
-    start = (env_state, jnp.ones(n_envs), goal_distance(env_state.obs))
+    start = batched_with(key, (env_state, jnp.ones(n_envs), goal_distance(env_state.obs)))
     (_, _, closest), (out, frames) = jax.lax.scan(step, start, None, length=env.episode_length)
     live_steps = jnp.sum(out["alive"])
     succeeded = jnp.any(out["success"] > 0, axis=0)
@@ -153,6 +153,22 @@ def evaluate_policy(env, act: Callable, key: jax.Array, n_envs: int, film: Calla
         share = share / jnp.sum(share, axis=0)
         metrics["variants"] = VariantResults(succeeded @ share, at_goal @ share, closest @ share, jnp.zeros(count))
     return metrics, frames
+
+
+def batched_with(key: jax.Array, tree):
+    """`tree`, each array less a zero drawn from `key`: the same values, now varying wherever the key does.
+    Under a vmap over seeds, a scan whose carry starts the same for every seed but differs after one step
+    (episodes alive, an environment's counters) has its body batched again until the carry's batching
+    settles, the whole environment step traced anew each time; carries tied to the seed's key settle at
+    once. Typed PRNG keys are left as they are."""
+    zero = (jax.random.key_data(key) if jnp.issubdtype(key.dtype, jax.dtypes.prng_key) else key).ravel()[0] * 0
+
+    def tie(x):
+        x = jnp.asarray(x)
+        if jnp.issubdtype(x.dtype, jax.dtypes.prng_key):
+            return x
+        return x | (zero > 0) if x.dtype == jnp.bool_ else x - zero.astype(x.dtype)  # x - 0 is x, -0.0 too
+    return jax.tree.map(tie, tree)
 
 
 @flax.struct.dataclass
