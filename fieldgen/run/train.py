@@ -170,9 +170,10 @@ def _train(run: Run, console: Console, videos: bool, logger: str, video_format: 
     summary(run, console)
     if deadline.reached:
         last = run.rows[-1] if run.rows else {"eval": -1, "env_steps": 0}
+        took = "" if deadline.needed is None else f" (about {deadline.needed:.0f} s)"  # a process told by process 0
         console.print(f"stopped at the time limit after evaluation {last['eval']} of {config.num_evals} "
                       f"({last['env_steps']:,} of {config.total_steps:,} env steps): the next chunk with its "
-                      f"evaluation and checkpoint (about {deadline.needed:.0f} s) would not have ended in time. "
+                      f"evaluation and checkpoint{took} would not have ended in time. "
                       f"Continue with: fieldgen train --resume {run.folder}", soft_wrap=True)
     return not deadline.reached
 
