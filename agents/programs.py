@@ -83,14 +83,24 @@ def under_way() -> bool:
         any(ref() is not None and not ref().is_ready() for ref in _running)
 
 
+def started(trainer, keys: jax.Array) -> tuple[Callable, object]:
+    """The vmapped start of a batch of seeds and the shapes of the training state it makes, traced once per
+    trainer and seed count: a run's checkpoint and learner are read through these shapes and its programs
+    placed by them, and the start program jitted from the same function reuses the trace."""
+    kept = ("started", keys.shape[0])
+    if kept not in trainer.compiled:
+        start = jax.vmap(trainer.start)
+        trainer.compiled[kept] = start, jax.eval_shape(start, keys)
+    return trainer.compiled[kept]
+
+
 class Programs:
     """start(keys), refill(learned), chunk(state), evaluate(learned, eval_keys) and adapt(state, variants) of
     one trainer, vmapped over seeds and placed over the devices (agents.sharding). Each compiles once
     asked for, by `prepare` or by its first call."""
 
     def __init__(self, trainer, keys: jax.Array, film: Callable | None, evaluate: Callable, adapt: Callable):
-        start = jax.vmap(trainer.start)  # one function for both: JAX reuses the shapes' trace to compile it
-        shapes = jax.eval_shape(start, keys)
+        start, shapes = started(trainer, keys)  # one function for both: JAX reuses the shapes' trace to compile it
         self.placement = sharding.training_shardings(shapes, sharding.device_mesh(), trainer.env_axes)
         self._state = jax.tree.map(lambda s, p: jax.ShapeDtypeStruct(s.shape, s.dtype, sharding=p),
                                    shapes, self.placement)

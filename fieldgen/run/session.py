@@ -16,7 +16,7 @@ from pydantic import ValidationError
 
 import fieldgen
 from fieldgen import curriculum, files
-from fieldgen.agents import checkpoint, loop, memory, registry, sharding
+from fieldgen.agents import checkpoint, loop, memory, programs, registry, sharding
 from fieldgen.agents.config import ConfigError
 from fieldgen.compile.artifact import ArtifactError, load_artifact, write_artifact
 from fieldgen.compile.variants import VariantError
@@ -223,7 +223,7 @@ def learner_contents(trainer: loop.Trainer, state) -> tuple:
 def learner_template(run: Run) -> tuple:
     """The shapes of what `learner.msgpack` holds for the run's trainer (`learner_contents`)."""
     trainer = run.trainers[run.stage]
-    shapes = jax.eval_shape(jax.vmap(trainer.start), loop.seed_keys(run.seeds))
+    _, shapes = programs.started(trainer, loop.seed_keys(run.seeds))
     return jax.eval_shape(functools.partial(learner_contents, trainer), shapes)
 
 
@@ -341,7 +341,7 @@ def open_run(folder: Path, load_state: bool = True, to_train: bool = False, lear
             run.state, run.sampling = checkpoint.load(path, *learner_template(run))
         else:
             trainer = run.trainers[run.stage]
-            run.state = checkpoint.load(path, jax.eval_shape(jax.vmap(trainer.start), loop.seed_keys(seeds)))
+            run.state = checkpoint.load(path, programs.started(trainer, loop.seed_keys(seeds))[1])
     except checkpoint.CheckpointError as exc:
         raise record.RunError(str(exc)) from None
     done = int(jax.device_get(run.state.env_steps)[0])

@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 
@@ -52,6 +53,7 @@ TWO_DEVICES = """
 import json
 import sys
 import jax
+import jax.numpy as jnp
 import fieldgen
 from fieldgen.agents import crl, loop
 assert len(jax.local_devices()) == 2
@@ -139,3 +141,26 @@ def test_how_a_batch_draws_its_episodes_is_kept_once_and_put_back_in_every_envir
     np.testing.assert_array_equal(put.info["level_weights"], weights)
     np.testing.assert_array_equal(np.asarray(put.info["level_counts"]).sum(axis=0), counts.sum(axis=0))
     assert loop.episode_sampling(Batch({"rng": batch.info["rng"]})) == {}  # one variant: nothing to keep
+
+
+def test_a_trainers_start_is_traced_once_for_its_shapes_checkpoints_and_program():
+    """The shapes a run's checkpoint and learner are read through and its programs placed by come from one
+    trace of its start per seed count, which the start program's compile reuses."""
+    from fieldgen.agents import programs
+
+    traced = []
+
+    class Starting:
+        compiled: dict = {}
+
+        def start(self, key):
+            traced.append(key.shape)
+            return {"x": jnp.zeros(3) + key[0]}
+
+    trainer, keys = Starting(), jnp.zeros((2, 2), jnp.uint32)
+    start, shapes = programs.started(trainer, keys)
+    assert programs.started(trainer, keys)[1] is shapes and shapes["x"].shape == (2, 3) and len(traced) == 1
+    jax.jit(start)(keys)
+    assert len(traced) == 1
+    programs.started(trainer, jnp.zeros((3, 2), jnp.uint32))  # another seed count: its own trace
+    assert len(traced) == 2
