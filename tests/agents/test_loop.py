@@ -53,7 +53,6 @@ TWO_DEVICES = """
 import json
 import sys
 import jax
-import jax.numpy as jnp
 import fieldgen
 from fieldgen.agents import crl, loop
 assert len(jax.local_devices()) == 2
