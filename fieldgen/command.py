@@ -1,9 +1,11 @@
 """The `fieldgen` command as a child process of this interpreter: a sweep's runs, a benchmark's, and the
-supervised child of a run's process other than process 0 all start it this way."""
+supervised child of a run's process other than process 0 all start it this way, and read its exit status."""
 
 from __future__ import annotations
 
 import sys
+
+TIME_LIMIT_STATUS = 75  # sysexits' EX_TEMPFAIL, "try again later": a run stopped by --time-limit, to be continued
 
 
 def fieldgen_command(*arguments: str) -> list[str]:

@@ -14,6 +14,7 @@ from rich.text import Text
 
 from fieldgen.agents.registry import ALGORITHMS, PRESETS
 from fieldgen.cli.app import app, choice, count, duration, err, fail, field_source, out, video_format
+from fieldgen.command import TIME_LIMIT_STATUS
 from fieldgen.compile.cameras import CAMERAS
 from fieldgen.run.loggers import LOGGERS
 from fieldgen.schema import SpecError
@@ -57,9 +58,6 @@ def _exit_interrupted() -> NoReturn:
         sys.stderr.flush()
         os._exit(130)  # a normal exit would wait for the compile's thread
     raise typer.Exit(130) from None
-
-
-TIME_LIMIT_STATUS = 75  # sysexits' EX_TEMPFAIL, "try again later": a run stopped by --time-limit, to be continued
 
 
 def _train(run, videos: bool, logger: str, fmt: str | None = None, deadline: float | None = None) -> None:

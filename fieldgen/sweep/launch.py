@@ -3,8 +3,9 @@ continued from its folder, its output kept in the sweep's logs/ with how it ende
 
 Two backends hand the runs out. `local` keeps a queue and gives each GPU of this machine one run at a
 time (CUDA_VISIBLE_DEVICES), or, without GPUs, runs them one after another. `slurm` submits one
-submitit job array; a task stopped by its time limit or by preemption is requeued by submitit's
-checkpointing protocol and continues from its run folder. Starting a sweep again skips finished runs
+submitit job array; each task gives its run a `--time-limit` some minutes short of its own, so that the run
+stops at an evaluation with its checkpoint written, and then requeues itself; a task preempted, or out of
+time first, is requeued by submitit's checkpointing protocol. A requeued task continues from its run folder. Starting a sweep again skips finished runs
 and continues the others.
 """
 
@@ -14,6 +15,7 @@ import json
 import os
 import queue
 import shutil
+import signal
 import socket
 import subprocess
 import threading
@@ -21,7 +23,7 @@ import time
 from pathlib import Path
 from typing import Callable
 
-from fieldgen.command import fieldgen_command
+from fieldgen.command import TIME_LIMIT_STATUS, fieldgen_command
 from fieldgen.files import write_atomic
 from fieldgen.sweep.plan import PLAN, PlannedRun, Sweep, check_plan, shell
 
@@ -51,14 +53,15 @@ def finished(run: PlannedRun) -> bool:
 
 
 def execute(folder: Path, run: PlannedRun, environment: dict | None = None,
-            on_start: Callable[[subprocess.Popen], None] = lambda process: None) -> int:
-    """Run `run` to its end as a `fieldgen train` process of this interpreter, appending its output to its
-    log; records where it ran (.started) and how it ended (.ended: exit status, and why it failed)."""
+            on_start: Callable[[subprocess.Popen], None] = lambda process: None, extra: tuple[str, ...] = ()) -> int:
+    """Run `run` to its end (or to the time limit among `extra`, words added to its command) as a `fieldgen
+    train` process of this interpreter, appending its output to its log; records where it ran (.started) and
+    how it ended (.ended: exit status, and why it failed)."""
     if finished(run):
         return 0
     log = log_path(folder, run, ".log")
     log.parent.mkdir(parents=True, exist_ok=True)
-    command = run.command()
+    command = (*run.command(), *extra)
     log_path(folder, run, ".ended").unlink(missing_ok=True)
     with log.open("ab") as out:
         out.write(f"\n$ {' '.join(['fieldgen', *command])}\n".encode())
@@ -83,6 +86,8 @@ def why(log: Path, code: int) -> str:
     errors = [line for line in lines if line.startswith("error:")]
     if errors:
         return errors[-1]
+    if code == TIME_LIMIT_STATUS:
+        return "stopped at its time limit, checkpointed"
     if code < 0:
         return f"stopped by signal {-code}"
     if code == 130:
@@ -173,16 +178,24 @@ def submitit():
     return module
 
 
-class Task:
-    """One array task of the slurm backend: the run it is given, started or continued. A task whose time
-    runs out, or that is preempted, is requeued with the same run (submitit calls `checkpoint` on
-    SIGUSR2); run again, it continues from the run folder's last checkpoint."""
+def time_limit(minutes: float | None) -> tuple[str, ...]:
+    """The words that give a run `minutes` (none for None)."""
+    return () if minutes is None else ("--time-limit", f"{minutes:g}m")
 
-    def __init__(self, folder: Path):
-        self.folder = folder
+
+class Task:
+    """One array task of the slurm backend: the run it is given, started or continued with a time limit
+    short of the task's own (`run_minutes`). A run that stops at that limit has its checkpoint written, and
+    the task requeues itself; a task preempted, or whose own time runs out first, is requeued by submitit
+    (which calls `checkpoint` on its signal). Run again, it continues from the run folder."""
+
+    def __init__(self, folder: Path, run_minutes: float | None = None):
+        self.folder, self.run_minutes = folder, run_minutes
 
     def __call__(self, run: PlannedRun) -> int:
-        code = execute(self.folder, run)
+        code = execute(self.folder, run, extra=time_limit(self.run_minutes))
+        if code == TIME_LIMIT_STATUS:
+            requeue_this_task()
         if code != 0:
             raise RuntimeError(f"{run.id}: {why(log_path(self.folder, run, '.log'), code)}")
         return code
@@ -190,6 +203,19 @@ class Task:
     def checkpoint(self, run: PlannedRun):
         """What submitit requeues: this task with its run, which goes on from its folder."""
         return submitit().helpers.DelayedSubmission(self, run)
+
+
+def requeue_this_task() -> None:
+    """Hand this task back to the scheduler through submitit's own path: the signal on which submitit
+    checkpoints a task and requeues it (counting a time-out against the sweep's `requeues`). Outside a
+    submitit job, where that signal would kill the process, it raises instead."""
+    sig = getattr(signal, "SIG" + submitit().JobEnvironment.USR_SIG, None)
+    if sig is None or not callable(signal.getsignal(sig)):
+        raise RuntimeError("the run stopped at its time limit, and this process is no submitit task to requeue; "
+                           "start the sweep again to continue it")
+    os.kill(os.getpid(), sig)  # submitit's handler requeues the task and exits this process
+    time.sleep(60)  # the handler runs between two bytecodes; this one waits for it
+    raise RuntimeError("submitit did not requeue this task after its run stopped at its time limit")
 
 
 def executor(sweep: Sweep, cluster: str | None = None):
@@ -200,7 +226,8 @@ def executor(sweep: Sweep, cluster: str | None = None):
         raise BackendError("the slurm backend needs SLURM, and sbatch is not on PATH here; submit from a login "
                            "node of the cluster, or use backend: local")
     s = sweep.spec.slurm
-    made = module.AutoExecutor(folder=sweep.folder / SUBMITIT, cluster=cluster, slurm_max_num_timeout=s.requeues)
+    made = module.AutoExecutor(folder=sweep.folder / SUBMITIT, cluster=cluster, slurm_max_num_timeout=s.requeues,
+                                 local_max_num_timeout=s.requeues)
     extra = {k: v for k, v in (("account", s.account), ("qos", s.qos)) if v is not None}
     made.update_parameters(name=f"sweep-{sweep.path.stem}", timeout_min=s.time, nodes=1, tasks_per_node=1,
                            gpus_per_node=s.gpus_per_task,
@@ -219,7 +246,7 @@ def submit(sweep: Sweep, cluster: str | None = None) -> list:
     record_plan(sweep)
     if not todo:
         return []
-    jobs = made.map_array(Task(sweep.folder), todo)
+    jobs = made.map_array(Task(sweep.folder, sweep.spec.slurm.run_minutes), todo)
     record_plan(sweep, {run.id: job.job_id for run, job in zip(todo, jobs)})
     return jobs
 
@@ -230,14 +257,18 @@ def dry_run(sweep: Sweep) -> list[str]:
     if s.backend == "slurm":
         slurm = s.slurm
         head = (f"# one SLURM job array: a task per run, {slurm.gpus_per_task} GPU(s) each, {slurm.time} min "
-                f"(then requeued, up to {slurm.requeues} times)" + (f", partition {slurm.partition}" if slurm.partition else ""))
+                f"(then requeued, up to {slurm.requeues} times)" + (f", partition {slurm.partition}" if slurm.partition else "")
+                + (f"; each run stops at an evaluation {slurm.stop_before:g} min before its task's end"
+                   if slurm.run_minutes else ""))
+        extra = time_limit(slurm.run_minutes)
     else:
         slots = gpus(s.local.gpus)
         head = f"# a queue: one run per GPU ({', '.join(slots)})" if slots else "# one run after another (no GPU)"
+        extra = ()
     lines = [head]
     for run in sweep.runs:
         if finished(run):
             lines.append(f"# done: {run.id}")
         else:
-            lines.append(shell(run.command()))
+            lines.append(shell((*run.command(), *extra)))
     return lines

@@ -18,7 +18,8 @@ from pathlib import Path
 from typing import Annotated, Any, Literal, Union
 
 import yaml
-from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, StrictBool, StrictInt, StrictStr, ValidationError
+from pydantic import (BaseModel, BeforeValidator, ConfigDict, Field, StrictBool, StrictFloat, StrictInt, StrictStr,
+                      ValidationError)
 
 from fieldgen.agents.registry import ALGORITHMS
 from fieldgen.schema import Problem, SpecError, bundled_fields, resolve_spec_path
@@ -78,6 +79,14 @@ class Slurm(BaseModel):
     account: StrictStr | None = None
     qos: StrictStr | None = None
     requeues: Annotated[StrictInt, Field(ge=0)] = 3  # times a task is requeued after its time limit runs out
+    # minutes before `time` at which the run stops at an evaluation, checkpointed, and its task requeues itself
+    # (0: the run trains until submitit's signal, and the chunk under way then is lost)
+    stop_before: Annotated[Union[StrictInt, StrictFloat], Field(ge=0)] = 5
+
+    @property
+    def run_minutes(self) -> float | None:
+        """The `--time-limit` a task gives its run, in minutes (None: none)."""
+        return self.time - self.stop_before if self.stop_before else None
 
 
 class SweepFile(BaseModel):
@@ -174,6 +183,10 @@ def load(path: Path, out: Path | None = None, **overrides) -> Sweep:
     if config is not None and not config.is_file():
         found.append(source.problem(("config",), f"there is no file {config}"))
     _assignments(spec, source, found)
+    if spec.backend == "slurm" and spec.slurm.stop_before >= spec.slurm.time:
+        found.append(source.problem(("slurm", "stop_before"), f"{spec.slurm.stop_before:g} minutes before the end "
+                                    f"of a task of {spec.slurm.time} minutes (slurm.time) leaves its run no time to "
+                                    "train: give fewer, or 0 to let the run train until submitit's signal"))
     if found:
         raise SweepError(found)
     folder = (Path(spec.out) if out is None and spec.out else out or Path("runs") / f"sweep-{path.stem}").absolute()

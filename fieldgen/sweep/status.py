@@ -12,6 +12,7 @@ import os
 import socket
 from pathlib import Path
 
+from fieldgen.command import TIME_LIMIT_STATUS
 from fieldgen.files import write_atomic
 from fieldgen.run import record
 from fieldgen.sweep.launch import finished, log_path
@@ -69,11 +70,15 @@ def states(sweep: Sweep) -> list[RunState]:
         far = progress(run)
         if finished(run):
             out.append(RunState(run, DONE, far))
-        elif ended is not None and ended.get("exit") not in (0, None):
+        elif ended is not None and ended.get("exit") not in (0, None, TIME_LIMIT_STATUS):
             out.append(RunState(run, FAILED, str(ended.get("why") or f"exit status {ended.get('exit')}")))
         elif started is not None and ended is None and _alive(started) is not False:
             where = f"on {started.get('host')}" + (f" (job {jobs[run.id]})" if run.id in jobs else "")
             out.append(RunState(run, RUNNING, ", ".join(filter(None, [far, where]))))
+        elif ended is not None and ended.get("exit") == TIME_LIMIT_STATUS:
+            requeued = f"requeued as job {jobs[run.id]}, else " if run.id in jobs else ""
+            out.append(RunState(run, STOPPED, f"{far}; stopped at its time limit, checkpointed: {requeued}"
+                                              "start the sweep again to continue it"))
         elif started is not None or far:
             out.append(RunState(run, STOPPED, (far or "before its first evaluation") +
                                 "; start the sweep again to continue it"))

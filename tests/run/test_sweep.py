@@ -71,6 +71,8 @@ def test_dry_run_on_the_command_line_shows_each_command_and_the_backend(tmp_path
     assert result.exit_code == 0, result.output
     assert "one SLURM job array" in result.output and "2 GPU(s) each, 90 min" in result.output
     assert "partition gpu" in result.output and "fieldgen train point_nav --algo crl --seed 0" in result.output
+    assert "each run stops at an evaluation 5 min before its task's end" in result.output
+    assert result.output.rstrip().endswith("--no-videos --time-limit 85m")  # slurm.stop_before's default, 5
 
 
 @pytest.mark.parametrize("body,phrase", [
@@ -85,6 +87,9 @@ def test_dry_run_on_the_command_line_shows_each_command_and_the_backend(tmp_path
     ("seeds: 0\n", "seeds: Input should be greater than 0"),
     ("steps: lots\n", "steps: 'lots' is not a positive whole count"),
     ("colour: red\n", "unknown key 'colour'"),
+    ("backend: slurm\nslurm: {time: 30, stop_before: 30}\n", ":7:19: slurm.stop_before: 30 minutes before the end of a "
+                                                              "task of 30 minutes (slurm.time) leaves its run no time"),
+    ("backend: slurm\nslurm: {stop_before: -1}\n", "slurm.stop_before: Input should be greater than or equal to 0"),
 ])
 def test_bad_sweep_files_are_one_line_at_the_key(tmp_path, body, phrase):
     path = tmp_path / "sweep.yaml"
@@ -205,10 +210,32 @@ def test_a_slurm_task_requeued_after_its_time_limit_continues_its_run(tmp_path):
     assert run.command()[:2] == ("train", "--resume")
 
 
+def test_a_run_stopped_at_its_time_limit_outside_a_submitit_task_is_not_killed_but_told_to_start_again(tmp_path):
+    """The task requeues itself with submitit's signal, which would kill a process without submitit's handler."""
+    with pytest.raises(RuntimeError, match="no submitit task to requeue; start the sweep again"):
+        launch.requeue_this_task()
+
+
+def test_a_run_stopped_at_its_time_limit_is_shown_stopped_and_requeued_not_failed(tmp_path):
+    sweep = plan.load(sweep_file(tmp_path, "backend: slurm\n", seeds=1))
+    run = sweep.runs[0]
+    hand_made(run, 1, 0.5)
+    launch.record_plan(sweep, {run.id: "77_0"})
+    log = launch.log_path(sweep.folder, run, ".log")
+    log.parent.mkdir(parents=True)
+    log.write_text("stopped at the time limit after evaluation 1 of 2\n")
+    launch._write_json(launch.log_path(sweep.folder, run, ".started"), {"host": "elsewhere", "pid": 1})
+    launch._write_json(launch.log_path(sweep.folder, run, ".ended"), {"exit": 75, "why": launch.why(log, 75)})
+    [state] = status.states(sweep)
+    assert state.state == status.STOPPED, state
+    assert state.detail == ("evaluation 1 of 2, 1,280 env steps; stopped at its time limit, checkpointed: requeued as "
+                            "job 77_0, else start the sweep again to continue it")
+
+
 def test_the_slurm_path_through_submitits_local_executor_records_failures_and_skips_done_runs(tmp_path):
     """The job array, its tasks running `fieldgen train` and writing how they ended: a run refused before it
     compiles fails fast with its reason; a finished run is not submitted."""
-    path = sweep_file(tmp_path, "backend: slurm\nslurm: {gpus_per_task: 0, time: 5}\n", seeds=2)
+    path = sweep_file(tmp_path, "backend: slurm\nslurm: {gpus_per_task: 0, time: 5, stop_before: 1}\n", seeds=2)
     path.write_text(path.read_text().replace("steps: 1900", "steps: 100"))  # too few for the prefill: refused
     sweep = plan.load(path)
     hand_made(sweep.runs[1], 2, 1.0)
@@ -233,6 +260,28 @@ def test_a_local_sweep_trains_summarizes_and_started_again_only_reports(tmp_path
     again = runner.invoke(app, ["sweep", str(path)])
     assert again.exit_code == 0 and "starts" not in again.output
     assert (tmp_path / "out" / "point_nav-crl-0" / "metrics.jsonl").read_text() == metrics
+
+
+@pytest.mark.slow
+def test_a_slurm_task_whose_run_stops_at_its_time_limit_requeues_itself_and_the_run_goes_on(tmp_path):
+    """A run given 0.6 s stops after its first chunk (nothing is measured before it, so it runs) at an
+    evaluation, checkpointed, with status 75; its task requeues itself through submitit's signal, and the
+    requeued task resumes the run, which this time has no time for a chunk. That second time-out is one more
+    than `requeues: 1` allows, so submitit ends the job, and the run is left stopped, not failed."""
+    body = "backend: slurm\nslurm: {gpus_per_task: 0, time: 10, stop_before: 9.99, requeues: 1}\n"
+    sweep = plan.load(sweep_file(tmp_path, body, seeds=1))
+    [job] = launch.submit(sweep, cluster="local")
+    with pytest.raises(Exception, match="timed-out too many times"):
+        job.result()
+    run = sweep.runs[0]
+    commands = [line for line in launch.log_path(sweep.folder, run, ".log").read_text().splitlines()
+                if line.startswith("$ fieldgen train")]
+    assert len(commands) == 2 and all(c.endswith("--time-limit 0.01m") for c in commands), commands
+    assert "--resume" not in commands[0] and "--resume" in commands[1]
+    rows = [json.loads(line) for line in (run.folder / "metrics.jsonl").read_text().splitlines()]
+    assert rows[-1]["eval"] == 1 and (run.folder / "checkpoint.msgpack").is_file()
+    [state] = status.states(sweep)
+    assert state.state == status.STOPPED and "stopped at its time limit, checkpointed" in state.detail
 
 
 @pytest.mark.slow
