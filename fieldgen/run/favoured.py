@@ -3,6 +3,7 @@ sampler is training on at the run's last evaluation, each under its share of new
 
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -32,7 +33,7 @@ def favoured_levels(folder: Path, camera: str, top: int = 6) -> tuple[bytes, str
     images, titles = [], []
     for k in order:
         images.append(render_pose(run.envs[k].artifact.model(), camera=camera, height=240))
-        where = level_text(coordinates[k]) if coordinates else ""
+        where = textwrap.fill(level_text(coordinates[k]), 40) if coordinates else ""  # a title's width
         name = "the field itself" if k == len(run.envs) - 1 else f"{kind} {k + 1}"
         titles.append(f"{name}: {share[k]:.0%} of episodes, success {success[k]:.2f}" + (f"\n{where}" if where else ""))
     said = (f"the {len(order)} most played of {len(run.envs)} levels after evaluation {last[0]['eval']} "
