@@ -293,7 +293,7 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
                progress: Callable[[int, list[dict]], None] = lambda index, rows: None,
                on_eval: Callable = lambda state, index, stage, episode: None, resume: tuple | None = None,
                film: Callable | None = None, sampling: dict | None = None,
-               stop: Callable[[float | None], bool] = lambda longest: False):
+               stop: Callable[[float | None], bool] = lambda longest: False, clock: float | None = None):
     """`run` through a sequence of trainers (a curriculum's stages) whose environments share one observation
     layout, as `schedule` says.
 
@@ -308,10 +308,14 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
     `resume=(state, index, stage)` continues from there; a state that is only what it learned
     (`Trainer.learned`) goes on with fresh episodes and a buffer filled anew, drawn as `sampling` says
     (`episode_sampling`, seeds stacked) where given. An evaluation is handed
-    to `progress` and `on_eval` once the next chunk has been dispatched, so that the GPU trains while
-    the host writes. Before each chunk `stop(longest)` is asked, with the longest time a chunk and its
+    to `progress` and `on_eval` once the next chunk has started, on a thread of its own (its call may hold
+    that thread until the chunk ends), so that the device trains while the host writes; in a run over
+    several processes, once the chunk's call has returned, so that every process runs the chunk's
+    collectives and then the gathering of the evaluation's state in one order. Before each chunk `stop(longest)` is asked, with the longest time a chunk and its
     evaluation have taken in this call (None before the first): True ends the run there, its last
-    evaluation handed on as at the end (a time limit: the run goes on later from it).
+    evaluation handed on as at the end (a time limit: the run goes on later from it). With `clock` (a
+    time.perf_counter() value) every row holds `wall_seconds`, from it to the end of the row's evaluation,
+    stamped here: a row handed on after a chunk's call that held the host would be dated a chunk late.
     """
     keys = seed_keys(seeds)
     staged, last = len(trainers) > 1, len(trainers) - 1
@@ -360,9 +364,12 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
         began = time.perf_counter()
         metrics = {}
         if index > 0:
-            state, metrics = programs(stage).chunk(state)
+            called = programs(stage).chunk_started(state)
+            if jax.process_count() > 1:  # every process gathers the reported state after the chunk's collectives
+                called.result()
             if reported is not None:  # its metrics, checkpoint and video, written on the host while the chunk trains
                 report(*reported)
+            state, metrics = called.result()
             metrics = computed(metrics, to_host)  # waits for the chunk
         seconds = time.perf_counter() - began
         judged, episode = judge(stage, state, index)
@@ -376,6 +383,7 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
         elif staged:
             metrics["last_stage_success_any"] = metrics["success_any"]
         steps = int(to_host(state.env_steps)[0])
+        evaluated = time.perf_counter()
         rows = []
         for i, seed in enumerate(seeds):
             row = {"eval": index, "seed": seed, "env_steps": steps, **({"stage": stage} if staged else {}),
@@ -384,6 +392,8 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
                 row["variants"] = metrics["variants"].per_seed(i)
             if index > 0:
                 row["steps_per_second"] = (steps - previous) / seconds
+            if clock is not None:
+                row["wall_seconds"] = evaluated - clock
             rows.append(row)
         previous = steps
         history.extend(rows)

@@ -25,6 +25,7 @@ from . import sharding
 
 SIDE_BY_SIDE: bool | None = None  # compile on worker threads; None: on every backend but the CPU
 COMPILE_THREAD = "compile"  # the name of each compile's thread
+RUN_THREAD = "run"  # the name of the thread a program `started` runs on
 _running: list[weakref.ref] = []  # a result of each program called, until it is computed (or no longer held)
 
 
@@ -54,10 +55,29 @@ class Compiling:
             self._done.set_exception(error)
 
     def __call__(self, *args):
-        results = self._done.result()(*args)
-        _running[:] = [ref for ref in _running if ref() is not None and not ref().is_ready()]
-        _running.extend(weakref.ref(leaf) for leaf in jax.tree.leaves(results)[:1])  # they come ready together
-        return results
+        return _held(self._done.result()(*args))
+
+    def started(self, *args) -> Future:
+        """The program called on a thread of its own, its results in the Future: a call that holds its thread
+        until the program ends (on a GPU, a while loop's condition is read back at each turn) leaves the
+        caller free meanwhile, to write the last evaluation while this chunk trains, and to take Ctrl-C."""
+        program, done = self._done.result(), Future()
+
+        def call():
+            try:
+                done.set_result(_held(program(*args)))
+            except BaseException as error:  # raised where the results are asked for
+                done.set_exception(error)
+
+        threading.Thread(target=call, name=RUN_THREAD).start()
+        return done
+
+
+def _held(results):
+    """A program's results, kept track of until they are ready (`under_way`)."""
+    _running[:] = [ref for ref in _running if ref() is not None and not ref().is_ready()]
+    _running.extend(weakref.ref(leaf) for leaf in jax.tree.leaves(results)[:1])  # they come ready together
+    return results
 
 
 def computed(tree, fetch=jax.device_get):
@@ -79,7 +99,7 @@ def computed(tree, fetch=jax.device_get):
 def under_way() -> bool:
     """Whether a program is still compiling, or still running: one dispatched and not yet waited for, or one a
     caller stopped waiting for (`computed`)."""
-    return any(t.name == COMPILE_THREAD and t.is_alive() for t in threading.enumerate()) or \
+    return any(t.name in (COMPILE_THREAD, RUN_THREAD) and t.is_alive() for t in threading.enumerate()) or \
         any(ref() is not None and not ref().is_ready() for ref in _running)
 
 
@@ -142,6 +162,10 @@ class Programs:
 
     def chunk(self, state):
         return self._program("chunk")(state)
+
+    def chunk_started(self, state) -> Future:
+        """`chunk` on a thread of its own (`Compiling.started`)."""
+        return self._program("chunk").started(state)
 
     def evaluate(self, state, eval_keys: jax.Array):
         """Evaluation reads only what the state has learned, so a state of another stage, whose field has

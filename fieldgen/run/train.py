@@ -135,7 +135,6 @@ def _train(run: Run, console: Console, videos: bool, logger: str, video_format: 
             stop_if_diverged(run, index, rows)
             memory = peak_memory_mb()
             for row in rows:
-                row["wall_seconds"] = time.perf_counter() - started
                 if waited and "steps_per_second" in row:  # the writes waited on while this row's chunk trained
                     row["write_wait_seconds"] = waited[0]
                 if memory is not None:
@@ -154,7 +153,7 @@ def _train(run: Run, console: Console, videos: bool, logger: str, video_format: 
         try:
             loop.run_staged(trainers, run.seeds, config.num_evals, run.schedule, progress, on_eval, resume,
                             film=EpisodeRecorder.film if videos else None, sampling=run.sampling,
-                            stop=deadline.stop)
+                            stop=deadline.stop, clock=started)
             if not deadline.reached:
                 done = run.rows[-1]["env_steps"]  # whole iterations can stop short of --steps
                 bar.update(task, total=done, rate=rate(run.rows, done))

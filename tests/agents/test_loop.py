@@ -163,3 +163,39 @@ def test_a_trainers_start_is_traced_once_for_its_shapes_checkpoints_and_program(
     assert len(traced) == 1
     programs.started(trainer, jnp.zeros((3, 2), jnp.uint32))  # another seed count: its own trace
     assert len(traced) == 2
+
+
+@pytest.mark.slow
+def test_an_evaluation_is_handed_on_while_the_next_chunk_holds_its_call_and_dated_when_it_ended(env_cache, tiny_crl,
+                                                                                                monkeypatch):
+    """A chunk's call that holds its thread until the chunk ends (as on a GPU) leaves the loop free to hand the
+    last evaluation on meanwhile; each row's wall_seconds dates its own evaluation. Here every chunk's call
+    holds until an evaluation has been handed on, and the loop's clock moves only inside chunks, 100 s each."""
+    import threading
+    from concurrent.futures import Future
+    from types import SimpleNamespace
+
+    from fieldgen.agents import programs
+
+    now, handed, in_time = [0.0], threading.Event(), []
+    monkeypatch.setattr(loop, "time", SimpleNamespace(perf_counter=lambda: now[0]))
+    started = programs.Compiling.started
+
+    def held(self, *args):
+        inner, done = started(self, *args), Future()
+
+        def hold():
+            out = jax.block_until_ready(inner.result())
+            in_time.append(handed.wait(timeout=10))  # never, where the loop waits for the call before handing on
+            handed.clear()
+            now[0] += 100.0
+            done.set_result(out)
+
+        threading.Thread(target=hold).start()
+        return done
+
+    monkeypatch.setattr(programs.Compiling, "started", held)
+    _, rows = loop.run_staged([crl.make_train(tiny_crl(), env_cache("point_nav"))], [0], 2, loop.OneStage(),
+                              lambda index, rows: handed.set(), clock=0.0)
+    assert in_time == [True, True]
+    assert [r["wall_seconds"] for r in rows] == [0.0, 100.0, 200.0]
