@@ -307,12 +307,12 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
     (`evaluate_policy`) with the stage it was filmed on, `(stage, film)`, else None;
     `resume=(state, index, stage)` continues from there; a state that is only what it learned
     (`Trainer.learned`) goes on with fresh episodes and a buffer filled anew, drawn as `sampling` says
-    (`episode_sampling`, seeds stacked) where given. An evaluation is handed
-    to `progress` and `on_eval` once the next chunk has started, on a thread of its own (its call may hold
-    that thread until the chunk ends), so that the device trains while the host writes; in a run over
-    several processes, once the chunk's call has returned, so that every process runs the chunk's
-    collectives and then the gathering of the evaluation's state in one order. Before each chunk `stop(longest)` is asked, with the longest time a chunk and its
-    evaluation have taken in this call (None before the first): True ends the run there, its last
+    (`episode_sampling`, seeds stacked) where given. An evaluation is handed to `progress` and `on_eval`
+    once the next chunk has started, on a thread of its own (its call may hold that thread until the chunk
+    ends), so that the device trains while the host writes; in a run over several processes, once the
+    chunk's call has returned, so that every process runs the chunk's collectives and then the gathering of
+    the evaluation's state in one order. Before each chunk `stop(longest)` is asked, with the longest time a
+    chunk and its evaluation have taken in this call (None before the first): True ends the run there, its last
     evaluation handed on as at the end (a time limit: the run goes on later from it). With `clock` (a
     time.perf_counter() value) every row holds `wall_seconds`, from it to the end of the row's evaluation,
     stamped here: a row handed on after a chunk's call that held the host would be dated a chunk late.

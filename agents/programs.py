@@ -115,9 +115,9 @@ def started(trainer, keys: jax.Array) -> tuple[Callable, object]:
 
 
 class Programs:
-    """start(keys), refill(learned), chunk(state), evaluate(learned, eval_keys) and adapt(state, variants) of
-    one trainer, vmapped over seeds and placed over the devices (agents.sharding). Each compiles once
-    asked for, by `prepare` or by its first call."""
+    """start(keys), refill(learned), chunk_started(state), evaluate(learned, eval_keys) and
+    adapt(state, variants) of one trainer, vmapped over seeds and placed over the devices
+    (agents.sharding). Each compiles once asked for, by `prepare` or by its first call."""
 
     def __init__(self, trainer, keys: jax.Array, film: Callable | None, evaluate: Callable, adapt: Callable):
         start, shapes = started(trainer, keys)  # one function for both: JAX reuses the shapes' trace to compile it
@@ -159,9 +159,6 @@ class Programs:
 
     def refill(self, learned):
         return self._program("refill")(learned)
-
-    def chunk(self, state):
-        return self._program("chunk")(state)
 
     def chunk_started(self, state) -> Future:
         """`chunk` on a thread of its own (`Compiling.started`)."""

@@ -5,8 +5,8 @@ Two backends hand the runs out. `local` keeps a queue and gives each GPU of this
 time (CUDA_VISIBLE_DEVICES), or, without GPUs, runs them one after another. `slurm` submits one
 submitit job array; each task gives its run a `--time-limit` some minutes short of its own, so that the run
 stops at an evaluation with its checkpoint written, and then requeues itself; a task preempted, or out of
-time first, is requeued by submitit's checkpointing protocol. A requeued task continues from its run folder. Starting a sweep again skips finished runs
-and continues the others.
+time first, is requeued by submitit's checkpointing protocol. A requeued task continues from its run folder.
+Starting a sweep again skips finished runs and continues the others.
 """
 
 from __future__ import annotations
