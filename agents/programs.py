@@ -61,16 +61,8 @@ class Compiling:
         """The program called on a thread of its own, its results in the Future: a call that holds its thread
         until the program ends (on a GPU, a while loop's condition is read back at each turn) leaves the
         caller free meanwhile, to write the last evaluation while this chunk trains, and to take Ctrl-C."""
-        program, done = self._done.result(), Future()
-
-        def call():
-            try:
-                done.set_result(_held(program(*args)))
-            except BaseException as error:  # raised where the results are asked for
-                done.set_exception(error)
-
-        threading.Thread(target=call, name=RUN_THREAD).start()
-        return done
+        program = self._done.result()
+        return on_thread(lambda: _held(program(*args)), RUN_THREAD)
 
 
 def _held(results):
@@ -84,16 +76,21 @@ def computed(tree, fetch=jax.device_get):
     """fetch(tree) (jax.device_get, or sharding.to_host across processes), waited for on a thread of its own:
     the caller waits in Python, where Ctrl-C reaches it at once, while a program runs in XLA, which takes no
     signal until the program ends."""
+    return on_thread(lambda: fetch(tree), "wait").result()
+
+
+def on_thread(work: Callable, name: str) -> Future:
+    """work() on a thread of its own called `name`, its result (or what it raised) in the Future."""
     done: Future = Future()
 
-    def wait():
+    def run():
         try:
-            done.set_result(fetch(tree))
-        except BaseException as error:  # raised in the caller
+            done.set_result(work())
+        except BaseException as error:  # raised where the result is asked for
             done.set_exception(error)
 
-    threading.Thread(target=wait, name="wait").start()
-    return done.result()
+    threading.Thread(target=run, name=name).start()
+    return done
 
 
 def under_way() -> bool:
