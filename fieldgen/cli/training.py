@@ -130,6 +130,10 @@ def train(
     levels: Annotated[Optional[int], typer.Option(metavar="N", help="with --curriculum auto: levels from the easy "
                                                                     "end to the field, the field included "
                                                                     "[default: 8]")] = None,
+    samplers: Annotated[Optional[list[str]], typer.Option(
+        "--sampler", metavar="KEY=VALUE", help="with --curriculum auto: a setting of its level sampler, kept in "
+                                               "run.json: target_share, frontier_share, floor, buffer, replaced, "
+                                               "prior, kept (docs: curricula)")] = None,
     prepare: Annotated[bool, typer.Option(help="write the run folder (config, built fields) and stop; start it "
                                                 "later with --resume, e.g. on a machine without dm_control")] = False,
     logger: Annotated[str, typer.Option(help="also log every evaluation's numbers and video to TensorBoard "
@@ -186,7 +190,8 @@ def train(
         loggers.require(logger)
         if resume is not None:
             settings = [name for name, value in (("--steps", steps), ("--envs", envs), ("--set", sets),
-                                                 ("--config", config), ("--preset", preset)) if value]
+                                                 ("--config", config), ("--preset", preset),
+                                                 ("--sampler", samplers)) if value]
             if settings:
                 total = record.read_run(resume).config.get("total_steps")
                 fail(f"--resume goes on with the settings {resume} was set up with (its run.json: "
@@ -218,9 +223,12 @@ def train(
                           "overrides it)")
             if levels is not None and curriculum_kind != "auto":
                 fail(f"--levels {levels} sets how many levels --curriculum auto makes; add --curriculum auto")
+            if samplers and curriculum_kind != "auto":
+                fail("--sampler sets how --curriculum auto draws its levels; add --curriculum auto")
+            sampler = _sampler(samplers) if samplers else None
             run = session.new_run(source, algo, range(seed, seed + seeds), algo_config, runs, mixed, init_from,
                                   auto=curriculum_kind == "auto", levels=levels, processes=processes,
-                                  trains_here=not prepare)
+                                  trains_here=not prepare, sampler=sampler)
         if run.init_from and not run.rows:
             out.print(f"starts from what {run.init_from['run']} learned in {run.init_from['env_steps']:,} env steps "
                       f"(evaluation {run.init_from['eval']}), with fresh episodes and a replay buffer filled anew")
@@ -235,6 +243,17 @@ def train(
             out.print(Text(f"note: {exc}; resume it on a machine that holds it", style="yellow"))
         return
     _train(run, videos, logger, fmt, None if time_limit is None else started + time_limit)
+
+
+def _sampler(settings: list[str]):
+    """The automatic curriculum's sampler of --sampler's settings; one line where one is bad."""
+    from fieldgen.curriculum.auto import Sampler
+    from fieldgen.curriculum.levels import LevelError
+
+    try:
+        return Sampler.of(settings)
+    except LevelError as exc:
+        fail(str(exc))
 
 
 @app.command()

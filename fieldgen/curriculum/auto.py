@@ -11,8 +11,8 @@ as a mixed curriculum is (`Auto` is a `Mixed` schedule with other weights).
 `level_weights` is the sampler. A level's learnability is p(1 - p) for its success p (high where some
 episodes succeed and some fail, as in Sampling For Learnability); a mixed curriculum's 0.1 + 4p(1-p) gives a
 level at p = 0 a share as small as a solved one, so the frontier starves. Here the easiest level not yet
-solved (the frontier) always holds FRONTIER_SHARE of the episodes, learnable levels share the rest by
-p(1 - p), and the spec itself (the last level) keeps TARGET_SHARE throughout, so its success is always
+solved (the frontier) always holds `frontier_share` of the episodes, learnable levels share the rest by
+p(1 - p), and the spec itself (the last level) keeps `target_share` throughout, so its success is always
 learnt from as well as measured.
 
 Each level has up to KICKOFFS kick-off points (`kickoff_tables`): the level's spec with its kick-off moved
@@ -20,10 +20,10 @@ back towards the target, over the stretch of the kick-off no level before it cov
 so that a point the schema refuses is never played and no start belongs to two levels. A point differs from
 its level only in where the ball and the agent start, so every point of every level plays in the one compiled
 simulation. Where the environment has them, `next_levels` keeps a buffer of
-about BUFFER levels (a level, one of its points) in the environments' own state, as ACCEL does: it starts
+about `buffer` levels (a level, one of its points) in the environments' own state, as ACCEL does: it starts
 spread from the easy end to the spec, each level's success is estimated from the training episodes that ended
-on it, episodes go to the learnable by p(1 - p), and after each evaluation the REPLACED lowest-scoring levels
-give way to mutations of the highest-scoring ones.
+on it, episodes go to the learnable by p(1 - p), and after each evaluation the `replaced` lowest-scoring levels
+give way to mutations of the highest-scoring ones. Those settings are a `Sampler`, recorded in run.json.
 """
 
 from __future__ import annotations
@@ -33,22 +33,17 @@ import dataclasses
 import jax
 import jax.numpy as jnp
 import numpy as np
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from fieldgen.curriculum.levels import LevelError, LevelSpace
 from fieldgen.curriculum.schedule import Mixed
 from fieldgen.schema import FieldSpec, SpecError
+from fieldgen.suggest import did_you_mean
 
 LEVELS = 8  # levels on the path from the easy end to the spec, the spec included
 SOLVED = 0.8  # a level at this success or above is behind the frontier
-TARGET_SHARE = 0.2  # of new episodes, on the spec itself
-FRONTIER_SHARE = 0.3  # of new episodes, on the easiest level not yet solved
-FLOOR = 0.05  # of new episodes, spread evenly over every level but the spec: none is ever forgotten
 KICKOFFS = 32  # kick-off points of each level, from the easy end's kick-off to the level's own
-BUFFER = 32  # levels (a level and one of its kick-off points) episodes are drawn from
-REPLACED = 4  # of the buffer's levels, replaced after each evaluation by mutations of the best
-PRIOR = 2.0  # episodes at success 0.5 every estimate starts from: a level new to the buffer is learnable
-KEPT = 0.5  # of a level's episode counts, kept at each evaluation: older episodes count for less, and a level
-# left unplayed drifts back to the prior, so it is played again (its staleness)
 HARDER = ((0, 1), (0, 2), (1, 0), (-1, 0))  # the mutations of a level: (level, kick-off point) moved by, in
 # reading order over the [level, point] grid, so one point past a level's own is the next level's first
 
@@ -59,6 +54,76 @@ class Level:
 
     coordinates: tuple[float, ...]
     spec: FieldSpec
+
+
+class Sampler(BaseModel):
+    """How the sampler shares new episodes among levels and moves its buffer: a run's own settings, set with
+    `--sampler KEY=VALUE` and kept in run.json, so that a resumed run samples as it began (the defaults are
+    those of runs that recorded none)."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    target_share: float = Field(0.2, gt=0, lt=1, description="of new episodes, on the spec itself")
+    frontier_share: float = Field(0.3, ge=0, le=1, description="of new episodes, on the easiest level not yet "
+                                                               "solved (levels without kick-off points)")
+    floor: float = Field(0.05, ge=0, lt=1, description="of new episodes, spread evenly over every level but the "
+                                                       "spec: none is ever forgotten")
+    buffer: int = Field(32, ge=2, le=4096, description="levels (a level and one of its kick-off points) episodes "
+                                                       "are drawn from")
+    replaced: int = Field(4, ge=0, le=4096, description="of the buffer's levels, replaced after each evaluation "
+                                                        "by mutations of the most learnable")
+    prior: float = Field(2.0, gt=0, le=1000, description="episodes at success 0.5 every estimate starts from: a "
+                                                         "level new to the buffer is learnable")
+    kept: float = Field(0.5, ge=0, le=1, description="of a level's episode counts, kept at each evaluation: "
+                                                     "older episodes count for less, an unplayed level drifts "
+                                                     "back to the prior")
+
+    @model_validator(mode="after")
+    def _fits(self):
+        if self.floor + self.frontier_share > 1:
+            raise ValueError(f"floor {self.floor} and frontier_share {self.frontier_share} together pass 1: "
+                             "lower one of them")
+        if self.replaced > self.buffer:
+            raise ValueError(f"replaced {self.replaced} is more than the buffer's {self.buffer} levels")
+        return self
+
+    @classmethod
+    def of(cls, settings: list[str], where: str = "--sampler") -> "Sampler":
+        """The sampler of `settings` (KEY=VALUE each, over the defaults); LevelError in one line naming the
+        setting, its allowed values and what it means, where one is unknown or out of range."""
+        values = {}
+        for setting in settings:
+            key, sep, text = setting.partition("=")
+            key = key.strip()
+            if not sep or not text.strip():
+                raise LevelError(f"{where} {setting}: write KEY=VALUE, e.g. {where} replaced=8; keys: "
+                                 f"{', '.join(cls.model_fields)}")
+            if key not in cls.model_fields:
+                raise LevelError(f"{where} {setting}: unknown key '{key}'{did_you_mean(key, list(cls.model_fields))} "
+                                 f"Keys: {', '.join(cls.model_fields)}")
+            try:
+                values[key] = yaml.safe_load(text)
+            except yaml.YAMLError:
+                values[key] = text
+        return cls.checked(values, where)
+
+    @classmethod
+    def checked(cls, values: dict, where: str) -> "Sampler":
+        """`values` as a Sampler, or LevelError in one line naming the first bad key and its allowed values."""
+        try:
+            return cls.model_validate(values)
+        except ValidationError as exc:
+            error = exc.errors()[0]
+            key = error["loc"][0] if error["loc"] else None
+            if key in cls.model_fields:
+                info = cls.model_fields[key]
+                signs = {"gt": ">", "ge": ">=", "lt": "<", "le": "<="}
+                bounds = " and ".join(f"{sign} {getattr(m, k)}" for m in info.metadata for k, sign in signs.items()
+                                      if getattr(m, k, None) is not None)
+                raise LevelError(f"{where} {key}={values.get(key)!r}: {error['msg'].lower()}; {key} is a "
+                                 f"{'whole number' if info.annotation is int else 'number'} {bounds}: "
+                                 f"{info.description}") from None
+            raise LevelError(f"{where}: {error['msg'].removeprefix('Value error, ')}") from None
 
 
 def path(axes: int, count: int) -> np.ndarray:
@@ -124,33 +189,33 @@ def kickoff_tables(spec: FieldSpec, chosen: list[Level], count: int = KICKOFFS) 
     return tables
 
 
-def initial_buffer(playable: np.ndarray) -> np.ndarray:
-    """The buffer's first levels [level, kick-off point]: BUFFER // levels playable points of each level (at
+def initial_buffer(playable: np.ndarray, buffer: int = Sampler().buffer) -> np.ndarray:
+    """The buffer's first levels [level, kick-off point]: `buffer` // levels playable points of each level (at
     least one), evenly spread from its easiest to its own kick-off, so that it starts from the easy end to the
     spec and moves from there."""
     out = np.zeros_like(playable, bool)
     for level, row in enumerate(playable):
         points = np.flatnonzero(row)
-        spread = np.round(np.linspace(0, len(points) - 1, max(1, BUFFER // len(playable)))).astype(int)
+        spread = np.round(np.linspace(0, len(points) - 1, max(1, buffer // len(playable)))).astype(int)
         out[level, points[spread]] = True
     return out
 
 
-def next_levels(counts: jax.Array, weights: jax.Array, playable: np.ndarray,
-                key: jax.Array) -> tuple[jax.Array, jax.Array]:
+def next_levels(counts: jax.Array, weights: jax.Array, playable: np.ndarray, key: jax.Array,
+                sampler: Sampler = Sampler()) -> tuple[jax.Array, jax.Array]:
     """The level buffer after an evaluation: (the weights [level, kick-off point] new episodes are drawn with,
     the share of each level's episode counts kept). The buffer is every level of positive weight, first
     `initial_buffer` (where the environment's own weights hold fewer levels); each level's success p is
-    estimated from `counts` (training episodes ended, succeeded) and PRIOR. After that the REPLACED
+    estimated from `counts` (training episodes ended, succeeded) and its prior. After that `replaced`
     lowest-scoring levels give way to mutations (HARDER) of the highest-scoring ones, each a playable level
-    not yet in the buffer; the spec (the last level's own kick-off) never leaves. The spec keeps TARGET_SHARE,
-    every other level FLOOR spread evenly, the rest goes by learnability p(1 - p)."""
+    not yet in the buffer; the spec (the last level's own kick-off) never leaves. The spec keeps `target_share`,
+    every other level `floor` spread evenly, the rest goes by learnability p(1 - p)."""
     levels, points = playable.shape
     episodes, successes = counts.reshape(2, -1)
-    p = (successes + PRIOR / 2) / (episodes + PRIOR)
+    p = (successes + sampler.prior / 2) / (episodes + sampler.prior)
     score = p * (1 - p)
     target = jnp.arange(levels * points) == levels * points - 1
-    start = initial_buffer(playable).ravel()
+    start = initial_buffer(playable, sampler.buffer).ravel()
     member = weights.ravel() > 0
     first = jnp.sum(member) < start.sum()  # the environment's own weights: the buffer starts here
     member = jnp.where(first, jnp.asarray(start), member)
@@ -167,7 +232,7 @@ def next_levels(counts: jax.Array, weights: jax.Array, playable: np.ndarray,
         chosen = child[jax.random.categorical(k_move, jnp.where(fresh, 0.0, -jnp.inf))]
         removable = member & ~target & ~added
         victim = jnp.argmin(jnp.where(removable, score, jnp.inf))  # the lowest-scoring level not just added
-        swap = ~first & member[parent] & jnp.any(fresh) & jnp.any(removable) & (replaced < REPLACED)
+        swap = ~first & member[parent] & jnp.any(fresh) & jnp.any(removable) & (replaced < sampler.replaced)
         member = jnp.where(swap, member.at[victim].set(False).at[chosen].set(True), member)
         added = jnp.where(swap, added.at[chosen].set(True), added)
         return member, added, replaced + swap, key
@@ -180,14 +245,15 @@ def next_levels(counts: jax.Array, weights: jax.Array, playable: np.ndarray,
     learnable = jnp.where(others, score, 0.0)
     total = jnp.sum(learnable)
     rest = jnp.where(total > 0, learnable / jnp.where(total > 0, total, 1.0), others / count)
-    share = jnp.where(others, FLOOR / count + (1 - FLOOR) * rest, 0.0)
-    out = jnp.where(target, TARGET_SHARE, (1 - TARGET_SHARE) * share)
+    floor, target_share = sampler.floor, sampler.target_share
+    share = jnp.where(others, floor / count + (1 - floor) * rest, 0.0)
+    out = jnp.where(target, target_share, (1 - target_share) * share)
     out = jnp.where(jnp.any(others), out, target.astype(out.dtype))
     return out.reshape(levels, points).astype(weights.dtype), \
-        jnp.where(member, KEPT, 0.0).reshape(levels, points).astype(weights.dtype)
+        jnp.where(member, sampler.kept, 0.0).reshape(levels, points).astype(weights.dtype)
 
 
-def level_weights(success: jnp.ndarray) -> jnp.ndarray:
+def level_weights(success: jnp.ndarray, sampler: Sampler = Sampler()) -> jnp.ndarray:
     """How often each level starts an episode next, from each level's success (the spec's last)."""
     n = success.shape[-1] - 1
     if n == 0:
@@ -200,20 +266,25 @@ def level_weights(success: jnp.ndarray) -> jnp.ndarray:
     total = jnp.sum(learnable)
     # learnable levels share what the frontier and the floor leave; with none learnable, the frontier takes it
     rest = jnp.where(total > 0, learnable / jnp.where(total > 0, total, 1.0), at_frontier)
-    levels_ = FLOOR / n + FRONTIER_SHARE * at_frontier + (1.0 - FLOOR - FRONTIER_SHARE) * rest
-    return jnp.concatenate([(1.0 - TARGET_SHARE) * levels_, jnp.full((1,), TARGET_SHARE, success.dtype)])
+    floor, frontier = sampler.floor, sampler.frontier_share
+    levels_ = floor / n + frontier * at_frontier + (1.0 - floor - frontier) * rest
+    target = sampler.target_share
+    return jnp.concatenate([(1.0 - target) * levels_, jnp.full((1,), target, success.dtype)])
 
 
 @dataclasses.dataclass(frozen=True)
 class Auto(Mixed):
     """Every level at once, in one batched simulation: with kick-off points, drawn from the level buffer
-    (`next_levels`); a run set up without them (before the buffer), each level weighted by `level_weights`."""
+    (`next_levels`); a run set up without them (before the buffer), each level weighted by `level_weights`;
+    both as `sampler` says."""
+
+    sampler: Sampler = Sampler()
 
     def variant_weights(self, success):
-        return level_weights(success)
+        return level_weights(success, self.sampler)
 
     def next_levels(self, counts, weights, playable, key):
-        return next_levels(counts, weights, playable, key)
+        return next_levels(counts, weights, playable, key, self.sampler)
 
     def environments(self, envs, kickoffs=()) -> list:
         """What the trainer trains on: one environment batching every level, with each level's kick-off points

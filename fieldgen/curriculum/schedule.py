@@ -79,11 +79,11 @@ class Mixed:
 SCHEDULES = ("staged", "mixed", "auto")  # how a run moves through its stages, as run.json records it
 
 
-def schedule(kind: str, promotion: Promotion = Promotion()) -> Staged | Mixed:
+def schedule(kind: str, promotion: Promotion = Promotion(), sampler=None) -> Staged | Mixed:
     """The schedule of a run through a curriculum's stages (a plain run is a curriculum of one stage): one
-    of SCHEDULES."""
+    of SCHEDULES; an automatic curriculum's levels drawn as `sampler` (curriculum.auto.Sampler) says."""
     if kind == "auto":
-        from fieldgen.curriculum.auto import Auto
+        from fieldgen.curriculum.auto import Auto, Sampler
 
-        return Auto()
+        return Auto(sampler or Sampler())
     return Mixed() if kind == "mixed" else Staged(promotion)

@@ -43,6 +43,7 @@ class Run:
     init_from: dict | None = None  # record.InitFrom of a run started from another run's networks
     curriculum: str = ""  # the name of the curriculum it trains through (its folder's; -mixed, -auto), "" for a field
     kickoffs: list = dataclasses.field(default_factory=list)  # an automatic curriculum's kick-off points (run.json)
+    sampler: object = None  # an automatic curriculum's curriculum.auto.Sampler (run.json); None: its defaults
     sampling: dict | None = None  # how a state of what was learned alone drew its episodes (loop.episode_sampling)
 
     @property
@@ -78,7 +79,7 @@ class Run:
     @property
     def schedule(self) -> Staged | Mixed:
         """How the run moves through its stages (the curriculum's; a plain run has one stage)."""
-        return schedule(self.schedule_kind, self.promotion)
+        return schedule(self.schedule_kind, self.promotion, self.sampler)
 
     @functools.cached_property
     def trainers(self) -> list[loop.Trainer]:
@@ -112,10 +113,11 @@ def agent_kind(source: Path) -> str:
 
 def new_run(source: Path, algo: str, seeds: Sequence[int], config, out: Path, mixed: bool = False,
             init_from: Path | None = None, auto: bool = False, levels: int | None = None,
-            processes: dict | None = None, trains_here: bool = True) -> Run:
+            processes: dict | None = None, trains_here: bool = True, sampler=None) -> Run:
     """A run folder for a field (a YAML file or a build folder) or a curriculum folder (staged, or mixed:
     every stage in one batch, built to one structure); with `auto`, a field trained through `levels` levels
-    (curriculum.auto.LEVELS by default) between its easy end and itself; with `init_from`, starting from what that run
+    (curriculum.auto.LEVELS by default) between its easy end and itself, drawn as `sampler`
+    (curriculum.auto.Sampler, its defaults where None) says; with `init_from`, starting from what that run
     learned. A run over several processes (`processes`: their layout, recorded in run.json) is set up alike in
     each, and written by the first alone. Nothing is written before every setting is known good, the memory
     the run needs included where it `trains_here` (a run prepared to train elsewhere is checked where it
@@ -149,8 +151,14 @@ def new_run(source: Path, algo: str, seeds: Sequence[int], config, out: Path, mi
     for env in envs:
         config.validate_env(env, sharding.device_count(), len(seeds))
     dirs = [FIELD] if len(envs) == 1 else [f"{STAGES}/{k + 1:02d}" for k in range(len(envs))]
+    if sampler is not None and not auto:
+        raise record.RunError("--sampler sets how --curriculum auto draws its levels; add --curriculum auto")
+    if auto:
+        from fieldgen.curriculum.auto import Sampler
+
+        sampler = sampler or Sampler()
     run = Run(folder, algo, envs, config, seeds, [], promotion, schedule_kind=kind, curriculum=name or "",
-              kickoffs=kickoffs)
+              kickoffs=kickoffs, sampler=sampler)
     if trains_here:
         check_memory(run)
     run.seeds = seeds = list(seeds)
@@ -176,6 +184,7 @@ def new_run(source: Path, algo: str, seeds: Sequence[int], config, out: Path, mi
                          seeds, {"fields": dirs, "promotion": dataclasses.asdict(promotion), "mixed": run.mixed,
                                  "schedule": kind, **({"curriculum": name} if name else {}),
                                  **({"levels": coordinates, "kickoffs": kickoffs} if coordinates else {}),
+                                 **({"sampler": sampler.model_dump()} if auto else {}),
                                  **({"init_from": run.init_from} if run.init_from else {}),
                                  **({"processes": processes} if processes else {})})
     except OSError as exc:
@@ -305,8 +314,18 @@ def open_run(folder: Path, load_state: bool = True, to_train: bool = False, lear
         raise record.RunError(f"{folder / record.RUN} holds kick-off points that do not fit its {len(envs)} levels "
                               "(as many points for each, at least 2, the last its own); it was edited or damaged: "
                               "start the run again in a new folder")
+    sampler = None
+    if saved.sampler:
+        from fieldgen.curriculum.auto import Sampler
+        from fieldgen.curriculum.levels import LevelError
+
+        try:
+            sampler = Sampler.checked(saved.sampler, f"{folder / record.RUN}: sampler")
+        except LevelError as exc:
+            raise record.RunError(f"{exc}; it was edited or damaged: restore it, or start the run again in a new "
+                                  "folder") from None
     run = Run(folder, saved.algo, envs, config, seeds, rows, saved.promotion, schedule_kind=kind,
-              curriculum=saved.curriculum, kickoffs=saved.kickoffs)
+              curriculum=saved.curriculum, kickoffs=saved.kickoffs, sampler=sampler)
     if not load_state:
         return run  # only reported on
     if to_train:

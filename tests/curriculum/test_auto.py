@@ -14,8 +14,8 @@ from typer.testing import CliRunner
 
 from fieldgen.agents.loop import KICKOFF_BINS
 from fieldgen.cli import app
-from fieldgen.curriculum.auto import (BUFFER, FLOOR, FRONTIER_SHARE, HARDER, KEPT, PRIOR, REPLACED, TARGET_SHARE, Auto,
-                                     initial_buffer, kickoff_tables, level_weights, levels, next_levels, path)
+from fieldgen.curriculum.auto import (HARDER, Auto, Sampler, initial_buffer, kickoff_tables, level_weights, levels,
+                                     next_levels, path)
 from fieldgen.curriculum.levels import LevelError, LevelSpace
 from fieldgen.env import FieldEnv
 from fieldgen.curriculum.schedule import sampling_weights
@@ -24,6 +24,9 @@ from fieldgen.schema import bundled_fields, load_spec
 
 runner = CliRunner()
 FIELDS = bundled_fields()
+DEFAULT = Sampler()  # the sampler of a run that sets none
+TARGET_SHARE, FRONTIER_SHARE, FLOOR = DEFAULT.target_share, DEFAULT.frontier_share, DEFAULT.floor
+BUFFER, REPLACED, PRIOR, KEPT = DEFAULT.buffer, DEFAULT.replaced, DEFAULT.prior, DEFAULT.kept
 
 
 @pytest.mark.parametrize("name", ["soccer_v1", "soccer_v2", "v2_wide_goalie"])
@@ -138,6 +141,7 @@ def test_auto_run_records_its_levels_and_weights_and_resumes(tmp_path, monkeypat
 @pytest.mark.parametrize(("extra", "says"), [
     (["--mixed"], "--curriculum auto makes its own levels from one field"),
     (["--levels", "3"], "add --curriculum auto"),
+    (["--sampler", "replaced=8"], "--sampler sets how --curriculum auto draws its levels; add --curriculum auto"),
     (["--curriculum", "manual"], "unknown curriculum 'manual'"),
 ])
 def test_auto_bad_input_is_one_line(tmp_path, extra, says):
@@ -352,6 +356,71 @@ def test_buffer_weights_on_hand_set_counts():
     assert float(new[0, 1]) > float(new[0, 0]) and float(new[0, 1]) > float(new[0, 2])
     assert float(new[1, 0]) == pytest.approx(float(new[0, 1]))  # unplayed: the prior's p = 0.5
     assert np.all(np.asarray(keep) == KEPT)
+
+
+def test_a_sampler_of_its_own_shares_and_replaces_as_it_says():
+    """The same counts as above under other settings: the spec's share, the floor, the prior and the share
+    kept are the sampler's; a buffer of 16 starts with 16 // levels points a level and swaps up to `replaced`."""
+    mine = Sampler(target_share=0.4, floor=0.1, prior=4.0, kept=0.25, buffer=16, replaced=8)
+    playable = np.ones((2, 4), bool)
+    episodes = jnp.array([[10.0, 10, 10, 0], [0, 0, 0, 30]])
+    successes = jnp.array([[10.0, 5, 0, 0], [0, 0, 0, 3]])
+    new, keep = next_levels(jnp.stack([episodes, successes]), jnp.full((2, 4), 1 / 8), playable,
+                            jax.random.PRNGKey(0), mine)
+    p = (np.asarray(successes) + 2.0) / (np.asarray(episodes) + 4.0)
+    score = (p * (1 - p)).ravel()[:-1]
+    expected = 0.6 * (0.1 / 7 + 0.9 * score / score.sum())
+    np.testing.assert_allclose(np.asarray(new).ravel(), [*expected, 0.4], rtol=1e-5)
+    assert np.all(np.asarray(keep) == 0.25)
+    grid = np.ones((4, 32), bool)
+    start = initial_buffer(grid, mine.buffer)
+    assert start.sum() == 16 and all(row.sum() == 4 for row in start)
+    weights, _ = next_levels(jnp.zeros((2, 4, 32)), jnp.zeros((4, 32)).at[:, -1].set(0.25), grid,
+                             jax.random.PRNGKey(1), mine)
+    before = np.asarray(weights) > 0
+    counts = jnp.zeros((2, 4, 32)).at[:, :, :].set(jnp.where(jnp.asarray(before), 10.0, 0.0))  # all solved
+    weights, _ = next_levels(counts, weights, grid, jax.random.PRNGKey(2), mine)
+    after = np.asarray(weights) > 0
+    assert after.sum() == before.sum() and 4 < np.sum(after & ~before) <= 8  # more than the default's 4 swapped
+    assert level_weights(jnp.zeros(3), mine)[-1] == pytest.approx(0.4)
+
+
+@pytest.mark.parametrize(("setting", "says"), [
+    ("replaced=-1", "--sampler replaced=-1: input should be greater than or equal to 0; replaced is a whole number >= 0"),
+    ("repalced=8", "unknown key 'repalced'; did you mean 'replaced'?"),
+    ("floor=0.8", "floor 0.8 and frontier_share 0.3 together pass 1"),
+    ("target_share", "write KEY=VALUE, e.g. --sampler replaced=8"),
+    ("target_share=half", "target_share is a number > 0 and < 1: of new episodes, on the spec itself"),
+])
+def test_a_bad_sampler_setting_is_one_line(tmp_path, setting, says):
+    result = runner.invoke(app, ["train", "point_soccer", "--curriculum", "auto", "--sampler", setting,
+                                 "--out", str(tmp_path)])
+    assert result.exit_code != 0 and says in " ".join(result.output.split()), result.output
+    assert "Traceback" not in result.output and not any(tmp_path.iterdir())
+
+
+def test_a_runs_sampler_is_kept_in_run_json_and_resumed_with(tmp_path):
+    """--sampler's settings go into run.json with the defaults of the rest; the run opens with them; a run
+    that records none (set up before they were kept) opens with the defaults; a damaged one is one line;
+    --resume cannot change them."""
+    from fieldgen.run import session
+
+    made = runner.invoke(app, ["train", "point_soccer", "--curriculum", "auto", "--levels", "3", "--steps", "20k",
+                               "--envs", "8", "--sampler", "replaced=8", "--sampler", "prior=4", "--prepare",
+                               "--out", str(tmp_path)])
+    assert made.exit_code == 0, made.output
+    run = tmp_path / "point_soccer-auto-crl-0"
+    saved = json.loads((run / "run.json").read_text())
+    assert saved["sampler"] == {**DEFAULT.model_dump(), "replaced": 8, "prior": 4.0}
+    opened = session.open_run(run, load_state=False)
+    assert opened.sampler == Sampler(replaced=8, prior=4.0) and opened.schedule.sampler == opened.sampler
+    again = runner.invoke(app, ["train", "--resume", str(run), "--sampler", "replaced=2"])
+    assert again.exit_code != 0 and "--sampler cannot change" in " ".join(again.output.split())
+    (run / "run.json").write_text(json.dumps({**saved, "sampler": {**saved["sampler"], "kept": 3}}))
+    with pytest.raises(record.RunError, match="run.json: sampler kept=3: .* it was edited or damaged"):
+        session.open_run(run, load_state=False)
+    (run / "run.json").write_text(json.dumps({k: v for k, v in saved.items() if k != "sampler"}))
+    assert session.open_run(run, load_state=False).schedule.sampler == DEFAULT
 
 
 def test_a_buffer_whose_levels_are_solved_moves_towards_the_spec():
