@@ -48,6 +48,11 @@ HARDER = ((0, 1), (0, 2), (1, 0), (-1, 0))  # the mutations of a level: (level, 
 # reading order over the [level, point] grid, so one point past a level's own is the next level's first
 
 
+def run_label(field: str) -> str:
+    """What a run through a field's automatic curriculum is called (its folder, its plots): <field>-auto."""
+    return f"{field}-auto"
+
+
 @dataclasses.dataclass(frozen=True)
 class Level:
     """One level: its coordinates on the space's axes (0 the easy end, 1 the spec) and its spec."""

@@ -128,7 +128,9 @@ def new_run(source: Path, algo: str, seeds: Sequence[int], config, out: Path, mi
             raise record.RunError(f"--curriculum auto makes its own levels from one field and trains them all at "
                                   f"once; give it a field (YAML or build folder), without --mixed{'' if mixed else f', not the curriculum folder {source}'}")
         envs, coordinates, kickoffs = auto_environments(source, levels)
-        kind, name = "auto", f"{envs[-1].spec.name}-auto"
+        from fieldgen.curriculum.auto import run_label
+
+        kind, name = "auto", run_label(envs[-1].spec.name)
     elif curriculum.is_curriculum(source):
         try:
             c = curriculum.load(source)

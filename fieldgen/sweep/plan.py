@@ -2,7 +2,8 @@
 
 A sweep names fields, algorithms, seeds, fixed config values (`set`) and config axes (`grid`); every
 combination of one field, one algorithm, one value of each of that algorithm's axes and one seed is a
-run: the `fieldgen train` command a user would type, into a folder of the sweep's own. The file is
+run. With `curriculum: auto` each run trains through its field's automatic curriculum, and `sampler.KEY`
+in `set` or `grid` sets its level sampler (every algorithm's runs alike). A run is the `fieldgen train` command a user would type, into a folder of the sweep's own. The file is
 read as field specs are (fieldgen.schema: YAML with every key's position) and checked by pydantic and
 by the trainers' own config classes, so that a wrong key or value is reported at its line before
 anything trains.
@@ -27,6 +28,7 @@ from fieldgen.schema.messages import problems
 from fieldgen.schema.source import Source, read_yaml
 
 BACKENDS = ("local", "slurm")
+SAMPLER = "sampler"  # the prefix of a set or grid key of the automatic curriculum's sampler: sampler.replaced
 PLAN = "sweep.json"  # in the sweep's folder: the runs as planned, so that a changed sweep file is noticed
 
 
@@ -99,6 +101,8 @@ class SweepFile(BaseModel):
     steps: Count | None = None
     envs: Count | None = None
     config: StrictStr | None = None  # a config file, as `fieldgen train --config` reads it
+    curriculum: Literal["auto"] | None = None  # every run through its field's automatic curriculum
+    levels: Annotated[StrictInt, Field(ge=2)] | None = None  # with curriculum: auto, as --levels
     set: dict[StrictStr, Any] = {}  # config values every run of that algorithm gets: crl.batch_size: 256
     grid: dict[StrictStr, Annotated[list, Field(min_length=1)]] = {}  # axes: crl.repr_dim: [32, 64]
     videos: StrictBool = False
@@ -183,6 +187,9 @@ def load(path: Path, out: Path | None = None, **overrides) -> Sweep:
     if config is not None and not config.is_file():
         found.append(source.problem(("config",), f"there is no file {config}"))
     _assignments(spec, source, found)
+    if spec.levels is not None and spec.curriculum is None:
+        found.append(source.problem(("levels",), f"{spec.levels} levels of the automatic curriculum: add "
+                                                 "curriculum: auto to the sweep"))
     if spec.backend == "slurm" and spec.slurm.stop_before >= spec.slurm.time:
         found.append(source.problem(("slurm", "stop_before"), f"{spec.slurm.stop_before:g} minutes before the end "
                                     f"of a task of {spec.slurm.time} minutes (slurm.time) leaves its run no time to "
@@ -194,23 +201,40 @@ def load(path: Path, out: Path | None = None, **overrides) -> Sweep:
     for ref, name in zip(spec.fields, names):
         field_arg = ref if ref in bundled_fields() and "/" not in ref else str(_relative(path, ref).absolute())
         for algo in spec.algorithms:
-            axes = {k: v for k, v in spec.grid.items() if k.partition(".")[0] == algo}
-            fixed = [f"{k}={_shown(v)}" for k, v in spec.set.items() if k.partition(".")[0] == algo]
+            axes = {k: v for k, v in spec.grid.items() if k.partition(".")[0] in (algo, SAMPLER)}
+            fixed = {k: v for k, v in spec.set.items() if k.partition(".")[0] in (algo, SAMPLER)}
             for values in itertools.product(*axes.values()):
                 point = dict(zip(axes, values))
                 where = folder / _point_folder(point) if point else folder
                 for seed in spec.seed_list:
-                    run_folder = where / f"{name}-{algo}-{seed}"
+                    run_folder = where / f"{_auto_label(name) if spec.curriculum else name}-{algo}-{seed}"
                     start = ("train", field_arg, "--algo", algo, "--seed", str(seed), "--out", str(where),
+                             *(("--curriculum", spec.curriculum) if spec.curriculum else ()),
+                             *(("--levels", str(spec.levels)) if spec.levels else ()),
                              *(("--steps", str(spec.steps)) if spec.steps else ()),
                              *(("--envs", str(spec.envs)) if spec.envs else ()),
                              *(("--config", str(config.absolute())) if config else ()),
-                             *(w for item in fixed + [f"{k}={_shown(v)}" for k, v in point.items()]
-                               for w in ("--set", item)),
+                             *_options({**fixed, **point}),
                              "--videos" if spec.videos else "--no-videos")
                     runs.append(PlannedRun(str(run_folder.relative_to(folder)), run_folder, name, algo, seed, point,
                                            start, spec.videos))
     return Sweep(path, spec, folder, runs)
+
+
+def _options(values: dict) -> list[str]:
+    """`fieldgen train`'s options for a run's config values (--set ALGO.KEY=V) and sampler settings
+    (--sampler KEY=V)."""
+    words = []
+    for key, value in values.items():
+        section, _, name = key.partition(".")
+        words += ["--sampler", f"{name}={_shown(value)}"] if section == SAMPLER else ["--set", f"{key}={_shown(value)}"]
+    return words
+
+
+def _auto_label(name: str) -> str:
+    from fieldgen.curriculum.auto import run_label
+
+    return run_label(name)
 
 
 def _relative(path: Path, ref: str) -> Path:
@@ -248,17 +272,32 @@ def _field_names(path: Path, spec: SweepFile, source: Source, found: list[Proble
 
 
 def _assignments(spec: SweepFile, source: Source, found: list[Problem]) -> None:
-    """Check every `set` and `grid` value with its algorithm's config class, as `--set` would be."""
+    """Check every `set` and `grid` value with its algorithm's config class, as `--set` would be, and every
+    `sampler.KEY` with the automatic curriculum's sampler, as `--sampler` would be."""
     from fieldgen.agents import registry
     from fieldgen.agents.config import ConfigError
+    from fieldgen.curriculum.auto import Sampler
+    from fieldgen.curriculum.levels import LevelError
 
     listed = ", ".join(spec.algorithms)
     for section, values in (("set", {k: [v] for k, v in spec.set.items()}), ("grid", spec.grid)):
         for key, choices in values.items():
             algo, dot, name = key.partition(".")
             if not dot or not name:
-                found.append(source.problem((section, key), f"write the key as ALGO.KEY, such as crl.repr_dim "
-                                                            f"(got {key!r})"))
+                found.append(source.problem((section, key), f"write the key as ALGO.KEY, such as crl.repr_dim, "
+                                                            f"or sampler.KEY (got {key!r})"))
+                continue
+            if algo == SAMPLER:
+                if spec.curriculum != "auto":
+                    found.append(source.problem((section, key), "sets the automatic curriculum's level sampler; "
+                                                                "add curriculum: auto to the sweep"))
+                    continue
+                for value in choices:
+                    try:
+                        Sampler.of([f"{name}={_shown(value)}"], where="sampler:")
+                    except LevelError as exc:
+                        found.append(source.problem((section, key), str(exc).removeprefix("sampler: ")))
+                        break
                 continue
             if algo not in spec.algorithms:
                 found.append(source.problem((section, key), f"'{algo}' is not among the sweep's algorithms "

@@ -65,6 +65,47 @@ def test_a_sweep_expands_into_the_train_commands_a_user_would_type(tmp_path):
     assert first.command() == ("train", "--resume", str(first.folder), "--no-videos")
 
 
+def test_a_sweep_through_the_automatic_curriculum_plans_its_sampler_settings_and_folders(tmp_path):
+    """`curriculum: auto` with `sampler.KEY` in set and grid: each run's command carries --curriculum auto,
+    --levels and --sampler, and its planned folder is the one that command writes (<field>-auto-<algo>-<seed>)."""
+    path = tmp_path / "sweep.yaml"
+    path.write_text(f"fields: [point_soccer]\nalgorithms: [crl]\nseeds: 1\nsteps: 20k\nenvs: 8\n"
+                    f"out: {tmp_path / 'out'}\ncurriculum: auto\nlevels: 3\nset:\n  sampler.prior: 4\n"
+                    "grid:\n  sampler.replaced: [4, 8]\n")
+    sweep = plan.load(path)
+    assert [r.id for r in sweep.runs] == ["sampler.replaced=4/point_soccer-auto-crl-0",
+                                          "sampler.replaced=8/point_soccer-auto-crl-0"]
+    run = sweep.runs[1]
+    words = run.command()
+    assert " ".join(words[8:]).startswith("--curriculum auto --levels 3 --steps 20000 --envs 8 --sampler prior=4 "
+                                          "--sampler replaced=8")
+    assert run.label == "crl sampler.replaced=8"
+    made = runner.invoke(app, [*words, "--prepare"])
+    assert made.exit_code == 0, made.output
+    assert json.loads((run.folder / "run.json").read_text())["sampler"]["replaced"] == 8
+    assert json.loads((run.folder / "run.json").read_text())["sampler"]["prior"] == 4.0
+
+
+def test_a_curriculum_sweeps_summary_is_of_its_field_not_of_every_level(tmp_path):
+    """An automatic curriculum's rows hold success over all its levels and, under `variants`, on each; the
+    summary over seeds is of the last level, the field itself, as `fieldgen compare` judges curricula."""
+    path = tmp_path / "sweep.yaml"
+    path.write_text(f"fields: [point_soccer]\nalgorithms: [crl]\nseeds: 2\nsteps: 20k\nenvs: 8\n"
+                    f"out: {tmp_path / 'out'}\ncurriculum: auto\n")
+    sweep = plan.load(path)
+    for run, on_field in zip(sweep.runs, (0.25, 0.5)):
+        hand_made(run, 2, 0.9)
+        rows = [json.loads(line) for line in (run.folder / "metrics.jsonl").read_text().splitlines()]
+        for row in rows:
+            row["variants"] = {"success_any": [0.9, on_field], "time_at_goal": [50.0, 5.0]}
+        (run.folder / "metrics.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
+    result = runner.invoke(app, ["sweep", str(path), "--status"])
+    assert result.exit_code == 0 and "2 done" in result.output, result.output
+    group = json.loads((sweep.folder / status.SUMMARY).read_text())["groups"][0]["summary"]
+    assert group["success_any"]["per_seed"] == {"0": 0.25, "1": 0.5}
+    assert group["time_at_goal"]["per_seed"] == {"0": 5.0, "1": 5.0}
+
+
 def test_dry_run_on_the_command_line_shows_each_command_and_the_backend(tmp_path):
     path = sweep_file(tmp_path, "backend: slurm\nslurm: {partition: gpu, time: 90}\n", seeds=1)
     result = runner.invoke(app, ["sweep", str(path), "--dry-run", "--gpus-per-task", "2"])
@@ -90,6 +131,14 @@ def test_dry_run_on_the_command_line_shows_each_command_and_the_backend(tmp_path
     ("backend: slurm\nslurm: {time: 30, stop_before: 30}\n", ":7:19: slurm.stop_before: 30 minutes before the end of a "
                                                               "task of 30 minutes (slurm.time) leaves its run no time"),
     ("backend: slurm\nslurm: {stop_before: -1}\n", "slurm.stop_before: Input should be greater than or equal to 0"),
+    ("grid:\n  sampler.replaced: [4]\n", ":7:3: grid.sampler.replaced: sets the automatic curriculum's level sampler; "
+                                         "add curriculum: auto to the sweep"),
+    ("levels: 3\n", ":6:1: levels: 3 levels of the automatic curriculum: add curriculum: auto to the sweep"),
+    ("curriculum: auto\ngrid:\n  sampler.replacd: [4]\n", ":8:3: grid.sampler.replacd: replacd=4: unknown key "
+                                                          "'replacd'; did you mean 'replaced'?"),
+    ("curriculum: auto\nset:\n  sampler.kept: 2\n", "set.sampler.kept: kept=2: input should be less than or equal "
+                                                     "to 1; kept is a number >= 0 and <= 1"),
+    ("curriculum: manual\n", "curriculum: Input should be 'auto'"),
 ])
 def test_bad_sweep_files_are_one_line_at_the_key(tmp_path, body, phrase):
     path = tmp_path / "sweep.yaml"
