@@ -68,6 +68,31 @@ def load(path: Path, template, then=None):
     """The saved state, in the structure of `template` (arrays or jax.ShapeDtypeStructs). With `then`, the
     file may go on after `template`'s arrays with `then`'s, which later versions write there (a file written
     before holds none): the result is (the state, `then`'s part or None)."""
+    leaves = _read_leaves(path)
+    older = then is not None and len(leaves) == len(jax.tree.leaves(template))  # written before `then` was kept
+    expected, treedef = jax.tree.flatten(template if then is None or older else (template, then))
+    if len(leaves) != len(expected):
+        raise CheckpointError(f"{path} holds {len(leaves)} arrays but this run has {len(expected)}: "
+                              "it was written by a different algorithm, network or field, or by an earlier "
+                              "version of the trainer whose training state was laid out differently")
+    loaded = jax.tree.unflatten(treedef, [jax.numpy.asarray(x) for x in _checked(path, leaves, expected)])
+    return (loaded, None) if older else loaded
+
+
+def load_tail(path: Path, template):
+    """The last arrays of the file at `path`, in the structure of `template`: a part written last (what
+    `load`'s `then` reads) read without the template of everything before it. None where the file holds
+    fewer arrays."""
+    leaves = _read_leaves(path)
+    expected, treedef = jax.tree.flatten(template)
+    if len(leaves) < len(expected):
+        return None
+    tail = leaves[len(leaves) - len(expected):]
+    return jax.tree.unflatten(treedef, _checked(path, tail, expected, offset=len(leaves) - len(expected)))
+
+
+def _read_leaves(path: Path) -> list[np.ndarray]:
+    """Every array of the checkpoint at `path`, in order, its checksum verified; CheckpointError in a sentence."""
     try:
         blob = path.read_bytes()
     except FileNotFoundError:
@@ -85,24 +110,21 @@ def load(path: Path, template, then=None):
                                   "the run again in a new folder")
         if saved[DIGEST] != hashlib.sha256(blob[:-_TRAILER]).hexdigest():
             raise CheckpointError(corrupt)
-        leaves = [_joined(saved[str(i)]) for i in range(len(saved) - 1)]
+        return [_joined(saved[str(i)]) for i in range(len(saved) - 1)]
     except CheckpointError:
         raise
     except Exception:  # msgpack raises many types on damaged input
         raise CheckpointError(f"{corrupt}; it may also be truncated") from None
-    older = then is not None and len(leaves) == len(jax.tree.leaves(template))  # written before `then` was kept
-    expected, treedef = jax.tree.flatten(template if then is None or older else (template, then))
-    if len(leaves) != len(expected):
-        raise CheckpointError(f"{path} holds {len(leaves)} arrays but this run has {len(expected)}: "
-                              "it was written by a different algorithm, network or field, or by an earlier "
-                              "version of the trainer whose training state was laid out differently")
-    for i, (got, want) in enumerate(zip(leaves, expected)):
+
+
+def _checked(path: Path, leaves: list[np.ndarray], expected: list, offset: int = 0) -> list[np.ndarray]:
+    """`leaves`, each of the shape and dtype `expected` says; CheckpointError naming the first that is not."""
+    for i, (got, want) in enumerate(zip(leaves, expected), offset):
         if got.shape != tuple(want.shape) or got.dtype != want.dtype:
             raise CheckpointError(f"{path}: array {i} is {got.dtype}{list(got.shape)} but this run expects "
                                   f"{want.dtype}{list(want.shape)}: the config or the field's "
                                   "observation layout differs from the run that wrote it")
-    loaded = jax.tree.unflatten(treedef, [jax.numpy.asarray(x) for x in leaves])
-    return (loaded, None) if older else loaded
+    return leaves
 
 
 def _joined(leaf) -> np.ndarray:

@@ -235,6 +235,13 @@ def episode_sampling(env_state) -> dict:
     return kept
 
 
+def level_sampling_shapes(seeds: int, variants: int, points: int) -> dict:
+    """The shapes of `episode_sampling` of `seeds` seeds' batches of an environment with kick-off points
+    (`variants` levels of `points` each): how `learner.msgpack`'s last part is read without the trainer."""
+    return {"level_counts": jax.ShapeDtypeStruct((seeds, 2, variants, points), jnp.float32),
+            "level_weights": jax.ShapeDtypeStruct((seeds, variants, points), jnp.float32)}
+
+
 def with_episode_sampling(env_state, sampling: dict):
     """One seed's batch of environments (on axis 0) drawing its episodes as `sampling` (`episode_sampling`)
     says: the weights in every environment, the counts in the first (only their sum is read)."""

@@ -172,7 +172,10 @@ def render(
             write_atomic(output, image_bytes)
         except (RunError, RenderError, OSError) as exc:
             fail(str(exc))
-        out.print(f"wrote {output}: {said}")
+        first, *buffer = said.split("\n")
+        out.print(f"wrote {output}: {first}")
+        for line in buffer:  # one level of one seed's buffer a line
+            out.print(f"  {line}", soft_wrap=True)
         return
     output = output or Path("field.png")
     if curriculum.is_curriculum(Path(spec)):

@@ -79,6 +79,9 @@ class Sampler(BaseModel):
                                                         "by mutations of the most learnable")
     prior: float = Field(2.0, gt=0, le=1000, description="episodes at success 0.5 every estimate starts from: a "
                                                          "level new to the buffer is learnable")
+    sharpness: float = Field(1.0, ge=0, le=16, description="the power of p(1 - p) episodes are shared by: above "
+                                                           "1 favours the most learnable levels more, 0 shares "
+                                                           "evenly")
     kept: float = Field(0.5, ge=0, le=1, description="of a level's episode counts, kept at each evaluation: "
                                                      "older episodes count for less, an unplayed level drifts "
                                                      "back to the prior")
@@ -206,6 +209,13 @@ def initial_buffer(playable: np.ndarray, buffer: int = Sampler().buffer) -> np.n
     return out
 
 
+def estimated_success(counts, prior: float):
+    """Each level's success as the sampler estimates it from `counts` [2 (episodes ended, succeeded), ...]:
+    `prior` episodes at one success in two added, so a level not yet played is at 0.5."""
+    episodes, successes = counts[0], counts[1]
+    return (successes + prior / 2) / (episodes + prior)
+
+
 def next_levels(counts: jax.Array, weights: jax.Array, playable: np.ndarray, key: jax.Array,
                 sampler: Sampler = Sampler()) -> tuple[jax.Array, jax.Array]:
     """The level buffer after an evaluation: (the weights [level, kick-off point] new episodes are drawn with,
@@ -214,10 +224,10 @@ def next_levels(counts: jax.Array, weights: jax.Array, playable: np.ndarray, key
     estimated from `counts` (training episodes ended, succeeded) and its prior. After that `replaced`
     lowest-scoring levels give way to mutations (HARDER) of the highest-scoring ones, each a playable level
     not yet in the buffer; the spec (the last level's own kick-off) never leaves. The spec keeps `target_share`,
-    every other level `floor` spread evenly, the rest goes by learnability p(1 - p)."""
+    every other level `floor` spread evenly, the rest goes by learnability p(1 - p) to the power
+    `sharpness`."""
     levels, points = playable.shape
-    episodes, successes = counts.reshape(2, -1)
-    p = (successes + sampler.prior / 2) / (episodes + sampler.prior)
+    p = estimated_success(counts, sampler.prior).ravel()
     score = p * (1 - p)
     target = jnp.arange(levels * points) == levels * points - 1
     start = initial_buffer(playable, sampler.buffer).ravel()
@@ -247,7 +257,7 @@ def next_levels(counts: jax.Array, weights: jax.Array, playable: np.ndarray, key
     member = member | target
     others = member & ~target
     count = jnp.maximum(jnp.sum(others), 1)
-    learnable = jnp.where(others, score, 0.0)
+    learnable = jnp.where(others, score ** sampler.sharpness, 0.0)
     total = jnp.sum(learnable)
     rest = jnp.where(total > 0, learnable / jnp.where(total > 0, total, 1.0), others / count)
     floor, target_share = sampler.floor, sampler.target_share
@@ -264,7 +274,7 @@ def level_weights(success: jnp.ndarray, sampler: Sampler = Sampler()) -> jnp.nda
     if n == 0:
         return jnp.ones_like(success)
     p = success[:-1]
-    learnable = p * (1.0 - p)
+    learnable = (p * (1.0 - p)) ** sampler.sharpness
     unsolved = p < SOLVED
     frontier = jnp.where(jnp.any(unsolved), jnp.argmax(unsolved), n - 1)
     at_frontier = (jnp.arange(n) == frontier).astype(success.dtype)

@@ -1,14 +1,73 @@
 """The levels a run of several variants favours now (an automatic or mixed curriculum), drawn: what the
-sampler is training on at the run's last evaluation, each under its share of new episodes and its success."""
+sampler is training on at the run's last evaluation, each under its share of new episodes and its success;
+for an automatic curriculum also its level buffer, read from `learner.msgpack`: which kick-off points of each
+level episodes start from, and the success the sampler estimates there (a level's success in the metrics is
+measured at its own kick-off, the hardest of its points)."""
 
 from __future__ import annotations
 
+import dataclasses
 import textwrap
 from pathlib import Path
 
 import numpy as np
 
 from fieldgen.run import record, session
+
+
+@dataclasses.dataclass(frozen=True)
+class BufferLevel:
+    """What one seed's level buffer holds of one level: its points, where they start the ball, their share
+    of new episodes, the episodes counted on them (older ones count for less) and the success estimated."""
+
+    seed: int
+    level: int  # from 0; the last is the field itself
+    points: int
+    kickoff: tuple[float, float]  # the lowest and highest of its points, 0 the easy end's, 1 the field's
+    share: float
+    episodes: float
+    success: tuple[float, float]  # the lowest and highest estimate over its points
+
+    def text(self, levels: int) -> str:
+        name = "the field itself" if self.level == levels - 1 else f"level {self.level + 1}"
+        kickoff = (f"{self.kickoff[0]:.2f}" if self.kickoff[0] == self.kickoff[1]
+                   else f"{self.kickoff[0]:.2f}-{self.kickoff[1]:.2f}")
+        success = (f"{self.success[0]:.2f}" if self.success[0] == self.success[1]
+                   else f"{self.success[0]:.2f}-{self.success[1]:.2f}")
+        return (f"seed {self.seed}, {name}: {self.points} point{'s' * (self.points > 1)} at kick-off {kickoff}, "
+                f"{self.share:.0%} of new episodes, {self.episodes:,.0f} episodes counted, success {success}")
+
+
+def level_buffer(run) -> list[BufferLevel]:
+    """Each seed's level buffer after the run's last evaluation, level by level (`BufferLevel`); none for a
+    run without kick-off points or without `learner.msgpack` yet. RunError where that file cannot be read."""
+    from fieldgen.agents import checkpoint, loop
+    from fieldgen.curriculum.auto import Sampler, estimated_success
+
+    learner = run.folder / record.LEARNER
+    if not run.kickoffs or not learner.is_file():
+        return []
+    coordinates = np.array([[row[0] if row else np.nan for row in level] for level in run.kickoffs])
+    try:
+        sampling = checkpoint.load_tail(learner, loop.level_sampling_shapes(len(run.seeds), *coordinates.shape))
+    except checkpoint.CheckpointError as exc:
+        raise record.RunError(str(exc)) from None
+    if sampling is None:
+        return []
+    prior = (run.sampler or Sampler()).prior
+    out = []
+    for k, seed in enumerate(run.seeds):
+        weights, counts = np.asarray(sampling["level_weights"][k]), np.asarray(sampling["level_counts"][k])
+        success = np.asarray(estimated_success(counts, prior))
+        for level in range(coordinates.shape[0]):
+            held = weights[level] > 0
+            if not held.any():
+                continue
+            where, p = coordinates[level][held], success[level][held]
+            out.append(BufferLevel(seed, level, int(held.sum()), (float(where.min()), float(where.max())),
+                                   float(weights[level].sum()), float(counts[0, level][held].sum()),
+                                   (float(p.min()), float(p.max()))))
+    return out
 
 
 def favoured_levels(folder: Path, camera: str, top: int = 6) -> tuple[bytes, str]:
@@ -38,6 +97,15 @@ def favoured_levels(folder: Path, camera: str, top: int = 6) -> tuple[bytes, str
         titles.append(f"{name}: {share[k]:.0%} of episodes, success {success[k]:.2f}" + (f"\n{where}" if where else ""))
     said = (f"the {len(order)} most played of {len(run.envs)} levels after evaluation {last[0]['eval']} "
             f"({last[0]['env_steps']:,} env steps)")
+    buffer = level_buffer(run)
+    for i, k in enumerate(order):
+        held = [b for b in buffer if b.level == k]
+        if held:  # where its episodes start, over every seed's buffer
+            low, high = min(b.kickoff[0] for b in held), max(b.kickoff[1] for b in held)
+            titles[i] += f"\nplayed at kick-off {low:.2f}-{high:.2f}" if low < high else f"\nplayed at kick-off {low:.2f}"
+    if buffer:
+        said += (f"; the level buffer (success at each level's own kick-off is in the titles; estimated by the "
+                 f"sampler over the points it plays here):\n" + "\n".join(b.text(len(run.envs)) for b in buffer))
     return contact_sheet(images, titles), said
 
 

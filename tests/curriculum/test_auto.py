@@ -136,6 +136,15 @@ def test_auto_run_records_its_levels_and_weights_and_resumes(tmp_path, monkeypat
     assert "most played of 4 levels after evaluation 2" in " ".join(sheet.output.split())
     assert iio.imread(run / "levels.png").ndim == 3
     assert len(titles) == 4 and all(t.startswith(("level ", "the field itself")) for t in titles), titles
+    from fieldgen.run import favoured, session
+
+    buffer = favoured.level_buffer(session.open_run(run, load_state=False))  # learner.msgpack's sampling
+    assert sum(b.share for b in buffer) == pytest.approx(1.0) and all(b.seed == 0 for b in buffer)
+    assert buffer[-1].level == 3 and buffer[-1].kickoff[1] == 1.0 and buffer[-1].share >= TARGET_SHARE - 1e-6
+    assert all(0 <= b.kickoff[0] <= b.kickoff[1] <= 1 and 0 < b.success[0] <= b.success[1] < 1 for b in buffer)
+    lines = [line.strip() for line in sheet.output.splitlines() if line.startswith("  seed 0, ")]
+    assert lines == [b.text(4) for b in buffer]  # one line a level of the buffer, unwrapped
+    assert any("played at kick-off" in t for t in titles)
 
 
 @pytest.mark.parametrize(("extra", "says"), [
@@ -361,7 +370,7 @@ def test_buffer_weights_on_hand_set_counts():
 def test_a_sampler_of_its_own_shares_and_replaces_as_it_says():
     """The same counts as above under other settings: the spec's share, the floor, the prior and the share
     kept are the sampler's; a buffer of 16 starts with 16 // levels points a level and swaps up to `replaced`."""
-    mine = Sampler(target_share=0.4, floor=0.1, prior=4.0, kept=0.25, buffer=16, replaced=8)
+    mine = Sampler(target_share=0.4, floor=0.1, prior=4.0, kept=0.25, buffer=16, replaced=8, sharpness=2.0)
     playable = np.ones((2, 4), bool)
     episodes = jnp.array([[10.0, 10, 10, 0], [0, 0, 0, 30]])
     successes = jnp.array([[10.0, 5, 0, 0], [0, 0, 0, 3]])
@@ -369,7 +378,7 @@ def test_a_sampler_of_its_own_shares_and_replaces_as_it_says():
                             jax.random.PRNGKey(0), mine)
     p = (np.asarray(successes) + 2.0) / (np.asarray(episodes) + 4.0)
     score = (p * (1 - p)).ravel()[:-1]
-    expected = 0.6 * (0.1 / 7 + 0.9 * score / score.sum())
+    expected = 0.6 * (0.1 / 7 + 0.9 * score ** 2 / (score ** 2).sum())
     np.testing.assert_allclose(np.asarray(new).ravel(), [*expected, 0.4], rtol=1e-5)
     assert np.all(np.asarray(keep) == 0.25)
     grid = np.ones((4, 32), bool)
@@ -383,6 +392,9 @@ def test_a_sampler_of_its_own_shares_and_replaces_as_it_says():
     after = np.asarray(weights) > 0
     assert after.sum() == before.sum() and 4 < np.sum(after & ~before) <= 8  # more than the default's 4 swapped
     assert level_weights(jnp.zeros(3), mine)[-1] == pytest.approx(0.4)
+    even = next_levels(jnp.stack([episodes, successes]), jnp.full((2, 4), 1 / 8), playable, jax.random.PRNGKey(0),
+                       Sampler(sharpness=0.0))[0]
+    np.testing.assert_allclose(np.asarray(even).ravel()[:-1], 0.8 / 7, rtol=1e-5)  # every level alike
 
 
 @pytest.mark.parametrize(("setting", "says"), [
