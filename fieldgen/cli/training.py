@@ -223,8 +223,6 @@ def train(
                           "overrides it)")
             if levels is not None and curriculum_kind != "auto":
                 fail(f"--levels {levels} sets how many levels --curriculum auto makes; add --curriculum auto")
-            if samplers and curriculum_kind != "auto":
-                fail("--sampler sets how --curriculum auto draws its levels; add --curriculum auto")
             sampler = _sampler(samplers) if samplers else None
             run = session.new_run(source, algo, range(seed, seed + seeds), algo_config, runs, mixed, init_from,
                                   auto=curriculum_kind == "auto", levels=levels, processes=processes,

@@ -123,6 +123,8 @@ def new_run(source: Path, algo: str, seeds: Sequence[int], config, out: Path, mi
     the run needs included where it `trains_here` (a run prepared to train elsewhere is checked where it
     resumes); `seeds` may be a range."""
     promotion, name, kind, coordinates, kickoffs = Promotion(), None, "mixed" if mixed else "staged", [], []
+    if sampler is not None and not auto:
+        raise record.RunError("--sampler sets how --curriculum auto draws its levels; add --curriculum auto")
     if auto:
         if mixed or curriculum.is_curriculum(source):
             raise record.RunError(f"--curriculum auto makes its own levels from one field and trains them all at "
@@ -153,8 +155,6 @@ def new_run(source: Path, algo: str, seeds: Sequence[int], config, out: Path, mi
     for env in envs:
         config.validate_env(env, sharding.device_count(), len(seeds))
     dirs = [FIELD] if len(envs) == 1 else [f"{STAGES}/{k + 1:02d}" for k in range(len(envs))]
-    if sampler is not None and not auto:
-        raise record.RunError("--sampler sets how --curriculum auto draws its levels; add --curriculum auto")
     if auto:
         from fieldgen.curriculum.auto import Sampler
 
