@@ -75,20 +75,26 @@ def load(path: Path, template, then=None):
         raise CheckpointError(f"{path} holds {len(leaves)} arrays but this run has {len(expected)}: "
                               "it was written by a different algorithm, network or field, or by an earlier "
                               "version of the trainer whose training state was laid out differently")
-    loaded = jax.tree.unflatten(treedef, [jax.numpy.asarray(x) for x in _checked(path, leaves, expected)])
+    for i, (got, want) in enumerate(zip(leaves, expected)):
+        if got.shape != tuple(want.shape) or got.dtype != want.dtype:
+            raise CheckpointError(f"{path}: array {i} is {got.dtype}{list(got.shape)} but this run expects "
+                                  f"{want.dtype}{list(want.shape)}: the config or the field's "
+                                  "observation layout differs from the run that wrote it")
+    loaded = jax.tree.unflatten(treedef, [jax.numpy.asarray(x) for x in leaves])
     return (loaded, None) if older else loaded
 
 
 def load_tail(path: Path, template):
     """The last arrays of the file at `path`, in the structure of `template`: a part written last (what
-    `load`'s `then` reads) read without the template of everything before it. None where the file holds
-    fewer arrays."""
+    `load`'s `then` reads) read without the template of everything before it. None where the file does not
+    end with arrays of those shapes and dtypes (a file written before that part was kept)."""
     leaves = _read_leaves(path)
     expected, treedef = jax.tree.flatten(template)
-    if len(leaves) < len(expected):
+    tail = leaves[len(leaves) - len(expected):] if len(leaves) >= len(expected) else []
+    if len(tail) != len(expected) or any(got.shape != tuple(want.shape) or got.dtype != want.dtype
+                                         for got, want in zip(tail, expected)):
         return None
-    tail = leaves[len(leaves) - len(expected):]
-    return jax.tree.unflatten(treedef, _checked(path, tail, expected, offset=len(leaves) - len(expected)))
+    return jax.tree.unflatten(treedef, tail)
 
 
 def _read_leaves(path: Path) -> list[np.ndarray]:
@@ -115,16 +121,6 @@ def _read_leaves(path: Path) -> list[np.ndarray]:
         raise
     except Exception:  # msgpack raises many types on damaged input
         raise CheckpointError(f"{corrupt}; it may also be truncated") from None
-
-
-def _checked(path: Path, leaves: list[np.ndarray], expected: list, offset: int = 0) -> list[np.ndarray]:
-    """`leaves`, each of the shape and dtype `expected` says; CheckpointError naming the first that is not."""
-    for i, (got, want) in enumerate(zip(leaves, expected), offset):
-        if got.shape != tuple(want.shape) or got.dtype != want.dtype:
-            raise CheckpointError(f"{path}: array {i} is {got.dtype}{list(got.shape)} but this run expects "
-                                  f"{want.dtype}{list(want.shape)}: the config or the field's "
-                                  "observation layout differs from the run that wrote it")
-    return leaves
 
 
 def _joined(leaf) -> np.ndarray:
