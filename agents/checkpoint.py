@@ -90,7 +90,7 @@ def load_tail(path: Path, template):
     end with arrays of those shapes and dtypes (a file written before that part was kept)."""
     leaves = _read_leaves(path)
     expected, treedef = jax.tree.flatten(template)
-    tail = leaves[len(leaves) - len(expected):] if len(leaves) >= len(expected) else []
+    tail = leaves[-len(expected):]  # fewer where the file holds fewer
     if len(tail) != len(expected) or any(got.shape != tuple(want.shape) or got.dtype != want.dtype
                                          for got, want in zip(tail, expected)):
         return None

@@ -81,7 +81,7 @@ Grouping = Annotated[Literal[GROUPINGS], Unknown(
     f"icrl.agents: unknown grouping '{{}}'; choose one of {', '.join(GROUPINGS)}")]
 
 
-def _allowed(error: dict, field) -> str:
+def allowed(error: dict, field) -> str:
     """What a config value must be, in words, from pydantic's first complaint about it."""
     if error["type"] in BOUNDS:
         phrase, key = BOUNDS[error["type"]]
@@ -193,7 +193,7 @@ class RunConfig(BaseModel):
                 unknown = next(m for m in fields[key].metadata if isinstance(m, Unknown))
                 raise ConfigError(unknown.message.format(value)) from None
             listed = f"; write it as a list, [{value}]" if isinstance(value, str) and "," in value else ""
-            raise ConfigError(f"{where}: {cls.algo}.{key} {_allowed(exc.errors()[0], fields[key])}, "
+            raise ConfigError(f"{where}: {cls.algo}.{key} {allowed(exc.errors()[0], fields[key])}, "
                               f"not {value!r}{listed}") from None
 
     def validate_env(self, env: Environment, devices: int = 1, seeds: int = 1) -> None:

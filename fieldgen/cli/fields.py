@@ -168,12 +168,11 @@ def render(
 
         output = output or Path(spec) / "levels.png"
         try:
-            image_bytes, said = favoured_levels(Path(spec), "top" if camera == "both" else camera)
+            image_bytes, said, buffer = favoured_levels(Path(spec), "top" if camera == "both" else camera)
             write_atomic(output, image_bytes)
         except (RunError, RenderError, OSError) as exc:
             fail(str(exc))
-        first, *buffer = said.split("\n")
-        out.print(f"wrote {output}: {first}")
+        out.print(f"wrote {output}: {said}")
         for line in buffer:  # one level of one seed's buffer a line
             out.print(f"  {line}", soft_wrap=True)
         return

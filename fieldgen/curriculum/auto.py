@@ -36,6 +36,7 @@ import numpy as np
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
+from fieldgen.agents.config import allowed
 from fieldgen.curriculum.levels import LevelError, LevelSpace
 from fieldgen.curriculum.schedule import Mixed
 from fieldgen.schema import FieldSpec, SpecError
@@ -125,12 +126,8 @@ class Sampler(BaseModel):
             key = error["loc"][0] if error["loc"] else None
             if key in cls.model_fields:
                 info = cls.model_fields[key]
-                signs = {"gt": ">", "ge": ">=", "lt": "<", "le": "<="}
-                bounds = " and ".join(f"{sign} {getattr(m, k)}" for m in info.metadata for k, sign in signs.items()
-                                      if getattr(m, k, None) is not None)
-                raise LevelError(f"{where} {key}={values.get(key)!r}: {error['msg'].lower()}; {key} is a "
-                                 f"{'whole number' if info.annotation is int else 'number'} {bounds}: "
-                                 f"{info.description}") from None
+                raise LevelError(f"{where} {key}={values.get(key)!r}: {key} {allowed(error, info)} "
+                                 f"({info.description})") from None
             raise LevelError(f"{where}: {error['msg'].removeprefix('Value error, ')}") from None
 
 
@@ -195,6 +192,12 @@ def kickoff_tables(spec: FieldSpec, chosen: list[Level], count: int = KICKOFFS) 
             rows.append([kickoff, spawn.x[0], spawn.y[0], spawn.x[1], spawn.y[1], *at.agent.start])
         tables.append(rows)
     return tables
+
+
+def kickoff_coordinates(kickoffs: list) -> np.ndarray:
+    """[level, point]: each kick-off point's place on the kick-off (0 the easy end's, 1 the spec's) from its
+    `kickoff_tables` row, NaN where the point is not played."""
+    return np.array([[row[0] if row else np.nan for row in level] for level in kickoffs])
 
 
 def initial_buffer(playable: np.ndarray, buffer: int = Sampler().buffer) -> np.ndarray:
@@ -309,5 +312,5 @@ class Auto(Mixed):
         from fieldgen.env.make import environment
 
         starts = np.array([[row[1:] if row else [np.nan] * 6 for row in level] for level in kickoffs], np.float32)
-        where = np.array([[row[0] if row else np.nan for row in level] for level in kickoffs])
-        return [environment([e.artifact for e in envs], kickoffs=starts, kickoff_coordinates=where)]
+        return [environment([e.artifact for e in envs], kickoffs=starts,
+                            kickoff_coordinates=kickoff_coordinates(kickoffs))]

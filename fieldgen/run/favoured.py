@@ -30,24 +30,26 @@ class BufferLevel:
 
     def text(self, levels: int) -> str:
         name = "the field itself" if self.level == levels - 1 else f"level {self.level + 1}"
-        kickoff = (f"{self.kickoff[0]:.2f}" if self.kickoff[0] == self.kickoff[1]
-                   else f"{self.kickoff[0]:.2f}-{self.kickoff[1]:.2f}")
-        success = (f"{self.success[0]:.2f}" if self.success[0] == self.success[1]
-                   else f"{self.success[0]:.2f}-{self.success[1]:.2f}")
-        return (f"seed {self.seed}, {name}: {self.points} point{'s' * (self.points > 1)} at kick-off {kickoff}, "
-                f"{self.share:.0%} of new episodes, {self.episodes:,.0f} episodes counted, success {success}")
+        return (f"seed {self.seed}, {name}: {self.points} point{'s' * (self.points > 1)} at kick-off "
+                f"{span(*self.kickoff)}, {self.share:.0%} of new episodes, {self.episodes:,.0f} episodes counted, "
+                f"success {span(*self.success)}")
+
+
+def span(low: float, high: float) -> str:
+    """A range of values as the buffer's lines write it: "0.03-0.32", or one value where both ends agree."""
+    return f"{low:.2f}" if f"{low:.2f}" == f"{high:.2f}" else f"{low:.2f}-{high:.2f}"
 
 
 def level_buffer(run) -> list[BufferLevel]:
     """Each seed's level buffer after the run's last evaluation, level by level (`BufferLevel`); none for a
     run without kick-off points or without `learner.msgpack` yet. RunError where that file cannot be read."""
     from fieldgen.agents import checkpoint, loop
-    from fieldgen.curriculum.auto import Sampler, estimated_success
+    from fieldgen.curriculum.auto import Sampler, estimated_success, kickoff_coordinates
 
     learner = run.folder / record.LEARNER
     if not run.kickoffs or not learner.is_file():
         return []
-    coordinates = np.array([[row[0] if row else np.nan for row in level] for level in run.kickoffs])
+    coordinates = kickoff_coordinates(run.kickoffs)
     try:
         sampling = checkpoint.load_tail(learner, loop.level_sampling_shapes(len(run.seeds), *coordinates.shape))
     except checkpoint.CheckpointError as exc:
@@ -70,10 +72,10 @@ def level_buffer(run) -> list[BufferLevel]:
     return out
 
 
-def favoured_levels(folder: Path, camera: str, top: int = 6) -> tuple[bytes, str]:
+def favoured_levels(folder: Path, camera: str, top: int = 6) -> tuple[bytes, str, list[str]]:
     """(PNG bytes of the `top` stages with the largest share of new episodes after the last evaluation, most
-    favoured first, a line saying what was drawn); RunError for a run that weighs no variants or has not
-    been evaluated."""
+    favoured first, a line saying what was drawn, a line for each level of each seed's buffer); RunError for
+    a run that weighs no variants or has not been evaluated."""
     from fieldgen.render import contact_sheet, render_pose
 
     run = session.open_run(folder, load_state=False)
@@ -101,12 +103,11 @@ def favoured_levels(folder: Path, camera: str, top: int = 6) -> tuple[bytes, str
     for i, k in enumerate(order):
         held = [b for b in buffer if b.level == k]
         if held:  # where its episodes start, over every seed's buffer
-            low, high = min(b.kickoff[0] for b in held), max(b.kickoff[1] for b in held)
-            titles[i] += f"\nplayed at kick-off {low:.2f}-{high:.2f}" if low < high else f"\nplayed at kick-off {low:.2f}"
+            titles[i] += f"\nplayed at kick-off {span(min(b.kickoff[0] for b in held), max(b.kickoff[1] for b in held))}"
     if buffer:
-        said += (f"; the level buffer (success at each level's own kick-off is in the titles; estimated by the "
-                 f"sampler over the points it plays here):\n" + "\n".join(b.text(len(run.envs)) for b in buffer))
-    return contact_sheet(images, titles), said
+        said += ("; the level buffer (success at each level's own kick-off is in the titles; estimated by the "
+                 "sampler over the points it plays here):")
+    return contact_sheet(images, titles), said, [b.text(len(run.envs)) for b in buffer]
 
 
 def level_text(coordinates: dict) -> str:

@@ -398,11 +398,13 @@ def test_a_sampler_of_its_own_shares_and_replaces_as_it_says():
 
 
 @pytest.mark.parametrize(("setting", "says"), [
-    ("replaced=-1", "--sampler replaced=-1: input should be greater than or equal to 0; replaced is a whole number >= 0"),
+    ("replaced=-1", "--sampler replaced=-1: replaced must be at least 0 (of the buffer's levels, replaced after"),
     ("repalced=8", "unknown key 'repalced'; did you mean 'replaced'?"),
     ("floor=0.8", "floor 0.8 and frontier_share 0.3 together pass 1"),
     ("target_share", "write KEY=VALUE, e.g. --sampler replaced=8"),
-    ("target_share=half", "target_share is a number > 0 and < 1: of new episodes, on the spec itself"),
+    ("target_share=half", "--sampler target_share='half': target_share must be a number (of new episodes, on the "
+                          "spec itself)"),
+    ("target_share=1", "--sampler target_share=1: target_share must be less than 1.0 (of new episodes"),
 ])
 def test_a_bad_sampler_setting_is_one_line(tmp_path, setting, says):
     result = runner.invoke(app, ["train", "point_soccer", "--curriculum", "auto", "--sampler", setting,

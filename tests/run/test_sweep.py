@@ -136,8 +136,8 @@ def test_dry_run_on_the_command_line_shows_each_command_and_the_backend(tmp_path
     ("levels: 3\n", ":6:1: levels: 3 levels of the automatic curriculum: add curriculum: auto to the sweep"),
     ("curriculum: auto\ngrid:\n  sampler.replacd: [4]\n", ":8:3: grid.sampler.replacd: replacd=4: unknown key "
                                                           "'replacd'; did you mean 'replaced'?"),
-    ("curriculum: auto\nset:\n  sampler.kept: 2\n", "set.sampler.kept: kept=2: input should be less than or equal "
-                                                     "to 1; kept is a number >= 0 and <= 1"),
+    ("curriculum: auto\nset:\n  sampler.kept: 2\n", ":8:3: set.sampler.kept: kept=2: kept must be at most 1.0 (of a "
+                                                     "level's episode counts"),
     ("curriculum: manual\n", "curriculum: Input should be 'auto'"),
 ])
 def test_bad_sweep_files_are_one_line_at_the_key(tmp_path, body, phrase):
