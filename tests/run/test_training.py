@@ -447,7 +447,8 @@ def test_ant_fields_get_the_ant_preset_under_a_config_file_and_set(tmp_path):
     from fieldgen.agents.sac import SACConfig
 
     ant = crl.CRLConfig.layered(agent="ant")
-    assert (ant.hidden, ant.layer_norm, ant.windows_per_env, ant.batch_size) == ((256,) * 4, True, 2.0, 1024)
+    assert (ant.hidden, ant.matmul, ant.layer_norm, ant.windows_per_env, ant.batch_size) == (
+        (1024,) * 4, "bfloat16", True, 2.0, 1024)
     # twice the reference's windows at any number of environments: 2,048 at 1,024 envs, 32 at a test's 16
     assert gradient_steps(ant, 1001) == (2048, 2002)
     assert gradient_steps(crl.CRLConfig.layered(agent="ant", num_envs=16), 1001) == (32, 31)
@@ -460,6 +461,8 @@ def test_ant_fields_get_the_ant_preset_under_a_config_file_and_set(tmp_path):
     assert (mine.batch_size, mine.layer_norm, mine.windows_per_env) == (256, False, 2.0)
     reference = ROOT / "bench" / "configs" / "crl_reference.yaml"
     assert crl.CRLConfig.layered(reference, agent="ant") == crl.CRLConfig()  # the reference's settings, back
+    narrow = crl.CRLConfig.layered(ROOT / "bench" / "configs" / "crl_ant_width256.yaml", agent="ant")
+    assert (narrow.hidden, narrow.matmul, narrow.windows_per_env) == ((256,) * 4, "float32", 2.0)
 
 
 def test_the_cpu_preset_sizes_training_and_its_evaluations_for_a_laptop(tmp_path, env_cache):
@@ -474,6 +477,7 @@ def test_the_cpu_preset_sizes_training_and_its_evaluations_for_a_laptop(tmp_path
         config.validate_env(soccer)
     mine = crl.CRLConfig.layered(agent="ant", preset="cpu", sets=["crl.num_envs=32"])
     assert (mine.layer_norm, mine.batch_size, mine.windows_per_env, mine.num_envs) == (True, 256, 1.0, 32)
+    assert mine.matmul == "float32"  # the ant preset's bfloat16 products are a GPU's gain
     with pytest.raises(ConfigError, match="unknown preset 'cpus'; did you mean 'cpu'"):
         crl.CRLConfig.layered(preset="cpus")
     result = runner.invoke(app, ["train", "ant_nav", "--preset", "cpu", "--out", str(tmp_path), "--prepare"])
