@@ -19,6 +19,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..env.contract import Environment
+from ..env.mjx_physics import OVERFLOW
 from .config import RunConfig
 from .programs import Programs, computed
 from .sharding import from_host, to_host
@@ -140,7 +141,7 @@ def evaluate_policy(env, act: Callable, key: jax.Array, n_envs: int, film: Calla
         return (nxt, still, closest), (out, frame)
 
     start = batched_with(key, (env_state, jnp.ones(n_envs), goal_distance(env_state.obs)))
-    (_, _, closest), (out, frames) = jax.lax.scan(step, start, None, length=env.episode_length)
+    (last, _, closest), (out, frames) = jax.lax.scan(step, start, None, length=env.episode_length)
     live_steps = jnp.sum(out["alive"])
     succeeded = jnp.any(out["success"] > 0, axis=0)
     at_goal = jnp.sum(out["success"], axis=0)
@@ -148,11 +149,28 @@ def evaluate_policy(env, act: Callable, key: jax.Array, n_envs: int, film: Calla
                "closest_distance": jnp.mean(closest), "episode_length": live_steps / n_envs,
                "episode_return": jnp.mean(jnp.sum(out["reward"], axis=0)),
                **{f"term_{name}": jnp.sum(out[name]) / live_steps for name in terms}}
+    if OVERFLOW in last.info:  # Warp's overflow flags of any environment (stop_on_overflow reads them)
+        metrics[OVERFLOW] = jax.lax.reduce(last.info[OVERFLOW], jnp.int32(0), jax.lax.bitwise_or, (0,))
     if count > 1:
         share = jax.nn.one_hot(env_state.info["variant"], count)  # [envs, variants]
         share = share / jnp.sum(share, axis=0)
         metrics["variants"] = VariantResults(succeeded @ share, at_goal @ share, closest @ share, jnp.zeros(count))
     return metrics, frames
+
+
+def reserve_worlds(trainer: Trainer, seeds: int) -> None:
+    """Size the trainer's environment for every environment one of its programs steps at once (over seeds and
+    environments, training's or evaluation's), before the programs are traced (FieldEnv.reserve_worlds)."""
+    if hasattr(trainer.env, "reserve_worlds"):
+        trainer.env.reserve_worlds(seeds * max(trainer.config.num_envs, trainer.config.eval_envs))
+
+
+def stop_on_overflow(env, overflow) -> None:
+    """Raise (fieldgen.env.mjx_physics.PhysicsOverflow) where `overflow`, the overflow flags of environments
+    (info[OVERFLOW] of a batch, or an evaluation's metric), says one outgrew MuJoCo Warp's capacities; None: the
+    environment runs on no such capacities."""
+    if overflow is not None:
+        env.check_physics(overflow)
 
 
 def batched_with(key: jax.Array, tree):
@@ -332,6 +350,7 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
         trainer = trainers[k]
         kept = (len(seeds), film, schedule)
         if kept not in trainer.compiled:
+            reserve_worlds(trainer, len(seeds))
             weighed = functools.partial(adapt, schedule=schedule)
             trainer.compiled[kept] = Programs(trainer, keys, film, evaluate, weighed)
         return trainer.compiled[kept]
@@ -340,6 +359,7 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
         """Metrics per seed, and the first seed's episode filmed on stage k (None without `film`)."""
         metrics, frames = computed(programs(k).evaluate(state, jax.vmap(eval_key, in_axes=(0, None))(keys, index)),
                                    to_host)
+        stop_on_overflow(trainers[k].env, metrics.pop(OVERFLOW, None))
         return metrics, None if frames is None else (k, seed_slice(frames, 0))
 
     history: list[dict] = []
@@ -378,6 +398,7 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
                 report(*reported)
             state, metrics = called.result()
             metrics = computed(metrics, to_host)  # waits for the chunk
+            stop_on_overflow(trainers[stage].env, to_host(state.env_state.info.get(OVERFLOW)))
         seconds = time.perf_counter() - began
         judged, episode = judge(stage, state, index)
         metrics.update(judged)

@@ -32,8 +32,10 @@ import jax
 import jax.numpy as jnp
 
 from env_throughput import field_env
+from fieldgen.env.mjx_physics import capacities
 from fieldgen.env.throughput import append_jsonl
 from fieldgen.schema import SpecError
+from fieldgen.schema.backends import BACKENDS
 
 DEFAULT_FIELDS = "ant_nav,soccer_v1,soccer_v2,bench/fields/v2_all_contacts.yaml"
 
@@ -46,9 +48,9 @@ def load_field(build: Path, name: str):
         env = field_env(build, stem if (build / stem).is_dir() else name, None)
     except SpecError as error:
         raise SystemExit(f"error: {error}") from None
-    if env.spec.sim.backend != "mjx":
-        raise SystemExit(f"{name} runs on sim.backend {env.spec.sim.backend}; MJX's implementations step only "
-                         f"mjx fields")
+    if BACKENDS[env.spec.sim.backend].brax:
+        raise SystemExit(f"{name} runs on brax's {env.spec.sim.backend} pipeline; MJX's implementations step only "
+                         f"the fields of {' and '.join(n for n, b in BACKENDS.items() if not b.brax)}")
     return env
 
 
@@ -82,14 +84,6 @@ def physics_model(env, iterations: int | None, ls_iterations: int | None):
     if ls_iterations is not None:
         model.opt.ls_iterations = ls_iterations
     return model
-
-
-def jax_capacities(model) -> tuple[int, int]:
-    """(contacts, constraint rows) the JAX implementation allocates for one environment: all it can ever hold."""
-    from mujoco import mjx
-
-    data = mjx.make_data(model, impl="jax")
-    return int(data._impl.contact.dist.shape[0]), int(data._impl.efc_J.shape[0])
 
 
 class Implementation:
@@ -217,7 +211,7 @@ def main() -> None:
     for name in args.fields.split(","):
         env = load_field(args.build, name)
         model = physics_model(env, args.iterations, args.ls_iterations)
-        contacts, rows = jax_capacities(model)
+        contacts, rows = capacities(model)
         naconmax = contacts if args.naconmax is None else args.naconmax
         njmax = rows if args.njmax is None else args.njmax
         runs = [Implementation(env, model, "jax")] if "jax" in impls else []

@@ -363,7 +363,10 @@ def evaluate(
         except (SpecError, ConfigError, record.RunError) as exc:
             fail(str(exc))
         path = summary_file or judging.summary_path(run_dirs, runs[0], field is not None)
-        evaluations = [judging.evaluate(run, episodes, seed, video and k == 0) for k, run in enumerate(runs)]
+        try:
+            evaluations = [judging.evaluate(run, episodes, seed, video and k == 0) for k, run in enumerate(runs)]
+        except record.RunError as exc:  # the physics outgrew its capacities
+            fail(str(exc))
         result = judging.summarize(runs, evaluations, episodes, _command_line(ctx))
         length = runs[0].env.episode_length
         steps = sorted({e.env_steps for e in evaluations})

@@ -13,6 +13,7 @@ from itertools import combinations
 
 import mujoco
 
+from fieldgen.schema.backends import mjx_impl
 from fieldgen.schema.models import AGENT_CONTACTS, FieldSpec
 
 ROLES = ("floor", "ball", "foot", "torso", "wall", "obstacle", "post")
@@ -34,7 +35,7 @@ def relation(spec: FieldSpec) -> set[frozenset[str]]:
 def ball_touches_floor(spec: FieldSpec) -> bool:
     """Whether the ball has a floor contact: a free ball does, and so does a puck under brax, whose
     pipelines ignore joint frictionloss; under MJX a puck's floor friction is frictionloss (scene.py)."""
-    return spec.ball.joint == "free" or spec.sim.backend != "mjx"
+    return spec.ball.joint == "free" or mjx_impl(spec) is None
 
 
 # The soccer study's XML: geoms default to 0/0, the floor and torso only receive

@@ -8,6 +8,7 @@ into their own scenes, ball and all. MJX reads none of them, so an MJX scene car
 
 from __future__ import annotations
 
+from fieldgen.schema.backends import mjx_impl
 from fieldgen.schema.models import FieldSpec
 
 REFERENCE_ANT = {
@@ -26,4 +27,4 @@ REFERENCE_ANT = {
 
 def brax_parameters(spec: FieldSpec) -> dict[str, float]:
     """The <custom> numerics brax reads for this field: none under MJX."""
-    return {} if spec.sim.backend == "mjx" else dict(REFERENCE_ANT)
+    return {} if mjx_impl(spec) else dict(REFERENCE_ANT)

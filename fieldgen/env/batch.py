@@ -10,9 +10,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mujoco import mjx
-
 from fieldgen.compile.layout import observation_layout
+from fieldgen.env import mjx_physics
 
 if TYPE_CHECKING:
     from fieldgen.env.rules import EpisodeRules
@@ -31,6 +30,8 @@ def check_compatible(rules: list[EpisodeRules], models, layout) -> None:
                              f"{f.substeps} x {f.physics_dt} s; variants trained in one batch need one control period")
         if v.spec.sim.precision != first.sim.precision:
             raise ValueError(f"{v.spec.name} and {first.name} differ in sim.precision")
+        if v.spec.sim.backend != first.sim.backend:
+            raise ValueError(f"{v.spec.name} and {first.name} differ in sim.backend")
 
 
 # Static (non-array) model fields that differ between variants but that stepping never reads:
@@ -46,10 +47,14 @@ def own_device() -> jax.Device:
     return jax.local_devices()[0]
 
 
-def batched_model(models, names: list[str]) -> tuple[object, frozenset[int]]:
-    """One mjx.Model whose leaves that differ between the variants are stacked on a leading axis,
-    and the indices of those leaves."""
-    systems = [mjx.put_model(m, device=own_device()) for m in models]
+def batched_model(models, names: list[str], impl: str = "jax") -> tuple[object, frozenset[int]]:
+    """One mjx.Model of MJX's implementation `impl` whose leaves that differ between the variants are stacked on
+    a leading axis, and the indices of those leaves."""
+    if impl == "warp" and len(models) > 1:
+        raise ValueError(f"{names[-1]}: variants batched in one model run on sim.backend mjx only (fieldgen stacks "
+                         "the models of MJX's JAX implementation, not Warp's, whose static fields it cannot compare): "
+                         "train the stages in turn (without --mixed), or give every stage sim.backend: mjx")
+    systems = [mjx_physics.put_model(m, impl, own_device()) for m in models]
     first = systems[0]
     systems = [first] + [_static_like(first, s, f"{n} and {names[0]}") for s, n in zip(systems[1:], names[1:])]
     columns = zip(*(jax.tree.leaves(s) for s in systems))

@@ -23,7 +23,7 @@ from flax import struct
 
 from fieldgen.compile.artifact import Artifact
 from fieldgen.env.field import FieldEnv
-from fieldgen.schema.backends import BRAX
+from fieldgen.schema.backends import BRAX, mjx_impl
 
 PIPELINES = {name: importlib.import_module(f"brax.{name}.pipeline") for name in BRAX}
 
@@ -58,7 +58,7 @@ def load_system(xml: str, model: mujoco.MjModel):
 
 def check_batchable(artifacts: Sequence[Artifact]) -> None:
     """Variants batched in one simulation must run on MJX: brax's pipelines step one field."""
-    on_brax = [a.spec for a in artifacts if a.spec.sim.backend != "mjx"]
+    on_brax = [a.spec for a in artifacts if mjx_impl(a.spec) is None]
     if len(artifacts) > 1 and on_brax:
         raise ValueError(f"variants train in one batch on MJX only; {on_brax[0].name} runs on brax's "
                          f"{on_brax[0].sim.backend} pipeline: train the stages in turn (without --mixed), "
@@ -82,9 +82,9 @@ class BraxFieldEnv(FieldEnv):
         data, goal = super()._fresh(variant, key, kickoff)
         return BraxData(self._pipeline.init(self.sys, data.qpos, data.qvel), data.mocap_pos), goal
 
-    def _advance(self, sys, data: BraxData, action: jax.Array) -> BraxData:
+    def _advance(self, sys, data: BraxData, action: jax.Array) -> tuple[BraxData, None]:
         state = jax.lax.fori_loop(0, self.n_substeps, lambda _, s: self._pipeline.step(sys, s, action), data.pipeline)
-        return data.replace(pipeline=state)
+        return data.replace(pipeline=state), None
 
     def _restart(self, done: jax.Array, fresh: BraxData, data: BraxData) -> BraxData:
         return jax.tree.map(lambda f, d: jnp.where(done, f, d), fresh, data)

@@ -25,6 +25,7 @@ from mujoco import mjx
 
 from fieldgen.compile.artifact import Artifact
 from fieldgen.compile.layout import observation_layout
+from fieldgen.env import mjx_physics
 from fieldgen.env.batch import batched_model, check_compatible
 from fieldgen.env.task import Transition
 from fieldgen.env.rules import EpisodeRules
@@ -70,7 +71,9 @@ class FieldEnv:
         self.rules = [EpisodeRules(a.spec, m, self.layout, episode_length) for a, m in zip(artifacts, models)]
         check_compatible(self.rules, models, self.layout)
         self.task = self.rules[-1].task
-        self.sys, self._varying = batched_model(models, [a.spec.name for a in artifacts])
+        self.impl = self.rules[-1].impl  # MJX's implementation (sim.backend mjx: jax, warp: warp)
+        self.worlds = 1  # environments one batch may step: Warp's data is sized for them (`reserve_worlds`)
+        self.sys, self._varying = batched_model(models, [a.spec.name for a in artifacts], self.impl)
         self.episode_length = max(r.episode_length for r in self.rules)
         self._ball_radii = jnp.asarray([r.spec.ball.radius for r in self.rules])
         self.auto_reset = auto_reset
@@ -112,7 +115,7 @@ class FieldEnv:
 
     # -- what brax's wrappers and MuJoCo Playground users reach for ----------------
 
-    backend = "mjx"
+    backend = "mjx"  # MJX, of either implementation (`impl`)
 
     @property
     def unwrapped(self) -> "FieldEnv":
@@ -131,6 +134,19 @@ class FieldEnv:
         qpos = np.stack([np.asarray(s.pipeline_state.qpos) for s in trajectory])
         mocap = np.stack([np.asarray(s.pipeline_state.mocap_pos) for s in trajectory])
         return render_rollout(self.mj_model, qpos, mocap, camera, (height, width))
+
+    def reserve_worlds(self, worlds: int) -> None:
+        """Size the physics for batches of up to `worlds` environments (all a program steps: seeds x envs), before
+        the programs that step them are traced: Warp's contact buffer is shared by a batch; JAX's needs nothing."""
+        if self.impl == "warp" and worlds > self.worlds:
+            self.worlds = worlds
+            for rules in self.rules:
+                rules.reserve(worlds)
+
+    def check_physics(self, overflow) -> None:
+        """Raise mjx_physics.PhysicsOverflow where `overflow` (info[mjx_physics.OVERFLOW] of any number of environments)
+        says one outgrew Warp's capacities."""
+        mjx_physics.check(self.name, int(np.bitwise_or.reduce(np.asarray(overflow).ravel())), self.mj_model, self.worlds)
 
     @property
     def variant_count(self) -> int:
@@ -201,6 +217,8 @@ class FieldEnv:
         elif self.variant_count > 1:
             n = self.variant_count
             info.update(variant=variant, variant_weights=jnp.full(n, 1.0 / n))
+        if self.impl == "warp":
+            info[mjx_physics.OVERFLOW] = jnp.zeros((), jnp.int32)
         metrics = {name: zero for name in self.metric_names}
         return State(data, self._obs(data, goal), zero, zero, metrics, info)
 
@@ -218,7 +236,7 @@ class FieldEnv:
         variant = state.info.get("variant", jnp.zeros((), jnp.int32))
         sys = self._model(variant)
         with jax.default_matmul_precision(self.spec.sim.precision):
-            data = self._advance(sys, before, action)
+            data, overflow = self._advance(sys, before, action)
         goal = state.info["goal"]
         t = Transition(self._ball_pos(before, variant), self._ball_pos(data, variant), self._agent_pos(before),
                        self._agent_pos(data), goal, action, self.dt)
@@ -233,6 +251,8 @@ class FieldEnv:
         fell = fell | broken
         done = truncated | fell
         info = dict(state.info, episode_step=steps, down_steps=down, truncation=(truncated & ~fell).astype(jnp.float32))
+        if overflow is not None:  # kept over episodes: the trainer reads it after each chunk
+            info[mjx_physics.OVERFLOW] = state.info[mjx_physics.OVERFLOW] | overflow
         kickoff = state.info.get("kickoff")
         if self.kickoff_count:
             info.update(self._counted(state.info, variant, kickoff, metrics["success"], done))
@@ -293,9 +313,18 @@ class FieldEnv:
         counts = info["level_counts"].at[:, variant, kickoff].add(jnp.stack([ended, ended * succeeded]))
         return {"succeeded": jnp.where(done, 0.0, succeeded), "level_counts": counts}
 
-    def _advance(self, sys, data: mjx.Data, action: jax.Array) -> mjx.Data:
-        """The physics steps of one control step."""
-        return jax.lax.fori_loop(0, self.n_substeps, lambda _, d: mjx.step(sys, d), data.replace(ctrl=action))
+    def _advance(self, sys, data: mjx.Data, action: jax.Array) -> tuple[mjx.Data, jax.Array | None]:
+        """The physics steps of one control step, and Warp's overflow flags they raised (None on JAX's)."""
+        data = data.replace(ctrl=action)
+        if self.impl != "warp":
+            return jax.lax.fori_loop(0, self.n_substeps, lambda _, d: mjx.step(sys, d), data), None
+
+        def one(_, carry):
+            d, bits = carry
+            d = mjx.step(sys, d)
+            return d, bits | mjx_physics.overflow_bits(d)
+
+        return jax.lax.fori_loop(0, self.n_substeps, one, (data, jnp.zeros((), jnp.int32)))
 
     def _restart(self, done: jax.Array, fresh: mjx.Data, data: mjx.Data) -> mjx.Data:
         """`fresh` where the episode is done, else `data`."""

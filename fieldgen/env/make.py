@@ -36,12 +36,13 @@ def environment(artifacts, **kwargs) -> FieldEnv:
     """The environment of built fields, on the physics their spec names."""
     from fieldgen.env.brax_pipeline import BraxFieldEnv, check_batchable
     from fieldgen.env.field import FieldEnv
+    from fieldgen.schema.backends import mjx_impl
 
     if isinstance(artifacts, (list, tuple)):
         check_batchable(artifacts)
         if len(artifacts) > 1:
             return FieldEnv(artifacts, **kwargs)
         artifacts = artifacts[0]
-    if artifacts.spec.sim.backend == "mjx":
+    if mjx_impl(artifacts.spec):
         return FieldEnv(artifacts, **kwargs)
     return BraxFieldEnv(artifacts, **kwargs)

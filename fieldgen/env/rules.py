@@ -7,9 +7,11 @@ import jax
 import jax.numpy as jnp
 from mujoco import mjx
 
+from fieldgen.env import mjx_physics
 from fieldgen.env.batch import own_device
 from fieldgen.env.falls import fall_fn
 from fieldgen.env.task import Transition, task_fns
+from fieldgen.schema.backends import mjx_impl
 
 class EpisodeRules:
     """One variant's episode rules: how episodes start, how a step scores, when an episode ends."""
@@ -20,9 +22,14 @@ class EpisodeRules:
         self.fell = fall_fn(spec)
         self.episode_length = episode_length or spec.episode.length
         self.home_qpos = jnp.asarray(mj_model.key("home").qpos)
-        self.data0 = mjx.make_data(mj_model, device=own_device()).replace(qpos=self.home_qpos)
+        self.mj_model, self.impl = mj_model, mjx_impl(spec) or "jax"  # brax's pipelines start from JAX's data
+        self.reserve(1)
         self.layout = layout
         self.is_ant = spec.agent.kind == "ant"
+
+    def reserve(self, worlds: int) -> None:
+        """Episodes start from data sized for batches of `worlds` environments (Warp's capacities)."""
+        self.data0 = mjx_physics.make_data(self.mj_model, self.impl, own_device(), worlds).replace(qpos=self.home_qpos)
 
     def fresh_episode(self, key: jax.Array, kickoff: jax.Array | None = None):
         """Agent pose noise, target and ball spawn: new draws from `key`. With `kickoff` (the ball's spawn

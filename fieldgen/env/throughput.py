@@ -16,6 +16,7 @@ import jax
 import jax.numpy as jnp
 
 from fieldgen.command import fieldgen_command
+from fieldgen.env.mjx_physics import OVERFLOW
 
 
 @dataclass(frozen=True)
@@ -45,6 +46,8 @@ def rollout_fn(env, n_envs: int, steps: int):
 
 def measure(env, n_envs: int, steps: int = 200, repeats: int = 3, seed: int = 0) -> Throughput:
     keys = jax.random.split(jax.random.PRNGKey(seed), n_envs)
+    if hasattr(env, "reserve_worlds"):  # Warp's capacities, for the batch
+        env.reserve_worlds(n_envs)
     state = jax.jit(jax.vmap(env.reset))(keys)
     run = rollout_fn(env, n_envs, steps)
     key = jax.random.PRNGKey(seed + 1)
@@ -59,6 +62,8 @@ def measure(env, n_envs: int, steps: int = 200, repeats: int = 3, seed: int = 0)
         best = min(best, time.perf_counter() - t0)
     if not bool(jnp.all(jnp.isfinite(state.obs))):
         raise FloatingPointError("the rollout produced non-finite observations")
+    if OVERFLOW in state.info:
+        env.check_physics(state.info[OVERFLOW])
     return Throughput(n_envs, steps, best)
 
 

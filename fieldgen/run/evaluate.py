@@ -11,6 +11,7 @@ from pathlib import Path
 import jax
 
 from fieldgen.agents import loop, memory, programs
+from fieldgen.env.mjx_physics import OVERFLOW, PhysicsOverflow
 from fieldgen.run import record, session, summary
 from fieldgen.run.session import Run
 from fieldgen.run.videos import EpisodeRecorder
@@ -27,10 +28,15 @@ def evaluate(run: Run, episodes: int, seed: int = 0, film: bool = True) -> Evalu
     """`episodes` evaluation episodes per seed of the run's policy, on `run.env`. It compiles and runs as
     training's programs do (agents.programs), so that Ctrl-C reaches the caller at once, mid-compile too."""
     trainer = dataclasses.replace(run, config=run.config.model_copy(update={"eval_envs": episodes})).judged_trainer
+    loop.reserve_worlds(trainer, len(run.seeds))
     filming = EpisodeRecorder.film if film else None
     judged = jax.vmap(functools.partial(loop.evaluate, trainer, film=filming), in_axes=(0, None))
     key = jax.random.PRNGKey(seed)
     metrics, frames = programs.computed(programs.Compiling(jax.jit(judged), run.state, key)(run.state, key))
+    try:
+        loop.stop_on_overflow(trainer.env, metrics.pop(OVERFLOW, None))
+    except PhysicsOverflow as exc:
+        raise record.RunError(f"evaluation stopped: {exc}") from None
     steps = int(jax.device_get(run.state.env_steps)[0])
     episode = EpisodeRecorder(run.env).episode(loop.seed_slice(frames, 0)) if film else None
     return Evaluation(metrics, steps, episode)

@@ -14,6 +14,7 @@ import numpy as np
 from rich.console import Console
 
 from fieldgen.agents import checkpoint, loop, sharding
+from fieldgen.env.mjx_physics import PhysicsOverflow
 from fieldgen.files import locked, remove_leftovers, write_atomic
 from fieldgen.run import background, record, session
 from fieldgen.run.loggers import open_logger
@@ -157,6 +158,8 @@ def _train(run: Run, console: Console, videos: bool, logger: str, video_format: 
             if not deadline.reached:
                 done = run.rows[-1]["env_steps"]  # whole iterations can stop short of --steps
                 bar.update(task, total=done, rate=rate(run.rows, done))
+        except PhysicsOverflow as exc:
+            raise record.RunError(f"training stopped: {exc}") from None
         except KeyboardInterrupt:
             if writer.busy:
                 console.print("finishing the checkpoint being written...")

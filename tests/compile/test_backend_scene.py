@@ -37,6 +37,12 @@ def test_mjx_scene_is_unchanged():
     assert friction == pytest.approx(max(spec.ball.friction, spec.field.friction) * weight, rel=1e-6) and not touches
 
 
+def test_a_warp_scene_is_the_mjx_scene():
+    for field in ("soccer_v1", "ant_nav"):
+        mjx, warp = (compile_spec(load_spec(resolve_spec_path(field), backend)) for backend in ("mjx", "warp"))
+        assert warp.spec.sim.backend == "warp" and warp.xml == mjx.xml
+
+
 def test_gear_override_reaches_the_motors():
     model = compile_spec(load_spec(resolve_spec_path("soccer_v2_positional"))).model()
     assert set(model.actuator_gear[:, 0]) == {200.0}

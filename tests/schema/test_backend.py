@@ -18,7 +18,7 @@ runner = CliRunner()
 
 
 @pytest.mark.parametrize("backend, dt, substeps, iterations", [
-    ("mjx", 0.01, 5, 1), ("spring", 0.005, 10, 1), ("positional", 0.005, 10, 1), ("generalized", 0.01, 5, 4)])
+    ("mjx", 0.01, 5, 1), ("warp", 0.01, 5, 1), ("spring", 0.005, 10, 1), ("positional", 0.005, 10, 1), ("generalized", 0.01, 5, 4)])
 def test_each_backend_steps_as_its_reference_does(write_spec, backend, dt, substeps, iterations):
     spec = load_spec(write_spec(f"name: x\nsim: {{backend: {backend}}}\n"))
     assert (spec.episode.physics_dt, spec.episode.substeps, spec.sim.iterations) == (dt, substeps, iterations)
@@ -64,12 +64,20 @@ def test_an_unknown_backend_lists_the_choices(write_spec):
     with pytest.raises(SpecError) as info:
         load_spec(write_spec("name: x\nsim: {backend: bullet}\n"))
     message = info.value.problems[0].message
-    assert all(name in message for name in ("mjx", "spring", "positional", "generalized"))
+    assert all(name in message for name in ("mjx", "warp", "spring", "positional", "generalized"))
 
 
 def test_the_schema_offers_exactly_the_registered_backends():
     assert typing.get_args(SimSection.model_fields["backend"].annotation) == tuple(BACKENDS)
     assert "mjx" not in BRAX and set(BRAX) < set(BACKENDS)
+
+
+def test_warp_is_mjx_of_another_implementation(write_spec):
+    assert (BACKENDS["mjx"].mjx_impl, BACKENDS["warp"].mjx_impl) == ("jax", "warp") and "warp" not in BRAX
+    assert all(BACKENDS[name].mjx_impl is None for name in BRAX)
+    spec = load_spec(write_spec(POINT_ON + "sim: {backend: warp, cone: elliptic, euler_damping: true}\n"))
+    assert spec.sim.backend == "warp"  # everything MJX simulates
+    assert "warp (MuJoCo Warp through MJX" in SimSection.model_fields["backend"].description
 
 
 POINT_ON = "name: x\nagent: {kind: point}\nball: {enabled: false}\ntask: {success: {kind: agent_near_target}}\n"
@@ -82,9 +90,9 @@ def test_a_point_agent_is_sent_to_the_backends_the_registry_says_damp_joints(wri
         return info.value.problems[0].message
 
     assert message("spring") == ("brax's spring pipeline ignores joint damping, which is what slows the point agent "
-                                 "(agent.kind: point) on its slides; use backend mjx or generalized, or agent.kind: ant")
+                                 "(agent.kind: point) on its slides; use backend mjx, warp or generalized, or agent.kind: ant")
     monkeypatch.setitem(BACKENDS, "generalized", dataclasses.replace(BACKENDS["generalized"], joint_damping=False))
-    assert message("generalized").endswith("use backend mjx, or agent.kind: ant")
+    assert message("generalized").endswith("use backend mjx or warp, or agent.kind: ant")
 
 
 def test_the_defaults_a_backend_brings_are_the_registry_s(write_spec, monkeypatch):

@@ -1,0 +1,73 @@
+"""MJX's implementations of a field's physics (fieldgen.schema.backends: mjx steps JAX's, warp MuJoCo Warp's),
+and what Warp needs that JAX does not.
+
+Warp fixes its capacities when its data is made, and its contact buffer is shared by every environment of a
+batch: each environment gets the contacts and constraint rows JAX's implementation allocates for the model (all
+it can ever hold), times the environments reserved for the batch (`worlds`). Warp leaves out what does not fit
+and only flags it, so a field records the flags (`OVERFLOW`) and whoever steps it stops on them (`check`).
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+
+OVERFLOW = "physics_overflow"  # info entry: Warp's overflow flags raised since reset, kept over auto-resets
+# Warp's flags (mujoco_warp's OverflowType) that are not a capacity outgrown: iteration limits reached
+NOT_CAPACITY = ("ITERATIONS", "LS_ITERATIONS")
+
+
+class PhysicsOverflow(RuntimeError):
+    """An environment outgrew one of Warp's capacities: its physics left contacts or constraints out."""
+
+
+def capacities(mj_model) -> tuple[int, int]:
+    """(contacts, constraint rows) JAX's implementation allocates for one environment of the model."""
+    from mujoco import mjx  # here: the trainers read this module's names without loading the physics
+
+    data = mjx.make_data(mj_model, impl="jax")
+    return int(data._impl.contact.dist.shape[0]), int(data._impl.efc_J.shape[0])
+
+
+def put_model(mj_model, impl: str, device):
+    """The field's mjx.Model of implementation `impl`; Warp's reports overflows in its data alone."""
+    from mujoco import mjx
+
+    model = mjx.put_model(mj_model, device=device, impl=impl)
+    if impl == "warp":  # the flags are read (`overflow_bits`); a warning printed per world and step would flood
+        model = model.tree_replace({"opt._impl.warn_overflow": 0})
+    return model
+
+
+def make_data(mj_model, impl: str, device, worlds: int = 1):
+    """Fresh data of one environment; Warp's sized for a batch of `worlds` environments."""
+    from mujoco import mjx
+
+    if impl != "warp":
+        return mjx.make_data(mj_model, device=device, impl=impl)
+    import warp
+
+    warp.config.log_level = max(warp.config.log_level, warp.LOG_WARNING)  # not a line per module of kernels loaded
+    contacts, rows = capacities(mj_model)
+    return mjx.make_data(mj_model, device=device, impl="warp", naconmax=contacts * worlds, njmax=rows)
+
+
+def overflow_bits(data) -> jax.Array:
+    """Warp's overflow flags this environment's last physics step raised, as int32 bits."""
+    flags = data._impl.overflow.astype(jnp.int32)
+    return jax.lax.reduce(flags, jnp.int32(0), jax.lax.bitwise_or, tuple(range(flags.ndim)))
+
+
+def check(field: str, bits: int, mj_model, worlds: int) -> None:
+    """Raise PhysicsOverflow where `bits` (overflow flags of any environment) hold an outgrown capacity."""
+    from mujoco.mjx.third_party.mujoco_warp._src.types import OverflowType
+
+    names = [f.name for f in OverflowType if f.value and bits & f.value and f.name not in NOT_CAPACITY]
+    if not names:
+        return
+    contacts, rows = capacities(mj_model)
+    raise PhysicsOverflow(
+        f"{field}: an environment outgrew MuJoCo Warp's capacity ({', '.join(names)}; {contacts} contacts per "
+        f"environment x {worlds} environments reserved, {rows} constraint rows per environment), so its physics "
+        f"left contacts or constraints out; step it in batches of at most {worlds} environments "
+        f"(FieldEnv.reserve_worlds reserves more), or use sim.backend: mjx")

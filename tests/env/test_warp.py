@@ -1,0 +1,85 @@
+"""sim.backend warp: the mjx field stepped by MuJoCo Warp's kernels (on a CPU, Warp's CPU kernels), with Warp's
+capacities taken from the build and sized for the batch, and an environment that outgrows them stopped with one
+line, never left to step without its contacts."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from fieldgen.agents import loop
+from fieldgen.env import mjx_physics
+from fieldgen.env.make import make
+
+pytest.importorskip("warp")
+
+NEFC, NARROWPHASE, ITERATIONS = 1, 8, 512  # mujoco_warp's OverflowType: rows beyond njmax, contacts beyond
+# naconmax; solver iterations used up
+
+
+def rollout(env, steps: int, n: int = 2):
+    """The batch's state after `steps` control steps of a fixed action from the same fresh episodes."""
+    env.reserve_worlds(n)
+    state = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(0), n))
+    step = jax.jit(jax.vmap(env.step))
+    action = jnp.full((n, env.action_size), 0.5)
+    for _ in range(steps):
+        state = step(state, action)
+    return state
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("field, tolerance", [("point_nav", 1e-5), ("ant_nav", 0.1)])
+def test_warp_steps_the_field_beside_jax(field, tolerance):
+    warp, jax_ = make(field, backend="warp"), make(field, backend="mjx")
+    assert (warp.impl, jax_.impl) == ("warp", "jax")
+    stepped, reference = rollout(warp, 2), rollout(jax_, 2)
+    qpos = np.asarray(stepped.pipeline_state.qpos)
+    assert np.all(np.isfinite(qpos)) and not np.allclose(qpos, np.asarray(warp.rules[0].home_qpos))
+    assert np.max(np.abs(qpos - np.asarray(reference.pipeline_state.qpos))) < tolerance  # the solvers differ
+    assert mjx_physics.OVERFLOW not in reference.info
+    warp.check_physics(stepped.info[mjx_physics.OVERFLOW])  # no capacity outgrown
+
+
+@pytest.mark.slow
+def test_an_environment_outgrowing_warp_s_constraint_rows_stops_training_with_one_line(monkeypatch):
+    real = mjx_physics.capacities
+    monkeypatch.setattr(mjx_physics, "capacities", lambda model: (real(model)[0], 1))  # one row: a contact needs more
+    env = make("soccer_v1", backend="warp")
+    state = rollout(env, 1)
+    assert np.bitwise_or.reduce(np.asarray(state.info[mjx_physics.OVERFLOW])) & NEFC
+    with pytest.raises(mjx_physics.PhysicsOverflow) as stopped:
+        loop.stop_on_overflow(env, state.info[mjx_physics.OVERFLOW])  # as training reads it after each chunk
+    message = str(stopped.value)
+    assert "\n" not in message and message.startswith("soccer_v1: ") and "(NEFC; " in message
+    assert "x 2 environments reserved, 1 constraint rows per environment" in message and "sim.backend: mjx" in message
+
+
+def test_only_a_capacity_outgrown_is_an_overflow():
+    env = make("point_nav", backend="warp")
+    env.check_physics(0)
+    env.check_physics(ITERATIONS)  # the solver's iteration limit reached: the step is whole
+    with pytest.raises(mjx_physics.PhysicsOverflow, match=r"^point_nav: .*\(NARROWPHASE; 0 contacts per environment x 1 "):
+        env.check_physics(NARROWPHASE | ITERATIONS)
+    loop.stop_on_overflow(env, None)  # a field on JAX's implementation has no flags to read
+
+
+def test_warp_data_is_sized_for_the_batch_reserved():
+    env = make("soccer_v1", backend="warp")
+    contacts, rows = mjx_physics.capacities(env.mj_model)
+    assert contacts > 0 and rows > 0
+    env.reserve_worlds(8)
+    env.reserve_worlds(4)  # a smaller batch fits what is reserved
+    data = env.rules[0].data0
+    assert (env.worlds, data._impl.naconmax, data._impl.njmax) == (8, 8 * contacts, rows)
+    assert make("soccer_v1").rules[0].impl == "jax"
+
+
+def test_warp_variants_in_one_batch_are_refused_with_the_reason():
+    from fieldgen.env.batch import batched_model
+
+    env = make("point_nav", backend="warp")
+    with pytest.raises(ValueError, match="point_nav: variants batched in one model run on sim.backend mjx only"):
+        batched_model([env.mj_model, env.mj_model], ["point_nav", "point_nav"], "warp")
