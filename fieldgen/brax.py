@@ -60,13 +60,23 @@ class FieldAdapter:
     with_level_weights = _read_through("with_level_weights")
 
 
+def reserved(field: FieldEnv) -> FieldEnv:
+    """The field, refused on MuJoCo Warp until its capacities are reserved for a batch: another library's wrappers
+    vmap it without saying how many environments they step, and Warp's contact buffer is shared by the batch."""
+    if getattr(field, "impl", None) == "warp" and field.worlds < 2:
+        raise ValueError(f"{field.name} runs on sim.backend warp, whose contact buffer is shared by every environment "
+                         "stepped at once: call field.reserve_worlds(N) with that number before wrapping it, and "
+                         "field.check_physics(state.info['physics_overflow']) after stepping; or use sim.backend: mjx")
+    return field
+
+
 class BraxField(FieldAdapter):
     """A field inside brax's training wrappers, which it finds in the state's info: brax's EpisodeWrapper
     (`steps`, which it counts and zeroes once an episode is over) and AutoResetWrapper (`first_obs` and
     `first_pipeline_state`, which it swaps in for a done step's). Outside them it steps as the field."""
 
     def __init__(self, field: FieldEnv):
-        self.field = field
+        self.field = reserved(field)
 
     @property
     def unwrapped(self) -> "BraxField":

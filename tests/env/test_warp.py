@@ -83,3 +83,14 @@ def test_warp_variants_in_one_batch_are_refused_with_the_reason():
     env = make("point_nav", backend="warp")
     with pytest.raises(ValueError, match="point_nav: variants batched in one model run on sim.backend mjx only"):
         batched_model([env.mj_model, env.mj_model], ["point_nav", "point_nav"], "warp")
+
+
+def test_another_library_s_wrappers_take_a_warp_field_once_its_batch_is_reserved():
+    from fieldgen.brax import BraxField
+
+    field = make("point_nav", backend="warp")
+    with pytest.raises(ValueError, match=r"^point_nav runs on sim.backend warp, .*field.reserve_worlds\(N\)"):
+        BraxField(field)
+    field.reserve_worlds(4)
+    assert BraxField(field).field is field
+    assert BraxField(make("point_nav")).field.impl == "jax"
