@@ -32,7 +32,7 @@ import jax
 import jax.numpy as jnp
 
 from env_throughput import field_env
-from fieldgen.env.mjx_physics import capacities
+from fieldgen.env.mjx_physics import capacities, overflow_bits, overflow_names, put_model
 from fieldgen.env.throughput import append_jsonl
 from fieldgen.schema import SpecError
 from fieldgen.schema.backends import BACKENDS
@@ -90,16 +90,9 @@ class Implementation:
     """One MJX implementation of one field's model, batched over environments."""
 
     def __init__(self, env, model, impl: str, mode=None, naconmax_per_env: int = 0, njmax: int = 0):
-        from mujoco import mjx
-
         self.env, self.model, self.impl = env, model, impl
-        self.mjx_model = mjx.put_model(model, impl=impl, **({"graph_mode": mode} if mode is not None else {}))
-        self.mode_name = None
-        if impl == "warp":
-            self.mode_name = self.mjx_model.opt._impl.graph_mode.name
-            # Warp's kernels still flag each overflow in the data; a printed warning per world and step would
-            # flood the output and slow the kernels timed
-            self.mjx_model = self.mjx_model.tree_replace({"opt._impl.warn_overflow": 0})
+        self.mjx_model = put_model(model, impl, **({"graph_mode": mode} if mode is not None else {}))
+        self.mode_name = self.mjx_model.opt._impl.graph_mode.name if impl == "warp" else None
         self.naconmax_per_env, self.njmax = naconmax_per_env, njmax
 
     @property
@@ -111,10 +104,10 @@ class Implementation:
         (the field's own resets, batched)."""
         from mujoco import mjx
 
-        capacities = ({"naconmax": self.naconmax_per_env * n_envs, "njmax": self.njmax}
-                      if self.impl == "warp" else {})
+        sizes = ({"naconmax": self.naconmax_per_env * n_envs, "njmax": self.njmax}
+                 if self.impl == "warp" else {})
         source = self.model if self.impl == "warp" else self.mjx_model  # Warp's data is built from the MjModel
-        data = jax.vmap(lambda _: mjx.make_data(source, impl=self.impl, **capacities))(jnp.arange(n_envs))
+        data = jax.vmap(lambda _: mjx.make_data(source, impl=self.impl, **sizes))(jnp.arange(n_envs))
         fresh = reset_state.pipeline_state
         return data.replace(qpos=fresh.qpos, qvel=fresh.qvel, mocap_pos=fresh.mocap_pos,
                             mocap_quat=fresh.mocap_quat)
@@ -133,8 +126,7 @@ class Implementation:
             with jax.default_matmul_precision(env.spec.sim.precision):
                 data = jax.lax.fori_loop(0, env.n_substeps, lambda _, d: physics_step(d), data.replace(ctrl=action))
             if warp:
-                overflow = overflow | jax.lax.reduce(data._impl.overflow.astype(jnp.int32), jnp.int32(0),
-                                                     jax.lax.bitwise_or, tuple(range(data._impl.overflow.ndim)))
+                overflow = overflow | overflow_bits(data)
                 contacts = jnp.maximum(contacts, jnp.max(data._impl.nacon).astype(jnp.int32))
             return (data, overflow, contacts), None
 
@@ -144,13 +136,6 @@ class Implementation:
             return data, overflow, contacts
 
         return jax.jit(run)
-
-
-def overflow_names(bits: int) -> list[str]:
-    """The names of Warp's overflow flags set in `bits` (mujoco_warp's OverflowType)."""
-    from mujoco.mjx.third_party.mujoco_warp._src.types import OverflowType
-
-    return [flag.name for flag in OverflowType if flag.value and bits & flag.value]
 
 
 def timed(run, data, repeats: int) -> tuple[float, tuple]:

@@ -29,11 +29,12 @@ def capacities(mj_model) -> tuple[int, int]:
     return int(data._impl.contact.dist.shape[0]), int(data._impl.efc_J.shape[0])
 
 
-def put_model(mj_model, impl: str, device):
-    """The field's mjx.Model of implementation `impl`; Warp's reports overflows in its data alone."""
+def put_model(mj_model, impl: str, device=None, **options):
+    """The field's mjx.Model of implementation `impl` (options: mjx.put_model's, e.g. Warp's graph_mode); Warp's
+    reports overflows in its data alone."""
     from mujoco import mjx
 
-    model = mjx.put_model(mj_model, device=device, impl=impl)
+    model = mjx.put_model(mj_model, device=device, impl=impl, **options)
     if impl == "warp":  # the flags are read (`overflow_bits`); a warning printed per world and step would flood
         model = model.tree_replace({"opt._impl.warn_overflow": 0})
     return model
@@ -58,11 +59,16 @@ def overflow_bits(data) -> jax.Array:
     return jax.lax.reduce(flags, jnp.int32(0), jax.lax.bitwise_or, tuple(range(flags.ndim)))
 
 
-def check(field: str, bits: int, mj_model, worlds: int) -> None:
-    """Raise PhysicsOverflow where `bits` (overflow flags of any environment) hold an outgrown capacity."""
+def overflow_names(bits: int) -> list[str]:
+    """The names of Warp's overflow flags set in `bits` (mujoco_warp's OverflowType)."""
     from mujoco.mjx.third_party.mujoco_warp._src.types import OverflowType
 
-    names = [f.name for f in OverflowType if f.value and bits & f.value and f.name not in NOT_CAPACITY]
+    return [flag.name for flag in OverflowType if flag.value and bits & flag.value]
+
+
+def check(field: str, bits: int, mj_model, worlds: int) -> None:
+    """Raise PhysicsOverflow where `bits` (overflow flags of any environment) hold an outgrown capacity."""
+    names = [name for name in overflow_names(bits) if name not in NOT_CAPACITY]
     if not names:
         return
     contacts, rows = capacities(mj_model)
