@@ -10,6 +10,11 @@ programs, e.g. two GPUs, joined with '+'); rows of one evaluation index are one 
 
 --threshold T also prints, for each seed, the first evaluation whose success on the field reached T (its env
 steps and wall clock, from every row the seed has, also those past the last evaluation all seeds reached).
+
+--after LABEL=STEPS[,SECONDS] counts a setting from nothing learned: a run started from another's networks
+(`fieldgen train --init-from`, a chain of hand-made curricula) has its env steps and wall clock moved on by
+what the runs before it took (e.g. --after "staged chain=78.5M,2442"), so that it stands beside runs from
+nothing at its true cost.
 """
 
 from __future__ import annotations
@@ -19,12 +24,21 @@ import json
 from pathlib import Path
 from types import SimpleNamespace
 
+from typer import BadParameter
+
+from fieldgen.cli.app import count
 from fieldgen.run import compare, summary
 
 
-def setting(files: str) -> SimpleNamespace:
-    """One setting's rows from '+'-joined metrics files, as compare.plot reads a run (rows, seeds, algo)."""
+def setting(files: str, after: tuple[int, float] = (0, 0.0)) -> SimpleNamespace:
+    """One setting's rows from '+'-joined metrics files, as compare.plot reads a run (rows, seeds, algo), their
+    env steps and wall clock moved on by `after` (what the runs before them took)."""
     rows = [json.loads(line) for f in files.split("+") for line in Path(f).read_text().splitlines() if line.strip()]
+    steps, seconds = after
+    for r in rows:
+        r["env_steps"] += steps
+        if "wall_seconds" in r:
+            r["wall_seconds"] += seconds
     seeds = sorted({r["seed"] for r in rows})
     common = min(max(r["eval"] for r in rows if r["seed"] == s) for s in seeds)
     return SimpleNamespace(rows=[r for r in rows if r["eval"] <= common], seeds=seeds, every_row=rows)
@@ -61,18 +75,33 @@ def last_evaluation(run: SimpleNamespace) -> dict:
     return {r["seed"]: r for r in run.rows if r["eval"] == last}
 
 
+def earlier(text: str) -> tuple[str, tuple[int, float]]:
+    """--after's LABEL=STEPS[,SECONDS]: the label and what the runs before that setting took."""
+    label, _, cost = text.partition("=")
+    steps, _, seconds = cost.partition(",")
+    try:
+        return label, (count(steps), float(seconds or 0))
+    except (ValueError, BadParameter):
+        raise argparse.ArgumentTypeError(f"'{text}' is not LABEL=STEPS[,SECONDS] (e.g. \"staged chain=78.5M,2442\")")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("settings", nargs="+", metavar="LABEL=FILE[+FILE...]")
     parser.add_argument("-o", "--out", type=Path, required=True, help="the plot (PNG)")
     parser.add_argument("--title", default="")
     parser.add_argument("--threshold", type=float, help="also print each seed's first evaluation reaching it")
+    parser.add_argument("--after", type=earlier, action="append", default=[], metavar="LABEL=STEPS[,SECONDS]",
+                        help="count a setting from nothing learned: what the runs before it took")
     args = parser.parse_args()
+    before = dict(args.after)
     labels, runs = [], []
     for entry in args.settings:
         label, _, files = entry.partition("=")
         labels.append(label)
-        runs.append(setting(files))
+        runs.append(setting(files, before.pop(label, (0, 0.0))))
+    if before:
+        parser.error(f"--after names no setting: {', '.join(before)} (settings: {', '.join(labels)})")
     for label, run in zip(labels, runs):
         rows = last_evaluation(run)
         values = [compare.on_field(rows[s], "success_any") for s in run.seeds]

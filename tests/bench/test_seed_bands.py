@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import argparse
+import json
 import sys
 from pathlib import Path
 
@@ -26,3 +28,18 @@ def test_each_seed_reaches_the_threshold_on_the_field_not_on_its_easy_levels():
     assert {seed: r and r["env_steps"] for seed, r in first.items()} == {0: 2_000_000, 1: 3_000_000, 2: None}
     text = seed_bands.reaching_text(rows, 0.3)
     assert text == "first success_any >= 0.3 on the field: 0: 2.0M (20 s), 1: 3.0M (30 s), 2: not by 1.0M"
+
+
+def test_a_setting_after_earlier_runs_is_counted_from_nothing_learned(tmp_path):
+    path = tmp_path / "chain.jsonl"
+    path.write_text("\n".join(json.dumps(row(0, k, 0.1 * k, 0.9)) for k in (1, 2)) + "\n")
+    moved = seed_bands.setting(str(path), seed_bands.earlier("chain=78.5M,2442")[1])
+    assert [(r["env_steps"], r["wall_seconds"]) for r in moved.rows] == [(79_500_000, 2452.0), (80_500_000, 2462.0)]
+    assert seed_bands.earlier("chain=3M") == ("chain", (3_000_000, 0.0))
+    for bad in ("chain", "chain=lots", "chain=3M,soon"):
+        try:
+            seed_bands.earlier(bad)
+        except argparse.ArgumentTypeError as exc:
+            assert "LABEL=STEPS[,SECONDS]" in str(exc)
+        else:
+            raise AssertionError(f"{bad!r} was taken")
