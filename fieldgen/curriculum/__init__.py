@@ -3,7 +3,7 @@ between easy and hard fields, one generator per kind (generate.py), the folder t
 (folder.py), the rule that promotes a staged run (promotion.py), how a run moves through the
 stages, staged or mixed, and how a mixed run weights them (schedule.py), a sheet of the stages
 (sheet.py); the automatic curriculum's levels between a spec's easy end and the spec (levels.py) and
-its sampler (auto.py)."""
+its sampler (auto.py); each schedule built from the name a run records (kinds.py)."""
 
 from fieldgen.curriculum.folder import INDEX, Curriculum, CurriculumError, Promotion, Stage, is_curriculum, load, write
 from fieldgen.curriculum.generate import (KINDS, Asked, explicit, grid, interpolate, parse_assignments, parse_axis,

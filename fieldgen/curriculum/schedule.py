@@ -74,16 +74,3 @@ class Mixed:
         from fieldgen.env.make import environment
 
         return [environment([e.artifact for e in envs])] if len(envs) > 1 else list(envs)
-
-
-SCHEDULES = ("staged", "mixed", "auto")  # how a run moves through its stages, as run.json records it
-
-
-def schedule(kind: str, promotion: Promotion = Promotion(), sampler=None) -> Staged | Mixed:
-    """The schedule of a run through a curriculum's stages (a plain run is a curriculum of one stage): one
-    of SCHEDULES; an automatic curriculum's levels drawn as `sampler` (curriculum.auto.Sampler) says."""
-    if kind == "auto":
-        from fieldgen.curriculum.auto import Auto, Sampler
-
-        return Auto(sampler or Sampler())
-    return Mixed() if kind == "mixed" else Staged(promotion)

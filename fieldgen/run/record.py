@@ -75,7 +75,7 @@ class InitFrom(BaseModel):
 
 
 def _schedule(name: str) -> str:
-    from fieldgen.curriculum.schedule import SCHEDULES
+    from fieldgen.curriculum.kinds import SCHEDULES
 
     if name not in SCHEDULES:
         raise ValueError(f"should be one of {', '.join(SCHEDULES)}")

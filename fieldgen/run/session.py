@@ -21,7 +21,8 @@ from fieldgen.agents.config import ConfigError
 from fieldgen.compile.artifact import ArtifactError, load_artifact, write_artifact
 from fieldgen.compile.variants import VariantError
 from fieldgen.curriculum.promotion import Promotion
-from fieldgen.curriculum.schedule import Mixed, Staged, schedule
+from fieldgen.curriculum.kinds import schedule
+from fieldgen.curriculum.schedule import Mixed, Staged
 from fieldgen.run import record
 from fieldgen.schema import FieldSpec, load_spec
 
@@ -39,7 +40,7 @@ class Run:
     promotion: Promotion = Promotion()
     state: object = None  # the checkpointed training state of a resumed run
     stage: int = 0  # the stage the next chunk trains on
-    schedule_kind: str = "staged"  # curriculum.schedule.SCHEDULES: mixed and auto train every stage at once
+    schedule_kind: str = "staged"  # curriculum.kinds.SCHEDULES: mixed and auto train every stage at once
     init_from: dict | None = None  # record.InitFrom of a run started from another run's networks
     curriculum: str = ""  # the name of the curriculum it trains through (its folder's; -mixed, -auto), "" for a field
     kickoffs: list = dataclasses.field(default_factory=list)  # an automatic curriculum's kick-off points (run.json)
