@@ -228,8 +228,10 @@ def train(
                                   auto=curriculum_kind == "auto", levels=levels, processes=processes,
                                   trains_here=not prepare, sampler=sampler)
         if run.init_from and not run.rows:
+            chain = f", {run.learned_before:,} from nothing learned" if run.init_from.get("before") else ""
             out.print(f"starts from what {run.init_from['run']} learned in {run.init_from['env_steps']:,} env steps "
-                      f"(evaluation {run.init_from['eval']}), with fresh episodes and a replay buffer filled anew")
+                      f"(evaluation {run.init_from['eval']}{chain}), with fresh episodes and a replay buffer filled "
+                      "anew")
     except (SpecError, ConfigError, record.RunError, FolderError) as exc:
         fail(str(exc))
     if prepare:
@@ -373,8 +375,12 @@ def evaluate(
         several = len(runs) > 1
         judged = f"{len(runs)} runs of {result.algo}" if several else str(run_dirs[0])
         at = f"{steps[0]:,}" if len(steps) == 1 else f"{steps[0]:,} to {steps[-1]:,}"
+        at += " env steps"
+        if result.env_steps_before:  # runs started from others' networks: count the chain from nothing too
+            whole = sorted({result.env_steps[s] + result.env_steps_before.get(s, 0) for s in result.seeds})
+            at += f" ({whole[0]:,}" + (f" to {whole[-1]:,}" if len(whole) > 1 else "") + " from nothing learned)"
         table = Table(*["run"] * several, "seed", "success_any", "time_at_goal", "closest", "length", "return",
-                      title=f"{judged} at {at} env steps on {runs[0].env.spec.name}, {episodes} episodes per seed")
+                      title=f"{judged} at {at} on {runs[0].env.spec.name}, {episodes} episodes per seed")
         for run, evaluation in zip(runs, evaluations):
             metrics = evaluation.metrics
             for i, s in enumerate(run.seeds):

@@ -94,5 +94,6 @@ def summarize(runs: list[Run], evaluations: list[Evaluation], episodes: int, com
     """The runs' evaluations, seed by seed and over every seed."""
     seeds = [(s, evaluation, i) for run, evaluation in zip(runs, evaluations) for i, s in enumerate(run.seeds)]
     per_seed = {metric: {s: float(e.metrics[metric][i]) for s, e, i in seeds} for metric in summary.METRICS}
+    before = {s: run.learned_before for run in runs for s in run.seeds if run.learned_before}
     return summary.summarize([runs[0].env.spec.name], runs[0].algo, [run.folder for run in runs], episodes,
-                             {s: e.env_steps for s, e, _ in seeds}, per_seed, command)
+                             {s: e.env_steps for s, e, _ in seeds}, per_seed, command, before)

@@ -67,11 +67,19 @@ def _inside(name: str) -> str:
 
 
 class InitFrom(BaseModel):
-    """Where a run started from another's networks came from: that run's folder as given, and how far it was."""
+    """Where a run started from another's networks came from: that run's folder as given, and how far it was;
+    `before`, the env steps that run's own networks had trained before it (its --init-from, and theirs), so
+    that a chain of runs counts from nothing learned (0 in records written before it was kept)."""
 
     run: StrictStr
     env_steps: Index
     eval: Index
+    before: Index = 0
+
+    @property
+    def learned(self) -> int:
+        """Env steps the networks had trained, from nothing, when this run took them."""
+        return self.before + self.env_steps
 
 
 def _schedule(name: str) -> str:

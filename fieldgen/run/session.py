@@ -73,6 +73,12 @@ class Run:
         return self.schedule_kind != "staged"
 
     @property
+    def learned_before(self) -> int:
+        """Env steps its networks had trained, from nothing, before this run began (0 for a run from nothing):
+        its own env steps plus these count a chain of --init-from runs whole."""
+        return record.InitFrom.model_validate(self.init_from).learned if self.init_from else 0
+
+    @property
     def variant_name(self) -> str:
         """What the run's figures call a variant: an automatic curriculum's are levels, others' stages."""
         return "level" if self.schedule_kind == "auto" else "stage"
@@ -271,7 +277,8 @@ def started_from(run: Run, source: Path) -> tuple[object, dict]:
                               "with --set or --config") from None
     last = other.rows[-1] if other.rows else {"eval": 0, "env_steps": int(jax.device_get(state.env_steps)[0])}
     state = state.replace(key=loop.seed_keys(run.seeds), env_steps=jnp.zeros_like(state.env_steps))
-    return state, {"run": str(source), "env_steps": int(last["env_steps"]), "eval": int(last["eval"])}
+    return state, {"run": str(source), "env_steps": int(last["env_steps"]), "eval": int(last["eval"]),
+                   "before": other.learned_before}
 
 
 def open_run(folder: Path, load_state: bool = True, to_train: bool = False, learned: bool = False) -> Run:
@@ -328,7 +335,8 @@ def open_run(folder: Path, load_state: bool = True, to_train: bool = False, lear
             raise record.RunError(f"{exc}; it was edited or damaged: restore it, or start the run again in a new "
                                   "folder") from None
     run = Run(folder, saved.algo, envs, config, seeds, rows, saved.promotion, schedule_kind=kind,
-              curriculum=saved.curriculum, kickoffs=saved.kickoffs, sampler=sampler)
+              curriculum=saved.curriculum, kickoffs=saved.kickoffs, sampler=sampler,
+              init_from=saved.init_from.model_dump() if saved.init_from else None)
     if not load_state:
         return run  # only reported on
     if to_train:
@@ -336,7 +344,6 @@ def open_run(folder: Path, load_state: bool = True, to_train: bool = False, lear
             check_memory(run)
         except ConfigError as exc:
             raise record.RunError(str(exc)) from None
-    run.init_from = saved.init_from.model_dump() if saved.init_from else None
     if not record.has_trained(folder):
         run.rows = []  # prepared, or stopped before its first checkpoint: it starts from the beginning
         if run.init_from:

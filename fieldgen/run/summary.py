@@ -95,6 +95,9 @@ class SeedSummary(BaseModel):
     runs: list[str]  # the run folders the seeds come from
     episodes: Count  # evaluation episodes per seed
     env_steps: dict[int, int]  # seed -> env steps its checkpoint had trained
+    # seed -> env steps its networks had trained before its run began (--init-from, and the runs before that):
+    # with env_steps, what a chain of runs took from nothing learned; empty where every run started from nothing
+    env_steps_before: dict[int, int] = {}
     success_any: MetricSummary
     time_at_goal: MetricSummary
     confidence: float = CONFIDENCE
@@ -112,10 +115,11 @@ class SeedSummary(BaseModel):
 
 
 def summarize(fields: list[str], algo: str, runs: list[Path], episodes: int, env_steps: dict[int, int],
-              per_seed: dict[str, dict[int, float]], command: str) -> SeedSummary:
+              per_seed: dict[str, dict[int, float]], command: str,
+              env_steps_before: dict[int, int] | None = None) -> SeedSummary:
     """A SeedSummary of `per_seed` (metric -> seed -> value, for each of METRICS)."""
     return SeedSummary(fields=fields, algo=algo, runs=[str(r) for r in runs], episodes=episodes,
-                       env_steps=env_steps, command=command,
+                       env_steps=env_steps, command=command, env_steps_before=env_steps_before or {},
                        **{metric: MetricSummary.of(per_seed[metric]) for metric in METRICS})
 
 

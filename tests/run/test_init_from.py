@@ -13,7 +13,7 @@ from typer.testing import CliRunner
 
 from fieldgen.agents import checkpoint
 from fieldgen.cli import app
-from fieldgen.run import record, session
+from fieldgen.run import evaluate, record, session, summary
 from test_training import unwrapped as flat
 
 runner = CliRunner()
@@ -35,7 +35,7 @@ def test_a_run_starts_from_what_another_learned_and_trains_on(tmp_path, source, 
     assert flat(f"starts from what {source} learned in 1,760 env steps (evaluation 2)") in flat(prepared.output)
     run = tmp_path / "point_nav-crl-3"
     assert json.loads((run / record.RUN).read_text())["init_from"] == {"run": str(source), "env_steps": 1760,
-                                                                       "eval": 2}
+                                                                       "eval": 2, "before": 0}
 
     # set up but not trained (as if killed before its first checkpoint): it opens at what it starts from
     opened = session.open_run(run)
@@ -52,6 +52,21 @@ def test_a_run_starts_from_what_another_learned_and_trains_on(tmp_path, source, 
     assert [r["eval"] for r in rows] == [0, 1, 2]
     assert [r["env_steps"] for r in rows] == [800, 1280, 1760]  # its own steps, the buffer's refill first
     assert (run / record.CHECKPOINT).exists()
+
+    # a run started from this one counts the chain from nothing learned, and its summary says so
+    chained = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path), "--seed", "4", "--prepare",
+                                  "--init-from", str(run), *tiny_crl_args])
+    assert chained.exit_code == 0, chained.output
+    assert flat("learned in 1,760 env steps (evaluation 2, 3,520 from nothing learned)") in flat(chained.output)
+    chain = session.open_run(tmp_path / "point_nav-crl-4", load_state=False)
+    assert chain.init_from["before"] == 1760 and chain.learned_before == 3520
+    judged = evaluate.Evaluation({m: np.array([0.5]) for m in summary.METRICS}, 1760, None)
+    assert evaluate.summarize([chain], [judged], 8, "fieldgen eval").env_steps_before == {4: 3520}
+    assert evaluate.summarize([opened], [judged], 8, "fieldgen eval").env_steps_before == {3: 1760}
+    evaluated = runner.invoke(app, ["eval", str(run), "--episodes", "4", "--no-video"])
+    assert evaluated.exit_code == 0, evaluated.output
+    assert flat("at 1,760 env steps (3,520 from nothing learned) on point_nav") in flat(evaluated.output)
+    assert json.loads((run / summary.SUMMARY).read_text())["env_steps_before"] == {"3": 1760}
 
 
 @pytest.mark.parametrize("field, changes, phrase", [
