@@ -19,7 +19,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..env.contract import Environment
-from ..env.mjx_physics import OVERFLOW
+from ..env.mjx_physics import OVERFLOW, merged
 from .config import RunConfig
 from .programs import Programs, computed
 from .sharding import from_host, to_host
@@ -150,7 +150,7 @@ def evaluate_policy(env, act: Callable, key: jax.Array, n_envs: int, film: Calla
                "episode_return": jnp.mean(jnp.sum(out["reward"], axis=0)),
                **{f"term_{name}": jnp.sum(out[name]) / live_steps for name in terms}}
     if OVERFLOW in last.info:  # Warp's overflow flags of any environment (stop_on_overflow reads them)
-        metrics[OVERFLOW] = jax.lax.reduce(last.info[OVERFLOW], jnp.int32(0), jax.lax.bitwise_or, (0,))
+        metrics[OVERFLOW] = merged(last.info[OVERFLOW])
     if count > 1:
         share = jax.nn.one_hot(env_state.info["variant"], count)  # [envs, variants]
         share = share / jnp.sum(share, axis=0)

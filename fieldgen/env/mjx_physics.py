@@ -53,10 +53,15 @@ def make_data(mj_model, impl: str, device, worlds: int = 1):
     return mjx.make_data(mj_model, device=device, impl="warp", naconmax=contacts * worlds, njmax=rows)
 
 
+def merged(flags: jax.Array) -> jax.Array:
+    """Overflow flags of any shape (per environment, per flag) as one int32 of bits: set where any is set."""
+    flags = flags.astype(jnp.int32)
+    return jax.lax.reduce(flags, jnp.int32(0), jax.lax.bitwise_or, tuple(range(flags.ndim)))
+
+
 def overflow_bits(data) -> jax.Array:
     """Warp's overflow flags this environment's last physics step raised, as int32 bits."""
-    flags = data._impl.overflow.astype(jnp.int32)
-    return jax.lax.reduce(flags, jnp.int32(0), jax.lax.bitwise_or, tuple(range(flags.ndim)))
+    return merged(data._impl.overflow)
 
 
 def overflow_names(bits: int) -> list[str]:
