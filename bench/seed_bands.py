@@ -85,9 +85,24 @@ def earlier(text: str) -> tuple[str, tuple[int, float]]:
         raise argparse.ArgumentTypeError(f"'{text}' is not LABEL=STEPS[,SECONDS] (e.g. \"staged chain=78.5M,2442\")")
 
 
+def labelled(text: str) -> tuple[str, str]:
+    """A setting's LABEL=FILE[+FILE...]: split at the first '=' after which every file exists, so that a label
+    or a run folder (a sweep's `sampler.replaced=4/...`) may hold '=' too."""
+    cuts = [i for i, ch in enumerate(text) if ch == "="]
+    for i in cuts:
+        files = text[i + 1:].split("+")
+        if all(Path(f).is_file() for f in files):
+            return text[:i], text[i + 1:]
+    if not cuts:
+        raise argparse.ArgumentTypeError(f"'{text}' is not LABEL=FILE[+FILE...] (e.g. \"preset=run/metrics.jsonl\")")
+    missing = [f for f in text[cuts[0] + 1:].split("+") if not Path(f).is_file()]
+    raise argparse.ArgumentTypeError(f"'{text}': no metrics file {', '.join(missing)} (LABEL=FILE[+FILE...], "
+                                     "each FILE a run's metrics.jsonl)")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("settings", nargs="+", metavar="LABEL=FILE[+FILE...]")
+    parser.add_argument("settings", nargs="+", type=labelled, metavar="LABEL=FILE[+FILE...]")
     parser.add_argument("-o", "--out", type=Path, required=True, help="the plot (PNG)")
     parser.add_argument("--title", default="")
     parser.add_argument("--threshold", type=float, help="also print each seed's first evaluation reaching it")
@@ -96,8 +111,7 @@ def main() -> None:
     args = parser.parse_args()
     before = dict(args.after)
     labels, runs = [], []
-    for entry in args.settings:
-        label, _, files = entry.partition("=")
+    for label, files in args.settings:
         labels.append(label)
         runs.append(setting(files, before.pop(label, (0, 0.0))))
     if before:

@@ -43,3 +43,20 @@ def test_a_setting_after_earlier_runs_is_counted_from_nothing_learned(tmp_path):
             assert "LABEL=STEPS[,SECONDS]" in str(exc)
         else:
             raise AssertionError(f"{bad!r} was taken")
+
+
+def test_a_label_or_a_run_folder_may_hold_an_equals_sign(tmp_path):
+    folder = tmp_path / "sampler.replaced=4"
+    folder.mkdir()
+    first, second = folder / "a.jsonl", tmp_path / "b.jsonl"
+    for path in (first, second):
+        path.write_text(json.dumps(row(0, 1, 0.1, 0.9)) + "\n")
+    assert seed_bands.labelled(f"share=0.05={first}+{second}") == ("share=0.05", f"{first}+{second}")
+    assert seed_bands.labelled(f"preset={second}") == ("preset", str(second))
+    for bad, words in ((str(second), "LABEL=FILE"), (f"preset={tmp_path / 'gone.jsonl'}", "no metrics file")):
+        try:
+            seed_bands.labelled(bad)
+        except argparse.ArgumentTypeError as exc:
+            assert words in str(exc)
+        else:
+            raise AssertionError(f"{bad!r} was taken")
