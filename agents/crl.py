@@ -200,8 +200,8 @@ def make_train(config: CRLConfig, env, team: Team | None = None, shared: bool = 
         ts, metrics = jax.lax.scan(body, ts, None, length=iters_per_eval)
         return ts, jax.tree.map(jnp.mean, metrics)
 
-    def act(ts: TrainState, obs: jax.Array) -> jax.Array:
-        return policy(nets.member(ts.nets, 0), obs)
+    def act(ts: TrainState, obs: jax.Array, key: jax.Array | None = None) -> jax.Array:
+        return policy(nets.member(ts.nets, 0), obs, key)
 
     def export(ts: TrainState) -> Policy:
         """The actor alone: each controller reads its own entries of the state, then the goal."""

@@ -68,7 +68,9 @@ class Trainer:
     init: Callable  # key -> state before any env step: fresh episodes, an empty replay buffer
     prefill: Callable  # state -> state ready for a chunk: its replay buffer filled by its own policy (or as it is)
     chunk: Callable  # state -> (state, mean training metrics): the iterations between two evaluations
-    act: Callable  # (state, obs [batch, observation_size]) -> deterministic actions [batch, action_size]
+    # (state, obs [batch, observation_size], key=None) -> actions [batch, action_size]: deterministic, or with a
+    # key the actions the policy samples in training
+    act: Callable
     env_axes: dict  # state field -> the axis of its leaves that runs over environments (sharded)
     export: Callable  # state -> the deterministic actor alone (agents.actor.Policy): what `act` computes
     # jitted programs by seed count, kept here so that later runs of this trainer in the same
@@ -96,8 +98,11 @@ class Trainer:
         return all(getattr(state, name) is not None for name in self.env_axes)
 
 
-def evaluate_policy(env, act: Callable, key: jax.Array, n_envs: int, film: Callable | None = None) -> tuple[dict, object]:
+def evaluate_policy(env, act: Callable, key: jax.Array, n_envs: int, film: Callable | None = None,
+                    sampled: bool = False) -> tuple[dict, object]:
     """One episode per environment with `act(obs)`, counted up to its first `done`. Returns (metrics, film).
+    With `sampled`, `act(obs, key)` with a fresh key at every step: the policy as it acts in training, where
+    the mean action alone may do less (or more) than the policy's own draws.
 
     success_any: share of episodes with a successful step; time_at_goal: successful steps
     per episode; closest_distance: the mean over episodes of the smallest distance between the
@@ -129,9 +134,9 @@ def evaluate_policy(env, act: Callable, key: jax.Array, n_envs: int, film: Calla
 
     filmed = count - 1  # 0 without variants; with them, the last (a mixed curriculum's hardest stage)
 
-    def step(carry, _):
+    def step(carry, act_key):
         env_state, alive, closest = carry
-        nxt = jax.vmap(env.step)(env_state, act(env_state.obs))
+        nxt = jax.vmap(env.step)(env_state, act(env_state.obs) if act_key is None else act(env_state.obs, act_key))
         out = {"success": nxt.metrics["success"] * alive, "reward": nxt.reward * alive, "alive": alive,
                **{name: nxt.metrics[name] * alive for name in terms}}
         # under auto-reset the obs of an episode's last step is already the next episode's
@@ -141,7 +146,8 @@ def evaluate_policy(env, act: Callable, key: jax.Array, n_envs: int, film: Calla
         return (nxt, still, closest), (out, frame)
 
     start = batched_with(key, (env_state, jnp.ones(n_envs), goal_distance(env_state.obs)))
-    (last, _, closest), (out, frames) = jax.lax.scan(step, start, None, length=env.episode_length)
+    act_keys = jax.random.split(jax.random.fold_in(key, 1), env.episode_length) if sampled else None
+    (last, _, closest), (out, frames) = jax.lax.scan(step, start, act_keys, length=env.episode_length)
     live_steps = jnp.sum(out["alive"])
     succeeded = jnp.any(out["success"] > 0, axis=0)
     at_goal = jnp.sum(out["success"], axis=0)
@@ -207,9 +213,12 @@ class VariantResults:
                 if getattr(self, f.name) is not None}
 
 
-def evaluate(trainer: Trainer, state, key: jax.Array, film: Callable | None = None) -> tuple[dict, object]:
-    """Every algorithm is judged here, by the environment's own success metric (`evaluate_policy`)."""
-    return evaluate_policy(trainer.env, functools.partial(trainer.act, state), key, trainer.config.eval_envs, film)
+def evaluate(trainer: Trainer, state, key: jax.Array, film: Callable | None = None,
+             sampled: bool = False) -> tuple[dict, object]:
+    """Every algorithm is judged here, by the environment's own success metric (`evaluate_policy`): on its
+    mean actions, or with `sampled` on the actions its policy draws as in training."""
+    return evaluate_policy(trainer.env, functools.partial(trainer.act, state), key, trainer.config.eval_envs, film,
+                           sampled)
 
 
 def adapt(trainer: Trainer, state, variants: VariantResults, schedule: Schedule) -> tuple[object, VariantResults]:

@@ -175,7 +175,10 @@ def trainer(nets: ActorCritic, new_state: Callable, explore: Callable, update: C
         ts, metrics = jax.lax.scan(body, ts, None, length=iters_per_eval)
         return ts, jax.tree.map(jnp.mean, metrics)
 
-    def act(ts: TrainState, obs: jax.Array) -> jax.Array:
+    def act(ts: TrainState, obs: jax.Array, key: jax.Array | None = None) -> jax.Array:
+        """The squashed mean action, or with `key` the action training explores with."""
+        if key is not None:
+            return explore(ts.actor, obs, key)
         return jnp.tanh(nets.actor.apply(ts.actor, obs)[0])
 
     def export(ts: TrainState) -> Policy:

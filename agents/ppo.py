@@ -97,17 +97,21 @@ def make_train(config: PPOConfig, env) -> Trainer:
         at the same squashed action needs no more, as tanh's slope cancels."""
         return jnp.sum(-0.5 * noise**2 - log_std - 0.5 * jnp.log(2 * jnp.pi), -1)
 
-    def act(ts: TrainState, obs: jax.Array) -> jax.Array:
-        """The squashed mean action."""
-        mean, _ = distribution(ts.params, ts.normalizer(obs, c.normalize_observations))
-        return jnp.tanh(mean)
+    def drawn(mean, log_std, key):
+        """An action before tanh drawn from the Gaussian, and the standard noise it was drawn with."""
+        noise = jax.random.normal(key, mean.shape)
+        return mean + jnp.exp(log_std) * noise, noise
+
+    def act(ts: TrainState, obs: jax.Array, key: jax.Array | None = None) -> jax.Array:
+        """The squashed mean action, or with `key` one drawn from the policy as its rollouts draw them."""
+        mean, log_std = distribution(ts.params, ts.normalizer(obs, c.normalize_observations))
+        return jnp.tanh(mean if key is None else drawn(mean, log_std, key)[0])
 
     def rollout(ts: TrainState):
         def step(env_state, key):
             obs = ts.normalizer(env_state.obs, c.normalize_observations)
             mean, log_std = distribution(ts.params, obs)
-            noise = jax.random.normal(key, mean.shape)
-            raw = mean + jnp.exp(log_std) * noise
+            raw, noise = drawn(mean, log_std, key)
             nxt = jax.vmap(env.step)(env_state, jnp.tanh(raw))
             reward = nxt.reward if c.reward == "dense" else nxt.metrics["success"]
             value = value_net.apply(ts.params["value"], obs)[:, 0]

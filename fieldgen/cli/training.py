@@ -20,6 +20,9 @@ from fieldgen.run.loggers import LOGGERS
 from fieldgen.schema import SpecError
 from fieldgen.video import FORMATS as VIDEO_FORMATS
 
+# how fieldgen eval acts: fieldgen.run.summary.Actions, named here without loading scipy as the command line starts
+ACTIONS = ("mean", "sampled")
+
 
 # --steps' and --envs' defaults, the config's total_steps and num_envs, in words: --help loads no trainer to read
 # them (tests/test_cli.py checks them against the configs)
@@ -328,6 +331,9 @@ def evaluate(
     video_fmt: VideoFormat = None,
     camera: Annotated[str, typer.Option(help="video camera", **choice("camera", CAMERAS))] = "follow",
     seed: Annotated[int, typer.Option(help="evaluation seed")] = 0,
+    actions: Annotated[str, typer.Option(
+        help="the policy's mean action at every step (as training's evaluations), or sampled: actions drawn from "
+             "the policy as in training", **choice("actions", ACTIONS))] = "mean",
     field: Annotated[Optional[str], typer.Option(metavar="SPEC",
         help="judge the policy on this field instead (YAML file, bundled name or build folder) with the "
              "run's observations and actions; the video is eval_<field>.mp4, the summary summary_<field>.json")] = None,
@@ -366,10 +372,10 @@ def evaluate(
             fail(str(exc))
         path = summary_file or judging.summary_path(run_dirs, runs[0], field is not None)
         try:
-            evaluations = [judging.evaluate(run, episodes, seed, video and k == 0) for k, run in enumerate(runs)]
+            evaluations = [judging.evaluate(run, episodes, seed, video and k == 0, actions) for k, run in enumerate(runs)]
         except record.RunError as exc:  # the physics outgrew its capacities
             fail(str(exc))
-        result = judging.summarize(runs, evaluations, episodes, _command_line(ctx))
+        result = judging.summarize(runs, evaluations, episodes, _command_line(ctx), actions)
         length = runs[0].env.episode_length
         steps = sorted({e.env_steps for e in evaluations})
         several = len(runs) > 1
@@ -380,7 +386,8 @@ def evaluate(
             whole = sorted({result.env_steps[s] + result.env_steps_before.get(s, 0) for s in result.seeds})
             at += f" ({whole[0]:,}" + (f" to {whole[-1]:,}" if len(whole) > 1 else "") + " from nothing learned)"
         table = Table(*["run"] * several, "seed", "success_any", "time_at_goal", "closest", "length", "return",
-                      title=f"{judged} at {at} on {runs[0].env.spec.name}, {episodes} episodes per seed")
+                      title=f"{judged} at {at} on {runs[0].env.spec.name}, {episodes} episodes per seed"
+                            + (", actions sampled from the policy" if actions == "sampled" else ""))
         for run, evaluation in zip(runs, evaluations):
             metrics = evaluation.metrics
             for i, s in enumerate(run.seeds):

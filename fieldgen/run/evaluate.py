@@ -24,13 +24,15 @@ class Evaluation:
     episode: dict | None  # the first seed's first episode, as EpisodeRecorder.episode gives it
 
 
-def evaluate(run: Run, episodes: int, seed: int = 0, film: bool = True) -> Evaluation:
-    """`episodes` evaluation episodes per seed of the run's policy, on `run.env`. It compiles and runs as
-    training's programs do (agents.programs), so that Ctrl-C reaches the caller at once, mid-compile too."""
+def evaluate(run: Run, episodes: int, seed: int = 0, film: bool = True, actions: str = "mean") -> Evaluation:
+    """`episodes` evaluation episodes per seed of the run's policy, on `run.env`, on its mean actions or (`actions`
+    "sampled") on actions drawn as in training. It compiles and runs as training's programs do (agents.programs),
+    so that Ctrl-C reaches the caller at once, mid-compile too."""
     trainer = dataclasses.replace(run, config=run.config.model_copy(update={"eval_envs": episodes})).judged_trainer
     loop.reserve_worlds(trainer, len(run.seeds))
     filming = EpisodeRecorder.film if film else None
-    judged = jax.vmap(functools.partial(loop.evaluate, trainer, film=filming), in_axes=(0, None))
+    judged = jax.vmap(functools.partial(loop.evaluate, trainer, film=filming, sampled=actions == "sampled"),
+                      in_axes=(0, None))
     key = jax.random.PRNGKey(seed)
     metrics, frames = programs.computed(programs.Compiling(jax.jit(judged), run.state, key)(run.state, key))
     try:
@@ -90,10 +92,11 @@ def summary_path(folders: list[Path], run: Run, other_field: bool) -> Path:
     return (folders[0] if len(folders) == 1 else folders[0].absolute().parent) / name
 
 
-def summarize(runs: list[Run], evaluations: list[Evaluation], episodes: int, command: str) -> summary.SeedSummary:
+def summarize(runs: list[Run], evaluations: list[Evaluation], episodes: int, command: str,
+              actions: str = "mean") -> summary.SeedSummary:
     """The runs' evaluations, seed by seed and over every seed."""
     seeds = [(s, evaluation, i) for run, evaluation in zip(runs, evaluations) for i, s in enumerate(run.seeds)]
     per_seed = {metric: {s: float(e.metrics[metric][i]) for s, e, i in seeds} for metric in summary.METRICS}
     before = {s: run.learned_before for run in runs for s in run.seeds if run.learned_before}
     return summary.summarize([runs[0].env.spec.name], runs[0].algo, [run.folder for run in runs], episodes,
-                             {s: e.env_steps for s, e, _ in seeds}, per_seed, command, before)
+                             {s: e.env_steps for s, e, _ in seeds}, per_seed, command, before, actions)

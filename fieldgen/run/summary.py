@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Annotated, Sequence
+from typing import Annotated, Literal, Sequence
 
 import numpy as np
 import scipy.stats
@@ -85,6 +85,9 @@ class MetricSummary(BaseModel):
 
 Count = Annotated[int, Field(ge=1)]
 
+# how an evaluation acts: the policy's mean action, or actions drawn from it as in training
+Actions = Literal["mean", "sampled"]
+
 
 class SeedSummary(BaseModel):
     """What summary.json (and each algorithm of compare.json) holds: success_any and time_at_goal of every
@@ -100,6 +103,9 @@ class SeedSummary(BaseModel):
     env_steps_before: dict[int, int] = {}
     success_any: MetricSummary
     time_at_goal: MetricSummary
+    # the actions the episodes took: the policy's mean ("mean", as every evaluation during training), or drawn
+    # from it as in training ("sampled", fieldgen eval --actions sampled)
+    actions: Actions = "mean"
     confidence: float = CONFIDENCE
     command: str  # the command line that produced it
 
@@ -116,10 +122,10 @@ class SeedSummary(BaseModel):
 
 def summarize(fields: list[str], algo: str, runs: list[Path], episodes: int, env_steps: dict[int, int],
               per_seed: dict[str, dict[int, float]], command: str,
-              env_steps_before: dict[int, int] | None = None) -> SeedSummary:
+              env_steps_before: dict[int, int] | None = None, actions: str = "mean") -> SeedSummary:
     """A SeedSummary of `per_seed` (metric -> seed -> value, for each of METRICS)."""
     return SeedSummary(fields=fields, algo=algo, runs=[str(r) for r in runs], episodes=episodes,
-                       env_steps=env_steps, command=command, env_steps_before=env_steps_before or {},
+                       env_steps=env_steps, command=command, env_steps_before=env_steps_before or {}, actions=actions,
                        **{metric: MetricSummary.of(per_seed[metric]) for metric in METRICS})
 
 

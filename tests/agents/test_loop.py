@@ -116,6 +116,35 @@ def test_evaluation_reports_each_reward_terms_mean(write_spec):
     assert np.linalg.norm(qpos[-1, :2] - first.info["goal"]) < np.linalg.norm(qpos[0, :2] - first.info["goal"])
 
 
+def test_sampled_actions_take_a_fresh_key_at_every_step_and_the_mean_ones_none(write_spec):
+    """With sampled, evaluate_policy hands the policy a key per step (the same steps of two episodes get
+    different ones, two steps of one episode too); without, the policy is called on observations alone."""
+    import fieldgen
+
+    env = fieldgen.make(write_spec("extends: point_nav\nname: point_nav_keys\n"))
+    keys_seen = []
+
+    def policy(obs, key=None):
+        if key is None:
+            return jnp.zeros((obs.shape[0], env.action_size))
+        keys_seen.append(key)  # traced once, inside the scan
+        return jax.random.uniform(key, (obs.shape[0], env.action_size), minval=-1.0, maxval=1.0)
+
+    key = jax.random.PRNGKey(3)
+    still, _ = jax.device_get(loop.evaluate_policy(env, policy, key, 4))
+    assert not keys_seen
+    moving, (qpos, _) = jax.device_get(loop.evaluate_policy(env, policy, key, 4, lambda s: s.pipeline_state.qpos,
+                                                            sampled=True))
+    assert len(keys_seen) == 1
+    assert float(moving["closest_distance"]) != pytest.approx(float(still["closest_distance"]))
+    steps = np.diff(qpos[:, :2], axis=0)
+    assert len({tuple(np.round(d, 6)) for d in steps[:10]}) == 10  # each step drew its own action
+    again, _ = jax.device_get(loop.evaluate_policy(env, policy, key, 4, sampled=True))
+    other, _ = jax.device_get(loop.evaluate_policy(env, policy, jax.random.PRNGKey(4), 4, sampled=True))
+    assert float(again["closest_distance"]) == float(moving["closest_distance"])  # the evaluation key decides
+    assert float(other["closest_distance"]) != float(moving["closest_distance"])
+
+
 def test_how_a_batch_draws_its_episodes_is_kept_once_and_put_back_in_every_environment():
     """episode_sampling keeps the level weights once (the same in every environment) and the counts summed,
     with or without a leading seed axis; with_episode_sampling puts them back into a fresh batch."""

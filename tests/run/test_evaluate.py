@@ -72,6 +72,16 @@ def test_eval_summarizes_every_seed_alike_from_one_run_or_one_run_per_seed(train
     assert len(set(together.time_at_goal.per_seed.values())) > 1, together  # the seeds' policies differ
     success = together.success_any
     assert said(f"{success.iqm:.3f} [{success.low:.3f}, {success.high:.3f}]", result.output), result.output
+    assert together.actions == "mean"
+
+    # the same episodes' starts with the actions the policies draw in training: recorded, said, and other values
+    drawn = runner.invoke(app, ["eval", str(trained), *judged, "--actions", "sampled", "--summary",
+                                str(tmp_path / "sampled.json")], env=WIDE)
+    assert drawn.exit_code == 0, drawn.output
+    assert said("8 episodes per seed, actions sampled from the policy", drawn.output), drawn.output
+    sampled = SeedSummary.model_validate_json((tmp_path / "sampled.json").read_text())
+    assert sampled.actions == "sampled" and "--actions sampled" in sampled.command
+    assert sampled.time_at_goal.per_seed != together.time_at_goal.per_seed
 
     # each seed's checkpoint in a run of its own, the three evaluated together, one seed per run: the same
     # per-seed values, so the same summary
@@ -156,6 +166,7 @@ def test_bad_evaluations_are_one_line_and_write_nothing(tmp_path):
         ([str(nav), str(nav)], f"seed 1 is in both {nav} and {nav}: each seed counts once"),
         ([str(nav), "--summary", str(tmp_path / "no" / "s.json")], f"there is no folder {tmp_path / 'no'}"),
         ([str(nav), "--summary", str(tmp_path)], f"--summary {tmp_path} is a folder"),
+        ([str(nav), "--actions", "random"], "unknown actions 'random'. Choose one of: mean, sampled."),
     ]
     for args, phrase in cases:
         result = runner.invoke(app, ["eval", *args, "--no-video"])
@@ -182,7 +193,7 @@ def test_ctrl_c_says_what_an_evaluation_wrote_and_exits_as_train_does(tmp_path, 
     def stop(*args):
         raise KeyboardInterrupt
 
-    def evaluated(run, episodes, seed, film):
+    def evaluated(run, episodes, seed, film, actions):
         metrics = ("success_any", "time_at_goal", "closest_distance", "episode_length", "episode_return")
         return judging.Evaluation({m: np.ones(len(run.seeds)) for m in metrics}, 0, {})
 

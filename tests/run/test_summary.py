@@ -86,3 +86,17 @@ def test_one_seed_says_so():
     one = summarize(["point_nav"], "crl", ["r"], 8, {4: 800}, {"success_any": {4: 0.5}, "time_at_goal": {4: 2.0}}, "")
     assert one.label == "IQM (one seed)"
     assert np.isclose(one.time_at_goal.low, 2.0) and np.isclose(one.time_at_goal.high, 2.0)
+
+
+def test_the_command_line_offers_the_actions_a_summary_records():
+    """fieldgen eval names its --actions without importing this module; the two lists are one."""
+    import typing
+
+    from fieldgen.cli.training import ACTIONS
+    from fieldgen.run.summary import Actions
+
+    assert typing.get_args(Actions) == ACTIONS
+    one = summarize(["point_nav"], "crl", ["r"], 8, {4: 800}, {"success_any": {4: 0.5}, "time_at_goal": {4: 2.0}}, "")
+    assert one.actions == "mean"
+    with pytest.raises(ValueError):
+        SeedSummary.model_validate({**one.model_dump(), "actions": "random"})
