@@ -270,7 +270,9 @@ def test_ctrl_c_while_a_chunk_trains_acts_at_once_and_the_run_goes_on(tmp_path):
     env = dict(os.environ, JAX_PLATFORMS="cpu")
     command = ["fieldgen", "train", "point_nav", "--envs", "256", "--steps", "4M", "--out", str(tmp_path),
                "--no-videos"]
-    training = subprocess.Popen(command, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    # Ctrl-C's default in the command, even where the tests were started ignoring it (a background job)
+    training = subprocess.Popen(command, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                                preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     output = ""
     while "steps (" not in output:  # the line of the first evaluation
         output += training.stdout.readline() or pytest.fail(output)
