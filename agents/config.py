@@ -25,7 +25,7 @@ from ..suggest import did_you_mean
 from .buffer import gradient_steps, iterations
 from .contrastive import ENERGIES, LOSSES
 from .networks import MATMULS, residual_blocks
-from .registry import ALGORITHMS, PRESETS as NAMED_PRESETS
+from .registry import ALGORITHMS, EVAL_ACTIONS, PRESETS as NAMED_PRESETS
 from .sharding import by_seed
 from .team import GROUPINGS, split
 
@@ -74,6 +74,8 @@ Reward = Annotated[Literal[REWARDS], Unknown(
 Spread = Annotated[Literal[SPREADS], Unknown(
     "unknown ppo.spread '{}'; choose global (one learned log-std per action) "
     "or state (the policy network's own spread for each state)")]
+EvalActions = Annotated[Literal[EVAL_ACTIONS], Unknown(
+    f"unknown eval_actions '{{}}'; choose one of {', '.join(EVAL_ACTIONS)}")]
 Energy = Annotated[Literal[ENERGIES], Unknown(f"unknown energy '{{}}'; choose one of {', '.join(ENERGIES)}")]
 Loss = Annotated[Literal[LOSSES], Unknown(f"unknown contrastive_loss '{{}}'; choose one of {', '.join(LOSSES)}")]
 Matmul = Annotated[Literal[tuple(MATMULS)], Unknown(f"unknown matmul '{{}}'; choose one of {', '.join(MATMULS)}")]
@@ -105,6 +107,8 @@ class RunConfig(BaseModel):
     unroll_length: Count = 62  # env steps per environment between updates
     num_evals: Count = 10
     eval_envs: Count = 128
+    # how the evaluations during training act (success.png, metrics, promotions), and fieldgen eval by default
+    eval_actions: EvalActions = "mean"
     seed: Annotated[Int, Field(ge=0, le=SEED_MAX)] = 0
 
     @classmethod

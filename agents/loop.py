@@ -214,9 +214,12 @@ class VariantResults:
 
 
 def evaluate(trainer: Trainer, state, key: jax.Array, film: Callable | None = None,
-             sampled: bool = False) -> tuple[dict, object]:
+             sampled: bool | None = None) -> tuple[dict, object]:
     """Every algorithm is judged here, by the environment's own success metric (`evaluate_policy`): on its
-    mean actions, or with `sampled` on the actions its policy draws as in training."""
+    mean actions, or with `sampled` on the actions its policy draws as in training; None: as its config's
+    `eval_actions` says."""
+    if sampled is None:
+        sampled = trainer.config.eval_actions == "sampled"
     return evaluate_policy(trainer.env, functools.partial(trainer.act, state), key, trainer.config.eval_envs, film,
                            sampled)
 

@@ -1,4 +1,5 @@
-"""The trainers by the names `--algo`, config files and a run's run.json call them.
+"""The trainers by the names `--algo`, config files and a run's run.json call them, and the other names the
+command line offers before JAX loads.
 
 The names are all this module holds until a trainer is looked up: its module, and JAX with it, loads
 then, so the command line lists and checks the names (--algo's choices) without importing JAX.
@@ -24,6 +25,9 @@ CONFIG_CLASSES = {"crl": "CRLConfig", "icrl": "ICRLConfig", "ppo": "PPOConfig", 
 ALGORITHMS: tuple[str, ...] = tuple(CONFIG_CLASSES)
 # named presets, `--preset NAME`: agents/presets/NAME.yaml, settings of every trainer sized for a kind of machine
 PRESETS: tuple[str, ...] = ("cpu",)
+# how a policy acts when it is judged (a run's evaluations, `eval_actions`; fieldgen eval --actions): its mean
+# action, or actions drawn from it as in training, where the mean alone may do less (or more)
+EVAL_ACTIONS: tuple[str, ...] = ("mean", "sampled")
 
 
 @dataclasses.dataclass(frozen=True)

@@ -12,7 +12,7 @@ import typer
 from rich.table import Table
 from rich.text import Text
 
-from fieldgen.agents.registry import ALGORITHMS, PRESETS
+from fieldgen.agents.registry import ALGORITHMS, EVAL_ACTIONS, PRESETS
 from fieldgen.cli.app import app, choice, count, duration, err, fail, field_source, out, video_format
 from fieldgen.command import TIME_LIMIT_STATUS
 from fieldgen.compile.cameras import CAMERAS
@@ -20,8 +20,6 @@ from fieldgen.run.loggers import LOGGERS
 from fieldgen.schema import SpecError
 from fieldgen.video import FORMATS as VIDEO_FORMATS
 
-# how fieldgen eval acts: fieldgen.run.summary.Actions, named here without loading scipy as the command line starts
-ACTIONS = ("mean", "sampled")
 
 
 # --steps' and --envs' defaults, the config's total_steps and num_envs, in words: --help loads no trainer to read
@@ -331,9 +329,10 @@ def evaluate(
     video_fmt: VideoFormat = None,
     camera: Annotated[str, typer.Option(help="video camera", **choice("camera", CAMERAS))] = "follow",
     seed: Annotated[int, typer.Option(help="evaluation seed")] = 0,
-    actions: Annotated[str, typer.Option(
-        help="the policy's mean action at every step (as training's evaluations), or sampled: actions drawn from "
-             "the policy as in training", **choice("actions", ACTIONS))] = "mean",
+    actions: Annotated[Optional[str], typer.Option(
+        help="mean: the policy's mean action at every step; sampled: actions drawn from the policy as in training "
+             "[default: as the (first) run's evaluations acted, its eval_actions]",
+        **choice("actions", EVAL_ACTIONS))] = None,
     field: Annotated[Optional[str], typer.Option(metavar="SPEC",
         help="judge the policy on this field instead (YAML file, bundled name or build folder) with the "
              "run's observations and actions; the video is eval_<field>.mp4, the summary summary_<field>.json")] = None,
@@ -366,6 +365,7 @@ def evaluate(
         try:
             runs = judging.open_runs(run_dirs, None if field is None else field_source(field))
             episodes = episodes or runs[0].config.eval_envs  # sized with training: a CPU-sized run evaluates quickly
+            actions = actions or runs[0].config.eval_actions  # the figures training drew are the ones judged again
             for run in runs:
                 judging.check_memory(run, episodes)
         except (SpecError, ConfigError, record.RunError) as exc:

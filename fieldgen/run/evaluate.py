@@ -24,14 +24,16 @@ class Evaluation:
     episode: dict | None  # the first seed's first episode, as EpisodeRecorder.episode gives it
 
 
-def evaluate(run: Run, episodes: int, seed: int = 0, film: bool = True, actions: str = "mean") -> Evaluation:
+def evaluate(run: Run, episodes: int, seed: int = 0, film: bool = True, actions: str | None = None) -> Evaluation:
     """`episodes` evaluation episodes per seed of the run's policy, on `run.env`, on its mean actions or (`actions`
-    "sampled") on actions drawn as in training. It compiles and runs as training's programs do (agents.programs),
-    so that Ctrl-C reaches the caller at once, mid-compile too."""
-    trainer = dataclasses.replace(run, config=run.config.model_copy(update={"eval_envs": episodes})).judged_trainer
+    "sampled") on actions drawn as in training; None: as the run's own evaluations acted (its `eval_actions`).
+    It compiles and runs as training's programs do (agents.programs), so that Ctrl-C reaches the caller at once,
+    mid-compile too."""
+    judging = {"eval_envs": episodes, "eval_actions": actions or run.config.eval_actions}
+    trainer = dataclasses.replace(run, config=run.config.model_copy(update=judging)).judged_trainer
     loop.reserve_worlds(trainer, len(run.seeds))
     filming = EpisodeRecorder.film if film else None
-    judged = jax.vmap(functools.partial(loop.evaluate, trainer, film=filming, sampled=actions == "sampled"),
+    judged = jax.vmap(functools.partial(loop.evaluate, trainer, film=filming),
                       in_axes=(0, None))
     key = jax.random.PRNGKey(seed)
     metrics, frames = programs.computed(programs.Compiling(jax.jit(judged), run.state, key)(run.state, key))

@@ -19,6 +19,7 @@ import numpy as np
 import scipy.stats
 from pydantic import BaseModel, Field
 
+from fieldgen.agents.registry import EVAL_ACTIONS
 from fieldgen.files import write_atomic
 
 SUMMARY = "summary.json"
@@ -85,8 +86,8 @@ class MetricSummary(BaseModel):
 
 Count = Annotated[int, Field(ge=1)]
 
-# how an evaluation acts: the policy's mean action, or actions drawn from it as in training
-Actions = Literal["mean", "sampled"]
+# how an evaluation acted (fieldgen.agents.registry.EVAL_ACTIONS)
+Actions = Literal[EVAL_ACTIONS]
 
 
 class SeedSummary(BaseModel):
@@ -103,8 +104,7 @@ class SeedSummary(BaseModel):
     env_steps_before: dict[int, int] = {}
     success_any: MetricSummary
     time_at_goal: MetricSummary
-    # the actions the episodes took: the policy's mean ("mean", as every evaluation during training), or drawn
-    # from it as in training ("sampled", fieldgen eval --actions sampled)
+    # the actions the episodes took: the policy's mean ("mean"), or drawn from it as in training ("sampled")
     actions: Actions = "mean"
     confidence: float = CONFIDENCE
     command: str  # the command line that produced it

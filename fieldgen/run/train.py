@@ -144,7 +144,9 @@ def _train(run: Run, console: Console, videos: bool, logger: str, video_format: 
             if not writes:
                 return
             record.write_metrics(run.folder, run.rows)
-            plot_success(run.folder, run.rows, f"{run.label}: {run.algo}", run.variant_name)
+            plot_success(run.folder, run.rows, f"{run.label}: {run.algo}"
+                         + (", judged on sampled actions" if config.eval_actions == "sampled" else ""),
+                         run.variant_name)
             log.rows(rows)
             bar.update(task, completed=rows[0]["env_steps"], rate=rate(run.rows, config.total_steps),
                        stats=stats(rows, len(run.envs)))

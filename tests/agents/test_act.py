@@ -28,3 +28,27 @@ def test_with_a_key_an_algorithm_acts_as_in_training_and_without_one_on_its_mean
     assert all(d.shape == mean.shape and np.all(np.abs(d) <= 1.0) for d in drawn)
     assert not np.allclose(drawn[0], mean) and not np.allclose(drawn[0], drawn[1])
     np.testing.assert_array_equal(drawn[0], np.asarray(trainer.act(state, obs, jax.random.PRNGKey(1))))
+
+
+def test_an_evaluation_acts_as_the_config_says_unless_told(env_cache):
+    """loop.evaluate judges the mean action under eval_actions "mean" and the drawn ones under "sampled", as
+    it does when told outright; an unknown value is refused naming the choices."""
+    from fieldgen.agents import loop
+    from fieldgen.agents.config import ConfigError
+
+    env = env_cache("point_nav")
+    entry = registry.trainer("crl")
+    config = entry.config(**SMALL, **SETTINGS["crl"])
+    state = entry.make_train(config, env).init(jax.random.PRNGKey(0))
+    key = jax.random.PRNGKey(5)
+
+    def judged(actions, told=None):
+        trainer = entry.make_train(config.model_copy(update={"eval_actions": actions}), env)
+        metrics, _ = loop.evaluate(trainer, state, key, sampled=told)
+        return float(metrics["closest_distance"])
+
+    assert judged("mean") == judged("sampled", told=False)
+    assert judged("sampled") == judged("mean", told=True)
+    assert judged("sampled") != judged("mean")
+    with pytest.raises(ConfigError, match="unknown eval_actions 'drawn'; choose one of mean, sampled"):
+        entry.config.layered(sets=["crl.eval_actions=drawn"])

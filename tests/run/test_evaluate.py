@@ -129,22 +129,25 @@ def looks_trained(run: Path) -> Path:
 
 
 def test_eval_plays_as_many_episodes_as_the_runs_evaluations_did_unless_told(tmp_path, monkeypatch):
-    """A run sized for a CPU (`--preset cpu`: 16 evaluation episodes) is judged as quickly by default."""
+    """A run sized for a CPU (`--preset cpu`: 16 evaluation episodes) is judged as quickly by default, and
+    on the actions its own evaluations took (its eval_actions) unless --actions says otherwise."""
     from fieldgen.run import evaluate as judging
 
-    run = looks_trained(prepared(tmp_path, "point_nav", "--preset", "cpu"))
+    cpu = looks_trained(prepared(tmp_path / "a", "point_nav", "--preset", "cpu"))
+    drawing = looks_trained(prepared(tmp_path / "b", "point_nav", "--set", "crl.eval_actions=sampled"))
     asked = []
 
-    def evaluate(run, episodes, *args):
-        asked.append(episodes)
+    def evaluate(run, episodes, seed, film, actions):
+        asked.append((episodes, actions))
         raise KeyboardInterrupt  # enough: the episodes were asked for
 
     monkeypatch.setattr(judging, "open_runs", lambda folders, field: [session.open_run(f, load_state=False)
                                                                      for f in folders])
     monkeypatch.setattr(judging, "evaluate", evaluate)
-    for args, episodes in (([], 16), (["--episodes", "64"], 64)):
+    for run, args, told in ((cpu, [], (16, "mean")), (cpu, ["--episodes", "64"], (64, "mean")),
+                            (drawing, [], (128, "sampled")), (drawing, ["--actions", "mean"], (128, "mean"))):
         runner.invoke(app, ["eval", str(run), "--no-video", *args])
-        assert asked.pop() == episodes
+        assert asked.pop() == told
 
 
 def test_bad_evaluations_are_one_line_and_write_nothing(tmp_path):

@@ -88,15 +88,13 @@ def test_one_seed_says_so():
     assert np.isclose(one.time_at_goal.low, 2.0) and np.isclose(one.time_at_goal.high, 2.0)
 
 
-def test_the_command_line_offers_the_actions_a_summary_records():
-    """fieldgen eval names its --actions without importing this module; the two lists are one."""
-    import typing
+def test_a_summary_records_how_its_episodes_acted():
+    """mean unless told; each way a run can be judged (registry.EVAL_ACTIONS) is accepted, any other refused."""
+    from fieldgen.agents.registry import EVAL_ACTIONS
 
-    from fieldgen.cli.training import ACTIONS
-    from fieldgen.run.summary import Actions
-
-    assert typing.get_args(Actions) == ACTIONS
     one = summarize(["point_nav"], "crl", ["r"], 8, {4: 800}, {"success_any": {4: 0.5}, "time_at_goal": {4: 2.0}}, "")
     assert one.actions == "mean"
+    for actions in EVAL_ACTIONS:
+        assert SeedSummary.model_validate({**one.model_dump(), "actions": actions}).actions == actions
     with pytest.raises(ValueError):
         SeedSummary.model_validate({**one.model_dump(), "actions": "random"})
