@@ -422,6 +422,50 @@ def evaluate(
         _exit_interrupted()
 
 
+@app.command()
+def aggregate(
+    ctx: typer.Context,
+    files: Annotated[list[Path], typer.Argument(
+        metavar="SUMMARY...", help="summary.json files that fieldgen eval wrote, of one field and algorithm")],
+    summary_file: Annotated[Optional[Path], typer.Option(
+        "--summary", metavar="PATH", help="write the pooled summary here (default: print it only)")] = None,
+) -> None:
+    """Pool the seeds of several evaluations into one: each seed's success rate and time at goal, and over
+    all of them the interquartile mean with its 95% bootstrap interval, as fieldgen eval gives over the seeds
+    of one run (seeds trained and judged on different machines, or in runs of their own).
+
+    Example: fieldgen aggregate runs/s330/summary.json runs/s331/summary.json --summary runs/all.json
+    """
+    from fieldgen.files import WriteError
+    from fieldgen.run import summary
+
+    if summary_file is not None and (summary_file.is_dir() or not summary_file.parent.is_dir()):
+        fail(f"--summary {summary_file}: name a file in an existing folder, such as {Path(summary.SUMMARY)}")
+    try:
+        summaries = [(f, summary.read(f)) for f in files]
+        result = summary.pooled(summaries, _command_line(ctx))
+    except summary.SummaryError as exc:
+        fail(str(exc))
+    table = Table("seed", "success_any", "time_at_goal", "env steps", "from",
+                  title=f"{result.algo} on {', '.join(result.fields)}, {result.episodes} episodes per seed"
+                        + (", actions sampled from the policy" if result.actions == "sampled" else ""))
+    owner = {s: f for f, one in summaries for s in one.seeds}
+    for s in result.seeds:
+        table.add_row(str(s), f"{result.success_any.per_seed[s]:.3f}", f"{result.time_at_goal.per_seed[s]:.1f}",
+                      f"{result.env_steps[s]:,}", f"{owner[s].parent.name}/{owner[s].name}")
+    table.add_section()
+    table.add_row(result.label, result.success_any.text(3), result.time_at_goal.text(1), "", "")
+    out.print(table)
+    out.print(f"{result.label}: success_any {result.success_any.text(3)}, time at goal "
+              f"{result.time_at_goal.text(1)} steps")
+    if summary_file is not None:
+        try:
+            summary.write(result, summary_file)
+        except WriteError as exc:
+            fail(str(exc))
+        out.print(f"summary: {summary_file}")
+
+
 def _command_line(ctx: typer.Context) -> str:
     """The command being run, as a summary records it: each argument and option given (typer keeps no raw
     command line), options in their first spelling, values as read."""

@@ -17,7 +17,7 @@ from typing import Annotated, Literal, Sequence
 
 import numpy as np
 import scipy.stats
-from pydantic import BaseModel, Field
+from pydantic import BaseModel, Field, ValidationError
 
 from fieldgen.agents.registry import EVAL_ACTIONS
 from fieldgen.files import write_atomic
@@ -127,6 +127,54 @@ def summarize(fields: list[str], algo: str, runs: list[Path], episodes: int, env
     return SeedSummary(fields=fields, algo=algo, runs=[str(r) for r in runs], episodes=episodes,
                        env_steps=env_steps, command=command, env_steps_before=env_steps_before or {}, actions=actions,
                        **{metric: MetricSummary.of(per_seed[metric]) for metric in METRICS})
+
+
+class SummaryError(ValueError):
+    """Summaries that cannot be read or pooled, said in one line naming the file."""
+
+
+def read(path: Path) -> SeedSummary:
+    """A summary.json that `fieldgen eval` wrote, or SummaryError naming the file and what is wrong."""
+    try:
+        return SeedSummary.model_validate_json(path.read_bytes())
+    except FileNotFoundError:
+        raise SummaryError(f"{path} is missing; name a summary.json that fieldgen eval wrote") from None
+    except IsADirectoryError:
+        raise SummaryError(f"{path} is a folder; name the summary.json in it that fieldgen eval wrote") from None
+    except ValidationError as exc:
+        raise SummaryError(f"{path} is not a summary of fieldgen eval: {_first_problem(exc)}") from None
+
+
+def _first_problem(exc: ValidationError) -> str:
+    error = exc.errors()[0]
+    where = ".".join(str(p) for p in error["loc"])
+    return f"{where}: {error['msg']}" if where else error["msg"]
+
+
+# what summaries pooled into one must share, and the word for it in an error
+POOLED_ALIKE = {"fields": "field", "algo": "algorithm", "actions": "actions", "episodes": "episodes per seed"}
+
+
+def pooled(summaries: Sequence[tuple[Path, SeedSummary]], command: str) -> SeedSummary:
+    """One summary over the seeds of several, each judged on its own (one seed per machine, or runs evaluated
+    apart): their per-seed values, the IQM and interval over all of them. The summaries must be of one field
+    and algorithm, judged on as many episodes a seed with the same actions, each seed in one of them; else
+    SummaryError naming the two files."""
+    (first_path, first), owners = summaries[0], {}
+    for path, one in summaries:
+        for key, word in POOLED_ALIKE.items():
+            if getattr(one, key) != getattr(first, key):
+                raise SummaryError(f"{path} and {first_path} differ in {word} ({getattr(one, key)} against "
+                                   f"{getattr(first, key)}): pooled seeds must be judged alike")
+        for seed in one.seeds:
+            if seed in owners:
+                raise SummaryError(f"seed {seed} is in both {owners[seed]} and {path}; pool each seed once")
+            owners[seed] = path
+    merged = lambda key: {s: v for _, one in summaries for s, v in getattr(one, key).items()}  # noqa: E731
+    per_seed = {metric: {s: v for _, one in summaries for s, v in getattr(one, metric).per_seed.items()}
+                for metric in METRICS}
+    return summarize(first.fields, first.algo, [r for _, one in summaries for r in one.runs], first.episodes,
+                     merged("env_steps"), per_seed, command, merged("env_steps_before"), first.actions)
 
 
 def write(summary: SeedSummary, path: Path) -> None:

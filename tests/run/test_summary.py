@@ -4,6 +4,7 @@ answers are worked out by hand, and the summary record."""
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -98,3 +99,72 @@ def test_a_summary_records_how_its_episodes_acted():
         assert SeedSummary.model_validate({**one.model_dump(), "actions": actions}).actions == actions
     with pytest.raises(ValueError):
         SeedSummary.model_validate({**one.model_dump(), "actions": "random"})
+
+
+def one_seed_each(tmp_path, **changes):
+    """summary.json files of seeds 0-4 of one recipe, each judged on its own, written as fieldgen eval does."""
+    from fieldgen.run.summary import write
+
+    success, at_goal = [0.0, 1.0, 0.2, 0.4, 0.9], [1.0, 9.0, 2.0, 4.0, 8.0]
+    paths = []
+    for s in range(5):
+        one = summarize(["point_nav"], "crl", [f"runs/point_nav-crl-{s}"], 8, {s: 1760 + s},
+                        {"success_any": {s: success[s]}, "time_at_goal": {s: at_goal[s]}}, "fieldgen eval",
+                        **(changes if s == 4 else {}))
+        paths.append(tmp_path / f"s{s}" / "summary.json")
+        paths[-1].parent.mkdir()
+        write(one, paths[-1])
+    return paths, success, at_goal
+
+
+def test_summaries_of_seeds_judged_apart_pool_into_the_summary_of_all_of_them(tmp_path):
+    from fieldgen.run.summary import pooled, read
+
+    paths, success, at_goal = one_seed_each(tmp_path)
+    pool = pooled([(p, read(p)) for p in paths], "fieldgen aggregate")
+    together = summarize(["point_nav"], "crl", [f"runs/point_nav-crl-{s}" for s in range(5)], 8,
+                         {s: 1760 + s for s in range(5)}, {"success_any": dict(enumerate(success)),
+                                                           "time_at_goal": dict(enumerate(at_goal))}, "fieldgen aggregate")
+    assert pool == together and pool.success_any.iqm == pytest.approx(0.5) and pool.label == "IQM (5 seeds)"
+
+
+@pytest.mark.parametrize("changes,phrase", [
+    ({"actions": "sampled"}, "differ in actions (sampled against mean): pooled seeds must be judged alike"),
+    ({"env_steps_before": {4: 10}}, None),  # a chain of runs pools as any other
+])
+def test_summaries_judged_otherwise_are_refused_in_one_line(tmp_path, changes, phrase):
+    from fieldgen.run.summary import SummaryError, pooled, read
+
+    paths, _, _ = one_seed_each(tmp_path, **changes)
+    read_all = [(p, read(p)) for p in paths]
+    if phrase is None:
+        assert pooled(read_all, "").env_steps_before == {4: 10}
+        return
+    with pytest.raises(SummaryError, match=rf"^{paths[4]} and {paths[0]} {re.escape(phrase)}$"):
+        pooled(read_all, "")
+    with pytest.raises(SummaryError, match=rf"^seed 0 is in both {paths[0]} and {paths[0]}; pool each seed once$"):
+        pooled([read_all[0], read_all[0]], "")
+
+
+def test_aggregate_prints_and_writes_the_pooled_seeds_and_says_what_is_wrong_in_one_line(tmp_path):
+    from typer.testing import CliRunner
+
+    from fieldgen.cli import app
+    from fieldgen.run.summary import read
+
+    runner = CliRunner()
+    paths, _, _ = one_seed_each(tmp_path)
+    out = tmp_path / "all.json"
+    result = runner.invoke(app, ["aggregate", *map(str, paths), "--summary", str(out)], env={"COLUMNS": "200"})
+    assert result.exit_code == 0, result.output
+    assert "IQM (5 seeds): success_any 0.500 [" in result.output and "s3/summary.json" in result.output
+    assert read(out).seeds == [0, 1, 2, 3, 4] and "fieldgen aggregate" in read(out).command
+    (tmp_path / "bad.json").write_text("{}")
+    for args, said in (([str(tmp_path / "none.json")], "none.json is missing"),
+                       ([str(tmp_path / "bad.json")], "bad.json is not a summary of fieldgen eval"),
+                       ([str(tmp_path)], "is a folder"),
+                       ([str(paths[0]), "--summary", str(tmp_path / "no" / "x.json")], "name a file in an existing")):
+        result = runner.invoke(app, ["aggregate", *args])
+        message = " ".join(result.output.split())  # the console breaks long paths over lines
+        assert result.exit_code == 1 and said in message and "Traceback" not in message, result.output
+        assert message.startswith("error:") and message.count("error:") == 1
