@@ -101,7 +101,8 @@ def summary_rows(runs_: list[session.Run], command: str) -> list[dict]:
         c = curves(run)
         last = {metric: dict(zip(run.seeds, c[metric][-1])) for metric in summary.METRICS}
         seeds = summary.summarize([run.env.spec.name], run.algo, [run.folder], run.config.eval_envs,
-                                  dict.fromkeys(run.seeds, c["env_steps"][-1]), last, command)
+                                  dict.fromkeys(run.seeds, c["env_steps"][-1]), last, command,
+                                  actions=run.config.eval_actions)
         rates = [r["steps_per_second"] for r in run.rows if "steps_per_second" in r]
         table.append({"algo": run.algo, "seeds": len(run.seeds), "env_steps": c["env_steps"][-1],
                       "summary": seeds.model_dump(mode="json"),

@@ -123,11 +123,11 @@ def summarize(sweep: Sweep, command: str) -> tuple[list[dict], Path]:
         for run in group.runs:
             rows = record.read_metrics(run.folder)
             last[run.seed] = rows[-1]
-        episodes = record.read_run(group.runs[0].folder).config.get("eval_envs", 1)
-        result = summary.summarize([group.field], group.algo, [r.folder for r in group.runs], episodes,
-                                   {s: int(row["env_steps"]) for s, row in last.items()},
+        config = record.read_run(group.runs[0].folder).config  # one setting's: judged alike
+        result = summary.summarize([group.field], group.algo, [r.folder for r in group.runs],
+                                   config.get("eval_envs", 1), {s: int(row["env_steps"]) for s, row in last.items()},
                                    {m: {s: float(compare.on_field(row, m)) for s, row in last.items()}
-                                    for m in summary.METRICS}, command)
+                                    for m in summary.METRICS}, command, actions=config.get("eval_actions", "mean"))
         table.append({"field": group.field, "setting": group.label, "point": group.runs[0].point,
                       "summary": result.model_dump(mode="json")})
         by_setting.setdefault(group.label, []).append(result)

@@ -51,7 +51,7 @@ def test_bad_comparisons_are_refused_before_anything_is_written(tmp_path, algos,
     assert not (tmp_path / "c").exists()
 
 
-def hand_made_run(folder, algo: str, per_eval: list[list[float]]):
+def hand_made_run(folder, algo: str, per_eval: list[list[float]], **config):
     """A finished run whose evaluations gave these success_any values, one per seed (no training: the
     plot and the table read only the rows)."""
     from types import SimpleNamespace
@@ -64,7 +64,7 @@ def hand_made_run(folder, algo: str, per_eval: list[list[float]]):
              "time_at_goal": 100 * v, "closest_distance": 1 - v, "steps_per_second": 50.0}
             for e, values in enumerate(per_eval) for s, v in zip(seeds, values)]
     return Run(folder / f"point_nav-{algo}", algo, [SimpleNamespace(spec=SimpleNamespace(name="point_nav"))],
-               CRLConfig(eval_envs=16), seeds, rows)
+               CRLConfig(eval_envs=16, **config), seeds, rows)
 
 
 FIVE_SEEDS = [[0.0] * 5, [0.0, 0.0, 0.0, 1.0, 0.0], [1.0] * 5]  # worked out in test_summary: IQM 0, [0, 2/3]
@@ -102,7 +102,8 @@ def test_compare_tables_the_iqm_and_its_interval_per_algorithm(tmp_path):
     from fieldgen.run import compare
     from fieldgen.run.summary import SeedSummary
 
-    runs = [hand_made_run(tmp_path, "crl", FIVE_SEEDS[:2]), hand_made_run(tmp_path, "td3", [[0.0] * 5, [0.5] * 5])]
+    runs = [hand_made_run(tmp_path, "crl", FIVE_SEEDS[:2]),
+            hand_made_run(tmp_path, "td3", [[0.0] * 5, [0.5] * 5], eval_actions="sampled")]
     printed = io.StringIO()
     compare.report(runs, tmp_path, Console(file=printed, width=200), "fieldgen compare point_nav --seeds 5")
     rows = json.loads((tmp_path / "compare.json").read_text())
@@ -112,6 +113,8 @@ def test_compare_tables_the_iqm_and_its_interval_per_algorithm(tmp_path):
     assert first.success_any.high == pytest.approx(2 / 3) and first.time_at_goal.high == pytest.approx(200 / 3)
     assert first.algo == "crl" and first.fields == ["point_nav"] and first.episodes == 16
     assert first.env_steps == dict.fromkeys(range(5), 1000) and first.command == "fieldgen compare point_nav --seeds 5"
+    # each summary says how its run's evaluations acted
+    assert first.actions == "mean" and SeedSummary.model_validate(rows[1]["summary"]).actions == "sampled"
     assert rows[0]["best_success_any"] == 0.0 and rows[1]["best_success_any"] == 0.5  # the best IQM, not mean
     assert rows[0]["closest_distance"] == 1.0
     text = printed.getvalue()

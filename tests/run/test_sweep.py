@@ -231,7 +231,7 @@ def test_status_tells_done_failed_stopped_and_waiting_then_summarizes_once_all_a
     assert list(by_setting) == ["crl crl.repr_dim=8", "crl crl.repr_dim=16"]
     assert by_setting["crl crl.repr_dim=8"]["success_any"]["per_seed"] == {"0": 1.0, "1": 0.5}
     assert by_setting["crl crl.repr_dim=8"]["success_any"]["iqm"] == pytest.approx(0.75)  # two seeds: their mean
-    assert by_setting["crl crl.repr_dim=16"]["episodes"] == 8
+    assert by_setting["crl crl.repr_dim=16"]["episodes"] == 8 and by_setting["crl crl.repr_dim=16"]["actions"] == "mean"
     assert "| point_nav | crl crl.repr_dim=16 | 2 | 1,760 | 0.500 [" in (sweep.folder / status.TABLE).read_text()
     assert (sweep.folder / "summary-point_nav.png").stat().st_size > 10_000
 
