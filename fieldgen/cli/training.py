@@ -20,8 +20,6 @@ from fieldgen.run.loggers import LOGGERS
 from fieldgen.schema import SpecError
 from fieldgen.video import FORMATS as VIDEO_FORMATS
 
-
-
 # --steps' and --envs' defaults, the config's total_steps and num_envs, in words: --help loads no trainer to read
 # them (tests/test_cli.py checks them against the configs)
 STEPS, ENVS = "[default: 10M, ppo 50M; --preset cpu 200k]", "[default: 1024, ppo 2048; --preset cpu 16]"
