@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Annotated, NoReturn, Optional
 
 import typer
-from rich.table import Table
+from rich.table import Column, Table
 from rich.text import Text
 
 from fieldgen.agents.registry import ALGORITHMS, EVAL_ACTIONS, PRESETS
@@ -444,7 +444,7 @@ def aggregate(
         result = summary.pooled(summaries, _command_line(ctx))
     except summary.SummaryError as exc:
         fail(str(exc))
-    table = Table("seed", "success_any", "time_at_goal", "env steps", "from",
+    table = Table("seed", "success_any", "time_at_goal", "env steps", Column("from", overflow="fold"),
                   title=f"{result.algo} on {', '.join(result.fields)}, {result.episodes} episodes per seed"
                         + (", actions sampled from the policy" if result.actions == "sampled" else ""))
     owner = {s: f for f, one in summaries for s in one.seeds}
