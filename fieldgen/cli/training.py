@@ -432,7 +432,7 @@ def aggregate(
     all of them the interquartile mean with its 95% bootstrap interval, as fieldgen eval gives over the seeds
     of one run (seeds trained and judged on different machines, or in runs of their own).
 
-    Example: fieldgen aggregate runs/s330/summary.json runs/s331/summary.json --summary runs/all.json
+    Example: fieldgen aggregate runs/s340/summary.json runs/s341/summary.json --summary runs/all.json
     """
     from fieldgen.files import WriteError
     from fieldgen.run import summary
