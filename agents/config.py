@@ -195,7 +195,7 @@ class RunConfig(BaseModel):
         except ValidationError as exc:
             if exc.errors()[0]["type"] == "literal_error":
                 unknown = next(m for m in fields[key].metadata if isinstance(m, Unknown))
-                raise ConfigError(unknown.message.format(value)) from None
+                raise ConfigError(f"{where}: {unknown.message.format(value)}") from None
             listed = f"; write it as a list, [{value}]" if isinstance(value, str) and "," in value else ""
             raise ConfigError(f"{where}: {cls.algo}.{key} {allowed(exc.errors()[0], fields[key])}, "
                               f"not {value!r}{listed}") from None

@@ -401,7 +401,7 @@ def test_bundled_config_files_hold_only_known_keys(path):
     (["--set", "crl.hidden=64,64"], "crl.hidden must be a list of layer widths, whole numbers above 0, not '64,64'; "
                                     "write it as a list, [64,64]"),
     (["--steps", "100"], "--steps 100 is too few"),
-    (["--set", "crl.energy=cos"], "unknown energy 'cos'"),
+    (["--set", "crl.energy=cos"], "--set crl.energy=cos: unknown energy 'cos'; choose one of norm,"),
     (["--algo", "ppo", "--set", "ppo.num_minibatches=3", "--set", "ppo.unroll_length=10"], "does not divide"),
     (["--algo", "ppo", "--set", "ppo.reward=shaped"], "unknown reward 'shaped'"),
     (["--algo", "ppo", "--set", "ppo.spread=wide"], "unknown ppo.spread 'wide'; choose global"),
@@ -439,6 +439,10 @@ def test_config_file_and_precedence(tmp_path):
     with pytest.raises(ConfigError) as caught:
         crl.CRLConfig.layered(file)
     assert str(caught.value) == f"{file}:5: crl.batch_size must be greater than 0, not -64"
+    file.write_text("crl:\n  eval_actions: drawn\n")  # a value outside a key's choices: where, and the choices
+    with pytest.raises(ConfigError) as caught:
+        crl.CRLConfig.layered(file)
+    assert str(caught.value) == f"{file}:2: unknown eval_actions 'drawn'; choose one of mean, sampled"
 
 
 def test_ant_fields_get_the_ant_preset_under_a_config_file_and_set(tmp_path):
