@@ -30,6 +30,11 @@ PRESETS: tuple[str, ...] = ("cpu",)
 EVAL_ACTIONS: tuple[str, ...] = ("mean", "sampled")
 
 
+def judged_on(actions: str) -> str:
+    """What a figure's title adds about the actions it was judged on: nothing for the mean action."""
+    return ", actions sampled from the policy" if actions == "sampled" else ""
+
+
 @dataclasses.dataclass(frozen=True)
 class Entry:
     config: type[RunConfig]  # its settings; config.algo is the name it is listed under

@@ -12,7 +12,7 @@ import typer
 from rich.table import Column, Table
 from rich.text import Text
 
-from fieldgen.agents.registry import ALGORITHMS, EVAL_ACTIONS, PRESETS
+from fieldgen.agents.registry import ALGORITHMS, EVAL_ACTIONS, PRESETS, judged_on
 from fieldgen.cli.app import app, choice, count, duration, err, fail, field_source, out, video_format
 from fieldgen.command import TIME_LIMIT_STATUS
 from fieldgen.compile.cameras import CAMERAS
@@ -385,7 +385,7 @@ def evaluate(
             at += f" ({whole[0]:,}" + (f" to {whole[-1]:,}" if len(whole) > 1 else "") + " from nothing learned)"
         table = Table(*["run"] * several, "seed", "success_any", "time_at_goal", "closest", "length", "return",
                       title=f"{judged} at {at} on {runs[0].env.spec.name}, {episodes} episodes per seed"
-                            + (", actions sampled from the policy" if actions == "sampled" else ""))
+                            + judged_on(actions))
         for run, evaluation in zip(runs, evaluations):
             metrics = evaluation.metrics
             for i, s in enumerate(run.seeds):
@@ -446,7 +446,7 @@ def aggregate(
         fail(str(exc))
     table = Table("seed", "success_any", "time_at_goal", "env steps", Column("from", overflow="fold"),
                   title=f"{result.algo} on {', '.join(result.fields)}, {result.episodes} episodes per seed"
-                        + (", actions sampled from the policy" if result.actions == "sampled" else ""))
+                        + judged_on(result.actions))
     owner = {s: f for f, one in summaries for s in one.seeds}
     for s in result.seeds:
         table.add_row(str(s), f"{result.success_any.per_seed[s]:.3f}", f"{result.time_at_goal.per_seed[s]:.1f}",

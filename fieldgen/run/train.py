@@ -14,6 +14,7 @@ import numpy as np
 from rich.console import Console
 
 from fieldgen.agents import checkpoint, loop, sharding
+from fieldgen.agents.registry import judged_on
 from fieldgen.env.mjx_physics import PhysicsOverflow
 from fieldgen.files import locked, remove_leftovers, write_atomic
 from fieldgen.run import background, record, session
@@ -144,8 +145,7 @@ def _train(run: Run, console: Console, videos: bool, logger: str, video_format: 
             if not writes:
                 return
             record.write_metrics(run.folder, run.rows)
-            plot_success(run.folder, run.rows, f"{run.label}: {run.algo}"
-                         + (", judged on sampled actions" if config.eval_actions == "sampled" else ""),
+            plot_success(run.folder, run.rows, f"{run.label}: {run.algo}{judged_on(config.eval_actions)}",
                          run.variant_name)
             log.rows(rows)
             bar.update(task, completed=rows[0]["env_steps"], rate=rate(run.rows, config.total_steps),

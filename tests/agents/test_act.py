@@ -50,5 +50,6 @@ def test_an_evaluation_acts_as_the_config_says_unless_told(env_cache):
     assert judged("mean") == judged("sampled", told=False)
     assert judged("sampled") == judged("mean", told=True)
     assert judged("sampled") != judged("mean")
+    assert registry.judged_on("mean") == "" and registry.judged_on("sampled") == ", actions sampled from the policy"
     with pytest.raises(ConfigError, match="unknown eval_actions 'drawn'; choose one of mean, sampled"):
         entry.config.layered(sets=["crl.eval_actions=drawn"])
