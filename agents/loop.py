@@ -344,15 +344,17 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
     (`evaluate_policy`) with the stage it was filmed on, `(stage, film)`, else None;
     `resume=(state, index, stage)` continues from there; a state that is only what it learned
     (`Trainer.learned`) goes on with fresh episodes and a buffer filled anew, drawn as `sampling` says
-    (`episode_sampling`, seeds stacked) where given. An evaluation is handed to `progress` and `on_eval`
-    once the next chunk has started, on a thread of its own (its call may hold that thread until the chunk
-    ends), so that the device trains while the host writes; in a run over several processes, once the
-    chunk's call has returned, so that every process runs the chunk's collectives and then the gathering of
-    the evaluation's state in one order. Before each chunk `stop(longest)` is asked, with the longest time a
-    chunk and its evaluation have taken in this call (None before the first): True ends the run there, its last
-    evaluation handed on as at the end (a time limit: the run goes on later from it). With `clock` (a
-    time.perf_counter() value) every row holds `wall_seconds`, from it to the end of the row's evaluation,
-    stamped here: a row handed on after a chunk's call that held the host would be dated a chunk late.
+    (`episode_sampling`, seeds stacked) where given, the rows of its first evaluation holding `refilled_from`
+    (the env steps it had learned from: where its episodes and buffer began anew). An evaluation is handed to
+    `progress` and `on_eval` once the next chunk has started, on a thread of its own (its call may hold that
+    thread until the chunk ends), so that the device trains while the host writes; in a run over several
+    processes, once the chunk's call has returned, so that every process runs the chunk's collectives and then
+    the gathering of the evaluation's state in one order. Before each chunk `stop(longest)` is asked, with the
+    longest time a chunk and its evaluation have taken in this call (None before the first): True ends the run
+    there, its last evaluation handed on as at the end (a time limit: the run goes on later from it). With
+    `clock` (a time.perf_counter() value) every row holds `wall_seconds`, from it to the end of the row's
+    evaluation, stamped here: a row handed on after a chunk's call that held the host would be dated a chunk
+    late.
     """
     keys = seed_keys(seeds)
     staged, last = len(trainers) > 1, len(trainers) - 1
@@ -392,6 +394,7 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
         state, first, previous = programs(0).start(keys), 1, 0
     else:
         state, index, _ = resume
+        learned_at = int(np.asarray(state.env_steps).reshape(-1)[0])  # where a refilled run's rows mark the refill
         state = programs(stage).refill(state) if refilling else from_host(state, programs(stage).placement)
         if refilling and sampling:
             state = drawing_as(state, sampling, programs(stage).placement)
@@ -434,6 +437,8 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
                 row["steps_per_second"] = (steps - previous) / seconds
             if clock is not None:
                 row["wall_seconds"] = evaluated - clock
+            if refilling and index == first:
+                row["refilled_from"] = learned_at
             rows.append(row)
         previous = steps
         history.extend(rows)

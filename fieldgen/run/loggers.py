@@ -11,7 +11,8 @@ from fieldgen.run.record import RunError, flat_row
 
 LOGGERS = ("none", "tensorboard", "wandb")
 TENSORBOARD = "tensorboard"
-NOT_LOGGED = ("eval", "seed", "env_steps")  # the row's place, not a measurement: env_steps is the x axis
+# the row's place, not a measurement: env_steps is the x axis; refilled_from, where a refilled run went on from
+NOT_LOGGED = ("eval", "seed", "env_steps", "refilled_from")
 
 
 def scalars(row: dict) -> dict[str, float]:

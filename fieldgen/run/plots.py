@@ -24,8 +24,9 @@ def plot_success(run_dir: Path, rows: list[dict], title: str, variant: str = "st
     A run of several variants (a mixed or automatic curriculum) also draws which share of new episodes each
     stage was given after each evaluation, and one whose levels start from kick-off points (an automatic
     curriculum's level buffer) which share went to each stretch of the kick-off. A last panel holds the
-    training losses (each `*_loss` of the rows, mean over seeds) once training has begun. `variant` names a
-    variant of a mixed run in the legends ("level" for an automatic curriculum's)."""
+    training losses (each `*_loss` of the rows, mean over seeds) once training has begun. A dotted line marks
+    where a run went on from what it learned alone (`refilled_from`): its episodes and buffer began anew there.
+    `variant` names a variant of a mixed run in the legends ("level" for an automatic curriculum's)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -36,15 +37,20 @@ def plot_success(run_dir: Path, rows: list[dict], title: str, variant: str = "st
     weighted = "weight" in rows[0].get("variants", {})
     kickoffs = "kickoff_share" in rows[0].get("variants", {})
     count = len(metrics) + weighted + kickoffs + bool(losses)
-    fig, axes = plt.subplots(1, count, figsize=(5 * count, 3.6), sharex=True)  # losses begin after the first evaluation
+    # losses begin after the first evaluation; a row of one panel is still a row
+    fig, axes = plt.subplots(1, count, figsize=(5 * count, 3.6), sharex=True, squeeze=False)
+    axes = axes[0]
     panels = dict(zip(metrics, axes))
     if "variants" in rows[0]:
         _plot_variants(panels, rows, variant)
     else:
         _plot_groups(panels, rows)
+    refills = sorted({r["refilled_from"] for r in rows if "refilled_from" in r})
     for metric, ax in panels.items():
         label, name, limits = PANELS[metric]
         ax.set(xlabel="env steps", ylabel=label, title=name, ylim=limits)
+        for n, steps in enumerate(refills):
+            ax.axvline(steps, color="grey", ls=":", label=None if n else "buffer refilled")
     if weighted:
         _plot_weights(fig, axes[len(metrics)], rows, variant=variant)
     if kickoffs:

@@ -154,3 +154,10 @@ def test_wandb_not_installed_is_one_sentence_before_anything_is_written(tmp_path
     result = runner.invoke(app, ["train", "point_nav", "--logger", "wandb", "--out", str(tmp_path)])
     assert result.exit_code == 1 and "pip install 'fieldgen[wandb]'" in result.output, result.output
     assert "Traceback" not in result.output and not any(tmp_path.iterdir())
+
+
+def test_a_rows_place_is_not_logged_as_a_measurement():
+    row = dict(ROWS[0], eval=3, env_steps=5000, refilled_from=4000)
+    logged = loggers.scalars(row)
+    assert "success_any" in logged and "variants.success_any.2" in logged
+    assert not {"eval", "seed", "env_steps", "refilled_from"} & set(logged)

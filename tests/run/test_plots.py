@@ -20,3 +20,19 @@ def test_a_mixed_runs_figure_names_its_variants(tmp_path, monkeypatch, variant):
     labels = drawn["axes"][0].get_legend_handles_labels()[1]
     assert labels == [f"{variant} 1", f"{variant} 2 (last)"]
     assert drawn["axes"][1].get_ylabel() == f"{variant} (last: the field itself)"
+
+
+@pytest.mark.parametrize("refilled", [True, False])
+def test_a_dotted_line_marks_where_a_run_went_on_from_what_it_learned_alone(tmp_path, monkeypatch, refilled):
+    drawn = {}
+    monkeypatch.setattr(plots, "save_figure", lambda fig, axes, title, path: drawn.update(axes=axes))
+    rows = [{"eval": e, "seed": s, "env_steps": 1000 * (e + 1), "success_any": 0.1 * e}
+            for e in range(3) for s in (0, 1)]
+    if refilled:
+        for row in rows[4:]:
+            row["refilled_from"] = 2000
+    plots.plot_success(tmp_path, rows, "title")
+    ax = drawn["axes"][0]
+    marks = [line for line in ax.get_lines() if line.get_linestyle() == ":"]
+    assert [list(line.get_xdata()) for line in marks] == ([[2000, 2000]] if refilled else [])
+    assert ax.get_legend_handles_labels()[1].count("buffer refilled") == (1 if refilled else 0)

@@ -70,7 +70,7 @@ def test_resume_after_interrupt_reproduces_the_uninterrupted_run(env_cache, tmp_
     (tmp_path / "c.msgpack").write_bytes(saved[1])
     restored = checkpoint.load(tmp_path / "c.msgpack", template)
     resumed, history = loop.run(algo, [0], 2, resume=(restored, 1))
-    assert [row["eval"] for row in history] == [2]
+    assert [row["eval"] for row in history] == [2] and "refilled_from" not in history[0]
     for a, b in zip(jax.tree.leaves(full.nets), jax.tree.leaves(resumed.nets)):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
     assert int(full.env_steps[0]) == int(resumed.env_steps[0])
@@ -89,6 +89,7 @@ def test_resume_after_interrupt_reproduces_the_uninterrupted_run(env_cache, tmp_
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
     trained, history = loop.run(algo, [0], 2, resume=(learned, 1))
     assert [row["eval"] for row in history] == [2] and history[0]["env_steps"] == 1280 + prefill + chunk
+    assert history[0]["refilled_from"] == 1280  # its curves mark where episodes and buffer began anew
     assert all(np.isfinite(np.asarray(x)).all() for x in jax.tree.leaves(trained.nets))
 
 
@@ -108,6 +109,7 @@ def test_a_run_copied_without_its_whole_checkpoint_goes_on_from_what_it_learned(
     assert unwrapped("holds no checkpoint.msgpack: it goes on from learner.msgpack") in unwrapped(result.output)
     rows = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
     assert [r["eval"] for r in rows] == [0, 1, 2] and rows[-1]["env_steps"] == 1280 + 800 + 6 * 80  # refilled
+    assert [r.get("refilled_from") for r in rows] == [None, None, 1280]  # and says where from
     assert (run / "checkpoint.msgpack").exists()
 
 
