@@ -20,7 +20,17 @@ from fieldgen.schema.terms import TERMS
 GRID = 0.05  # metres per cell of the reachability grid
 MAX_CELLS = 2000  # cells a side at most: a 500 x 500 field is judged on 0.25 m cells
 
-Found = list[tuple[tuple, str]]
+
+class Among(tuple):
+    """Key paths whose values conflict (a goal beyond the field's end: goal.distance, field.length): the
+    problem is shown at the one set in the spec a person edits rather than in a file it extends."""
+
+    def __new__(cls, *paths: tuple):
+        return super().__new__(cls, paths)
+
+
+Found = list[tuple[tuple, str]]  # (key path or Among, message)
+FIELD_SIZE = (("field", "length"), ("field", "width"))  # length first: most conflicts lie along it
 
 
 def physics_problems(spec: FieldSpec) -> Found:
@@ -94,28 +104,32 @@ def _fits_on_field(spec: FieldSpec) -> Found:
     g = spec.goal
     if g.enabled:
         if g.distance > hy:
-            out.append((("goal", "distance"), f"the goal point (y = {g.distance:g}) lies beyond the field's end (y = {hy:g}); "
+            out.append((Among(("goal", "distance"), ("field", "length")),
+                        f"the goal point (y = {g.distance:g}) lies beyond the field's end (y = {hy:g}); "
                         f"make field.length at least {2 * g.distance:g}"))
         if g.width / 2 > hx:
-            out.append((("goal", "width"), f"the goal ({g.width:g} wide) is wider than the field ({spec.field.width:g})"))
+            out.append((Among(("goal", "width"), ("field", "width")),
+                        f"the goal ({g.width:g} wide) is wider than the field ({spec.field.width:g})"))
     reach = geometry.AGENT_REACH[spec.agent.kind]
     sx, sy = spec.agent.start
     if not (x0 + reach <= sx <= x1 - reach and y0 + reach <= sy <= y1 - reach):
-        out.append((("agent", "start"), f"the agent at ({sx:g}, {sy:g}) with reach {reach:.2f} does not fit inside the field"))
+        out.append((Among(("agent", "start"), *FIELD_SIZE),
+                    f"the agent at ({sx:g}, {sy:g}) with reach {reach:.2f} does not fit inside the field"))
     for box in geometry.obstacles(spec):
         name = box.name.removeprefix("obstacle_")
         bx0, bx1, by0, by1 = box.xy_bounds()
         if bx1 < -hx or bx0 > hx or by1 < -hy or by0 > hy:
-            out.append((("obstacles", name), f"obstacle '{name}' lies entirely off the field"))
+            out.append((Among(("obstacles", name), *FIELD_SIZE), f"obstacle '{name}' lies entirely off the field"))
         if _disc_hits_rect(sx, sy, reach, box.xy_bounds()):
             out.append((("obstacles", name), f"obstacle '{name}' overlaps the agent's start at ({sx:g}, {sy:g})"))
     t = spec.task.target
     if t.kind == "ring":
         far = t.radius[1]
         if not (x0 <= sx - far and sx + far <= x1 and y0 <= sy - far and sy + far <= y1):
-            out.append((("task", "target", "radius"), f"targets up to {far:g} from the agent's start can fall off the field"))
+            out.append((Among(("task", "target", "radius"), *FIELD_SIZE),
+                        f"targets up to {far:g} from the agent's start can fall off the field"))
     if t.kind == "point" and not (x0 <= t.x <= x1 and y0 <= t.y <= y1):
-        out.append((("task", "target"), f"the target ({t.x:g}, {t.y:g}) lies off the field"))
+        out.append((Among(("task", "target"), *FIELD_SIZE), f"the target ({t.x:g}, {t.y:g}) lies off the field"))
     return out
 
 
@@ -141,7 +155,7 @@ def _ball_spawn(spec: FieldSpec) -> Found:
     out: Found = []
     x0, x1, y0, y1 = geometry.inner_bounds(spec)
     if rect[0] - r < x0 or rect[1] + r > x1 or rect[2] - r < y0 or rect[3] + r > y1:
-        out.append((where, f"the ball (radius {r:g}) can spawn outside the field or inside a wall; "
+        out.append((Among(where, *FIELD_SIZE), f"the ball (radius {r:g}) can spawn outside the field or inside a wall; "
                     f"centres must stay within x [{x0 + r:g}, {x1 - r:g}], y [{y0 + r:g}, {y1 - r:g}]"))
     for box in geometry.obstacles(spec):
         if _rects_overlap(rect, box.xy_bounds(inflate=r)):

@@ -15,7 +15,7 @@ from pathlib import Path
 from pydantic import ValidationError
 
 from fieldgen.schema import messages
-from fieldgen.schema.checks import physics_problems
+from fieldgen.schema.checks import Among, physics_problems
 from fieldgen.schema.errors import SpecError
 from fieldgen.schema.models import FieldSpec
 from fieldgen.schema.source import Source, read_yaml
@@ -105,11 +105,11 @@ def _physics(source: Source, spec: FieldSpec, written: dict | None = None) -> li
     placeholder -> the name written) is named as written."""
     found = []
     for parts, message in physics_problems(spec):
+        paths = list(parts) if isinstance(parts, Among) else [parts]  # conflicting keys: the one written last
         for placeholder, name in (written or {}).items():
-            if parts[:2] == ("obstacles", placeholder):
-                parts = ("obstacles", name, *parts[2:])
+            paths = [("obstacles", name, *p[2:]) if p[:2] == ("obstacles", placeholder) else p for p in paths]
             message = message.replace(f"'{placeholder}'", f"'{name}'")
-        found.append(source.problem(parts, message))
+        found.append(source.problem(source.written_last(tuple(paths)), message))
     return found
 
 
@@ -164,7 +164,7 @@ def merge(base: Source, child: Source) -> Source:
         if parts and _replaced(child.data, parts):
             del positions[parts]
     positions.update(child.positions)
-    return Source(data, positions)
+    return Source(data, positions, base.files + child.files)
 
 
 def _deep_merge(base, child):

@@ -37,6 +37,18 @@ class Source:
 
     data: dict
     positions: dict[tuple, Pos] = field(default_factory=dict)
+    files: tuple[Path, ...] = ()  # the files it was read from, each over the one before (`extends`)
+
+    def written_last(self, paths: tuple[tuple, ...]) -> tuple:
+        """Of key paths whose values conflict, the one set in the file read last (the spec a person edits,
+        over the files it extends); the first where none is, or several are, in that file."""
+        rank = {file: n for n, file in enumerate(self.files)}
+
+        def order(parts: tuple) -> int:
+            pos = self.positions.get(parts)
+            return rank.get(pos[0], -1) if pos is not None else -1
+
+        return max(paths, key=order)  # max keeps the first of equals
 
     def position(self, parts: tuple) -> Pos | None:
         """The position of the deepest key path prefix that exists."""
@@ -91,7 +103,7 @@ def read_yaml(path: Path, document: str = "a field spec", needs: str = "a field 
         raise SpecError([Problem(path, line, col, "", f"YAML syntax error: {what}")]) from None
     finally:
         loader.dispose()
-    return Source(data, positions)
+    return Source(data, positions, (path,))
 
 
 def _read_text(path: Path, document: str) -> str:

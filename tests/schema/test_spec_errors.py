@@ -105,6 +105,24 @@ def test_a_bad_obstacle_name_hides_none_of_the_specs_other_problems(write_spec):
     assert result.output.splitlines() == ["3 problems in the field spec:", *(f"  {p}" for p in found)]
 
 
+# a spec over a bundled field: (its text, line, key path, a phrase): a problem between two keys is shown at the one
+# the spec itself sets, not at the bundled file's line of the other
+CONFLICTS = [
+    ("field: {length: 8}\n", 3, "field.length", "make field.length at least 20"),
+    ("goal: {distance: 30}\n", 3, "goal.distance", "make field.length at least 60"),
+    ("goal: {distance: 30}\nfield: {length: 20}\n", 3, "goal.distance", "make field.length at least 60"),
+    ("field: {width: 3}\n", 3, "field.width", "the goal (4 wide) is wider than the field (3)"),
+    ("agent: {start: [0, -11]}\n", 3, "agent.start", "does not fit inside the field"),
+]
+
+
+@pytest.mark.parametrize("text,line,path,phrase", CONFLICTS)
+def test_a_conflict_with_an_extended_file_is_shown_where_the_spec_sets_it(write_spec, text, line, path, phrase):
+    spec_file = write_spec(f"extends: soccer_v1\nname: x\n{text}")
+    (p,) = [p for p in problems_of(spec_file) if phrase in p.message]
+    assert (p.file, p.line, p.path) == (spec_file, line, path), str(p)
+
+
 def test_unknown_key_lists_allowed_keys(write_spec):
     (p,) = problems_of(write_spec("name: x\nwalls: {hieght: 1}\n"))
     assert "did you mean 'height'" in p.message
