@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import re
+from pathlib import Path
 
 import imageio.v3 as iio
 from typer.testing import CliRunner
@@ -139,6 +140,16 @@ def test_render_top_and_follow(tmp_path):
     assert images["follow"].shape == (480, 640, 3) and images["both"].shape == (480 + LEGEND_HEIGHT, top + 640, 3)
     result = runner.invoke(app, ["render", "point_soccer", "--camera", "side"])
     assert result.exit_code == 1 and "unknown camera 'side'" in result.output
+
+
+def test_render_refuses_a_file_name_that_says_another_format(tmp_path, monkeypatch):
+    """A PNG written under .jpg or .txt would be read as something it is not."""
+    monkeypatch.chdir(tmp_path)
+    for name in ("sheet.jpg", "field.txt", "noending"):
+        result = runner.invoke(app, ["render", "point_soccer", "-o", name])
+        said = " ".join(result.output.split())
+        assert result.exit_code == 1 and "writes PNG images" in said and not (tmp_path / name).exists(), said
+        assert f"such as {Path(name).with_suffix('.png')}" in said
 
 
 def test_the_gl_back_end_is_one_the_machine_has():

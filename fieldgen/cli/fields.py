@@ -162,6 +162,9 @@ def render(
 
     from fieldgen import curriculum
 
+    if output is not None and output.suffix.lower() != ".png":
+        fail(f"-o {output}: fieldgen render writes PNG images; give the file the .png ending, "
+             f"such as {output.with_suffix('.png')}")
     if levels:
         from fieldgen.run.favoured import favoured_levels
         from fieldgen.run.record import RunError
