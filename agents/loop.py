@@ -394,7 +394,8 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
         state, first, previous = programs(0).start(keys), 1, 0
     else:
         state, index, _ = resume
-        learned_at = int(np.asarray(state.env_steps).reshape(-1)[0])  # where a refilled run's rows mark the refill
+        if refilling:  # where its rows mark the refill
+            learned_at = int(np.asarray(state.env_steps).reshape(-1)[0])
         state = programs(stage).refill(state) if refilling else from_host(state, programs(stage).placement)
         if refilling and sampling:
             state = drawing_as(state, sampling, programs(stage).placement)

@@ -40,8 +40,8 @@ class Source:
     files: tuple[Path, ...] = ()  # the files it was read from, each over the one before (`extends`)
 
     def written_last(self, paths: tuple[tuple, ...]) -> tuple:
-        """Of key paths whose values conflict, the one set in the file read last (the spec a person edits,
-        over the files it extends); the first where none is, or several are, in that file."""
+        """Of key paths whose values conflict, the one set in the latest of the files read (the spec a person
+        edits comes after the files it extends); of paths set in one file, or in none, the first."""
         rank = {file: n for n, file in enumerate(self.files)}
 
         def order(parts: tuple) -> int:
