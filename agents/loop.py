@@ -350,7 +350,7 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
     thread until the chunk ends), so that the device trains while the host writes; in a run over several
     processes, once the chunk's call has returned, so that every process runs the chunk's collectives and then
     the gathering of the evaluation's state in one order. Before each chunk `stop(longest)` is asked, with the
-    longest time a chunk and its evaluation have taken in this call (None before the first): True ends the run
+    time a chunk and its evaluation take in this call (`longest_chunk`; None before the first): True ends the run
     there, its last evaluation handed on as at the end (a time limit: the run goes on later from it). With
     `clock` (a time.perf_counter() value) every row holds `wall_seconds`, from it to the end of the row's
     evaluation, stamped here: a row handed on after a chunk's call that held the host would be dated a chunk
@@ -402,7 +402,7 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
         first, previous = index + 1, int(to_host(state.env_steps)[0])
     took: list[float] = []  # seconds each chunk and its evaluation took
     for index in range(0 if resume is None else first, num_evals + 1):
-        if index > 0 and stop(max(took, default=None)):
+        if index > 0 and stop(longest_chunk(took)):
             break
         began = time.perf_counter()
         metrics = {}
@@ -455,6 +455,13 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
     if reported is not None:
         report(*reported)
     return state, history
+
+
+def longest_chunk(took: list[float]) -> float | None:
+    """The longest of a call's chunks (each with its evaluation) but its first, which alone also waits for what
+    is done once (programs compiled, a buffer refilled, the state moved to the device); the first while it is
+    the only one, None before any."""
+    return max(took[1:] or took, default=None)
 
 
 def _with_env(trainer: Trainer, state, index: int):

@@ -228,3 +228,12 @@ def test_an_evaluation_is_handed_on_while_the_next_chunk_holds_its_call_and_date
                               lambda index, rows: handed.set(), clock=0.0)
     assert in_time == [True, True]
     assert [r["wall_seconds"] for r in rows] == [0.0, 100.0, 200.0]
+
+
+def test_a_calls_first_chunk_counts_toward_the_time_a_chunk_takes_only_while_it_is_the_only_one():
+    """The first chunk of a command also waits for compiling, a refilled buffer and the state's move to the
+    device: a time limit judged on it would stop a run a chunk early in every command."""
+    assert loop.longest_chunk([]) is None
+    assert loop.longest_chunk([118.0]) == 118.0
+    assert loop.longest_chunk([118.0, 70.0, 72.0]) == 72.0
+    assert loop.longest_chunk([60.0, 70.0]) == 70.0
