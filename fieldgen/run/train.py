@@ -42,8 +42,9 @@ def train(run: Run, console: Console, videos: bool = True, logger: str = "none",
 
 class Deadline:
     """Whether the next chunk fits before a deadline: the longest a chunk with its evaluation has taken (in
-    this command, else the median gap between the run's evaluations so far) and the longest that handing an
-    evaluation on and writing its whole checkpoint took. Before anything is measured, the chunk runs."""
+    this command, its first chunk left out once others are measured: `loop.longest_chunk`; else the median gap
+    between the run's evaluations so far) and the longest that handing an evaluation on and writing its whole
+    checkpoint took. Before anything is measured, the chunk runs."""
 
     def __init__(self, at: float | None, rows: list[dict]) -> None:
         self.at, self.rows = at, rows
