@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import itertools
 import time
 from typing import Callable, Protocol, Sequence
 
@@ -22,11 +23,12 @@ from ..env.contract import Environment
 from ..env.mjx_physics import OVERFLOW, merged
 from .config import RunConfig
 from .programs import Programs, computed
-from .sharding import from_host, to_host
+from .sharding import from_host, meet, to_host
 
 EVAL_STREAM = 0x5EED  # evaluation keys: fold_in(fold_in(seed key, EVAL_STREAM), evaluation index)
 LEVEL_STREAM = 0x1E7E1  # a schedule's choice of levels: fold_in(the training state's key, LEVEL_STREAM)
 KICKOFF_BINS = 10  # a row's share of new episodes by kick-off: bins evenly from the easiest start to the field's own
+_meetings = itertools.count()  # each `meet` of this process's runs under a name of its own
 
 
 class Schedule(Protocol):
@@ -390,6 +392,10 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
                             *(("adapt",) if trainers[stage].env.variant_count > 1 else ()))
     if staged and stage != last:
         programs(last).prepare("evaluate")
+    if jax.process_count() > 1:  # no process calls a program before every process has compiled them (`meet`)
+        for k in {stage, last}:
+            programs(k).compiled()
+        computed(None, lambda _: meet(f"fieldgen/compiled/{next(_meetings)}"))
     if resume is None:
         state, first, previous = programs(0).start(keys), 1, 0
     else:

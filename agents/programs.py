@@ -147,6 +147,11 @@ class Programs:
             if name not in self._compiling:
                 self._compiling[name] = self._jobs[name]()
 
+    def compiled(self) -> None:
+        """Wait until every program asked for so far has compiled."""
+        for program in self._compiling.values():
+            program._done.result()
+
     def _program(self, name: str) -> Compiling:
         self.prepare(name)
         return self._compiling[name]

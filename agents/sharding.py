@@ -72,6 +72,26 @@ def from_host(tree, placement):
                         tree, placement)
 
 
+MEETING_SECONDS = 3600  # how long a process waits for the others at a meeting; one that dies is noticed sooner
+
+
+def coordination_client():
+    """The coordination service's client JAX keeps (None in a run of one process). Its public API has no way
+    to it: jax.distributed only starts and stops the runtime, and multihost_utils' barriers are collectives,
+    which is what a meeting must come before."""
+    from jax._src import distributed
+
+    return distributed.global_state.client
+
+
+def meet(name: str, seconds: int = MEETING_SECONDS) -> None:
+    """Wait until every process of the run has called meet(name), through the coordination service rather
+    than a collective: on the CPU, gloo gives the other processes 30 s to join a process's first collective,
+    less than one process's compile can lag another's. A no-op in a run of one process."""
+    if jax.process_count() > 1:
+        coordination_client().wait_at_barrier(name, seconds * 1000)
+
+
 def to_host(tree):
     """`tree` as NumPy arrays, whole, on this host (jax.device_get), gathering the shares other processes hold
     where a run spans several."""

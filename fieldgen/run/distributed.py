@@ -162,13 +162,12 @@ def stop_if_another_stopped(error: BaseException, say: Callable[[str], None]) ->
 
 
 def _client():
-    """The coordination service's client JAX keeps (None in a run of one process): whether the others live
-    and what they said are not asked of JAX otherwise. Its public API has no way to it: jax.distributed only
-    starts and stops the runtime, and multihost_utils.live_devices is a barrier every process must enter
-    (no watcher thread can call it) and reads no keys."""
-    from jax._src import distributed
+    """The coordination service's client (agents.sharding.coordination_client): whether the others live and
+    what they said are not asked of JAX otherwise; multihost_utils.live_devices is a barrier every process
+    must enter (no watcher thread can call it) and reads no keys."""
+    from fieldgen.agents.sharding import coordination_client
 
-    return distributed.global_state.client
+    return coordination_client()
 
 
 def _gone(me: int, count: int) -> list[int]:

@@ -102,12 +102,26 @@ def test_a_process_gone_ends_this_one_with_one_sentence_naming_it(monkeypatch):
 
 # Two `fieldgen train` processes on the CPU, one device each, train as one run over both (their collectives go
 # through gloo); the same run in one process over two devices is what they must reproduce.
-def fieldgen_train(args: list[str], log: Path, devices: int = 1) -> subprocess.Popen:
+def fieldgen_train(args: list[str], log: Path, devices: int = 1, python: tuple[str, ...] = ("-m", "fieldgen")
+                   ) -> subprocess.Popen:
     """`fieldgen train ARGS` in its own process on `devices` CPU devices, its output in `log`."""
     env = {**os.environ, **distributed.only_devices("cpu", range(devices))}
     with log.open("w") as output:
-        return subprocess.Popen([sys.executable, "-m", "fieldgen", "train", *args], stdout=output,
+        return subprocess.Popen([sys.executable, *python, "train", *args], stdout=output,
                                 stderr=subprocess.STDOUT, env=env)
+
+
+LAG_SECONDS = 45  # more than the 30 s gloo gives the other processes to join a process's first collective
+COMPILES_LATE = f"""import time
+from fieldgen.agents import programs
+compile_, lags = programs.Compiling._compile, [{LAG_SECONDS}]
+def late(self, lowered):
+    time.sleep(lags.pop() if lags else 0)
+    compile_(self, lowered)
+programs.Compiling._compile = late
+from fieldgen.cli import app
+app(prog_name="fieldgen")
+"""  # `fieldgen` whose first compile starts LAG_SECONDS late
 
 
 def over_two_processes(args: list[str], folder: Path, logs: str = "process") -> list[subprocess.Popen]:
@@ -151,6 +165,19 @@ def test_two_processes_train_the_run_one_process_trains_over_two_devices(tmp_pat
     assert results(run) == results(one_process)
     assert json.loads((run / "run.json").read_text())["processes"]["devices_per_process"] == [1, 1]
     assert "metrics:" in outputs[0] and "metrics:" not in outputs[1]  # process 0 alone reports and writes
+
+
+@pytest.mark.slow
+def test_a_process_that_compiles_long_after_the_other_still_trains_the_run_with_it(tmp_path, two_seeds, one_process):
+    """Process 0 (not supervised: it runs in the process started here) compiles LAG_SECONDS late; process 1
+    waits for it before either calls a program, rather than failing in its first collective."""
+    port = distributed.free_port()
+    joined = [*two_seeds, "--out", str(tmp_path), "--coordinator", f"127.0.0.1:{port}", "--num-processes", "2"]
+    later = fieldgen_train([*joined, "--process-id", "1"], tmp_path / "process1.log")
+    first = fieldgen_train([*joined, "--process-id", "0"], tmp_path / "process0.log", python=("-c", COMPILES_LATE))
+    for i, process in enumerate((first, later)):
+        ended(process, tmp_path / f"process{i}.log")
+    assert results(tmp_path / "point_nav-crl-0to1") == results(one_process)
 
 
 @pytest.mark.slow
