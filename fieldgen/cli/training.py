@@ -201,7 +201,7 @@ def train(
                 fail(f"--init-from sets up a new run; {resume} goes on from its own checkpoint (or from what it "
                      "was set up to start from): drop --init-from, or train into another --out")
             run = session.open_run(resume, to_train=True)
-            if run.refills and run.rows:
+            if run.refills and run.rows and not run.finished:
                 drawn = "; its episodes drawn as they were (its levels and their counts)" if run.sampling else ""
                 out.print(f"{resume} holds no {record.CHECKPOINT}: it goes on from {record.LEARNER} with fresh "
                           f"episodes and a replay buffer filled anew by its policy (those env steps count){drawn}")

@@ -238,6 +238,20 @@ def learner_contents(trainer: loop.Trainer, state) -> tuple:
     return trainer.learned(state), loop.episode_sampling(state.env_state)
 
 
+def _learned_to_the_end(run: Run) -> bool:
+    """Whether what the run learned alone (learner.msgpack, megabytes) is of its last evaluation, so that a run
+    whose rows say it is complete is: then it is the run's state. Not so where a kill came between the last
+    row and its learner, or the learner is missing or damaged: the whole checkpoint then says where it is."""
+    try:
+        state, sampling = checkpoint.load(run.folder / record.LEARNER, *learner_template(run))
+    except checkpoint.CheckpointError:
+        return False
+    if int(jax.device_get(state.env_steps)[0]) != run.rows[-1]["env_steps"]:
+        return False
+    run.state, run.sampling = state, sampling
+    return True
+
+
 def learner_template(run: Run) -> tuple:
     """The shapes of what `learner.msgpack` holds for the run's trainer (`learner_contents`)."""
     trainer = run.trainers[run.stage]
@@ -339,12 +353,25 @@ def open_run(folder: Path, load_state: bool = True, to_train: bool = False, lear
               init_from=saved.init_from.model_dump() if saved.init_from else None)
     if not load_state:
         return run  # only reported on
+    damaged = "the file was edited or damaged: restore it from a copy, or start the run again in a new folder"
+    trained = record.has_trained(folder)
+    if trained:
+        if not rows:  # the checkpoint's own evaluation is always written before it
+            raise record.RunError(f"{folder / record.METRICS} holds no evaluation, yet the run has a checkpoint; "
+                                  f"{damaged}")
+        if not run.mixed:
+            run.stage = rows[-1].get("promoted_to", rows[-1].get("stage", 0))
+            if run.stage >= len(envs):
+                raise record.RunError(f"{folder / record.METRICS}'s last row puts the run at stage {run.stage + 1}, "
+                                      f"past its last ({len(envs)}); {damaged}")
+        if to_train and run.finished and _learned_to_the_end(run):
+            return run  # trains no further: neither its whole checkpoint (gigabytes) nor this machine's memory matter
     if to_train:
         try:
             check_memory(run)
         except ConfigError as exc:
             raise record.RunError(str(exc)) from None
-    if not record.has_trained(folder):
+    if not trained:
         run.rows = []  # prepared, or stopped before its first checkpoint: it starts from the beginning
         if run.init_from:
             try:
@@ -353,14 +380,6 @@ def open_run(folder: Path, load_state: bool = True, to_train: bool = False, lear
                 raise record.RunError(f"{exc}; it holds what the run was set up to start from "
                                       f"({run.init_from['run']}): set the run up again with --init-from") from None
         return run
-    damaged = "the file was edited or damaged: restore it from a copy, or start the run again in a new folder"
-    if not rows:  # the checkpoint's own evaluation is always written before it
-        raise record.RunError(f"{folder / record.METRICS} holds no evaluation, yet the run has a checkpoint; {damaged}")
-    if not run.mixed:
-        run.stage = rows[-1].get("promoted_to", rows[-1].get("stage", 0))
-        if run.stage >= len(envs):
-            raise record.RunError(f"{folder / record.METRICS}'s last row puts the run at stage {run.stage + 1}, "
-                                  f"past its last ({len(envs)}); {damaged}")
     path = folder / record.CHECKPOINT
     alone = not path.exists() or (learned and (folder / record.LEARNER).exists())
     try:

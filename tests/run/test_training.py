@@ -332,8 +332,18 @@ def test_cli_run_folder_and_resume_of_a_finished_run(tmp_path, monkeypatch, tiny
     assert (run / "metrics.csv").read_text().splitlines()[0].startswith("eval,seed,env_steps")
     again = runner.invoke(app, args)
     assert again.exit_code == 1 and "--resume" in again.output
+    loaded, load = [], checkpoint.load
+    monkeypatch.setattr(checkpoint, "load", lambda path, *args: loaded.append(path.name) or load(path, *args))
     done = runner.invoke(app, ["train", "--resume", str(run)])
     assert done.exit_code == 0 and "already complete" in done.output
+    assert loaded == ["learner.msgpack"]  # of the last evaluation: the whole checkpoint is not read
+    (run / "learner.msgpack").rename(tmp_path / "learner.msgpack")  # a kill before the last learner was written
+    loaded.clear()
+    done = runner.invoke(app, ["train", "--resume", str(run)])
+    assert done.exit_code == 0 and "already complete" in done.output
+    assert loaded == ["learner.msgpack", "checkpoint.msgpack"]  # none there: the whole checkpoint says where it is
+    assert "goes on from" not in done.output
+    (tmp_path / "learner.msgpack").rename(run / "learner.msgpack")
     evaluated = runner.invoke(app, ["eval", str(run), "--episodes", "8"])
     assert evaluated.exit_code == 0, evaluated.output
     assert "success_any" in evaluated.output and "time_at_goal" in evaluated.output
