@@ -239,9 +239,9 @@ def learner_contents(trainer: loop.Trainer, state) -> tuple:
 
 
 def _learned_to_the_end(run: Run) -> bool:
-    """Whether what the run learned alone (learner.msgpack, megabytes) is of its last evaluation, so that a run
-    whose rows say it is complete is: then it is the run's state. Not so where a kill came between the last
-    row and its learner, or the learner is missing or damaged: the whole checkpoint then says where it is."""
+    """Whether what the run learned alone (learner.msgpack, megabytes) is of its last evaluation: then a run
+    whose rows say it is complete is, and that is its state. Not so where a kill came between the last row and
+    its learner, or the learner is missing or damaged: the whole checkpoint then says where the run is."""
     try:
         state, sampling = checkpoint.load(run.folder / record.LEARNER, *learner_template(run))
     except checkpoint.CheckpointError:
