@@ -7,6 +7,7 @@ import re
 from pathlib import Path
 
 import imageio.v3 as iio
+import pytest
 from typer.testing import CliRunner
 
 from fieldgen.cli import app
@@ -378,3 +379,20 @@ def test_a_child_fieldgen_started_in_a_checkout_runs_the_installed_package(tmp_p
     (shadow / "__init__.py").write_text("raise ImportError('the checkout was imported, not the package')\n")
     done = subprocess.run(fieldgen_command("--version"), cwd=tmp_path, capture_output=True, text=True, timeout=120)
     assert done.returncode == 0 and "the checkout was imported" not in done.stderr, done.stderr
+
+
+TOO_LONG = "q" * 5000  # longer than any file system takes for a name
+
+
+@pytest.mark.parametrize("command", [
+    ["validate", f"{TOO_LONG}.yaml"], ["build", TOO_LONG], ["train", f"{TOO_LONG}.yaml"],
+    ["train", "--resume", TOO_LONG],
+    ["eval", TOO_LONG], ["render", f"{TOO_LONG}.yaml"], ["validate", "loop.yaml"], ["build", "loop.yaml"]])
+def test_a_path_the_system_refuses_is_one_line_naming_it(tmp_path, monkeypatch, command):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "loop.yaml").symlink_to("loop.yaml")  # a link to itself: no file behind it
+    result = runner.invoke(app, command)
+    assert result.exit_code == 1 and "Traceback" not in result.output, result.output[-2000:]
+    (line,) = result.output.strip().splitlines()
+    said = "q" * 40 + "... (5,00" if TOO_LONG in command[-1] else "loop.yaml: too many levels of symbolic links"
+    assert line.startswith("error: ") and said in line and len(line) < 200, line

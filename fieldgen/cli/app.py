@@ -13,12 +13,33 @@ from rich.console import Console
 from rich.text import Text
 
 from fieldgen import files, xla_cache, xla_flags
-from fieldgen.cli.helptext import ReadableTyper
+from fieldgen.cli.helptext import ReadableCommand, ReadableTyper
 from fieldgen.schema import bundled_fields, resolve_spec_path
+from fieldgen.schema.errors import shown_text
 from fieldgen.suggest import did_you_mean
 from fieldgen.version import VERSION
 
+class Command(ReadableCommand):
+    """A command that fails on a path the system refuses (a name too long for it, a loop of links, no
+    permission, a full disk) says so in one line naming the path, as any other bad input, not in a traceback."""
+
+    def invoke(self, ctx):
+        try:
+            return super().invoke(ctx)
+        except OSError as exc:
+            if exc.filename is None:
+                raise
+            fail(os_problem(exc))
+
+
+def os_problem(exc: OSError) -> str:
+    """What the system refused, about which path, in a few words."""
+    said = (exc.strerror or str(exc)).lower()
+    return said if exc.filename is None else f"{shown_text(str(exc.filename))}: {said}"
+
+
 app = ReadableTyper(
+    command_class=Command,
     help="Robot-soccer fields from YAML specs, compiled to GPU-batched MJX environments.",
     no_args_is_help=True,
     pretty_exceptions_enable=False,
@@ -90,6 +111,12 @@ def spec_path(ref: str) -> Path:
     from fieldgen.curriculum import INDEX, is_curriculum
 
     path = resolve_spec_path(ref)
+    try:
+        path.stat()
+    except (FileNotFoundError, NotADirectoryError):
+        pass  # said below, with the nearest names
+    except OSError as exc:  # a name too long, a loop of links, no permission
+        fail(os_problem(exc))
     if path.name == INDEX and is_curriculum(path.parent):
         fail(f"{ref} lists the stages of a curriculum, not a field: give the curriculum's folder, {path.parent}, "
              "to validate, build, render or train")
@@ -107,7 +134,11 @@ def spec_path(ref: str) -> Path:
 
 def field_source(ref: str) -> Path:
     """A build folder as it is; else a YAML file or bundled field name."""
-    return Path(ref) if Path(ref).is_dir() else spec_path(ref)
+    try:
+        folder = Path(ref).is_dir()
+    except OSError as exc:  # a name too long for the system
+        fail(os_problem(exc))
+    return Path(ref) if folder else spec_path(ref)
 
 
 def _print_version(given: bool) -> None:

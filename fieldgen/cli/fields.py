@@ -11,7 +11,7 @@ import typer
 from rich.table import Table
 from rich.text import Text
 
-from fieldgen.cli.app import SpecArg, app, choice, count, err, fail, field_source, out, spec_path
+from fieldgen.cli.app import SpecArg, app, choice, count, err, fail, field_source, os_problem, out, spec_path
 from fieldgen.compile.cameras import CAMERAS
 from fieldgen.schema import SpecError, bundled_fields, geometry, load_spec
 
@@ -84,8 +84,8 @@ def build(
         except FolderError as exc:
             fail(str(exc))
         except OSError as exc:
-            fail(f"{exc}; any earlier build there is unchanged: free some space, fix the folder's permissions "
-                  "or choose another --out")
+            fail(f"{os_problem(exc)}; any earlier build there is unchanged: free some space, fix the folder's "
+                 "permissions or choose another --out")
         _report(result)
     if failed:
         raise typer.Exit(1)

@@ -84,10 +84,11 @@ class ReadableGroup(Readable, TyperGroup):
 
 
 class ReadableTyper(typer.Typer):
-    """A typer application whose commands all show readable parameters."""
+    """A typer application whose commands all show readable parameters (`command_class`, a ReadableCommand)."""
 
-    def __init__(self, **kwargs):
+    def __init__(self, command_class: type = ReadableCommand, **kwargs):
         super().__init__(cls=ReadableGroup, **kwargs)
+        self.command_class = command_class
 
     def command(self, *args, **kwargs):
-        return super().command(*args, cls=ReadableCommand, **kwargs)
+        return super().command(*args, cls=self.command_class, **kwargs)

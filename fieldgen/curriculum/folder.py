@@ -154,7 +154,10 @@ def _problems(index: Path, problems: list) -> str:
 
 
 def is_curriculum(path: Path) -> bool:
-    return path.is_dir() and (path / INDEX).exists()
+    try:
+        return path.is_dir() and (path / INDEX).exists()
+    except OSError:  # a name too long for the system is no curriculum; reading it as a field says why
+        return False
 
 
 # -- helpers -------------------------------------------------------------------------------------

@@ -37,8 +37,20 @@ class SpecError(Exception):
         return "\n".join([head] + [f"  {p}" for p in self.problems])
 
 
+SHOWN_CHARACTERS = 60  # of a key or value echoed in a problem: enough to recognise it, a line at most
+
+
+def shown_text(text: str) -> str:
+    """Text from a spec as a problem echoes it: characters that print as nothing or reorder a terminal's line
+    (U+202E...) escaped, and a long text cut to its start with its length, so that one problem stays a line."""
+    text = "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii") for c in text)
+    if len(text) <= SHOWN_CHARACTERS:
+        return text
+    return f"{text[:SHOWN_CHARACTERS - 20]}... ({len(text):,} characters)"
+
+
 def format_path(parts: tuple) -> str:
     out = ""
     for part in parts:
-        out += f"[{part}]" if isinstance(part, int) else (f".{part}" if out else str(part))
+        out += f"[{part}]" if isinstance(part, int) else (f".{shown_text(part)}" if out else shown_text(str(part)))
     return out

@@ -16,7 +16,7 @@ from pydantic import ValidationError
 
 from fieldgen.schema import messages
 from fieldgen.schema.checks import Among, physics_problems
-from fieldgen.schema.errors import SpecError
+from fieldgen.schema.errors import SpecError, shown_text
 from fieldgen.schema.models import FieldSpec
 from fieldgen.schema.source import Source, read_yaml
 from fieldgen.suggest import did_you_mean
@@ -143,16 +143,23 @@ def _extended(source: Source, ref, path: Path) -> Path:
 
     if not isinstance(ref, str) or not ref.strip():
         refuse("it is empty" if isinstance(ref, str) else f"{ref!r} is not a name or a path")
+    shown = shown_text(ref)
     looks_like_path = "/" in ref or "\\" in ref or ref.endswith((".yaml", ".yml"))
     if looks_like_path and (Path(ref).is_absolute() or ref.startswith(("~", "\\"))):
-        refuse(f"'{ref}' is an absolute path")
+        refuse(f"'{shown}' is an absolute path")
     if looks_like_path and not ref.endswith((".yaml", ".yml")):
-        refuse(f"'{ref}' does not end in .yaml")
+        refuse(f"'{shown}' does not end in .yaml")
     parent = resolve_spec_path(ref, relative_to=path)
+    try:
+        parent.stat()
+    except FileNotFoundError:
+        pass  # said below, with the bundled names near it
+    except OSError as exc:  # a name too long for the file system, a loop of links...
+        refuse(f"'{shown}' cannot be a file here ({exc.strerror.lower()})")
     if not parent.exists():
-        refuse(f"'{ref}' is neither a bundled field nor a file{did_you_mean(ref, bundled_fields())}")
+        refuse(f"'{shown}' is neither a bundled field nor a file{did_you_mean(ref, bundled_fields())}")
     if not parent.is_file():
-        refuse(f"'{ref}' is {'a folder' if parent.is_dir() else 'not a regular file'}")
+        refuse(f"'{shown}' is {'a folder' if parent.is_dir() else 'not a regular file'}")
     return parent
 
 

@@ -9,7 +9,7 @@ import typing
 
 from pydantic import BaseModel
 
-from fieldgen.schema.errors import Problem
+from fieldgen.schema.errors import SHOWN_CHARACTERS, Problem, shown_text
 from fieldgen.schema.models import PATTERN_WORDS, FieldSpec, NotAsWritten
 from fieldgen.schema.source import Source
 from fieldgen.suggest import did_you_mean
@@ -45,7 +45,7 @@ def _problem(source: Source, parts: tuple, errs: list[dict], model: type[BaseMod
         return source.problem(parts, f"expected {' or '.join(wanted)} (got {_shown(value)})")
     if kind == "extra_forbidden":
         allowed = _allowed_keys(model, err["loc"][:-1])
-        msg = f"unknown key '{parts[-1]}'{did_you_mean(str(parts[-1]), allowed) or '.'}"
+        msg = f"unknown key '{shown_text(str(parts[-1]))}'{did_you_mean(str(parts[-1]), allowed) or '.'}"
         return source.problem(parts, msg + (f" Allowed keys here: {', '.join(allowed)}." if allowed else ""))
     if kind == "missing" and isinstance(err["loc"][-1], int):
         return source.problem(parts, f"expected a pair [a, b] (got {len(value)} item{'s' * (len(value) != 1)})")
@@ -59,7 +59,7 @@ def _problem(source: Source, parts: tuple, errs: list[dict], model: type[BaseMod
         return _tag_problem(source, parts, err, model)
     if kind == "literal_error" and isinstance(value, str):
         expected = re.findall(r"'([^']*)'", err["ctx"]["expected"])
-        return source.problem(parts, f"{err['msg']} (got {value!r}{did_you_mean(value, expected)})")
+        return source.problem(parts, f"{err['msg']} (got {_shown(value)}{did_you_mean(value, expected)})")
     if kind == "string_pattern_mismatch" and err["ctx"]["pattern"] in PATTERN_WORDS:
         return source.problem(parts, f"a name is {PATTERN_WORDS[err['ctx']['pattern']]}, such as "
                                      f"'{_named(value, err['ctx']['pattern'])}' (got {_shown(value)})")
@@ -79,7 +79,8 @@ def _tag_problem(source: Source, parts: tuple, err: dict, model: type[BaseModel]
     if err["type"] == "union_tag_not_found":
         return source.problem(parts, f"the key '{key}' is required here: one of {listed}")
     tag = str(ctx["tag"])
-    return source.problem(parts + (key,), f"unknown {key} '{tag}': one of {listed}{did_you_mean(tag, names)}")
+    return source.problem(parts + (key,), f"unknown {key} '{shown_text(tag)}': one of {listed}"
+                                          f"{did_you_mean(tag, names)}")
 
 
 def _expected(err: dict) -> str | None:
@@ -103,14 +104,16 @@ def _named(text: str, pattern: str) -> str:
 
 
 def _shown(value) -> str:
-    """A value as YAML writes it."""
+    """A value as YAML writes it, a long text cut to its start (`shown_text`)."""
     if isinstance(value, bool) or value is None:
         return {True: "true", False: "false", None: "null"}[value]
     if isinstance(value, dict):
         return "a mapping"
     if isinstance(value, list):
         return "a list"
-    return repr(value)
+    if isinstance(value, str) and len(value) > SHOWN_CHARACTERS:
+        return f"{value[:SHOWN_CHARACTERS - 20]!r}... ({len(value):,} characters)"
+    return shown_text(repr(value))
 
 
 def _data_path(data, loc: tuple, missing: bool = False) -> tuple:

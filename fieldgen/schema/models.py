@@ -15,6 +15,7 @@ from pydantic import (AfterValidator, BaseModel, BeforeValidator, ConfigDict, Di
                       model_validator)
 
 from fieldgen.schema.backends import BACKENDS, backend_description
+from fieldgen.schema.errors import shown_text
 from fieldgen.schema.terms import TERMS
 
 MAX_EXTENT = 500.0  # metres; anything larger is a typo, not a field
@@ -84,10 +85,10 @@ def _taken_as_written(value, annotation):
             raise ValueError(f"{str(item).lower()} is not a number")
         if isinstance(item, str) and str not in accepts and item not in words and numeric:
             choices = f" or one of {', '.join(repr(w) for w in sorted(words))}" if words else ""
-            raise ValueError(f"'{item}' is text, not a number{choices}"
+            raise ValueError(f"'{shown_text(item)}' is text, not a number{choices}"
                              + ("; write it without quotes" if _is_number(item) else ""))
     if accepts == {bool} and not isinstance(value, bool):
-        raise ValueError(f"{value!r} is not true or false")
+        raise ValueError(f"{shown_text(repr(value))} is not true or false")
     return value
 
 

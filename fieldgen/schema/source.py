@@ -21,7 +21,7 @@ from pathlib import Path
 
 import yaml
 
-from fieldgen.schema.errors import Problem, SpecError, format_path
+from fieldgen.schema.errors import Problem, SpecError, format_path, shown_text
 
 Pos = tuple[Path, int, int]
 MAX_BYTES = 1_000_000  # a spec is a few kilobytes; a megabyte is a mistake or an attack
@@ -253,7 +253,7 @@ def _walk(path: Path, node: yaml.Node, parts: tuple, positions: dict, problems: 
         for key_node, value_node in node.value:
             if not isinstance(key_node, yaml.ScalarNode) or key_node.tag != _STR:
                 shown = key_node.value if isinstance(key_node, yaml.ScalarNode) else "a list or mapping"
-                problems.append(_at(path, key_node, parts, f"keys must be plain names, not {shown!r}"
+                problems.append(_at(path, key_node, parts, f"keys must be plain names, not {shown_text(repr(shown))}"
                                     if isinstance(shown, str) and shown != "a list or mapping"
                                     else "keys must be plain names, not a list or mapping"))
                 continue
@@ -261,7 +261,8 @@ def _walk(path: Path, node: yaml.Node, parts: tuple, positions: dict, problems: 
             here = parts + (key,)
             if key in seen:
                 first = seen[key]
-                problems.append(_at(path, key_node, here, f"duplicate key '{key}' (first given on line {first})"))
+                problems.append(_at(path, key_node, here, f"duplicate key '{shown_text(key)}' (first given on line "
+                                    f"{first})"))
                 continue
             seen[key] = key_node.start_mark.line + 1
             positions[here] = _pos(path, key_node)

@@ -41,6 +41,28 @@ def test_spec_text_prints_as_written(write_spec):
     assert "obstacles.[link=https://x.example]a[/link]:" in result.output
 
 
+LONG = "q" * 5000
+
+
+@pytest.mark.parametrize("text", [
+    f"name: {LONG}\n",                                        # a value
+    f"name: x\ntask:\n  target: {{kind: {LONG}}}\n",          # a choice's name
+    f"name: x\nextends: {LONG}.yaml\n",                      # what it extends
+    f"name: x\nball:\n  enabled: {LONG}\n",                   # a switch
+    f"name: x\ngoal:\n  width: {LONG}\n",                     # a number
+    f"name: x\ngoal:\n  {LONG[:1000]}: 1\n",                 # a key (YAML's longest plain key)
+    f"name: x\n{LONG[:1000]}: 1\n{LONG[:1000]}: 2\n",          # a key given twice
+    "name: x\n\u202e: 1\ngoal: {width: '\u202e'}\n",      # characters that reorder a terminal's line
+])
+def test_a_problem_echoes_the_spec_in_a_line_at_most(write_spec, text):
+    result = CliRunner().invoke(app, ["validate", str(write_spec(text))])
+    assert result.exit_code == 1 and "Traceback" not in result.output
+    lines = [line for line in result.output.splitlines() if line.startswith("  ")]
+    assert lines and all(len(line) < 1000 for line in lines) and LONG[:100] not in result.output, result.output[:2000]
+    assert "\u202e" not in result.output
+    assert ("characters)" in result.output) != ("\\u202e" in result.output)
+
+
 def plain(tp):
     while typing.get_origin(tp) is typing.Annotated:
         tp = typing.get_args(tp)[0]
