@@ -32,10 +32,16 @@ class Command(ReadableCommand):
             fail(os_problem(exc))
 
 
+PATH_CHARACTERS = 300  # of a path echoed in a message: any real one, not one the system refuses as too long
+
+
 def os_problem(exc: OSError) -> str:
     """What the system refused, about which path, in a few words."""
-    said = (exc.strerror or str(exc)).lower()
-    return said if exc.filename is None else f"{shown_text(str(exc.filename))}: {said}"
+    said = exc.strerror or str(exc)
+    if exc.filename is None:
+        return said
+    path = shown_text(str(exc.filename), PATH_CHARACTERS)
+    return f"cannot write {path}: {said}" if isinstance(exc, files.WriteError) else f"{path}: {said}"
 
 
 app = ReadableTyper(

@@ -40,13 +40,14 @@ class SpecError(Exception):
 SHOWN_CHARACTERS = 60  # of a key or value echoed in a problem: enough to recognise it, a line at most
 
 
-def shown_text(text: str) -> str:
+def shown_text(text: str, most: int = SHOWN_CHARACTERS) -> str:
     """Text from a spec as a problem echoes it: characters that print as nothing or reorder a terminal's line
-    (U+202E...) escaped, and a long text cut to its start with its length, so that one problem stays a line."""
+    (U+202E...) escaped, and a text longer than `most` cut to its start with its length, so that one problem
+    stays a line."""
     text = "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii") for c in text)
-    if len(text) <= SHOWN_CHARACTERS:
+    if len(text) <= most:
         return text
-    return f"{text[:SHOWN_CHARACTERS - 20]}... ({len(text):,} characters)"
+    return f"{text[:most - 20]}... ({len(text):,} characters)"
 
 
 def format_path(parts: tuple) -> str:
