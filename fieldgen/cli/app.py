@@ -19,6 +19,7 @@ from fieldgen.schema.errors import shown_text
 from fieldgen.suggest import did_you_mean
 from fieldgen.version import VERSION
 
+
 class Command(ReadableCommand):
     """A command that fails on a path the system refuses (a name too long for it, a loop of links, no
     permission, a full disk) says so in one line naming the path, as any other bad input, not in a traceback."""
