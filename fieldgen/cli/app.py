@@ -38,11 +38,10 @@ PATH_CHARACTERS = 300  # of a path echoed in a message: any real one, not one th
 
 def os_problem(exc: OSError) -> str:
     """What the system refused, about which path, in a few words."""
+    if isinstance(exc, files.WriteError):
+        return str(exc)  # its own words: "cannot write PATH: why"
     said = exc.strerror or str(exc)
-    if exc.filename is None:
-        return said
-    path = shown_text(str(exc.filename), PATH_CHARACTERS)
-    return f"cannot write {path}: {said}" if isinstance(exc, files.WriteError) else f"{path}: {said}"
+    return said if exc.filename is None else f"{shown_text(str(exc.filename), PATH_CHARACTERS)}: {said}"
 
 
 app = ReadableTyper(
@@ -141,11 +140,7 @@ def spec_path(ref: str) -> Path:
 
 def field_source(ref: str) -> Path:
     """A build folder as it is; else a YAML file or bundled field name."""
-    try:
-        folder = Path(ref).is_dir()
-    except OSError as exc:  # a name too long for the system
-        fail(os_problem(exc))
-    return Path(ref) if folder else spec_path(ref)
+    return Path(ref) if Path(ref).is_dir() else spec_path(ref)  # a path the system refuses: `Command` says so
 
 
 def _print_version(given: bool) -> None:
