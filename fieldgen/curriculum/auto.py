@@ -23,7 +23,8 @@ simulation. Where the environment has them, `next_levels` keeps a buffer of
 about `buffer` levels (a level, one of its points) in the environments' own state, as ACCEL does: it starts
 spread from the easy end to the spec, each level's success is estimated from the training episodes that ended
 on it, episodes go to the learnable by p(1 - p), and after each evaluation the `replaced` lowest-scoring levels
-give way to mutations of the highest-scoring ones. Those settings are a `Sampler`, recorded in run.json.
+give way to mutations of the highest-scoring ones (`hardest_share` keeps the level furthest along from leaving).
+Those settings are a `Sampler`, recorded in run.json.
 """
 
 from __future__ import annotations
@@ -86,11 +87,17 @@ class Sampler(BaseModel):
     kept: float = Field(0.5, ge=0, le=1, description="of a level's episode counts, kept at each evaluation: "
                                                      "older episodes count for less, an unplayed level drifts "
                                                      "back to the prior")
+    hardest_share: float = Field(0.0, ge=0, le=1, description="of new episodes, on the buffer's level furthest "
+                                                               "along the path but the spec, which is never "
+                                                               "replaced: the buffer cannot retreat")
 
     @model_validator(mode="after")
     def _fits(self):
         if self.floor + self.frontier_share > 1:
             raise ValueError(f"floor {self.floor} and frontier_share {self.frontier_share} together pass 1: "
+                             "lower one of them")
+        if self.floor + self.hardest_share > 1:
+            raise ValueError(f"floor {self.floor} and hardest_share {self.hardest_share} together pass 1: "
                              "lower one of them")
         if self.replaced > self.buffer:
             raise ValueError(f"replaced {self.replaced} is more than the buffer's {self.buffer} levels")
@@ -228,7 +235,9 @@ def next_levels(counts: jax.Array, weights: jax.Array, playable: np.ndarray, key
     lowest-scoring levels give way to mutations (HARDER) of the highest-scoring ones, each a playable level
     not yet in the buffer; the spec (the last level's own kick-off) never leaves. The spec keeps `target_share`,
     every other level `floor` spread evenly, the rest goes by learnability p(1 - p) to the power
-    `sharpness`."""
+    `sharpness`. With `hardest_share`, the buffer's level furthest along the path (in reading order) but the
+    spec takes that share and is never replaced, so the hardest start the buffer holds moves only forward:
+    without it a level at success 0 scores as low as a solved one and leaves first."""
     levels, points = playable.shape
     p = estimated_success(counts, sampler.prior).ravel()
     score = p * (1 - p)
@@ -238,6 +247,12 @@ def next_levels(counts: jax.Array, weights: jax.Array, playable: np.ndarray, key
     first = jnp.sum(member) < start.sum()  # the environment's own weights: the buffer starts here
     member = jnp.where(first, jnp.asarray(start), member)
     playable_cells, moves = jnp.asarray(playable.ravel()), jnp.asarray(HARDER)
+    cells = jnp.arange(levels * points)
+
+    def hardest(member):
+        """The buffer's level furthest along the path but the spec (one-hot; none where it holds only the spec)."""
+        furthest = jnp.max(jnp.where(member & ~target, cells, -1))
+        return (cells == furthest) & (sampler.hardest_share > 0)
 
     def mutate(tried, carry):
         member, added, replaced, key = carry
@@ -248,7 +263,7 @@ def next_levels(counts: jax.Array, weights: jax.Array, playable: np.ndarray, key
         child = jnp.where(inside, child, 0)
         fresh = inside & playable_cells[child] & ~member[child]
         chosen = child[jax.random.categorical(k_move, jnp.where(fresh, 0.0, -jnp.inf))]
-        removable = member & ~target & ~added
+        removable = member & ~target & ~added & ~hardest(member)
         victim = jnp.argmin(jnp.where(removable, score, jnp.inf))  # the lowest-scoring level not just added
         swap = ~first & member[parent] & jnp.any(fresh) & jnp.any(removable) & (replaced < sampler.replaced)
         member = jnp.where(swap, member.at[victim].set(False).at[chosen].set(True), member)
@@ -263,8 +278,9 @@ def next_levels(counts: jax.Array, weights: jax.Array, playable: np.ndarray, key
     learnable = jnp.where(others, score ** sampler.sharpness, 0.0)
     total = jnp.sum(learnable)
     rest = jnp.where(total > 0, learnable / jnp.where(total > 0, total, 1.0), others / count)
-    floor, target_share = sampler.floor, sampler.target_share
-    share = jnp.where(others, floor / count + (1 - floor) * rest, 0.0)
+    floor, target_share, furthest = sampler.floor, sampler.target_share, hardest(member)
+    share = jnp.where(others, floor / count + sampler.hardest_share * furthest
+                      + (1 - floor - sampler.hardest_share) * rest, 0.0)
     out = jnp.where(target, target_share, (1 - target_share) * share)
     out = jnp.where(jnp.any(others), out, target.astype(out.dtype))
     return out.reshape(levels, points).astype(weights.dtype), \

@@ -401,6 +401,7 @@ def test_a_sampler_of_its_own_shares_and_replaces_as_it_says():
     ("replaced=-1", "--sampler replaced=-1: replaced must be at least 0 (of the buffer's levels, replaced after"),
     ("repalced=8", "unknown key 'repalced'; did you mean 'replaced'?"),
     ("floor=0.8", "floor 0.8 and frontier_share 0.3 together pass 1"),
+    ("hardest_share=0.99", "floor 0.05 and hardest_share 0.99 together pass 1"),
     ("target_share", "write KEY=VALUE, e.g. --sampler replaced=8"),
     ("target_share=half", "--sampler target_share='half': target_share must be a number (of new episodes, on the "
                           "spec itself)"),
@@ -452,6 +453,55 @@ def test_a_buffer_whose_levels_are_solved_moves_towards_the_spec():
                                  jax.random.PRNGKey(i))
         means.append(float(coordinate[np.asarray(weights) > 0].mean()))
     assert means[-1] > min(means) + 0.2 and means[-1] > means[-4], means
+
+
+def furthest_along(weights) -> int:
+    """The buffer's level furthest along the path but the spec, as a cell in reading order."""
+    member = np.asarray(weights).ravel() > 0
+    member[-1] = False
+    return int(np.flatnonzero(member).max())
+
+
+def test_a_buffer_with_a_hardest_share_never_retreats_from_its_furthest_level():
+    """A policy that succeeds in one episode of two up to 30% of the path and never beyond: the default buffer
+    gives up the levels it cannot solve (their p(1 - p) is as low as a solved level's) and retreats; with
+    `hardest_share` the level furthest along the path keeps that share and moves only forward."""
+    playable = np.ones((4, 32), bool)
+    along = np.arange(4 * 32).reshape(4, 32) / (4 * 32 - 1)
+    success = np.where(along < 0.3, 0.5, 0.0)
+    furthest = {}
+    for name, sampler in [("default", DEFAULT), ("hardest", Sampler(hardest_share=0.25))]:
+        weights, seen = own_kickoffs(playable), []
+        for i in range(12):
+            member = np.asarray(weights) > 0
+            episodes = np.where(member, 20.0, 0.0)
+            weights, _ = next_levels(jnp.asarray(np.stack([episodes, episodes * success])), weights, playable,
+                                     jax.random.PRNGKey(i), sampler)
+            seen.append(furthest_along(weights))
+            assert float(jnp.sum(weights)) == pytest.approx(1.0)
+        furthest[name] = seen
+        if name == "hardest":
+            cell = np.unravel_index(seen[-1], playable.shape)
+            learnable = np.asarray(weights)[along < 0.3].max()
+            assert float(weights[cell]) >= (1 - TARGET_SHARE) * 0.25 > learnable
+    assert furthest["default"][-1] < furthest["default"][0], furthest  # retreats
+    assert furthest["hardest"] == sorted(furthest["hardest"]), furthest  # only forward
+    assert furthest["hardest"][-1] >= furthest["hardest"][0]
+
+
+def test_a_hardest_share_adds_its_share_to_the_same_weights():
+    """The hand-set counts of test_buffer_weights_on_hand_set_counts with hardest_share: the level furthest
+    along but the spec gets that share on top of its floor and learnability, the others' learnable part shrinks."""
+    playable = np.ones((2, 4), bool)
+    episodes = jnp.array([[10.0, 10, 10, 0], [0, 0, 0, 30]])
+    successes = jnp.array([[10.0, 5, 0, 0], [0, 0, 0, 3]])
+    new, _ = next_levels(jnp.stack([episodes, successes]), jnp.full((2, 4), 1 / 8), playable,
+                         jax.random.PRNGKey(0), Sampler(hardest_share=0.3))
+    p = (np.asarray(successes) + PRIOR / 2) / (np.asarray(episodes) + PRIOR)
+    score = (p * (1 - p)).ravel()[:-1]
+    furthest = np.arange(7) == 6  # the last level's third point: the spec is its fourth
+    expected = (1 - TARGET_SHARE) * (FLOOR / 7 + 0.3 * furthest + (1 - FLOOR - 0.3) * score / score.sum())
+    np.testing.assert_allclose(np.asarray(new).ravel(), [*expected, TARGET_SHARE], rtol=1e-5)
 
 
 @pytest.mark.slow
