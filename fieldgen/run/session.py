@@ -238,18 +238,16 @@ def learner_contents(trainer: loop.Trainer, state) -> tuple:
     return trainer.learned(state), loop.episode_sampling(state.env_state)
 
 
-def _learned_to_the_end(run: Run) -> bool:
-    """Whether what the run learned alone (learner.msgpack, megabytes) is of its last evaluation: then a run
-    whose rows say it is complete is, and that is its state. Not so where a kill came between the last row and
-    its learner, or the learner is missing or damaged: the whole checkpoint then says where the run is."""
+def _learned_to_the_end(run: Run) -> tuple | None:
+    """What the run learned alone (learner.msgpack, megabytes: its state and sampling) where that is of its last
+    evaluation: then a run whose rows say it is complete is, and that is its state. None where a kill came
+    between the last row and its learner, or the learner is missing or damaged: the whole checkpoint then says
+    where the run is."""
     try:
         state, sampling = checkpoint.load(run.folder / record.LEARNER, *learner_template(run))
     except checkpoint.CheckpointError:
-        return False
-    if int(jax.device_get(state.env_steps)[0]) != run.rows[-1]["env_steps"]:
-        return False
-    run.state, run.sampling = state, sampling
-    return True
+        return None
+    return (state, sampling) if int(jax.device_get(state.env_steps)[0]) == run.rows[-1]["env_steps"] else None
 
 
 def learner_template(run: Run) -> tuple:
@@ -364,7 +362,8 @@ def open_run(folder: Path, load_state: bool = True, to_train: bool = False, lear
             if run.stage >= len(envs):
                 raise record.RunError(f"{folder / record.METRICS}'s last row puts the run at stage {run.stage + 1}, "
                                       f"past its last ({len(envs)}); {damaged}")
-        if to_train and run.finished and _learned_to_the_end(run):
+        if to_train and run.finished and (at_end := _learned_to_the_end(run)) is not None:
+            run.state, run.sampling = at_end
             return run  # trains no further: neither its whole checkpoint (gigabytes) nor this machine's memory matter
     if to_train:
         try:

@@ -40,14 +40,15 @@ class SpecError(Exception):
 SHOWN_CHARACTERS = 60  # of a key or value echoed in a problem: enough to recognise it, a line at most
 
 
-def shown_text(text: str, most: int = SHOWN_CHARACTERS) -> str:
+def shown_text(text: str, most: int = SHOWN_CHARACTERS, quoted: bool = False) -> str:
     """Text from a spec as a problem echoes it: characters that print as nothing or reorder a terminal's line
     (U+202E...) escaped, and a text longer than `most` cut to its start with its length, so that one problem
-    stays a line."""
-    text = "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii") for c in text)
-    if len(text) <= most:
-        return text
-    return f"{text[:most - 20]}... ({len(text):,} characters)"
+    stays a line. `quoted`: the text (or its start) as Python's repr writes it, which escapes them itself."""
+    if not quoted:
+        text = "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii") for c in text)
+    kept = text if len(text) <= most else text[:most - 20]
+    kept = repr(kept) if quoted else kept
+    return kept if len(text) <= most else f"{kept}... ({len(text):,} characters)"
 
 
 def format_path(parts: tuple) -> str:

@@ -9,7 +9,7 @@ import typing
 
 from pydantic import BaseModel
 
-from fieldgen.schema.errors import SHOWN_CHARACTERS, Problem, shown_text
+from fieldgen.schema.errors import Problem, shown_text
 from fieldgen.schema.models import PATTERN_WORDS, FieldSpec, NotAsWritten
 from fieldgen.schema.source import Source
 from fieldgen.suggest import did_you_mean
@@ -111,9 +111,7 @@ def _shown(value) -> str:
         return "a mapping"
     if isinstance(value, list):
         return "a list"
-    if isinstance(value, str) and len(value) > SHOWN_CHARACTERS:
-        return f"{value[:SHOWN_CHARACTERS - 20]!r}... ({len(value):,} characters)"
-    return shown_text(repr(value))
+    return shown_text(value, quoted=True) if isinstance(value, str) else shown_text(repr(value))
 
 
 def _data_path(data, loc: tuple, missing: bool = False) -> tuple:
