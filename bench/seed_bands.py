@@ -15,6 +15,9 @@ steps and wall clock, from every row the seed has, also those past the last eval
 (`fieldgen train --init-from`, a chain of hand-made curricula) has its env steps and wall clock moved on by
 what the runs before it took (e.g. --after "staged chain=78.5M,2442"), so that it stands beside runs from
 nothing at its true cost.
+
+--seeds 340-342 keeps only those seeds of every setting: a five-seed run's tuning seeds beside a three-seed arm
+trained on them alone.
 """
 
 from __future__ import annotations
@@ -30,10 +33,14 @@ from fieldgen.cli.app import count
 from fieldgen.run import compare, summary
 
 
-def setting(files: str, after: tuple[int, float] = (0, 0.0)) -> SimpleNamespace:
+def setting(files: str, after: tuple[int, float] = (0, 0.0), only: set[int] | None = None) -> SimpleNamespace:
     """One setting's rows from '+'-joined metrics files, as compare.plot reads a run (rows, seeds, algo), their
-    env steps and wall clock moved on by `after` (what the runs before them took)."""
+    env steps and wall clock moved on by `after` (what the runs before them took); `only` keeps those seeds."""
     rows = [json.loads(line) for f in files.split("+") for line in Path(f).read_text().splitlines() if line.strip()]
+    if only is not None:
+        rows = [r for r in rows if r["seed"] in only]
+        if not rows:
+            raise ValueError(f"{files} holds none of seeds {', '.join(map(str, sorted(only)))}")
     steps, seconds = after
     for r in rows:
         r["env_steps"] += steps
@@ -75,6 +82,18 @@ def last_evaluation(run: SimpleNamespace) -> dict:
     return {r["seed"]: r for r in run.rows if r["eval"] == last}
 
 
+def seed_list(text: str) -> set[int]:
+    """`--seeds 340-342` or `--seeds 340,342`: the seeds kept of every setting."""
+    try:
+        seeds = set()
+        for part in text.split(","):
+            first, _, last = part.partition("-")
+            seeds.update(range(int(first), int(last or first) + 1))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"seeds as FIRST-LAST or A,B,C, not {text!r}") from None
+    return seeds
+
+
 def earlier(text: str) -> tuple[str, tuple[int, float]]:
     """--after's LABEL=STEPS[,SECONDS]: the label and what the runs before that setting took."""
     label, _, cost = text.partition("=")
@@ -108,12 +127,17 @@ def main() -> None:
     parser.add_argument("--threshold", type=float, help="also print each seed's first evaluation reaching it")
     parser.add_argument("--after", type=earlier, action="append", default=[], metavar="LABEL=STEPS[,SECONDS]",
                         help="count a setting from nothing learned: what the runs before it took")
+    parser.add_argument("--seeds", type=seed_list, metavar="FIRST-LAST",
+                        help="keep only these seeds of every setting (e.g. the tuning seeds of a five-seed run)")
     args = parser.parse_args()
     before = dict(args.after)
     labels, runs = [], []
     for label, files in args.settings:
         labels.append(label)
-        runs.append(setting(files, before.pop(label, (0, 0.0))))
+        try:
+            runs.append(setting(files, before.pop(label, (0, 0.0)), args.seeds))
+        except ValueError as exc:
+            parser.error(f"{label}: {exc}")
     if before:
         parser.error(f"--after names no setting: {', '.join(before)} (settings: {', '.join(labels)})")
     for label, run in zip(labels, runs):

@@ -7,6 +7,8 @@ import json
 import sys
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "bench"))
 import seed_bands  # noqa: E402
@@ -60,3 +62,15 @@ def test_a_label_or_a_run_folder_may_hold_an_equals_sign(tmp_path):
             assert words in str(exc)
         else:
             raise AssertionError(f"{bad!r} was taken")
+
+
+def test_seeds_keeps_the_named_seeds_of_every_setting(tmp_path):
+    path = tmp_path / "five.jsonl"
+    path.write_text("\n".join(json.dumps(row(seed, 1, 0.1, 0.9)) for seed in range(340, 345)) + "\n")
+    kept = seed_bands.setting(str(path), only=seed_bands.seed_list("340-341,343"))
+    assert kept.seeds == [340, 341, 343]
+    with pytest.raises(ValueError, match="none of seeds 350, 351, 352, 353, 354"):
+        seed_bands.setting(str(path), only=seed_bands.seed_list("350-354"))
+    for bad in ("340-x", "seeds", ""):
+        with pytest.raises(argparse.ArgumentTypeError, match="FIRST-LAST"):
+            seed_bands.seed_list(bad)
