@@ -219,6 +219,28 @@ def test_an_auto_run_killed_and_resumed_continues_its_levels_exactly(tmp_path, i
 
 
 @pytest.mark.slow
+def test_how_an_auto_run_is_evaluated_changes_nothing_it_trains_on(tmp_path):
+    """The level buffer follows the training episodes and evaluations draw from their own random stream, so
+    more evaluation episodes (firmer in-run figures) or the policy's drawn actions leave what is learnt, and
+    the levels played, exactly as they were."""
+    sets = ["crl.hidden=[32,32]", "crl.repr_dim=8", "crl.batch_size=64", "crl.unroll_length=25",
+            "crl.min_replay_rows=100", "crl.max_replay_rows=400", "crl.num_evals=2"]
+    args = ["train", "point_soccer", "--curriculum", "auto", "--levels", "3", "--steps", "4000", "--envs", "8",
+            "--no-videos", *[x for s in sets for x in ("--set", s)]]
+    for name, evaluated in (("few", ["crl.eval_envs=6"]), ("many", ["crl.eval_envs=24", "crl.eval_actions=sampled"])):
+        done = runner.invoke(app, [*args, "--out", str(tmp_path / name), *[x for s in evaluated for x in ("--set", s)]])
+        assert done.exit_code == 0, done.output
+    few, many = (tmp_path / name / "point_soccer-auto-crl-0" for name in ("few", "many"))
+    assert (few / "learner.msgpack").read_bytes() == (many / "learner.msgpack").read_bytes()
+
+    def trained(folder):
+        return [(row.get("actor_loss"), row.get("critic_loss"), row["variants"]["weight"])
+                for row in map(json.loads, (folder / "metrics.jsonl").read_text().splitlines())]
+
+    assert trained(few) == trained(many)
+
+
+@pytest.mark.slow
 def test_an_auto_run_copied_without_its_checkpoint_draws_its_levels_as_it_did(tmp_path, interrupt_after_eval,
                                                                              monkeypatch):
     """learner.msgpack keeps how the run drew its episodes (the level buffer's weights and counts) after what
