@@ -43,6 +43,24 @@ def gradient_steps(config, episode_length: int) -> tuple[int, int]:
     return windows, windows * episode_length // config.batch_size
 
 
+def minibatch_rows(key: jax.Array, windows: int, length: int, count: int, together: int = 1) -> jax.Array:
+    """Which of the `windows` x `length` transitions `hindsight_batch` flattened fill `count` minibatch slots
+    (consecutive `batch_size` slots make a minibatch), each used at most once while they last: one at a time
+    from anywhere (`together` = 1, the reference's shuffle), or `together` at a time from one window. Pairs of
+    one episode differ in what moved alone, so a critic must read the agent's moves to tell them apart, where
+    pairs from many episodes are told apart by what stays still (a ball at rest, as it is before an ant has
+    learnt to reach it)."""
+    if together == 1:
+        return jax.random.permutation(key, windows * length)[:count]
+    k_steps, k_groups = jax.random.split(key)
+    per_window = length // together
+    steps = jax.vmap(lambda k: jax.random.permutation(k, length)[:per_window * together])(
+        jax.random.split(k_steps, windows))
+    groups = (jnp.arange(windows)[:, None] * length + steps).reshape(windows * per_window, together)
+    order = jax.random.permutation(k_groups, windows * per_window)
+    return groups[order[jnp.arange(count // together) % order.shape[0]]].reshape(-1)
+
+
 def insert(buf: Buffer, rows: dict) -> Buffer:
     """Append rows ([T, num_envs, ...] each), overwriting the oldest once full."""
     steps = next(iter(rows.values())).shape[0]

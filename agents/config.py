@@ -306,9 +306,15 @@ class CRLConfig(ReplayConfig):
     # share of the actor's goals that are the episode's commanded goal rather than a later state of it (the
     # critic learns from the later states alone): the actor then practises the goals it is asked for
     actor_commanded_goals: Share = 0.0
+    # a minibatch's pairs drawn this many at a time from one episode's window (agents.buffer.minibatch_rows):
+    # its negatives then include states of the same episode, told apart by what moved; 1: the reference
+    pairs_per_window: Count = 1
 
     def validate_env(self, env: Environment, devices: int = 1, seeds: int = 1) -> None:
         super().validate_env(env, devices, seeds)
+        if self.batch_size % self.pairs_per_window or self.pairs_per_window > env.episode_length:
+            raise ConfigError(f"{self.algo}.pairs_per_window {self.pairs_per_window} must divide batch_size "
+                              f"({self.batch_size}) and be at most an episode's {env.episode_length} steps")
         if self.skip_every:
             try:
                 residual_blocks(self.hidden, self.skip_every)

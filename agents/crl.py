@@ -172,7 +172,7 @@ def make_train(config: CRLConfig, env, team: Team | None = None, shared: bool = 
         if commanded:
             asked = jax.random.uniform(k_ask, (windows * window,)) < c.actor_commanded_goals
             batch["actor_goal"] = jnp.where(asked[:, None], sampled["commanded"], sampled["future_goal"])
-        perm = jax.random.permutation(k_perm, windows * window)[:updates * c.batch_size]
+        perm = replay.minibatch_rows(k_perm, windows, window, updates * c.batch_size, c.pairs_per_window)
         batch = jax.tree.map(lambda x: x[perm].reshape((updates, c.batch_size) + x.shape[1:]), batch)
 
         def body(ts, xs):

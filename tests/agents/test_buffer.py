@@ -88,3 +88,19 @@ def test_windows_cover_every_environment_once_and_lie_in_stored_rows():
         assert sorted((state[:, 0] // 100).astype(int).tolist()) == list(range(num_envs))
         assert np.all(np.diff(state, axis=1) == 1)  # consecutive stored steps: never past the newest row
         assert np.asarray(batch["has_future"]).reshape(num_envs, length)[:, :-1].all()
+
+
+def test_minibatch_rows_one_at_a_time_are_the_reference_shuffle_and_in_groups_come_from_one_window():
+    key = jax.random.PRNGKey(3)
+    windows, length = 6, 10
+    single = buffer.minibatch_rows(key, windows, length, 40)
+    assert single.tolist() == jax.random.permutation(key, windows * length)[:40].tolist()  # runs sample as before
+    grouped = np.asarray(buffer.minibatch_rows(key, windows, length, 48, together=4))
+    assert grouped.shape == (48,) and len(set(grouped.tolist())) == 48  # each transition at most once
+    window_of = (grouped // length).reshape(-1, 4)
+    assert (window_of == window_of[:, :1]).all()  # four at a time from one window
+    assert len(set(window_of[:, 0].tolist())) > 1  # from many windows in all
+    assert ((grouped >= 0) & (grouped < windows * length)).all()
+    # more slots than whole groups: the groups come round again, still four from one window
+    again = np.asarray(buffer.minibatch_rows(key, windows, length, 64, together=4)).reshape(-1, 4) // length
+    assert (again == again[:, :1]).all()

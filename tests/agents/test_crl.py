@@ -212,3 +212,15 @@ def test_a_share_of_commanded_goals_outside_zero_to_one_is_refused(tiny_crl):
 
     with pytest.raises((ConfigError, ValueError), match="actor_commanded_goals"):
         tiny_crl(actor_commanded_goals=1.5)
+
+
+def test_pairs_per_window_must_divide_the_batch_and_fit_an_episode(env_cache, tiny_crl):
+    from fieldgen.agents.config import ConfigError
+
+    env = env_cache("point_nav")
+    longest = env.episode_length
+    tiny_crl(pairs_per_window=4).validate_env(env)
+    for bad, changes in ((3, {}), (2 * longest, {"batch_size": 4 * longest})):  # batch 32; longer than an episode
+        with pytest.raises(ConfigError, match=f"crl.pairs_per_window {bad} must divide batch_size .* at most an "
+                                              f"episode's {longest} steps"):
+            tiny_crl(pairs_per_window=bad, **changes).validate_env(env)
