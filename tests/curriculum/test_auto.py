@@ -217,7 +217,6 @@ def test_an_auto_run_killed_and_resumed_continues_its_levels_exactly(tmp_path, i
     assert shares[-1] != shares[1]  # the buffer moved after the cut
 
 
-
 @pytest.mark.slow
 def test_how_an_auto_run_is_evaluated_changes_nothing_it_trains_on(tmp_path):
     """The level buffer follows the training episodes and evaluations draw from their own random stream, so
