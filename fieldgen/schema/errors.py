@@ -46,9 +46,10 @@ def shown_text(text: str, most: int = SHOWN_CHARACTERS, quoted: bool = False) ->
     stays a line. `quoted`: the text (or its start) as Python's repr writes it, which escapes them itself."""
     if not quoted:
         text = "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii") for c in text)
-    kept = text if len(text) <= most else text[:most - 20]
+    cut = len(text) > most
+    kept = text[:most - 20] if cut else text
     kept = repr(kept) if quoted else kept
-    return kept if len(text) <= most else f"{kept}... ({len(text):,} characters)"
+    return f"{kept}... ({len(text):,} characters)" if cut else kept
 
 
 def format_path(parts: tuple) -> str:
