@@ -18,6 +18,9 @@ nothing at its true cost.
 
 --seeds 340-342 keeps only those seeds of every setting: a five-seed run's tuning seeds beside a three-seed arm
 trained on them alone.
+
+--judge levels measures a curriculum's runs on the mean of all its levels (compare.over_levels) instead of on
+the field alone: how far along the path a run has come while the field is still out of reach.
 """
 
 from __future__ import annotations
@@ -51,29 +54,30 @@ def setting(files: str, after: tuple[int, float] = (0, 0.0), only: set[int] | No
     return SimpleNamespace(rows=[r for r in rows if r["eval"] <= common], seeds=seeds, every_row=rows)
 
 
-def first_reaching(rows: list[dict], threshold: float) -> dict[int, dict | None]:
-    """Each seed's first evaluation row whose success on the field (compare.on_field) reached `threshold`, in
-    env-step order; None for a seed none of whose rows did."""
+def first_reaching(rows: list[dict], threshold: float, judge: str = "field") -> dict[int, dict | None]:
+    """Each seed's first evaluation row whose success (on the field, or `judge` as compare.JUDGES names it)
+    reached `threshold`, in env-step order; None for a seed none of whose rows did."""
     out: dict[int, dict | None] = {}
     for row in sorted(rows, key=lambda r: r["env_steps"]):
         seed = row["seed"]
         out.setdefault(seed, None)
-        if out[seed] is None and compare.on_field(row, "success_any") >= threshold:
+        if out[seed] is None and compare.JUDGES[judge](row, "success_any") >= threshold:
             out[seed] = row
     return out
 
 
-def reaching_text(rows: list[dict], threshold: float) -> str:
+def reaching_text(rows: list[dict], threshold: float, judge: str = "field") -> str:
     """One line: each seed's env steps and wall clock to `threshold`, or the env steps it got to without."""
     parts = []
-    for seed, row in first_reaching(rows, threshold).items():
+    for seed, row in first_reaching(rows, threshold, judge).items():
         if row is None:
             last = max(r["env_steps"] for r in rows if r["seed"] == seed)
             parts.append(f"{seed}: not by {last / 1e6:.1f}M")
         else:
             wall = row.get("wall_seconds")
             parts.append(f"{seed}: {row['env_steps'] / 1e6:.1f}M" + (f" ({wall:,.0f} s)" if wall is not None else ""))
-    return f"first success_any >= {threshold:g} on the field: " + ", ".join(parts)
+    where = "on the field" if judge == "field" else "over the levels"
+    return f"first success_any >= {threshold:g} {where}: " + ", ".join(parts)
 
 
 def last_evaluation(run: SimpleNamespace) -> dict:
@@ -129,7 +133,10 @@ def main() -> None:
                         help="count a setting from nothing learned: what the runs before it took")
     parser.add_argument("--seeds", type=seed_list, metavar="FIRST-LAST",
                         help="keep only these seeds of every setting (e.g. the tuning seeds of a five-seed run)")
+    parser.add_argument("--judge", choices=sorted(compare.JUDGES), default="field",
+                        help="a curriculum's runs measured on the field (default) or on the mean of its levels")
     args = parser.parse_args()
+    judge = compare.JUDGES[args.judge]
     before = dict(args.after)
     labels, runs = [], []
     for label, files in args.settings:
@@ -142,15 +149,16 @@ def main() -> None:
         parser.error(f"--after names no setting: {', '.join(before)} (settings: {', '.join(labels)})")
     for label, run in zip(labels, runs):
         rows = last_evaluation(run)
-        values = [compare.on_field(rows[s], "success_any") for s in run.seeds]
+        values = [judge(rows[s], "success_any") for s in run.seeds]
         low, high = summary.interval(values)
         steps = {r["env_steps"] for r in rows.values()}
-        print(f"{label}: env steps {', '.join(f'{s:,}' for s in sorted(steps))}; success_any "
+        where = "" if args.judge == "field" else " (mean of the levels)"
+        print(f"{label}: env steps {', '.join(f'{s:,}' for s in sorted(steps))}; success_any{where} "
               + ", ".join(f"{s}: {v:.3f}" for s, v in zip(run.seeds, values))
               + f"; IQM {summary.iqm(values):.3f} [{low:.3f}, {high:.3f}] over {len(values)} seeds")
         if args.threshold is not None:
-            print(f"{label}: {reaching_text(run.every_row, args.threshold)}")
-    compare.plot(runs, args.out, args.title, labels=labels)
+            print(f"{label}: {reaching_text(run.every_row, args.threshold, args.judge)}")
+    compare.plot(runs, args.out, args.title, labels=labels, judge=judge)
     print(f"plot: {args.out}")
 
 

@@ -59,9 +59,11 @@ def runs(source: Path, algos: list[str], seeds: list[int], folder: Path | None, 
     return folder, result
 
 
-def curves(run: session.Run) -> dict:
+def curves(run: session.Run, judge=None) -> dict:
     """Per evaluation: env steps, wall seconds, and each metric success.png plots (success_any, time_at_goal,
-    closest_distance) over the seeds (NaN in rows written before the metric was logged)."""
+    closest_distance) over the seeds (NaN in rows written before the metric was logged), each row judged by
+    `judge` (default `on_field`)."""
+    judge = judge or on_field
     evals = sorted({r["eval"] for r in run.rows})
     out = {"env_steps": [], "wall_seconds": [], **{metric: [] for metric in plots.PANELS}}
     for e in evals:
@@ -69,7 +71,7 @@ def curves(run: session.Run) -> dict:
         out["env_steps"].append(rows[0]["env_steps"])
         out["wall_seconds"].append(rows[0].get("wall_seconds", np.nan))
         for metric in plots.PANELS:
-            out[metric].append([on_field(r, metric) for r in rows])
+            out[metric].append([judge(r, metric) for r in rows])
     return out
 
 
@@ -84,6 +86,19 @@ def on_field(row: dict, metric: str) -> float:
     if metric == "success_any" and "stage" in row and "last_stage_success_any" in row:
         return row["last_stage_success_any"]
     return row.get(metric, np.nan)
+
+
+def over_levels(row: dict, metric: str) -> float:
+    """`metric` of an evaluation row as the mean over every level a curriculum run evaluates (the field
+    included), each level weighed alike: how far along its levels a run has come while the field itself is
+    still out of reach. A run of one field is its own single level (`on_field`)."""
+    variants = row.get("variants")
+    if variants is not None and metric in variants:
+        return float(np.mean(variants[metric]))
+    return on_field(row, metric)
+
+
+JUDGES = {"field": on_field, "levels": over_levels}  # what a curriculum run's figure is measured on
 
 
 def over_seeds(values: list) -> tuple[float, float, float]:
@@ -117,10 +132,11 @@ def _finite(x: float) -> float | None:
     return None if np.isnan(x) else float(x)
 
 
-def plot(runs_: list[session.Run], path: Path, title: str, labels: list[str] | None = None) -> None:
+def plot(runs_: list[session.Run], path: Path, title: str, labels: list[str] | None = None, judge=None) -> None:
     """success_any against env steps and against wall-clock seconds, time at goal and the closest approach
     to the goal against env steps: the interquartile mean over seeds, with its 95% bootstrap interval shaded.
-    Each run (anything with the `rows` and `seeds` of one) is a line named by its algorithm, or by `labels`."""
+    Each run (anything with the `rows` and `seeds` of one) is a line named by its algorithm, or by `labels`;
+    each row judged by `judge` (default `on_field`)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -128,18 +144,20 @@ def plot(runs_: list[session.Run], path: Path, title: str, labels: list[str] | N
 
     fig, axes = plt.subplots(1, 4, figsize=(18, 3.8))
     for k, run in enumerate(runs_):
-        c = curves(run)
+        c = curves(run, judge)
         for ax, x, metric in ((axes[0], "env_steps", "success_any"), (axes[1], "wall_seconds", "success_any"),
                               (axes[2], "env_steps", "time_at_goal"), (axes[3], "env_steps", "closest_distance")):
             centre, low, high = np.array([over_seeds(v) for v in c[metric]]).T
             line, = ax.plot(c[x], centre, marker="o", ms=3, label=labels[k] if labels else run.algo)
             if len(run.seeds) > 1:
                 ax.fill_between(c[x], low, high, color=line.get_color(), alpha=0.2)
-    axes[0].set(xlabel="env steps", ylabel="success_any (IQM)", ylim=(-0.02, 1.02), title="episodes with a success")
-    axes[1].set(xlabel="wall-clock seconds (compiling, training, evaluating)", ylabel="success_any (IQM)",
+    over = ", mean of the levels" if judge is over_levels else ""
+    axes[0].set(xlabel="env steps", ylabel=f"success_any{over} (IQM)", ylim=(-0.02, 1.02),
+                title="episodes with a success")
+    axes[1].set(xlabel="wall-clock seconds (compiling, training, evaluating)", ylabel=f"success_any{over} (IQM)",
                 ylim=(-0.02, 1.02), title="against time")
-    axes[2].set(xlabel="env steps", ylabel="steps at goal per episode (IQM)", title="time at goal")
-    axes[3].set(xlabel="env steps", ylabel="distance (IQM)", title="closest approach to the goal")
+    axes[2].set(xlabel="env steps", ylabel=f"steps at goal per episode{over} (IQM)", title="time at goal")
+    axes[3].set(xlabel="env steps", ylabel=f"distance{over} (IQM)", title="closest approach to the goal")
     handles, names = axes[0].get_legend_handles_labels()  # one legend under the panels, none over the curves
     fig.legend(handles, names, loc="lower center", ncol=min(len(names), 3), fontsize=9, frameon=False)
     plots.save_figure(fig, axes, title, path)
