@@ -152,7 +152,7 @@ def main() -> None:
         values = [judge(rows[s], "success_any") for s in run.seeds]
         low, high = summary.interval(values)
         steps = {r["env_steps"] for r in rows.values()}
-        where = "" if args.judge == "field" else " (mean of the levels)"
+        where = "" if args.judge == "field" else " (level mean)"
         print(f"{label}: env steps {', '.join(f'{s:,}' for s in sorted(steps))}; success_any{where} "
               + ", ".join(f"{s}: {v:.3f}" for s, v in zip(run.seeds, values))
               + f"; IQM {summary.iqm(values):.3f} [{low:.3f}, {high:.3f}] over {len(values)} seeds")

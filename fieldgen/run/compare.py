@@ -151,7 +151,7 @@ def plot(runs_: list[session.Run], path: Path, title: str, labels: list[str] | N
             line, = ax.plot(c[x], centre, marker="o", ms=3, label=labels[k] if labels else run.algo)
             if len(run.seeds) > 1:
                 ax.fill_between(c[x], low, high, color=line.get_color(), alpha=0.2)
-    over = ", mean of the levels" if judge is over_levels else ""
+    over = ", level mean" if judge is over_levels else ""
     axes[0].set(xlabel="env steps", ylabel=f"success_any{over} (IQM)", ylim=(-0.02, 1.02),
                 title="episodes with a success")
     axes[1].set(xlabel="wall-clock seconds (compiling, training, evaluating)", ylabel=f"success_any{over} (IQM)",

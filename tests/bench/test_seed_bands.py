@@ -89,5 +89,5 @@ def test_judged_over_the_levels_a_seed_counts_every_level_alike(tmp_path, capsys
     monkeypatch.setattr(sys, "argv", ["seed_bands", f"arm={path}", "-o", str(out), "--judge", "levels"])
     seed_bands.main()
     printed = capsys.readouterr().out
-    assert "success_any (mean of the levels) 0: 0.400, 1: 0.200; IQM 0.300" in printed
+    assert "success_any (level mean) 0: 0.400, 1: 0.200; IQM 0.300" in printed
     assert out.stat().st_size > 0
