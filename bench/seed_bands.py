@@ -54,19 +54,19 @@ def setting(files: str, after: tuple[int, float] = (0, 0.0), only: set[int] | No
     return SimpleNamespace(rows=[r for r in rows if r["eval"] <= common], seeds=seeds, every_row=rows)
 
 
-def first_reaching(rows: list[dict], threshold: float, judge: str = "field") -> dict[int, dict | None]:
-    """Each seed's first evaluation row whose success (on the field, or `judge` as compare.JUDGES names it)
-    reached `threshold`, in env-step order; None for a seed none of whose rows did."""
+def first_reaching(rows: list[dict], threshold: float, judge=compare.on_field) -> dict[int, dict | None]:
+    """Each seed's first evaluation row whose success (on the field, or as another of compare.JUDGES measures
+    it) reached `threshold`, in env-step order; None for a seed none of whose rows did."""
     out: dict[int, dict | None] = {}
     for row in sorted(rows, key=lambda r: r["env_steps"]):
         seed = row["seed"]
         out.setdefault(seed, None)
-        if out[seed] is None and compare.JUDGES[judge](row, "success_any") >= threshold:
+        if out[seed] is None and judge(row, "success_any") >= threshold:
             out[seed] = row
     return out
 
 
-def reaching_text(rows: list[dict], threshold: float, judge: str = "field") -> str:
+def reaching_text(rows: list[dict], threshold: float, judge=compare.on_field) -> str:
     """One line: each seed's env steps and wall clock to `threshold`, or the env steps it got to without."""
     parts = []
     for seed, row in first_reaching(rows, threshold, judge).items():
@@ -76,7 +76,7 @@ def reaching_text(rows: list[dict], threshold: float, judge: str = "field") -> s
         else:
             wall = row.get("wall_seconds")
             parts.append(f"{seed}: {row['env_steps'] / 1e6:.1f}M" + (f" ({wall:,.0f} s)" if wall is not None else ""))
-    where = "on the field" if judge == "field" else "over the levels"
+    where = "on the field" if judge is compare.on_field else "over the levels"
     return f"first success_any >= {threshold:g} {where}: " + ", ".join(parts)
 
 
@@ -152,12 +152,12 @@ def main() -> None:
         values = [judge(rows[s], "success_any") for s in run.seeds]
         low, high = summary.interval(values)
         steps = {r["env_steps"] for r in rows.values()}
-        where = "" if args.judge == "field" else " (level mean)"
+        where = "" if judge is compare.on_field else " (level mean)"
         print(f"{label}: env steps {', '.join(f'{s:,}' for s in sorted(steps))}; success_any{where} "
               + ", ".join(f"{s}: {v:.3f}" for s, v in zip(run.seeds, values))
               + f"; IQM {summary.iqm(values):.3f} [{low:.3f}, {high:.3f}] over {len(values)} seeds")
         if args.threshold is not None:
-            print(f"{label}: {reaching_text(run.every_row, args.threshold, args.judge)}")
+            print(f"{label}: {reaching_text(run.every_row, args.threshold, judge)}")
     compare.plot(runs, args.out, args.title, labels=labels, judge=judge)
     print(f"plot: {args.out}")
 

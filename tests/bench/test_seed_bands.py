@@ -9,6 +9,8 @@ from pathlib import Path
 
 import pytest
 
+from fieldgen.run import compare
+
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "bench"))
 import seed_bands  # noqa: E402
@@ -78,10 +80,10 @@ def test_seeds_keeps_the_named_seeds_of_every_setting(tmp_path):
 
 def test_judged_over_the_levels_a_seed_counts_every_level_alike(tmp_path, capsys, monkeypatch):
     rows = [row(0, 1, 0.0, 0.5), row(0, 2, 0.1, 0.7), row(1, 1, 0.0, 0.2), row(1, 2, 0.0, 0.4)]
-    first = seed_bands.first_reaching(rows, 0.3, judge="levels")  # (0.0 + 0.7) / 2 = 0.35: seed 0's second row
+    first = seed_bands.first_reaching(rows, 0.3, compare.over_levels)  # (0.0 + 0.7) / 2 = 0.35: seed 0's second row
     assert {seed: r and r["env_steps"] for seed, r in first.items()} == {0: 2_000_000, 1: None}
     assert seed_bands.first_reaching(rows, 0.3) == {0: None, 1: None}  # on the field no seed reaches 0.3
-    assert seed_bands.reaching_text(rows, 0.3, judge="levels") == \
+    assert seed_bands.reaching_text(rows, 0.3, compare.over_levels) == \
         "first success_any >= 0.3 over the levels: 0: 2.0M (20 s), 1: not by 2.0M"
     path = tmp_path / "two.jsonl"
     path.write_text("\n".join(json.dumps(r) for r in rows) + "\n")
