@@ -138,11 +138,15 @@ def make_train(config: CRLConfig, env, team: Team | None = None, shared: bool = 
 
         # [controllers, batch, own], [controllers, batch]
         action, log_prob = sample_tanh_gaussian(key, *gaussian_head(actor_out))
-        # the whole stack again, frozen, for phi of the actor's own action: a stack call costs the
-        # same kernels as one network, and slicing phi's weights out would cost copies
+        # phi of the actor's own action (and psi of the commanded goals), frozen: only those encoders of
+        # the stack run again, not the actor
+        own_action = jnp.concatenate([mine, action], -1)
         frozen = jax.lax.stop_gradient(params)
-        _, phi_pi, psi_goal = nets.apply(frozen, [controller_input, jnp.concatenate([mine, action], -1), actor_goals])
-        psi_goal = psi_goal if commanded else jax.lax.stop_gradient(psi)  # the critic's goals: its own pass's
+        if commanded:
+            phi_pi, psi_goal = nets.apply_some(frozen, 1, [own_action, actor_goals])
+        else:
+            (phi_pi,) = nets.apply_some(frozen, 1, [own_action])
+            psi_goal = jax.lax.stop_gradient(psi)  # the critic's goals: its own pass's
         q = paired_energies(phi_pi, psi_goal, jax.lax.stop_gradient(log_temperature))
         alpha = jnp.exp(log_alpha)[:, None]
         actor_ = mean_w(jax.lax.stop_gradient(alpha) * log_prob - q)

@@ -145,6 +145,15 @@ class Stacked:
         out = jax.vmap(self.joint.apply)(params, jnp.stack([self._widen(x) for x in xs]))
         return [out[k, ..., :n] for k, n in enumerate(self.outputs)]
 
+    def apply_some(self, params: dict, first: int, xs: Sequence[jax.Array]) -> list[jax.Array]:
+        """Networks first, first + 1, ... (one per input in xs) of the stack, without the others: a pass
+        that needs fewer networks than the stack holds multiplies only theirs. The slice is of a leading
+        axis, so it takes no gather."""
+        last = first + len(xs)
+        chosen = jax.tree.map(lambda p: p[first:last], params)
+        out = jax.vmap(self.joint.apply)(chosen, jnp.stack([self._widen(x) for x in xs]))
+        return [out[k, ..., :n] for k, n in enumerate(self.outputs[first:last])]
+
     def member(self, params: dict, k: int) -> dict:
         """Network k's weights (still padded), to call it alone with `apply_member`: taken once
         outside a loop that only acts, rather than at every step."""

@@ -45,6 +45,31 @@ def test_stacked_networks_equal_the_networks_alone(agents, shared):
     assert all(leaf.shape[:len(stacked_on)] == stacked_on for leaf in jax.tree.leaves(params))
 
 
+@pytest.mark.parametrize("first,count", [(1, 1), (1, 2), (0, 1)])
+def test_some_networks_of_the_stack_equal_the_whole_stacks_members(first, count):
+    """A pass over some members gives the whole stack's outputs for them and the same gradients for
+    their weights, and none for the members it leaves out."""
+    stack = Stacked((16,) * 5, INPUTS, OUTPUTS, layer_norm=True, agents=2, skip_every=2)
+    params = stack.init(jax.random.split(jax.random.PRNGKey(0), 3))
+    xs = [jax.random.normal(jax.random.PRNGKey(i + 1), (2, 9, n)) for i, n in enumerate(INPUTS)]
+    chosen = range(first, first + count)
+
+    def loss(outs):
+        return sum((k + 1.0) * jnp.sum(jnp.sin(out)) for k, out in enumerate(outs))
+
+    some = stack.apply_some(params, first, [xs[k] for k in chosen])
+    whole = stack.apply(params, xs)
+    for out, k in zip(some, chosen):
+        assert out.shape == (2, 9, OUTPUTS[k])
+        np.testing.assert_allclose(out, whole[k], rtol=1e-5, atol=1e-6)
+    grads = jax.grad(lambda p: loss(stack.apply_some(p, first, [xs[k] for k in chosen])))(params)
+    whole_grads = jax.grad(lambda p: loss([stack.apply(p, xs)[k] for k in chosen]))(params)
+    for got, want in zip(jax.tree.leaves(grads), jax.tree.leaves(whole_grads)):
+        np.testing.assert_allclose(got, want, rtol=1e-4, atol=1e-6)
+        left_out = [k for k in range(3) if k not in chosen]
+        assert not np.asarray(got)[left_out].any()
+
+
 def test_residual_network_shapes_skips_and_layer_norms():
     """Hidden layers after the first form blocks of `skip_every`, each with a layer norm per layer;
     a block whose weights are all zero passes its input through unchanged."""
