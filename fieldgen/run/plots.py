@@ -12,6 +12,8 @@ from fieldgen.files import write_atomic
 from fieldgen.run.record import PLOT
 
 
+PANELS_PER_ROW = 3
+
 # metric -> (axis label, panel title, y limits or None); a panel is drawn where the rows have the metric
 PANELS = {"success_any": ("success_any", "episodes with a success", (-0.02, 1.02)),
           "time_at_goal": ("steps at goal per episode", "time at goal", None),
@@ -37,9 +39,14 @@ def plot_success(run_dir: Path, rows: list[dict], title: str, variant: str = "st
     weighted = "weight" in rows[0].get("variants", {})
     kickoffs = "kickoff_share" in rows[0].get("variants", {})
     count = len(metrics) + weighted + kickoffs + bool(losses)
-    # losses begin after the first evaluation; a row of one panel is still a row
-    fig, axes = plt.subplots(1, count, figsize=(5 * count, 3.6), sharex=True, squeeze=False)
-    axes = axes[0]
+    # losses begin after the first evaluation; panels wrap at PANELS_PER_ROW, so that a figure of six panels
+    # is read at the width of three
+    columns = min(count, PANELS_PER_ROW)
+    fig, grid = plt.subplots(-(-count // columns), columns, figsize=(5 * columns, 3.6 * -(-count // columns)),
+                             sharex=True, squeeze=False)
+    axes = list(grid.flat[:count])
+    for spare in grid.flat[count:]:
+        fig.delaxes(spare)
     panels = dict(zip(metrics, axes))
     if "variants" in rows[0]:
         _plot_variants(panels, rows, variant)
@@ -95,8 +102,14 @@ def save_figure(fig, axes, title: str, path: Path) -> None:
     it under the panels), the title; then the PNG, written atomically."""
     import matplotlib.pyplot as plt
 
+    from matplotlib.ticker import FuncFormatter, MaxNLocator
+
     for ax in axes:
         ax.grid(alpha=0.3)
+        if ax.get_xlabel() == "env steps":  # 20M, not 2 under an offset of 1e7
+            ax.xaxis.set_major_locator(MaxNLocator(nbins=6))
+            ax.xaxis.set_major_formatter(FuncFormatter(lambda x, _: step_count(x)))
+            ax.tick_params(axis="x", labelbottom=True)
         if ax.get_legend_handles_labels()[0] and not fig.legends:
             ax.legend(fontsize=8)
     fig.suptitle(title)
@@ -109,6 +122,14 @@ def save_figure(fig, axes, title: str, path: Path) -> None:
     fig.savefig(buf, format="png", dpi=100)
     plt.close(fig)
     write_atomic(path, buf.getvalue())
+
+
+def step_count(steps: float) -> str:
+    """An env-step count as a tick reads it: 0, 500k, 2.5M, 1B."""
+    for scale, suffix in ((1e9, "B"), (1e6, "M"), (1e3, "k")):
+        if abs(steps) >= scale:
+            return f"{steps / scale:.4g}{suffix}"
+    return f"{steps:.4g}"
 
 
 def _series(rows: list[dict], metric: str) -> tuple[list, list]:

@@ -36,3 +36,29 @@ def test_a_dotted_line_marks_where_a_run_went_on_from_what_it_learned_alone(tmp_
     marks = [line for line in ax.get_lines() if line.get_linestyle() == ":"]
     assert [list(line.get_xdata()) for line in marks] == ([[2000, 2000]] if refilled else [])
     assert ax.get_legend_handles_labels()[1].count("buffer refilled") == (1 if refilled else 0)
+
+
+def test_env_step_counts_read_as_counts():
+    assert [plots.step_count(x) for x in (0, 750, 500_000, 2_500_000, 50_000_000, 1e9)] == \
+        ["0", "750", "500k", "2.5M", "50M", "1B"]
+
+
+def test_six_panels_wrap_into_two_rows_of_three_with_steps_in_millions(tmp_path, monkeypatch):
+    """An automatic curriculum's figure (three metrics, two heat maps, the losses) is two rows of three
+    panels, each reading its env steps as counts."""
+    drawn = {}
+    save = plots.save_figure
+    monkeypatch.setattr(plots, "save_figure", lambda fig, axes, title, path: drawn.update(fig=fig, axes=axes)
+                        or save(fig, axes, title, path))
+    rows = [{"eval": e, "seed": 0, "env_steps": 10_000_000 * e, "success_any": 0.1 * e, "time_at_goal": 1.0,
+             "closest_distance": 2.0, "critic_loss": 1.0,
+             "variants": {"success_any": [0.2, 0.1 * e], "time_at_goal": [1.0, 1.0], "closest_distance": [1.0, 1.0],
+                          "weight": [0.8, 0.2], "kickoff_share": [0.5, 0.5]}} for e in range(4)]
+    plots.plot_success(tmp_path, rows, "title", "level")
+    axes = drawn["axes"]
+    assert len(axes) == 6 and len(drawn["fig"].axes) == 6 + 2  # the panels and the heat maps' colour bars
+    tops = sorted({round(ax.get_position().y1, 3) for ax in axes})
+    columns = sorted({round(ax.get_position().x0, 2) for ax in axes})
+    assert len(tops) == 2 and len(columns) == 3
+    assert axes[0].xaxis.get_major_formatter()(20_000_000, 0) == "20M"
+    assert (tmp_path / "success.png").stat().st_size > 0
