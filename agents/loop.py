@@ -19,8 +19,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..env.contract import Environment
-from ..env.mjx_physics import OVERFLOW, merged
+from ..env.contract import OVERFLOW, Environment, merged_overflow
 from .config import RunConfig
 from .programs import Programs, computed
 from .sharding import from_host, meet, to_host
@@ -108,8 +107,8 @@ def evaluate_policy(env, act: Callable, key: jax.Array, n_envs: int, film: Calla
 
     success_any: share of episodes with a successful step; time_at_goal: successful steps
     per episode; closest_distance: the mean over episodes of the smallest distance between the
-    target and what the success judges (the goal's `env.success_goal_entries`, where an
-    environment names them, and the state entries `env.goal_indices` compares them with), over
+    target and what the success judges (the goal's `env.success_goal_entries` and the state entries
+    `env.goal_indices` compares them with), over
     the states observed before the episode ended, a sign of progress long before the first success;
     episode_length: steps before the episode ended, short where the agent falls (leaves its
     healthy band) early; episode_return; and `term_<name>`: each reward term's mean per live step.
@@ -128,7 +127,7 @@ def evaluate_policy(env, act: Callable, key: jax.Array, n_envs: int, film: Calla
     else:
         env_state = jax.vmap(env.reset)(keys)
     terms = [name for name in env_state.metrics if name != "success"]
-    judged = np.asarray(getattr(env, "success_goal_entries", range(len(env.goal_indices))))
+    judged = np.asarray(env.success_goal_entries)
     state_entries, goal_entries = np.asarray(env.goal_indices)[judged], env.state_dim + judged
 
     def goal_distance(obs):
@@ -157,8 +156,8 @@ def evaluate_policy(env, act: Callable, key: jax.Array, n_envs: int, film: Calla
                "closest_distance": jnp.mean(closest), "episode_length": live_steps / n_envs,
                "episode_return": jnp.mean(jnp.sum(out["reward"], axis=0)),
                **{f"term_{name}": jnp.sum(out[name]) / live_steps for name in terms}}
-    if OVERFLOW in last.info:  # Warp's overflow flags of any environment (stop_on_overflow reads them)
-        metrics[OVERFLOW] = merged(last.info[OVERFLOW])
+    if OVERFLOW in last.info:  # the physics' overflow flags of any environment (stop_on_overflow reads them)
+        metrics[OVERFLOW] = merged_overflow(last.info[OVERFLOW])
     if count > 1:
         share = jax.nn.one_hot(env_state.info["variant"], count)  # [envs, variants]
         share = share / jnp.sum(share, axis=0)
@@ -168,15 +167,14 @@ def evaluate_policy(env, act: Callable, key: jax.Array, n_envs: int, film: Calla
 
 def reserve_worlds(trainer: Trainer, seeds: int) -> None:
     """Size the trainer's environment for every environment one of its programs steps at once (over seeds and
-    environments, training's or evaluation's), before the programs are traced (FieldEnv.reserve_worlds)."""
-    if hasattr(trainer.env, "reserve_worlds"):
-        trainer.env.reserve_worlds(seeds * max(trainer.config.num_envs, trainer.config.eval_envs))
+    environments, training's or evaluation's), before the programs are traced (Environment.reserve_worlds)."""
+    trainer.env.reserve_worlds(seeds * max(trainer.config.num_envs, trainer.config.eval_envs))
 
 
 def stop_on_overflow(env, overflow) -> None:
-    """Raise (fieldgen.env.mjx_physics.PhysicsOverflow) where `overflow`, the overflow flags of environments
-    (info[OVERFLOW] of a batch, or an evaluation's metric), says one outgrew MuJoCo Warp's capacities; None: the
-    environment runs on no such capacities."""
+    """Raise (Environment.check_physics) where `overflow`, the overflow flags of environments (info[OVERFLOW] of
+    a batch, or an evaluation's metric), says one outgrew the physics' capacities; None: the environment runs on
+    no such capacities."""
     if overflow is not None:
         env.check_physics(overflow)
 

@@ -50,8 +50,7 @@ def setting(files: str, after: tuple[int, float] = (0, 0.0), only: set[int] | No
         if "wall_seconds" in r:
             r["wall_seconds"] += seconds
     seeds = sorted({r["seed"] for r in rows})
-    common = min(max(r["eval"] for r in rows if r["seed"] == s) for s in seeds)
-    return SimpleNamespace(rows=[r for r in rows if r["eval"] <= common], seeds=seeds, every_row=rows)
+    return SimpleNamespace(rows=compare.reached_by_every_seed(rows, seeds), seeds=seeds, every_row=rows)
 
 
 def first_reaching(rows: list[dict], threshold: float, judge=compare.on_field) -> dict[int, dict | None]:
@@ -82,8 +81,7 @@ def reaching_text(rows: list[dict], threshold: float, judge=compare.on_field) ->
 
 def last_evaluation(run: SimpleNamespace) -> dict:
     """Each seed's row at the last evaluation every seed reached (`setting` keeps no later rows)."""
-    last = max(r["eval"] for r in run.rows)
-    return {r["seed"]: r for r in run.rows if r["eval"] == last}
+    return compare.last_evaluation(run.rows)
 
 
 def seed_list(text: str) -> set[int]:

@@ -58,6 +58,8 @@ class FieldAdapter:
     with_variant_weights = _read_through("with_variant_weights")
     kickoff_coordinates = _read_through("kickoff_coordinates")
     with_level_weights = _read_through("with_level_weights")
+    reserve_worlds = _read_through("reserve_worlds")
+    check_physics = _read_through("check_physics")
 
 
 def reserved(field: FieldEnv) -> FieldEnv:

@@ -258,7 +258,9 @@ def _sampler(settings: list[str]):
 @app.command()
 def compare(
     ctx: typer.Context,
-    spec: Annotated[str, typer.Argument(help="a YAML file, bundled field name or build folder")],
+    sources: Annotated[list[str], typer.Argument(
+        metavar="FIELD | RUN...", help="a field to train on (YAML file, bundled field name or build folder), or run "
+                                       "folders already trained (each holding run.json) to compare as they are")],
     algos: Annotated[str, typer.Option(metavar="A,B,...",
                                        help=f"comma-separated algorithms: {', '.join(ALGORITHMS)}")] = "crl,ppo",
     steps: Annotated[Optional[int], typer.Option(parser=count, metavar="N",
@@ -270,30 +272,41 @@ def compare(
                                                       help="override a config key: sac.her=0.8")] = None,
     preset: Preset = None,
     config: Annotated[Optional[Path], typer.Option(metavar="FILE", help="YAML file: {crl: {...}, sac: {...}}")] = None,
-    runs: Annotated[Optional[Path], typer.Option("--out", metavar="DIR", help="folder of the runs and the plot "
-                                                                             "(default runs/compare-<field>)")] = None,
+    runs: Annotated[Optional[Path], typer.Option("--out", "-o", metavar="PATH", help=(
+        "training: the folder of the runs and the plot (default runs/compare-<field>); run folders: the plot "
+        "(default compare.png)"))] = None,
     videos: Annotated[bool, typer.Option(help="write each run's videos")] = False,
     prepare: Annotated[bool, typer.Option(help="write the run folders and stop (train them with "
                                                 "fieldgen train --resume, then compare again to plot)")] = False,
     logger: Annotated[str, typer.Option(help="also log each run to TensorBoard or Weights & Biases",
                                         **choice("logger", LOGGERS))] = "none",
 ) -> None:
-    """Train several algorithms on one field and plot success against env steps and wall-clock time.
+    """Train several algorithms on one field, or compare runs already trained; plot success against env steps
+    and wall-clock time.
 
     Runs train one after another (the seeds of each at once); rerunning the same comparison
     resumes unfinished runs and redraws compare.png and compare.json. Over several seeds, the plot and
-    table give the interquartile mean with its 95% bootstrap interval.
+    table give the interquartile mean with its 95% bootstrap interval. Given run folders instead (a sweep's,
+    each possibly of several seeds), it tables each run's last evaluation and draws their curves, training nothing.
 
     Example: fieldgen compare point_nav --algos crl,icrl,sac --steps 40000 --envs 16 --seeds 2
+    Example: fieldgen compare runs/point_nav-crl-0to4 runs/point_nav-sac-0to4 -o compare.png
     """
     from fieldgen.agents.config import ConfigError
     from fieldgen.files import FolderError
     from fieldgen.run import compare as comparing
     from fieldgen.run import record
 
+    try:
+        trained = comparing.run_folders(sources)
+    except record.RunError as exc:
+        fail(str(exc))
+    if trained is not None:
+        _compare_trained(ctx, trained, runs)
+        return
     if seeds < 1:
         fail(f"--seeds {seeds}: compare at least one seed")
-    source = field_source(spec)
+    source = field_source(sources[0])
     names = [a.strip() for a in algos.split(",") if a.strip()]
     try:
         _read_config(config)
@@ -312,6 +325,33 @@ def compare(
         out.print(Text.assemble((run.algo, "bold"), f" -> {run.folder}"))
         _train(run, videos, logger)
     comparing.report(todo, folder, out, _command_line(ctx))
+
+
+def _compare_trained(ctx: typer.Context, folders: list[Path], plot: Path | None) -> None:
+    """`fieldgen compare RUN...`: the runs' table and plot from their records; the options that set up training
+    are refused, as nothing trains."""
+    from fieldgen.files import WriteError
+    from fieldgen.run import compare as comparing
+    from fieldgen.run import record
+
+    given = [p for p in ctx.command.params if p.param_type_name == "option" and p.name != "runs"
+             and ctx.get_parameter_source(p.name) is not None and ctx.get_parameter_source(p.name).name != "DEFAULT"]
+    if given:  # each as it was spelt: --no-videos, not --videos
+        training = [p.secondary_opts[0] if p.secondary_opts and not ctx.params[p.name] else p.opts[0] for p in given]
+        fail(f"{' and '.join(training)} set{'s' * (len(training) == 1)} up new runs on a field; comparing run "
+             f"folders already trained takes only -o PLOT: drop {'it' if len(training) == 1 else 'them'}, or give a "
+             "field to train on instead of the run folders")
+    plot = Path(comparing.PLOT) if plot is None else plot / comparing.PLOT if plot.is_dir() else plot
+    if plot.suffix.lower() != ".png":
+        fail(f"-o {plot}: the plot is a PNG; name a file ending in .png, such as {plot.with_suffix('.png')}")
+    if not plot.parent.is_dir():
+        fail(f"-o {plot}: there is no folder {plot.parent} to write it in; make it, or choose another -o")
+    try:
+        comparing.report_recorded([comparing.recorded(f) for f in folders], plot, out)
+    except record.RunError as exc:
+        fail(str(exc))
+    except WriteError as exc:
+        fail(f"{exc}; choose another -o")
 
 
 @app.command("eval")

@@ -10,6 +10,8 @@ curriculum's schedule); the environment only plays what it is given. A variant m
 kick-off points (where the ball and the agent start): a level is a variant and one of its points; the last
 two members say where each lies and set how often each level starts the episodes to come, and such an
 environment counts the episodes that ended on each level (`State.info`), for the caller to weigh them by.
+Physics of fixed capacities (MuJoCo Warp's) is sized for the batches a caller steps (`reserve_worlds`) and
+flags what it left out (`State.info[OVERFLOW]`), which the caller hands back (`check_physics`).
 """
 
 from __future__ import annotations
@@ -17,7 +19,16 @@ from __future__ import annotations
 from typing import Any, Mapping, Protocol, Sequence, runtime_checkable
 
 import jax
+import jax.numpy as jnp
 import numpy as np
+
+OVERFLOW = "physics_overflow"  # State.info entry: the physics' overflow flags (int32 bits), where it has capacities
+
+
+def merged_overflow(flags: jax.Array) -> jax.Array:
+    """Overflow flags of any shape (per environment, per flag) as one int32 of bits: set where any is set."""
+    flags = flags.astype(jnp.int32)
+    return jax.lax.reduce(flags, jnp.int32(0), jax.lax.bitwise_or, tuple(range(flags.ndim)))
 
 
 @runtime_checkable
@@ -48,11 +59,14 @@ class State(Protocol):
         """Holds at least `goal` (the target the success is judged against), `rng` (the episode's key, which
         the next episode's start is drawn from), `truncation` (1.0 where an episode ended because time ran
         out, not by a fall), `episode` (episodes ended so far: a replay buffer tells episodes apart by it)
-        and `episode_step` (control steps of the current episode). Where the environment has kick-off points
+        and `episode_step` (control steps of the current episode). Where the environment batches several
+        variants it also holds `variant` (the one this environment plays) and `variant_weights` [variant_count]
+        (the weights its next episodes' variants are drawn from). Where it has kick-off points
         (`Environment.kickoff_coordinates`) it also holds `level_weights` [variant_count, kickoff points], the
         weights its next episodes' levels are drawn from, and `level_counts` [2, variant_count, kickoff
         points]: the episodes that ended on each level since the caller last scaled them
-        (`with_level_weights`), and of those the ones with a successful step."""
+        (`with_level_weights`), and of those the ones with a successful step. Where the physics has fixed
+        capacities it also holds `OVERFLOW`, the flags of what it left out since the episode began."""
 
     def replace(self, **changes: Any) -> State:
         """The state with the named fields changed (a trainer swaps `info`, or whole episodes)."""
@@ -115,6 +129,16 @@ class Environment(Protocol):
     @property
     def action_names(self) -> Sequence[str]:
         """One name per action entry: the joint its motor drives."""
+
+    def reserve_worlds(self, worlds: int) -> None:
+        """Size the physics for batches of up to `worlds` environments (all that one program steps at once: seeds
+        x environments), before the programs that step them are traced; physics without fixed capacities needs
+        nothing."""
+
+    def check_physics(self, overflow: Any) -> None:
+        """Raise where `overflow` (`State.info[OVERFLOW]` of any number of environments, of any shape, or
+        `merged_overflow` of it) says an environment outgrew the physics' capacities, so that its steps left
+        contacts or constraints out."""
 
     @property
     def variant_count(self) -> int:

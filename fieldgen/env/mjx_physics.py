@@ -10,9 +10,9 @@ and only flags it, so a field records the flags (`OVERFLOW`) and whoever steps i
 from __future__ import annotations
 
 import jax
-import jax.numpy as jnp
 
-OVERFLOW = "physics_overflow"  # info entry: Warp's overflow flags raised since reset, kept over auto-resets
+from fieldgen.env.contract import OVERFLOW, merged_overflow  # noqa: F401  (OVERFLOW: Warp's flags since reset, kept
+# over auto-resets)
 # Warp's flags (mujoco_warp's OverflowType) that are not a capacity outgrown: iteration limits reached
 NOT_CAPACITY = ("ITERATIONS", "LS_ITERATIONS")
 
@@ -53,15 +53,9 @@ def make_data(mj_model, impl: str, device, worlds: int = 1):
     return mjx.make_data(mj_model, device=device, impl="warp", naconmax=contacts * worlds, njmax=rows)
 
 
-def merged(flags: jax.Array) -> jax.Array:
-    """Overflow flags of any shape (per environment, per flag) as one int32 of bits: set where any is set."""
-    flags = flags.astype(jnp.int32)
-    return jax.lax.reduce(flags, jnp.int32(0), jax.lax.bitwise_or, tuple(range(flags.ndim)))
-
-
 def overflow_bits(data) -> jax.Array:
     """Warp's overflow flags this environment's last physics step raised, as int32 bits."""
-    return merged(data._impl.overflow)
+    return merged_overflow(data._impl.overflow)
 
 
 def overflow_names(bits: int) -> list[str]:

@@ -5,16 +5,21 @@ an interquartile mean with its bootstrap interval (fieldgen.run.summary).
 The runs are ordinary run folders under the comparison's folder, so an interrupted
 comparison resumes where it stopped, a run prepared here can train elsewhere
 (`fieldgen train --resume`), and running the same comparison again only redraws.
+
+Runs already trained (a sweep's, or any run folders) compare the same way from their records alone
+(`recorded`, `report_recorded`): no field is loaded and nothing trains.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import hashlib
 import json
 from pathlib import Path
 
 import numpy as np
 from rich.console import Console
-from rich.table import Table
+from rich.table import Column, Table
 
 import fieldgen
 from fieldgen.agents import registry, sharding
@@ -183,3 +188,151 @@ def report(runs_: list[session.Run], folder: Path, console: Console, command: st
                       f"{r['wall_seconds']:,.0f}")
     console.print(table)
     console.print(f"plot: {folder / PLOT}; table: {folder / TABLE}")
+
+
+# -- runs already trained ---------------------------------------------------------------------------
+
+RUN_FOLDER_HINT = "name the folders fieldgen train wrote (runs/<field>-<algo>-<seed>), each holding run.json"
+
+
+def run_folders(arguments: list[str]) -> list[Path] | None:
+    """What `fieldgen compare`'s arguments name: run folders (each holding run.json) to compare as they are, or
+    None for one field (a YAML file, bundled name or build folder) to train on; a mix, several fields or anything
+    else is RunError in one line naming the argument and what to do."""
+    from fieldgen.compile.artifact import META
+    from fieldgen.schema import bundled_fields
+
+    paths = [Path(a) for a in arguments]
+    runs = [p for p in paths if (p / record.RUN).is_file()]
+    if runs and len(runs) == len(paths):
+        return runs
+
+    def is_field(argument: str, path: Path) -> bool:
+        return (path / META).is_file() or (path.is_file() and path.suffix in (".yaml", ".yml")) or \
+            (not path.exists() and argument in bundled_fields())
+
+    fields = [a for a, p in zip(arguments, paths) if is_field(a, p)]
+    if runs and fields:
+        raise record.RunError(f"{runs[0]} is a run folder and {fields[0]} a field: compare either trains on one field "
+                              "(fieldgen compare FIELD --algos A,B) or compares runs already trained (fieldgen compare "
+                              f"RUN RUN ...), not both; drop {fields[0]}, or name the folders of its runs")
+    if len(fields) > 1:
+        raise record.RunError(f"{fields[0]} and {fields[1]} are both fields: compare trains on one field at a time "
+                              "(fieldgen compare FIELD --algos A,B); to set runs of several fields side by side, train "
+                              "each, then compare their run folders")
+    if len(paths) == 1 and (fields or not paths[0].is_dir() and not (paths[0].parent / record.RUN).is_file()):
+        return None  # one field (or a name the field's own lookup refuses with the nearest names)
+    for argument, path in zip(arguments, paths):
+        if path in runs or argument in fields:
+            continue
+        if path.is_file() and (path.parent / record.RUN).is_file():
+            raise record.RunError(f"{path} is a file of the run folder {path.parent}; name the folder itself "
+                                  f"(fieldgen compare {path.parent} ...)")
+        if path.is_dir():
+            raise record.RunError(f"{path} is not a built field (no {META}) nor a run folder (no {record.RUN}): "
+                                  f"compare trains on a field with --algos, or compares run folders; {RUN_FOLDER_HINT}")
+        what = "a file" if path.exists() else "missing"
+        raise record.RunError(f"{path} is {what}, not a run folder; {RUN_FOLDER_HINT}")
+    return None
+
+
+@dataclasses.dataclass(frozen=True)
+class Recorded:
+    """A run as its folder records it (run.json and metrics.jsonl), read without its fields, networks or
+    checkpoint: what a comparison of finished runs needs, and what `curves` and `plot` read (rows, seeds, algo)."""
+
+    folder: Path
+    algo: str
+    seeds: list[int]
+    rows: list[dict]  # each seed's rows up to the last evaluation every seed reached
+    field: str  # the name of the field the run is judged on (a curriculum's last stage)
+    field_digest: str  # of the resolved spec run.json records: fields alike in name can differ
+    actions: str  # how its evaluations acted (registry.EVAL_ACTIONS)
+
+    @property
+    def last(self) -> dict[int, dict]:
+        return last_evaluation(self.rows)
+
+    def last_success(self) -> summary.MetricSummary:
+        """success_any at the last evaluation (on the field, `on_field`), each seed's and their IQM with its
+        95% stratified bootstrap interval."""
+        return summary.MetricSummary.of({s: float(on_field(row, "success_any")) for s, row in self.last.items()})
+
+
+def reached_by_every_seed(rows: list[dict], seeds: list[int]) -> list[dict]:
+    """The rows up to the last evaluation that every seed reached: a point of a curve over seeds holds them all."""
+    common = min(max(r["eval"] for r in rows if r["seed"] == s) for s in seeds)
+    return [r for r in rows if r["eval"] <= common]
+
+
+def last_evaluation(rows: list[dict]) -> dict[int, dict]:
+    """Each seed's row at the last evaluation of `rows` (cut by `reached_by_every_seed`: one every seed reached)."""
+    final = max(r["eval"] for r in rows)
+    return {r["seed"]: r for r in rows if r["eval"] == final}
+
+
+def field_digest(field: dict | None) -> str:
+    """A short SHA-256 of a resolved field spec as run.json records it (keys sorted), '' where none is recorded."""
+    if field is None:
+        return ""
+    return hashlib.sha256(json.dumps(field, sort_keys=True, separators=(",", ":")).encode()).hexdigest()[:12]
+
+
+def recorded(folder: Path) -> Recorded:
+    """The run in `folder` from its run.json and metrics.jsonl; RunError naming the file where it has no
+    evaluation yet or its rows lack a seed's success."""
+    saved = record.read_run(folder)
+    rows = record.read_metrics(folder)
+    seeds = saved.seeds or [saved.config.get("seed", 0)]
+    missing = sorted(set(seeds) - {r.get("seed") for r in rows})
+    if missing:
+        said = "holds no evaluation yet" if not rows else f"holds no evaluation of seed {missing[0]}"
+        raise record.RunError(f"{folder / record.METRICS} {said}, so {folder} has nothing to compare; train it "
+                              f"first (fieldgen train --resume {folder}) or leave it out")
+    rows = reached_by_every_seed([r for r in rows if r["seed"] in seeds], seeds)
+    for r in rows:
+        if not np.isfinite(on_field(r, "success_any")):
+            raise record.RunError(f"{folder / record.METRICS}: evaluation {r['eval']} of seed {r['seed']} holds no "
+                                  "success_any (edited or damaged); restore the file from a copy, or leave the run out")
+    field = (saved.field or {}).get("name") or "(field not recorded)"
+    return Recorded(folder, saved.algo, list(seeds), rows, str(field), field_digest(saved.field),
+                    str(saved.config.get("eval_actions", "mean")))
+
+
+def fields_differ(runs_: list[Recorded]) -> str:
+    """One line saying which runs are of other fields than the first (by the digest of the spec each records,
+    so a field edited under the same name counts), '' where all are of one field."""
+    first = runs_[0]
+    others = [r for r in runs_[1:] if (r.field_digest, r.field) != (first.field_digest, first.field)]
+    if not others:
+        return ""
+
+    def named(run: Recorded) -> str:
+        return f"{run.field} ({run.field_digest or 'no spec recorded'})"
+
+    return (f"note: these runs are of different fields, so their success is not measured alike: {first.folder} "
+            f"on {named(first)}, " + ", ".join(f"{r.folder} on {named(r)}" for r in others))
+
+
+def report_recorded(runs_: list[Recorded], plot_path: Path, console: Console) -> None:
+    """The table of runs already trained (one row each: field, algorithm, seeds, env steps at the last evaluation,
+    success there as IQM [95% interval] and per seed) and their curves with the bands, at `plot_path`."""
+    table = Table(Column("run", overflow="fold"), Column("field", overflow="fold"), "algo", "seeds", "env steps",
+                  Column("success_any (last)", no_wrap=True), "per seed",
+                  title="runs at their last evaluation",
+                  caption="success_any on each run's field: interquartile mean over seeds [95% stratified bootstrap "
+                          "interval]; one seed: its value")
+    for run in runs_:
+        success = run.last_success()
+        steps = sorted({r["env_steps"] for r in run.last.values()})
+        table.add_row(str(run.folder), run.field, run.algo + registry.judged_on(run.actions), str(len(run.seeds)),
+                      ", ".join(f"{s:,}" for s in steps), success.text(3),
+                      ", ".join(f"{s}: {v:.3f}" for s, v in success.per_seed.items()))
+    console.print(table)
+    if differ := fields_differ(runs_):
+        console.print(differ, soft_wrap=True)
+    names = list(dict.fromkeys(r.field for r in runs_))
+    seeds = {len(r.seeds) for r in runs_}
+    bands = "IQM over seeds, 95% bootstrap interval shaded" if max(seeds) > 1 else "one seed each"
+    plot(runs_, plot_path, f"{', '.join(names)}: {len(runs_)} runs ({bands})", labels=[str(r.folder) for r in runs_])
+    console.print(f"plot: {plot_path}")

@@ -156,3 +156,122 @@ def test_a_curriculum_run_is_compared_on_its_field_not_on_the_mean_over_its_vari
         row.update(stage=0, last_stage_success_any=0.125)
     assert compare.curves(staged)["success_any"] == [[0.125, 0.125]]
     assert compare.curves(staged)["time_at_goal"] == [[50.0, 50.0]]  # measured on the stage it trains
+
+
+def run_folder(folder, per_eval: list[list[float]], algo: str = "crl", seeds: list[int] | None = None,
+               field: dict | None = None):
+    """A run folder as `fieldgen train` leaves it for reading (run.json, metrics.jsonl; no fields, no checkpoint):
+    its evaluations gave these success_any values, one per seed."""
+    from fieldgen.schema import load_spec, resolve_spec_path
+
+    seeds = seeds or list(range(len(per_eval[0])))
+    field = field or load_spec(resolve_spec_path("point_nav")).model_dump(mode="json")
+    folder.mkdir(parents=True)
+    (folder / "run.json").write_text(json.dumps({
+        "field": field, "algo": algo, "observation": {}, "seeds": seeds, "fields": ["field"],
+        "config": {"seed": seeds[0], "eval_envs": 16, "eval_actions": "mean", "num_evals": len(per_eval) - 1}}))
+    rows = [{"eval": e, "seed": s, "env_steps": 1000 * e, "wall_seconds": 10.0 * e, "success_any": v,
+             "time_at_goal": 100 * v, "closest_distance": 1 - v, "steps_per_second": 50.0}
+            for e, values in enumerate(per_eval) for s, v in zip(seeds, values)]
+    (folder / "metrics.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
+    return folder
+
+
+def test_compare_of_run_folders_tables_each_runs_last_evaluation_and_draws_the_bands(tmp_path):
+    import io
+
+    from rich.console import Console
+
+    from fieldgen.run import compare, summary
+
+    crl = run_folder(tmp_path / "point_nav-crl-0to4", [[0.0] * 5, [0.2, 1.0, 0.4, 0.8, 0.6]])
+    sac = run_folder(tmp_path / "point_nav-sac-10to13", [[0.0] * 4, [0.9, 0.1, 0.3, 0.2]], "sac", [10, 11, 12, 13])
+    printed = io.StringIO()
+    compare.report_recorded([compare.recorded(crl), compare.recorded(sac)], tmp_path / "both.png",
+                            Console(file=printed, width=400))
+    lines = {line.split("│")[1].strip(): [cell.strip() for cell in line.split("│")[2:-1]]
+             for line in printed.getvalue().splitlines() if line.count("│") > 3 and "point_nav-" in line}
+    # five seeds: the IQM is the mean of the middle three, (0.4 + 0.6 + 0.8) / 3; four: of the middle two
+    low, high = summary.interval([0.2, 1.0, 0.4, 0.8, 0.6])
+    assert lines[str(crl)] == ["point_nav", "crl", "5", "1,000", f"0.600 [{low:.3f}, {high:.3f}]",
+                               "0: 0.200, 1: 1.000, 2: 0.400, 3: 0.800, 4: 0.600"]
+    assert 0.2 < low < 0.6 < high < 1.0
+    assert lines[str(sac)][:5] == ["point_nav", "sac", "4", "1,000", lines[str(sac)][4]]
+    assert lines[str(sac)][4].startswith("0.250 [") and lines[str(sac)][5].startswith("10: 0.900, 11: 0.100")
+    assert "different fields" not in printed.getvalue()
+    assert (tmp_path / "both.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert (tmp_path / "both.png").stat().st_size > 10_000
+
+
+def test_fieldgen_compare_of_run_folders_prints_the_table_and_writes_the_plot(tmp_path):
+    crl = run_folder(tmp_path / "point_nav-crl-0to4", [[0.0] * 5, [0.2, 1.0, 0.4, 0.8, 0.6]])
+    sac = run_folder(tmp_path / "point_nav-sac-0to3", [[0.0] * 4, [0.9, 0.1, 0.3, 0.2]], "sac")
+    plot = tmp_path / "plots" / "both.png"
+    plot.parent.mkdir()
+    result = runner.invoke(app, ["compare", str(crl), str(sac), "-o", str(plot)])
+    assert result.exit_code == 0, result.output
+    text = "".join(result.output.split())  # a narrow console folds the cells anywhere
+    assert "0.600[" in text and "0.250[" in text and f"plot:{plot}" in text
+    assert plot.stat().st_size > 10_000
+
+
+def test_compare_of_run_folders_draws_the_last_evaluation_every_seed_reached(tmp_path):
+    """A seed one evaluation ahead (a run copied mid-write) is cut back to the others', as a point holds them all."""
+    from fieldgen.run import compare
+
+    folder = run_folder(tmp_path / "point_nav-crl-0to1", [[0.0, 0.0], [0.5, 0.25]])
+    with (folder / "metrics.jsonl").open("a") as f:
+        f.write(json.dumps({"eval": 2, "seed": 0, "env_steps": 2000, "success_any": 1.0}) + "\n")
+    run = compare.recorded(folder)
+    assert run.last_success().per_seed == {0: 0.5, 1: 0.25}
+    assert compare.curves(run)["env_steps"] == [0, 1000]
+
+
+def test_compare_of_runs_of_different_fields_says_so_in_one_line(tmp_path):
+    """By the digest of the spec each run records: a field edited under the same name is another field."""
+    from fieldgen.schema import load_spec, resolve_spec_path
+
+    spec = load_spec(resolve_spec_path("point_nav")).model_dump(mode="json")
+    wider = json.loads(json.dumps(spec))
+    wider["field"]["width"] += 2
+    first = run_folder(tmp_path / "a", [[0.5]], field=spec)
+    same = run_folder(tmp_path / "b", [[0.5]], field=json.loads(json.dumps(spec)))
+    other = run_folder(tmp_path / "c", [[0.5]], field=wider)
+    result = runner.invoke(app, ["compare", str(first), str(same), "-o", str(tmp_path / "same.png")])
+    assert result.exit_code == 0 and "different fields" not in result.output, result.output
+    result = runner.invoke(app, ["compare", str(first), str(same), str(other), "-o", str(tmp_path / "c.png")],
+                           env={"COLUMNS": "400"})
+    assert result.exit_code == 0, result.output
+    [note] = [line for line in result.output.splitlines() if "different fields" in line]
+    assert f"{other} on point_nav (" in note and str(same) not in note
+    assert (tmp_path / "c.png").is_file()
+
+
+def test_compare_refuses_a_mix_and_folders_that_are_not_runs_in_one_line(tmp_path):
+    run = run_folder(tmp_path / "point_nav-crl-0", [[0.0], [0.5]])
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    prepared = run_folder(tmp_path / "prepared", [[0.0]])
+    (prepared / "metrics.jsonl").unlink()
+    cases = [([str(run), "point_nav"], f"{run} is a run folder and point_nav a field"),
+             ([str(run), str(run / "metrics.jsonl")], f"{run / 'metrics.jsonl'} is a file of the run folder {run}"),
+             ([str(run / "run.json")], f"{run / 'run.json'} is a file of the run folder {run}"),
+             ([str(run), str(empty)], f"{empty} is not a built field (no field.json) nor a run folder (no run.json)"),
+             ([str(run), str(tmp_path / "gone")], f"{tmp_path / 'gone'} is missing, not a run folder"),
+             ([str(run), str(prepared)], f"{prepared / 'metrics.jsonl'} holds no evaluation yet"),
+             (["point_nav", "point_soccer"], "point_nav and point_soccer are both fields"),
+             ([str(run), "--steps", "1000", "--seeds", "2"], "--steps and --seeds set up new runs on a field"),
+             ([str(run), "-o", str(tmp_path / "plot.svg")], "the plot is a PNG"),
+             ([str(run), "-o", str(tmp_path / "nowhere" / "p.png")], f"there is no folder {tmp_path / 'nowhere'}")]
+    for args, phrase in cases:
+        result = runner.invoke(app, ["compare", *args], env={"COLUMNS": "400"})
+        assert result.exit_code == 1 and "Traceback" not in result.output, (args, result.output)
+        assert result.output.startswith("error: ") and phrase in result.output, (args, result.output)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["empty", "point_nav-crl-0", "prepared"]
+
+
+def test_compare_of_run_folders_writes_compare_png_in_a_folder_dash_o_names(tmp_path):
+    run = run_folder(tmp_path / "point_nav-crl-0", [[0.0], [0.5]])
+    result = runner.invoke(app, ["compare", str(run), "-o", str(tmp_path)], env={"COLUMNS": "250"})
+    assert result.exit_code == 0, result.output
+    assert (tmp_path / "compare.png").is_file() and "0.500 [0.500, 0.500]" in result.output
