@@ -15,7 +15,7 @@ from rich.text import Text
 from fieldgen.agents.registry import ALGORITHMS, EVAL_ACTIONS, PRESETS, judged_on
 from fieldgen.cli.app import app, choice, count, duration, err, fail, field_source, out, video_format
 from fieldgen.command import TIME_LIMIT_STATUS
-from fieldgen.compile.cameras import CAMERAS
+from fieldgen.cameras import CAMERAS
 from fieldgen.run.loggers import LOGGERS
 from fieldgen.schema import SpecError
 from fieldgen.video import FORMATS as VIDEO_FORMATS
