@@ -11,7 +11,7 @@ import imageio.v3 as iio
 import mujoco
 import numpy as np
 
-from fieldgen.compile.cameras import CAMERAS, TOP
+from fieldgen.cameras import CAMERAS, TOP
 
 HEIGHT = 480  # of a still; videos are drawn half as high
 PERSPECTIVE_ASPECT = 4 / 3

@@ -11,7 +11,7 @@ import pytest
 
 from fieldgen.agents.contrastive import ENERGIES, LOSSES
 from fieldgen.agents.registry import ALGORITHMS
-from fieldgen.compile.cameras import CAMERAS
+from fieldgen.cameras import CAMERAS
 from fieldgen.run.loggers import LOGGERS
 from fieldgen.schema.backends import BACKENDS
 from fieldgen.schema.models import AGENT_CONTACTS
@@ -26,7 +26,7 @@ REGISTRIES = {
     "algorithms": (ALGORITHMS, "agents/registry.py"),
     "backends": (tuple(BACKENDS), "fieldgen/schema/backends.py"),
     "agent contacts": (tuple(AGENT_CONTACTS), "fieldgen/schema/models.py"),
-    "cameras": (CAMERAS, "fieldgen/compile/cameras.py"),
+    "cameras": (CAMERAS, "fieldgen/cameras.py"),
     "video formats": (FORMATS, "fieldgen/video.py"),
     "loggers": (LOGGERS, "fieldgen/run/loggers.py"),
     "energies": (ENERGIES, "agents/contrastive.py"),

@@ -4,7 +4,6 @@ resolving a field named on the command line, and failing with one paragraph."""
 from __future__ import annotations
 
 import re
-from decimal import Decimal, InvalidOperation
 from pathlib import Path
 from typing import Annotated
 
@@ -12,7 +11,7 @@ import typer
 from rich.console import Console
 from rich.text import Text
 
-from fieldgen import files, xla_cache, xla_flags
+from fieldgen import counts, files, xla_cache, xla_flags
 from fieldgen.cli.helptext import ReadableCommand, ReadableTyper
 from fieldgen.schema import bundled_fields, resolve_spec_path
 from fieldgen.schema.errors import shown_text
@@ -73,22 +72,12 @@ def choice(what: str, choices: tuple[str, ...]) -> dict:
     return {"metavar": "|".join(choices), "callback": check, "autocompletion": complete}
 
 
-SUFFIXES = {"k": 1_000, "m": 1_000_000, "g": 1_000_000_000}
-
-
 def count(text: str | int) -> int:
-    """A whole count as people write them: 50M, 1.5k, 2e6, 10_000_000 or 40000 (read as a Decimal, so
-    that 1.1k is exactly 1100); an option's default comes as the number itself."""
-    cleaned = str(text).strip().replace("_", "").replace(",", "")
-    scale = SUFFIXES.get(cleaned[-1:].lower(), 1)
+    """A whole count as people write them (fieldgen.counts), read as an option's value."""
     try:
-        value = Decimal(cleaned[:-1] if scale > 1 else cleaned) * scale
-    except InvalidOperation:
-        value = Decimal(0)
-    if not (value.is_finite() and 1 <= value < 10**15 and value == value.to_integral_value()):
-        raise typer.BadParameter(f"'{text}' is not a positive whole count; write it as 40000, 50M, 1.5k or 2e6 "
-                                 "(k, M and G stand for thousand, million and billion)")
-    return int(value)
+        return counts.count(text)
+    except ValueError as exc:
+        raise typer.BadParameter(str(exc)) from None
 
 
 DURATION = re.compile(r"(?:(\d+(?:\.\d*)?)h)?(?:(\d+(?:\.\d*)?)m)?(?:(\d+(?:\.\d*)?)s?)?")

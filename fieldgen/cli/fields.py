@@ -12,7 +12,7 @@ from rich.table import Table
 from rich.text import Text
 
 from fieldgen.cli.app import SpecArg, app, choice, count, err, fail, field_source, os_problem, out, spec_path
-from fieldgen.compile.cameras import CAMERAS
+from fieldgen.cameras import CAMERAS
 from fieldgen.schema import SpecError, bundled_fields, geometry, load_spec
 
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from dm_control import mjcf
 
-from fieldgen.compile.cameras import FOLLOW
+from fieldgen.cameras import FOLLOW
 from fieldgen.compile.contacts import bits
 from fieldgen.schema.geometry import POINT_RADIUS
 from fieldgen.schema.models import FieldSpec

@@ -13,7 +13,7 @@ import math
 from dm_control import mjcf
 
 from fieldgen.compile.bodies import BUILDERS
-from fieldgen.compile.cameras import TOP
+from fieldgen.cameras import TOP
 from fieldgen.compile.contacts import ball_touches_floor, bits, contact_limit
 from fieldgen.compile.pipelines import brax_parameters
 from fieldgen.render import MARKINGS, SIDE_VIEW

@@ -65,7 +65,7 @@ class EpisodeRecorder:
 def _check_episode(path: Path, episode: dict, model, camera: str) -> None:
     """A kept episode is of the field it names: a frame of that model's joint positions and targets per step,
     finite, at a frame rate above zero, for one of fieldgen's cameras (EpisodeRecorder.episode writes it so)."""
-    from fieldgen.compile.cameras import CAMERAS
+    from fieldgen.cameras import CAMERAS
     from fieldgen.run.record import RunError
 
     qpos, mocap, fps = (np.asarray(episode.get(k)) for k in ("qpos", "mocap_pos", "fps"))

@@ -23,6 +23,7 @@ from pydantic import (BaseModel, BeforeValidator, ConfigDict, Field, StrictBool,
                       ValidationError)
 
 from fieldgen.agents.registry import ALGORITHMS
+from fieldgen.counts import count
 from fieldgen.schema import Problem, SpecError, bundled_fields, resolve_spec_path
 from fieldgen.schema.messages import problems
 from fieldgen.schema.source import Source, read_yaml
@@ -43,16 +44,9 @@ class SweepError(SpecError):
 
 def _count(value):
     """A count as `fieldgen train` reads it: 40000, 50M, 1.5k, 2e6."""
-    from fieldgen.cli.app import count
-
-    import typer
-
     if isinstance(value, bool) or not isinstance(value, (int, float, str)):
         raise ValueError(f"expected a count such as 40000, 50M or 1.5k (got {value!r})")
-    try:
-        return count(value)
-    except typer.BadParameter as exc:
-        raise ValueError(str(exc)) from None
+    return count(value)
 
 
 Count = Annotated[int, BeforeValidator(_count)]
