@@ -23,6 +23,7 @@ if TYPE_CHECKING:
 CONFIG_CLASSES = {"crl": "CRLConfig", "icrl": "ICRLConfig", "ppo": "PPOConfig", "sac": "SACConfig",
                   "td3": "TD3Config"}
 ALGORITHMS: tuple[str, ...] = tuple(CONFIG_CLASSES)
+DEFAULT_ALGORITHM = "crl"  # what `fieldgen train` trains a field with when neither --algo nor a recipe names one
 # named presets, `--preset NAME`: agents/presets/NAME.yaml, settings of every trainer sized for a kind of machine
 PRESETS: tuple[str, ...] = ("cpu",)
 # how a policy acts when it is judged (a run's evaluations, `eval_actions`; fieldgen eval --actions): its mean

@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Annotated, Optional
 
 import typer
-from rich.table import Table
+from rich.table import Column, Table
 from rich.text import Text
 
 from fieldgen.cli.app import SpecArg, app, choice, count, err, fail, field_source, os_problem, out, spec_path
@@ -304,17 +304,39 @@ def _flat_changes(tree: dict, prefix: str = "") -> str:
 
 
 @app.command("list")
-def list_fields() -> None:
+def list_fields(
+    recipes: Annotated[bool, typer.Option(
+        "--recipes", help="show each field's recipe (what `fieldgen train FIELD` trains it with) and the figure "
+                          "it measured, with its seeds, in place of the descriptions")] = False,
+) -> None:
     """List the bundled fields, one line each.
 
     Example: fieldgen list
+    Example: fieldgen list --recipes
     """
+    if recipes:
+        _list_recipes()
+        return
     table = Table("name", "description", box=None)
     for name, path in bundled_fields().items():
         try:
             table.add_row(name, load_spec(path).description)
         except SpecError as exc:
             table.add_row(name, Text(f"invalid: {exc.problems[0].message}", style="red"))
+    out.print(table)
+
+
+def _list_recipes() -> None:
+    from fieldgen.agents.recipes import RecipeError
+    from fieldgen.run.recipe import listing
+
+    try:
+        rows = listing()
+    except RecipeError as exc:
+        fail(str(exc))
+    table = Table(Column("name", no_wrap=True), "recipe", "measured", box=None)
+    for row in rows:
+        table.add_row(*row)
     out.print(table)
 
 

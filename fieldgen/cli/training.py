@@ -12,7 +12,7 @@ import typer
 from rich.table import Column, Table
 from rich.text import Text
 
-from fieldgen.agents.registry import ALGORITHMS, EVAL_ACTIONS, PRESETS, judged_on
+from fieldgen.agents.registry import ALGORITHMS, DEFAULT_ALGORITHM, EVAL_ACTIONS, PRESETS, judged_on
 from fieldgen.cli.app import app, choice, count, duration, err, fail, field_source, out, video_format
 from fieldgen.command import TIME_LIMIT_STATUS
 from fieldgen.cameras import CAMERAS
@@ -101,10 +101,13 @@ def _train(run, videos: bool, logger: str, fmt: str | None = None, deadline: flo
 def train(
     spec: Annotated[Optional[str], typer.Argument(
         help="a YAML file, bundled field name or build folder (omit with --resume)")] = None,
-    algo: Annotated[str, typer.Option(help="training algorithm", **choice("algorithm", ALGORITHMS))] = "crl",
-    steps: Annotated[Optional[int], typer.Option(parser=count, metavar="N",
-                                                 help=f"total env steps: 40000, 50M, 1.5k, 2e6 {STEPS}")] = None,
-    envs: Annotated[Optional[int], typer.Option(parser=count, metavar="N", help=f"parallel environments {ENVS}")] = None,
+    algo: Annotated[Optional[str], typer.Option(
+        help=f"training algorithm [default: the field's recipe's, else {DEFAULT_ALGORITHM}]",
+        **choice("algorithm", ALGORITHMS))] = None,
+    steps: Annotated[Optional[int], typer.Option(parser=count, metavar="N", help=f"total env steps: 40000, 50M, 1.5k, "
+                                                 f"2e6 {STEPS}; or the field's recipe's")] = None,
+    envs: Annotated[Optional[int], typer.Option(parser=count, metavar="N",
+                                                help=f"parallel environments {ENVS}; or the field's recipe's")] = None,
     seed: Annotated[int, typer.Option(help="random seed; names the run folder")] = 0,
     seeds: Annotated[int, typer.Option(metavar="K",
                                        help="train this many seeds at once (seed, seed+1, ...), vmapped")] = 1,
@@ -112,6 +115,10 @@ def train(
                                                       help="override a config key: crl.repr_dim=128")] = None,
     preset: Preset = None,
     config: Annotated[Optional[Path], typer.Option(metavar="FILE", help="YAML file: {crl: {key: value}}")] = None,
+    use_recipe: Annotated[bool, typer.Option(
+        "--recipe/--no-recipe", help="take the field's recipe (agents/presets/recipes.yaml: its algorithm, env steps, "
+                                     "envs, settings, curriculum), or that of the field it extends; its options above "
+                                     "and --set override it; --no-recipe trains with the defaults")] = True,
     runs: Annotated[Path, typer.Option("--out", metavar="DIR", help="folder for run folders")] = Path("runs"),
     resume: Annotated[Optional[Path], typer.Option(metavar="RUN", help="continue the run in this folder")] = None,
     init_from: Annotated[Optional[Path], typer.Option(
@@ -163,6 +170,7 @@ def train(
     promotion rule is met and reports which stage it reached, when, and success on the last stage;
     with --mixed it trains on every stage at once, favouring those being learnt (success neither 0 nor 1).
 
+    Example: fieldgen train soccer_v2_dense   (its recipe: ppo, 250M env steps, 4,096 envs)
     Example: fieldgen train point_nav --algo crl --steps 40000 --envs 16 --set 'crl.hidden=[64,64]'
     Example: fieldgen train point_nav --logger tensorboard, then: tensorboard --logdir runs
     Example: fieldgen train soccer_v2 --init-from runs/soccer_v1-crl-0 --seed 1
@@ -175,7 +183,9 @@ def train(
     from fieldgen.agents import registry
     from fieldgen.files import FolderError
     from fieldgen.run import distributed, loggers, record, session, supervisor
+    from fieldgen.run import recipe as recipes
     from fieldgen.agents.config import ConfigError
+    from fieldgen.agents.recipes import RecipeError
 
     try:
         where = distributed.layout(coordinator, num_processes, process_id)
@@ -212,26 +222,38 @@ def train(
                 fail(f"--seeds {seeds}: train at least one seed")
             source = field_source(spec)
             _read_config(config)
-            trainer_config, agent = registry.trainer(algo).config, session.agent_kind(source)
-            algo_config = trainer_config.layered(config, sets or [], agent=agent, preset=preset, total_steps=steps,
-                                                 num_envs=envs, seed=seed)
-            layers = [f"{p.name}{' (--preset)' if p.stem == preset else ''}" for p in
-                      (trainer_config.preset(agent), trainer_config.named_preset(preset)) if p]
+            field, chosen = session.field_spec(source), recipes.choose(source, algo, use_recipe)
+            algo, recipe = chosen.algo, chosen.recipe
+            named = preset or (recipe and recipe.preset)
+            curriculum_kind = curriculum_kind or (recipe and recipe.curriculum)
+            trainer_config, agent = registry.trainer(algo).config, field.agent.kind
+            algo_config = trainer_config.layered(config, sets or [], agent=agent, preset=named, recipe=recipe,
+                                                 total_steps=steps, num_envs=envs, seed=seed)
+            overriding = [flag for flag, given in (("--steps", steps), ("--envs", envs), ("--set", sets),
+                                                   ("--config", config), ("--preset", preset)) if given]
+            said = chosen.line(overriding)
+            if said:
+                out.print(said, soft_wrap=True)  # one line, whole
+            layers = [f"{p.name}{(' (--preset)' if preset else ' (recipe)') if p.stem == named else ''}" for p in
+                      (trainer_config.preset(agent), trainer_config.named_preset(named)) if p]
             if layers:
                 out.print(f"{algo} on {agent} fields starts from {' then '.join(layers)} (a --config file or --set "
                           "overrides it)")
+            warning = recipes.sparse_warning(field, algo)
+            if warning:
+                out.print(Text(warning, style="yellow"), soft_wrap=True)
             if levels is not None and curriculum_kind != "auto":
                 fail(f"--levels {levels} sets how many levels --curriculum auto makes; add --curriculum auto")
             sampler = _sampler(samplers) if samplers else None
             run = session.new_run(source, algo, range(seed, seed + seeds), algo_config, runs, mixed, init_from,
                                   auto=curriculum_kind == "auto", levels=levels, processes=processes,
-                                  trains_here=not prepare, sampler=sampler)
+                                  trains_here=not prepare, sampler=sampler, recipe=chosen.record(overriding))
         if run.init_from and not run.rows:
             chain = f", {run.learned_before:,} from nothing learned" if run.init_from.get("before") else ""
             out.print(f"starts from what {run.init_from['run']} learned in {run.init_from['env_steps']:,} env steps "
                       f"(evaluation {run.init_from['eval']}{chain}), with fresh episodes and a replay buffer filled "
                       "anew")
-    except (SpecError, ConfigError, record.RunError, FolderError) as exc:
+    except (SpecError, ConfigError, RecipeError, record.RunError, FolderError) as exc:
         fail(str(exc))
     if prepare:
         out.print(f"prepared {run.folder}; start it with: fieldgen train --resume {run.folder}",

@@ -110,6 +110,7 @@ class RunRecord(BaseModel):
     sampler: dict = {}  # an automatic curriculum's sampler settings (curriculum.auto.Sampler); {}: its defaults
     curriculum: StrictStr = ""  # the name of the curriculum the run trains through; "" (left out): a field
     init_from: InitFrom | None = None
+    recipe: dict = {}  # the recipe the run was set up from (fieldgen/run/recipe.py); {} (left out): none
 
 
 class MetricsRow(BaseModel):

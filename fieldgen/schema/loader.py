@@ -132,6 +132,26 @@ def _load_merged(path: Path, chain: tuple[Path, ...]) -> Source:
     return merge(parent, source)
 
 
+def lineage(path: Path) -> list[str]:
+    """The name of the spec in `path`, then of each spec it extends, nearest first: the fields whose recipe
+    it may take. A file that cannot be read ends the list; loading the spec says why."""
+    names: list[str] = []
+    seen: set[Path] = set()
+    while path.resolve() not in seen and len(seen) < MAX_EXTENDS:
+        seen.add(path.resolve())
+        try:
+            source = read_yaml(path)
+            name, ref = source.data.get("name"), source.data.get("extends")
+            if isinstance(name, str) and name not in names:
+                names.append(name)
+            if ref is None:
+                break
+            path = _extended(source, ref, path)
+        except SpecError:
+            break
+    return names
+
+
 def _extended(source: Source, ref, path: Path) -> Path:
     """The file `extends: ref` names: a bundled field, or a .yaml file by a path relative to this one.
     Absolute paths and files of other kinds are refused, so a spec someone shares cannot make fieldgen

@@ -16,15 +16,16 @@ class Term:
     ball: bool = False  # needs a ball (ball.enabled)
     goal: bool = False  # needs a goal (goal.enabled)
     torso: bool = False  # needs an agent with a torso (agent.kind: ant)
+    sparse: bool = False  # 1 only while a state holds: alone, it gives a learner nothing to follow until it succeeds
 
 
 TERMS: dict[str, Term] = {
-    "success": Term("1 while the success predicate holds (the sparse reward)"),
+    "success": Term("1 while the success predicate holds (the sparse reward)", sparse=True),
     "ball_progress": Term("decrease of the ball's distance to the target, per second", ball=True),
     "scaled_ball_progress": Term("ball_progress / max(distance, 0.1)", ball=True),
     "agent_approaches_ball": Term("decrease of the agent's distance to the ball, per second", ball=True),
     "agent_progress": Term("decrease of the agent's distance to the target, per second"),
     "upright": Term("1 while the torso height is inside band (default [0.2, 1.0])", torso=True),
     "control_cost": Term("-sum(action^2): give it a positive weight"),
-    "ball_in_goal": Term("1 while the ball's centre is inside the goal box", ball=True, goal=True),
+    "ball_in_goal": Term("1 while the ball's centre is inside the goal box", ball=True, goal=True, sparse=True),
 }

@@ -1,0 +1,131 @@
+"""Which recipe (fieldgen.agents.recipes) sets up a new run on a field, and what `fieldgen train` and
+`fieldgen list --recipes` say of it: the recipe, why it was chosen, its measured figure, and the dense route
+where a field's reward is its success alone."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+from fieldgen import curriculum
+from fieldgen.agents import recipes
+from fieldgen.agents.recipes import Found, Recipe
+from fieldgen.agents.registry import DEFAULT_ALGORITHM
+from fieldgen.schema import FieldSpec, bundled_fields
+from fieldgen.schema.loader import lineage
+from fieldgen.schema.terms import TERMS
+
+DENSE_TWIN = "{}_dense"  # the bundled field that gives a field's task a dense reward
+
+
+def field_lineage(source: Path) -> list[str]:
+    """The field a YAML file or build folder holds, then each field it extends, nearest first; [] for a
+    curriculum folder: a recipe is a field's."""
+    if curriculum.is_curriculum(source):
+        return []
+    if source.is_dir():
+        from fieldgen.compile.artifact import load_artifact
+
+        spec = load_artifact(source).spec
+        parent = bundled_fields().get(spec.extends or "")
+        return [spec.name, *(n for n in (lineage(parent) if parent else []) if n != spec.name)]
+    return lineage(source)
+
+
+@dataclasses.dataclass(frozen=True)
+class Choice:
+    """What a new run on a field trains with: the recipe it takes (None: the trainer's defaults) and the
+    algorithm; `passed_over` is the field's recipe where --algo names another algorithm."""
+
+    field: str
+    found: Found | None
+    algo: str
+    passed_over: Found | None = None
+
+    @property
+    def recipe(self) -> Recipe | None:
+        return None if self.found is None else self.found.recipe
+
+    def line(self, overriding: list[str]) -> str | None:
+        """One line: which recipe, why, its measured figure, and the flags given that override it."""
+        if self.passed_over is not None:
+            other = self.passed_over.recipe
+            return (f"recipe {other.field} ({other.summary()}) not taken: --algo {self.algo} names another "
+                    f"algorithm, which trains with its defaults")
+        if self.found is None:
+            return None
+        recipe = self.recipe
+        why = (f"recipe {recipe.field} for {self.field}, which extends {' -> '.join(self.found.lineage[1:])}"
+               if self.found.inherited else f"recipe {recipe.field}")
+        flags = ", ".join(overriding[:-1]) + " and " * (len(overriding) > 1) + "".join(overriding[-1:])
+        overrides = f"; {flags} override{'s' * (len(overriding) == 1)} it" if overriding else ""
+        return f"{why}: {recipe.summary()}; {figure(self.found)}{overrides}"
+
+    def record(self, overriding: list[str]) -> dict | None:
+        """The recipe as run.json keeps it, with the flags that overrode it."""
+        if self.recipe is None:
+            return None
+        return {**self.recipe.record(), **({"overridden_by": overriding} if overriding else {})}
+
+
+def choose(source: Path, algo: str | None, use: bool = True) -> Choice:
+    """The recipe a new run on `source` takes, unless `use` is false or `algo` names another algorithm."""
+    names = field_lineage(source)
+    field = names[0] if names else source.name
+    found = recipes.find(names, recipes.read()) if use else None
+    if found is not None and algo is not None and algo != found.recipe.algo:
+        return Choice(field, None, algo, passed_over=found)
+    return Choice(field, found, algo or (found.recipe.algo if found else DEFAULT_ALGORITHM))
+
+
+def figure(found: Found) -> str:
+    """The recipe's measured figure on the field, or that it has none, and then the dense twin's measured route."""
+    recipe, field = found.recipe, found.lineage[0]
+    measured = recipe.measured
+    if measured is not None and not found.inherited:
+        return f"measured: {measured.figure}, {measured.seeds}"
+    said = f"not measured on {field} yet" if found.inherited else "not measured yet"
+    said += f" ({recipe.field}: {measured.figure}, {measured.seeds})" if measured is not None else ""
+    return said + dense_route(field)
+
+
+def dense_route(field: str) -> str:
+    """Where a field's dense twin has a figure of its own recipe: '; the measured route is ...'; else ''."""
+    twin = DENSE_TWIN.format(field)
+    path = bundled_fields().get(twin)
+    found = recipes.find(lineage(path), recipes.read()) if path is not None else None
+    if found is None or found.inherited or found.recipe.measured is None:
+        return ""
+    measured = found.recipe.measured
+    return (f"; the measured route is its dense twin {twin} ({found.recipe.summary()}): {measured.figure}, "
+            f"{measured.seeds}")
+
+
+def is_sparse(spec: FieldSpec) -> bool:
+    """Whether a field's reward is a success signal alone: nothing to follow until the first success."""
+    return all(TERMS[term.term].sparse for term in spec.task.reward)
+
+
+def sparse_warning(spec: FieldSpec, algo: str) -> str | None:
+    """The warning for PPO on a field whose reward is its success alone, naming the dense alternative."""
+    if algo != "ppo" or not is_sparse(spec):
+        return None
+    twin = DENSE_TWIN.format(spec.name)
+    instead = (f"train its dense twin instead: fieldgen train {twin}" if twin in bundled_fields() else
+               "give the field a reward that shapes the way there under task.reward")
+    return f"warning: PPO learns nothing from a success signal alone, and {spec.name}'s reward is its success; {instead}"
+
+
+def listing() -> list[tuple[str, str, str]]:
+    """(field, its recipe, its measured figure) for each bundled field, as `fieldgen list --recipes` shows them."""
+    table = recipes.read()
+    rows = []
+    for name, path in bundled_fields().items():
+        found = recipes.find(lineage(path), table)
+        if found is None:
+            route = dense_route(name).removeprefix("; ")
+            rows.append((name, f"none: {DEFAULT_ALGORITHM} with its defaults", route or "-"))
+            continue
+        inherited = f" (the recipe of {found.recipe.field})" if found.inherited else ""
+        rows.append((name, found.recipe.summary() + inherited, figure(found)))
+    return rows

@@ -1,0 +1,96 @@
+"""Recipes: read from presets/recipes.yaml with `extends`, found through a field's own `extends`, layered between
+the agent's preset and everything the command line says, and refused in one sentence where a key is wrong."""
+
+from __future__ import annotations
+
+import pytest
+
+from fieldgen.agents import recipes
+from fieldgen.agents.config import ConfigError, CRLConfig, PPOConfig
+from fieldgen.agents.recipes import RecipeError
+from fieldgen.agents.registry import trainer
+
+
+def test_every_bundled_recipe_names_settings_its_trainer_takes():
+    table = recipes.read()
+    assert {"soccer_v2_dense", "v2_wide_goalie_dense", "v2_wide_goalie", "ant_nav", "point_soccer"} <= set(table)
+    for recipe in table.values():
+        config = trainer(recipe.algo).config.layered(recipe=recipe, agent="ant")
+        assert config.total_steps == (recipe.steps or trainer(recipe.algo).config().total_steps)
+
+
+def test_the_measured_recipes_are_the_commands_their_figures_came_from():
+    table = recipes.read()
+    dense = table["soccer_v2_dense"]
+    assert (dense.algo, dense.steps, dense.envs, dense.sets) == (
+        "ppo", 250_000_000, 4096, ("ppo.num_evals=25", "ppo.spread=global"))
+    assert "0.919" in dense.measured.figure and dense.measured.seeds == "one seed (0)"
+    ant = table["ant_nav"]
+    assert (ant.algo, ant.steps) == ("crl", 10_000_000)
+    assert ant.measured.figure.startswith("IQM 0.706 [0.657, 0.750]") and "210-214" in ant.measured.seeds
+    assert table["v2_wide_goalie"].algo == "crl" and table["v2_wide_goalie"].measured is None
+
+
+def test_a_recipe_extends_another_keeping_its_own_set_items_and_never_its_figure(tmp_path):
+    table = recipes.read()
+    wide, dense = table["v2_wide_goalie_dense"], table["soccer_v2_dense"]
+    assert (wide.algo, wide.steps, wide.envs, wide.sets) == (dense.algo, dense.steps, dense.envs, dense.sets)
+    assert "0.81" in wide.measured.figure  # its own run, not soccer_v2_dense's 0.919
+    path = tmp_path / "recipes.yaml"
+    path.write_text("base:\n  algo: ppo\n  steps: 1000\n  set: [ppo.num_evals=2, ppo.spread=global]\n"
+                    "  measured: {figure: '0.5', seeds: one seed (0), data: here}\n"
+                    "child:\n  extends: base\n  envs: 8\n  set: [ppo.num_evals=3]\n")
+    child = recipes.read(path)["child"]
+    assert (child.algo, child.steps, child.envs) == ("ppo", 1000, 8)
+    assert child.sets == ("ppo.spread=global", "ppo.num_evals=3") and child.measured is None
+    assert child.where == f"{path}:6"
+
+
+def test_a_field_takes_the_recipe_of_the_nearest_field_it_extends():
+    table = recipes.read()
+    found = recipes.find(["my_wide", "v2_wide_goalie_dense", "soccer_v2_dense", "soccer_v2"], table)
+    assert found.recipe.field == "v2_wide_goalie_dense" and found.lineage == ("my_wide", "v2_wide_goalie_dense")
+    assert found.inherited
+    own = recipes.find(["soccer_v2_dense", "soccer_v2"], table)
+    assert own.recipe.field == "soccer_v2_dense" and not own.inherited
+    assert recipes.find(["mine", "soccer_v2", "soccer_v1"], table) is None
+
+
+def test_a_recipe_sits_over_the_agents_preset_and_under_every_setting_the_command_line_gives():
+    recipe = recipes.read()["soccer_v2_dense"]
+    config = PPOConfig.layered(recipe=recipe)
+    assert (config.total_steps, config.num_envs, config.num_evals, config.spread) == (250_000_000, 4096, 25, "global")
+    mine = PPOConfig.layered(sets=["ppo.num_evals=3"], recipe=recipe, total_steps=40_000)
+    assert (mine.total_steps, mine.num_envs, mine.num_evals, mine.spread) == (40_000, 4096, 3, "global")
+    cpu = PPOConfig.layered(recipe=recipe, preset="cpu")  # a machine's preset sizes the recipe down
+    assert (cpu.total_steps, cpu.num_envs, cpu.spread) == (200_000, 16, "global")
+    ant = CRLConfig.layered(recipe=recipes.read()["ant_nav"], agent="ant")
+    assert (ant.total_steps, ant.hidden, ant.num_evals) == (10_000_000, (1024,) * 4, 10)  # with the ant preset
+
+
+@pytest.mark.parametrize("text,phrase", [
+    ("f:\n  algo: ppo\n  stpes: 10\n", ":3: recipe 'f': unknown key 'stpes'; did you mean 'steps'? Keys: extends, algo,"),
+    ("f:\n  algo: ppp\n", ":2: recipe 'f': algo must be one of crl, icrl, ppo, sac, td3 (did you mean 'ppo'?), not 'ppp'"),
+    ("f:\n  algo: crl\n  steps: -5\n", ":3: recipe 'f': steps must be a whole count above 0, not -5"),
+    ("f:\n  algo: crl\n  preset: laptop\n", ":3: recipe 'f': preset must be one of cpu, not 'laptop'"),
+    ("f:\n  algo: crl\n  set: [ppo.num_evals=2]\n", ":3: recipe 'f': set item 'ppo.num_evals=2' is not crl's"),
+    ("f:\n  extends: g\n", ":2: recipe 'f': extends 'g', which has no recipe. Recipes: f."),
+    ("f:\n  extends: g\ng:\n  extends: f\n", "extends forms a cycle: f -> g -> f"),
+    ("f:\n  steps: 10\n", ":1: recipe 'f' names no algo; choose one of crl,"),
+    ("f:\n  algo: crl\n  measured: {figure: '0.5'}\n", "measured must be a mapping of figure, seeds, data, each a text"),
+])
+def test_a_wrong_recipe_is_one_sentence_at_its_line(tmp_path, text, phrase):
+    path = tmp_path / "recipes.yaml"
+    path.write_text(text)
+    with pytest.raises(RecipeError) as caught:
+        recipes.read(path)
+    assert phrase in str(caught.value) and str(caught.value).startswith(str(path))
+
+
+def test_a_recipe_setting_its_trainer_refuses_is_reported_at_the_recipe(tmp_path):
+    path = tmp_path / "recipes.yaml"
+    path.write_text("f:\n  algo: crl\n  set: [crl.repr_dimm=3]\n")
+    with pytest.raises(ConfigError) as caught:
+        CRLConfig.layered(recipe=recipes.read(path)["f"])
+    assert str(caught.value).startswith(f"{path}:1: recipe 'f': crl.repr_dimm=3: unknown config key 'repr_dimm'; "
+                                        "did you mean 'repr_dim'?")

@@ -1,0 +1,122 @@
+"""`fieldgen train FIELD` with a field's recipe: which recipe and why in one line, flags and --set over it,
+the PPO-on-sparse warning, `fieldgen list --recipes`, and run.json keeping the recipe a run was set up from."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+from typer.testing import CliRunner
+
+from fieldgen.cli import app
+from fieldgen.run import recipe
+from fieldgen.schema import bundled_fields, load_spec
+
+runner = CliRunner()
+
+
+def lines_with(output: str, phrase: str) -> list[str]:
+    return [line for line in output.splitlines() if phrase in line]
+
+
+def test_a_field_of_ones_own_takes_the_recipe_of_the_field_it_extends_and_says_so(tmp_path):
+    spec = tmp_path / "my_wide.yaml"
+    spec.write_text("extends: v2_wide_goalie_dense\nname: my_wide\nobstacles:\n  goalie: {width: 2.5}\n")
+    chosen = recipe.choose(spec, None)
+    assert chosen.algo == "ppo" and chosen.recipe.field == "v2_wide_goalie_dense"
+    assert chosen.line([]) == (
+        "recipe v2_wide_goalie_dense for my_wide, which extends v2_wide_goalie_dense: ppo, 250M env steps, 4,096 "
+        "envs, --set ppo.num_evals=25 ppo.spread=global; not measured on my_wide yet (v2_wide_goalie_dense: 0.81 "
+        "success in-run at 250M env steps, 128 episodes, one seed (0))")
+    own = recipe.choose(bundled_fields()["soccer_v2_dense"], None)
+    assert own.line(["--steps"]) == (
+        "recipe soccer_v2_dense: ppo, 250M env steps, 4,096 envs, --set ppo.num_evals=25 ppo.spread=global; "
+        "measured: 0.919 success of 1,024 episodes after 250M env steps, one seed (0); --steps overrides it")
+    assert recipe.choose(spec, None, use=False).recipe is None
+    other = recipe.choose(spec, "crl")
+    assert other.recipe is None and other.algo == "crl" and "not taken: --algo crl" in other.line([])
+
+
+def test_the_sparse_wide_goalie_points_to_its_dense_twin_as_the_measured_route():
+    chosen = recipe.choose(bundled_fields()["v2_wide_goalie"], None)
+    assert chosen.algo == "crl"
+    assert chosen.line([]).startswith("recipe v2_wide_goalie: crl with its defaults; not measured yet; the measured "
+                                      "route is its dense twin v2_wide_goalie_dense (ppo, 250M env steps")
+
+
+def test_ppo_on_a_success_signal_alone_is_warned_of_naming_the_dense_twin():
+    wide = load_spec(bundled_fields()["v2_wide_goalie"])
+    assert recipe.sparse_warning(wide, "ppo") == (
+        "warning: PPO learns nothing from a success signal alone, and v2_wide_goalie's reward is its success; "
+        "train its dense twin instead: fieldgen train v2_wide_goalie_dense")
+    assert recipe.sparse_warning(wide, "crl") is None
+    assert recipe.sparse_warning(load_spec(bundled_fields()["v2_wide_goalie_dense"]), "ppo") is None
+
+
+def test_train_prints_the_recipe_its_overrides_and_the_warning_once_and_run_json_keeps_the_recipe(tmp_path):
+    spec = tmp_path / "my_soccer.yaml"
+    spec.write_text("extends: point_soccer\nname: my_soccer\ngoal: {distance: 3.5}\n")
+    result = runner.invoke(app, ["train", str(spec), "--envs", "8", "--set", "crl.num_evals=2", "--prepare",
+                                 "--out", str(tmp_path / "runs")])
+    assert result.exit_code == 0, result.output
+    said = lines_with(result.output, "recipe point_soccer")
+    assert said == ["recipe point_soccer for my_soccer, which extends point_soccer: crl, --preset cpu; not measured "
+                    "on my_soccer yet; --envs and --set override it"]
+    saved = json.loads((tmp_path / "runs" / "my_soccer-crl-0" / "run.json").read_text())
+    assert saved["recipe"] == {"field": "point_soccer", "algo": "crl", "preset": "cpu",
+                               "overridden_by": ["--envs", "--set"]}
+    assert (saved["config"]["num_envs"], saved["config"]["num_evals"], saved["config"]["hidden"]) == (8, 2, [64, 64])
+    sparse = runner.invoke(app, ["train", "point_nav", "--algo", "ppo", "--seeds", "2", "--envs", "8", "--prepare",
+                                 "--out", str(tmp_path / "ppo")])
+    assert sparse.exit_code == 0, sparse.output
+    assert len(lines_with(sparse.output, "PPO learns nothing from a success signal alone")) == 1
+    plain = runner.invoke(app, ["train", "point_soccer", "--no-recipe", "--envs", "8", "--prepare",
+                                "--out", str(tmp_path / "plain")])
+    assert plain.exit_code == 0 and not lines_with(plain.output, "recipe point_soccer"), plain.output
+    saved = json.loads((tmp_path / "plain" / "point_soccer-crl-0" / "run.json").read_text())
+    assert "recipe" not in saved and saved["config"]["hidden"] == [256, 256]
+
+
+def test_list_shows_each_bundled_fields_recipe_and_measured_figure_with_its_seeds():
+    rows = {name: (recipe_text, measured) for name, recipe_text, measured in recipe.listing()}
+    assert set(rows) == set(bundled_fields())
+    assert rows["soccer_v2_dense"] == ("ppo, 250M env steps, 4,096 envs, --set ppo.num_evals=25 ppo.spread=global",
+                                       "measured: 0.919 success of 1,024 episodes after 250M env steps, one seed (0)")
+    assert rows["ant_nav"][1] == ("measured: IQM 0.706 [0.657, 0.750] success at 10M env steps, 1,024 episodes a "
+                                  "seed, five fresh seeds (210-214)")
+    assert rows["v2_wide_goalie"][1].startswith("not measured yet; the measured route is its dense twin "
+                                                "v2_wide_goalie_dense (ppo, 250M env steps")
+    assert rows["soccer_v2_dense_near"][0].endswith("(the recipe of soccer_v2_dense)")
+    assert rows["soccer_v2_dense_near"][1].startswith("not measured on soccer_v2_dense_near yet (soccer_v2_dense: 0.919")
+    assert rows["point_soccer"] == ("crl, --preset cpu", "not measured yet")
+    assert rows["point_nav"] == ("none: crl with its defaults", "-")
+    shown = runner.invoke(app, ["list", "--recipes"])
+    assert shown.exit_code == 0 and all(name in shown.output for name in rows), shown.output
+    assert "0.919" in shown.output and "one seed (0)" in " ".join(shown.output.split())
+
+
+def test_a_broken_recipes_file_is_one_line_from_train_and_list(tmp_path, monkeypatch):
+    from fieldgen.agents import recipes
+
+    broken = tmp_path / "recipes.yaml"
+    broken.write_text("point_soccer:\n  algo: crl\n  envz: 8\n")
+    monkeypatch.setattr(recipes, "RECIPES", broken)
+    monkeypatch.setattr(recipes.read, "__defaults__", (broken,))
+    for args in (["train", "point_soccer", "--prepare", "--out", str(tmp_path)], ["list", "--recipes"]):
+        result = runner.invoke(app, args)
+        message = " ".join(result.output.split())
+        assert result.exit_code == 1 and "Traceback" not in result.output, result.output
+        assert f"{broken}:3: recipe 'point_soccer': unknown key 'envz'; did you mean 'envs'?" in message
+
+
+@pytest.mark.slow
+def test_train_point_soccer_end_to_end_with_its_cpu_recipe(tmp_path, tiny_crl_args):
+    """point_soccer's recipe (CRL, the cpu preset) trained to its end with the tests' tiny settings over it."""
+    result = runner.invoke(app, ["train", "point_soccer", "--no-videos", "--out", str(tmp_path), *tiny_crl_args])
+    assert result.exit_code == 0, result.output
+    run = tmp_path / "point_soccer-crl-0"
+    saved = json.loads((run / "run.json").read_text())
+    assert saved["recipe"]["field"] == "point_soccer" and saved["recipe"]["preset"] == "cpu"
+    rows = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
+    assert [row["eval"] for row in rows] == list(range(saved["config"]["num_evals"] + 1))[-len(rows):]
+    assert (run / "learner.msgpack").is_file() and rows[-1]["env_steps"] > rows[0]["env_steps"]
