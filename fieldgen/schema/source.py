@@ -100,10 +100,23 @@ def read_yaml(path: Path, document: str = "a field spec", needs: str = "a field 
         mark = getattr(exc, "problem_mark", None) or getattr(exc, "context_mark", None)
         what = getattr(exc, "problem", None) or str(exc)
         line, col = (mark.line + 1, mark.column + 1) if mark else (None, None)
+        if mark and _indented_with_tab(text, mark.line):
+            what = f"{what}: the line is indented with a tab, and YAML indents with spaces alone; replace the tab " \
+                   "with spaces"
         raise SpecError([Problem(path, line, col, "", f"YAML syntax error: {what}")]) from None
     finally:
         loader.dispose()
     return Source(data, positions, (path,))
+
+
+def _indented_with_tab(text: str, line: int) -> bool:
+    """Whether a tab stands among the leading blanks of line `line` (0-based): PyYAML's own words for it
+    ("found character that cannot start any token") name no tab."""
+    lines = text.splitlines()
+    if line >= len(lines):
+        return False
+    row = lines[line]
+    return "\t" in row[:len(row) - len(row.lstrip(" \t"))]
 
 
 def _read_text(path: Path, document: str) -> str:

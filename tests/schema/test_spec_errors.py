@@ -35,6 +35,8 @@ BAD = [
      "digits and _, beginning with a letter or digit, such as 'big_rock' (got 'Big-Rock')"),
     ("name: x\nname: y\n", 2, "name", "duplicate key 'name' (first given on line 1)"),
     ("name: x\ngoal: {width: 3\n", 3, "", "YAML syntax error"),
+    ("name: x\nfield:\n\tlength: 12\n", 3, "", "indented with a tab, and YAML indents with spaces alone"),
+    ("name: x\nfield:\n  length: 12\n\t\n", 4, "", "indented with a tab"),
     ("- 1\n- 2\n", 1, "", "the document is a list"),
     ("just a string\n", 1, "", "a single value"),
     ("", 1, "", "the file is empty"),
