@@ -12,52 +12,21 @@ import dataclasses
 import functools
 import itertools
 import time
-from typing import Callable, Protocol, Sequence
+from typing import Callable, Sequence
 
 import flax.struct
 import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..curriculum.contract import OneStage, Schedule, adapt, with_episode_sampling
 from ..env.contract import OVERFLOW, Environment, merged_overflow
 from .config import RunConfig
 from .programs import Programs, computed
 from .sharding import from_host, meet, to_host
 
 EVAL_STREAM = 0x5EED  # evaluation keys: fold_in(fold_in(seed key, EVAL_STREAM), evaluation index)
-LEVEL_STREAM = 0x1E7E1  # a schedule's choice of levels: fold_in(the training state's key, LEVEL_STREAM)
-KICKOFF_BINS = 10  # a row's share of new episodes by kick-off: bins evenly from the easiest start to the field's own
 _meetings = itertools.count()  # each `meet` of this process's runs under a name of its own
-
-
-class Schedule(Protocol):
-    """What the loop asks a curriculum after each evaluation (fieldgen.curriculum.schedule answers);
-    the loop itself knows no curriculum. Schedules are hashable: compiled programs are kept by them."""
-
-    def next_stage(self, history: list[dict], stage: int, stages: int) -> int:
-        """The stage (an index into the loop's trainers) the next chunk trains on, given every row so far."""
-
-    def variant_weights(self, success: jax.Array) -> jax.Array:
-        """How often each variant of an environment of several starts an episode, from an evaluation's
-        success_any on each; pure and jittable."""
-
-    def next_levels(self, counts: jax.Array, weights: jax.Array, playable: np.ndarray,
-                    key: jax.Array) -> tuple[jax.Array, jax.Array]:
-        """Asked instead of `variant_weights` where the environment has kick-off points: (how often each level
-        starts an episode next, how much of each level's episode counts to keep) [variant, point], from the
-        training episodes counted on each level ([2, variant, point]: ended, succeeded), the weights so far
-        and which levels are `playable`; pure and jittable, `key` for any random choice."""
-
-
-@dataclasses.dataclass(frozen=True)
-class OneStage:
-    """The schedule of a run on one environment: it never moves, and its variants (if any) are drawn evenly."""
-
-    def next_stage(self, history: list[dict], stage: int, stages: int) -> int:
-        return stage
-
-    def variant_weights(self, success: jax.Array) -> jax.Array:
-        return jnp.full_like(success, 1.0 / success.shape[-1])
 
 
 @dataclasses.dataclass(frozen=True)
@@ -205,7 +174,8 @@ class VariantResults:
     closest_distance: jax.Array
     weight: jax.Array
 
-    kickoff_share: jax.Array | None = None  # with kick-off points: the new episodes' share by kick-off (KICKOFF_BINS)
+    # with kick-off points: the new episodes' share by kick-off (fieldgen.curriculum.contract.KICKOFF_BINS)
+    kickoff_share: jax.Array | None = None
 
     def per_seed(self, i: int) -> dict[str, list[float]]:
         """Seed i's results (of a batch vmapped over seeds), as a row of metrics.jsonl keeps them."""
@@ -224,62 +194,12 @@ def evaluate(trainer: Trainer, state, key: jax.Array, film: Callable | None = No
                            sampled)
 
 
-def adapt(trainer: Trainer, state, variants: VariantResults, schedule: Schedule) -> tuple[object, VariantResults]:
-    """Re-weight the variants of an environment of several by the schedule's `variant_weights` of an
-    evaluation's success on each, or, where the environment has kick-off points, its levels by the schedule's
-    `next_levels` of the training episodes counted on each; the results come back with each variant's weight
-    recorded (and, with kick-off points, the weights' share by kick-off)."""
-    env = trainer.env
-    coordinates = env.kickoff_coordinates
-    if not coordinates.shape[1]:
-        weights = schedule.variant_weights(variants.success_any)
-        return state.replace(env_state=env.with_variant_weights(state.env_state, weights)), \
-            variants.replace(weight=weights)
-    info = state.env_state.info
-    counts = jnp.sum(info["level_counts"], axis=0)  # over the batch of environments
-    levels, keep = schedule.next_levels(counts, info["level_weights"][0], np.isfinite(coordinates),
-                                        jax.random.fold_in(state.key, LEVEL_STREAM))
-    bins = np.clip(np.floor(np.nan_to_num(coordinates) * KICKOFF_BINS), 0, KICKOFF_BINS - 1).astype(int)
-    share = jnp.zeros(KICKOFF_BINS).at[bins.ravel()].add(levels.ravel())
-    return state.replace(env_state=env.with_level_weights(state.env_state, levels, keep)), \
-        variants.replace(weight=jnp.sum(levels, axis=-1), kickoff_share=share)
-
-
-# how a batch of environments draws its next episodes (`adapt` sets it): info entry -> (its environment axis,
-# counted from the end so that a leading seed axis changes nothing; whether the batch's entries are summed
-# into one, or are one value, the same in every environment)
-SAMPLING = {"level_weights": (-3, False), "level_counts": (-4, True), "variant_weights": (-2, False)}
-
-
-def episode_sampling(env_state) -> dict:
-    """How a batch of environments draws its next episodes and what decides it: the weights of its variants
-    or levels, and the episodes counted on each level, once for the batch. Of a batch's state it alone
-    outlives the episodes, so `learner.msgpack` keeps it beside what was learned: a run going on from there
-    (`run_staged`'s `sampling`) draws its levels as before instead of starting its curriculum over. Empty for
-    an environment of one variant. Host or device arrays, with or without a leading seed axis."""
-    kept = {}
-    for name, (axis, summed) in SAMPLING.items():
-        if name in env_state.info:
-            entry = env_state.info[name]
-            kept[name] = entry.sum(axis=axis) if summed else entry[(..., 0) + (slice(None),) * (-axis - 1)]
-    return kept
-
-
-def level_sampling_shapes(seeds: int, variants: int, points: int) -> dict:
-    """The shapes of `episode_sampling` of `seeds` seeds' batches of an environment with kick-off points
-    (`variants` levels of `points` each): how `learner.msgpack`'s last part is read without the trainer."""
-    return {"level_counts": jax.ShapeDtypeStruct((seeds, 2, variants, points), jnp.float32),
-            "level_weights": jax.ShapeDtypeStruct((seeds, variants, points), jnp.float32)}
-
-
-def with_episode_sampling(env_state, sampling: dict):
-    """One seed's batch of environments (on axis 0) drawing its episodes as `sampling` (`episode_sampling`)
-    says: the weights in every environment, the counts in the first (only their sum is read)."""
-    info = dict(env_state.info)
-    for name, kept in sampling.items():
-        summed = SAMPLING[name][1]
-        info[name] = jnp.zeros_like(info[name]).at[0].set(kept) if summed else jnp.broadcast_to(kept, info[name].shape)
-    return env_state.replace(info=info)
+def adapted(trainer: Trainer, state, variants: VariantResults, schedule: Schedule) -> tuple[object, VariantResults]:
+    """The state with its environments drawing their next episodes as `schedule` says after an evaluation
+    (fieldgen.curriculum.contract.adapt), and the evaluation's results with each variant's weight recorded (and,
+    with kick-off points, the weights' share by kick-off)."""
+    env_state, weight, share = adapt(schedule, trainer.env, state.env_state, variants.success_any, state.key)
+    return state.replace(env_state=env_state), variants.replace(weight=weight, kickoff_share=share)
 
 
 def eval_key(seed_key: jax.Array, index) -> jax.Array:
@@ -294,7 +214,7 @@ def pure_train(trainer: Trainer, num_evals: int, schedule: Schedule = OneStage()
             state, metrics = trainer.chunk(state)
             metrics.update(evaluate(trainer, state, eval_key(key, index))[0])
             if "variants" in metrics:
-                state, metrics["variants"] = adapt(trainer, state, metrics["variants"], schedule)
+                state, metrics["variants"] = adapted(trainer, state, metrics["variants"], schedule)
             return state, metrics
 
         return jax.lax.scan(interval, trainer.start(key), jnp.arange(1, num_evals + 1))
@@ -337,24 +257,23 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
     Training starts on stage 0; after each evaluation it goes on with `schedule.next_stage(history, stage,
     stages)` (every row so far), keeping everything it learned (networks, optimizers, replay buffer,
     normalizer) and starting fresh episodes of the next stage; an environment of several variants is
-    re-weighted by `schedule.variant_weights` of its results on each (`adapt`). With several stages every row also holds
-    `stage` and `last_stage_success_any` (the same policy evaluated on the last stage), and
-    a promoting row `promoted_to`. `on_eval(state, index, stage, episode)` gets the stage the next
-    chunk trains on and, with `film`, the first seed's episode filmed by the evaluation just done
-    (`evaluate_policy`) with the stage it was filmed on, `(stage, film)`, else None;
-    `resume=(state, index, stage)` continues from there; a state that is only what it learned
-    (`Trainer.learned`) goes on with fresh episodes and a buffer filled anew, drawn as `sampling` says
-    (`episode_sampling`, seeds stacked) where given, the rows of its first evaluation holding `refilled_from`
-    (the env steps it had learned from: where its episodes and buffer began anew). An evaluation is handed to
-    `progress` and `on_eval` once the next chunk has started, on a thread of its own (its call may hold that
-    thread until the chunk ends), so that the device trains while the host writes; in a run over several
-    processes, once the chunk's call has returned, so that every process runs the chunk's collectives and then
-    the gathering of the evaluation's state in one order. Before each chunk `stop(longest)` is asked, with the
-    time a chunk and its evaluation take in this call (`longest_chunk`; None before the first): True ends the run
-    there, its last evaluation handed on as at the end (a time limit: the run goes on later from it). With
-    `clock` (a time.perf_counter() value) every row holds `wall_seconds`, from it to the end of the row's
-    evaluation, stamped here: a row handed on after a chunk's call that held the host would be dated a chunk
-    late.
+    re-weighted as the schedule says (`adapted`). With several stages every row also holds `stage` and
+    `last_stage_success_any` (the same policy evaluated on the last stage), and a promoting row `promoted_to`.
+    `on_eval(state, index, stage, episode)` gets the stage the next chunk trains on and, with `film`, the first
+    seed's episode filmed by the evaluation just done (`evaluate_policy`) with the stage it was filmed on,
+    `(stage, film)`, else None; `resume=(state, index, stage)` continues from there; a state that is only what
+    it learned (`Trainer.learned`) goes on with fresh episodes and a buffer filled anew, drawn as `sampling`
+    says (fieldgen.curriculum.contract.episode_sampling, seeds stacked) where given, the rows of its first
+    evaluation holding `refilled_from` (the env steps it had learned from: where its episodes and buffer began
+    anew). An evaluation is handed to `progress` and `on_eval` once the next chunk has started, on a thread of
+    its own (its call may hold that thread until the chunk ends), so that the device trains while the host
+    writes; in a run over several processes, once the chunk's call has returned, so that every process runs the
+    chunk's collectives and then the gathering of the evaluation's state in one order. Before each chunk
+    `stop(longest)` is asked, with the time a chunk and its evaluation take in this call (`longest_chunk`; None
+    before the first): True ends the run there, its last evaluation handed on as at the end (a time limit: the
+    run goes on later from it). With `clock` (a time.perf_counter() value) every row holds `wall_seconds`, from
+    it to the end of the row's evaluation, stamped here: a row handed on after a chunk's call that held the host
+    would be dated a chunk late.
     """
     keys = seed_keys(seeds)
     staged, last = len(trainers) > 1, len(trainers) - 1
@@ -365,7 +284,7 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
         kept = (len(seeds), film, schedule)
         if kept not in trainer.compiled:
             reserve_worlds(trainer, len(seeds))
-            weighed = functools.partial(adapt, schedule=schedule)
+            weighed = functools.partial(adapted, schedule=schedule)
             trainer.compiled[kept] = Programs(trainer, keys, film, evaluate, weighed)
         return trainer.compiled[kept]
 

@@ -24,6 +24,7 @@ import numpy as np
 
 import fieldgen
 from fieldgen.agents import checkpoint, loop, registry
+from fieldgen.curriculum.contract import OneStage
 from fieldgen.run import videos
 from fieldgen.files import write_atomic
 from fieldgen.env.throughput import append_jsonl, run_arguments
@@ -73,7 +74,7 @@ def main() -> None:
 
     mark["t"] = time.perf_counter()
     try:
-        loop.run_staged([trainer], [config.seed], config.num_evals, loop.OneStage(), progress, on_eval,
+        loop.run_staged([trainer], [config.seed], config.num_evals, OneStage(), progress, on_eval,
                         film=videos.EpisodeRecorder.film)
     finally:
         written.unlink(missing_ok=True)

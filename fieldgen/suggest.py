@@ -1,8 +1,10 @@
-"""The hint every "unknown name" message of fieldgen ends with, worded once."""
+"""What fieldgen's messages suggest, worded once: the hint every "unknown name" message ends with, and what a
+setting's value must be."""
 
 from __future__ import annotations
 
 import difflib
+import typing
 from typing import Iterable, Mapping
 
 
@@ -11,3 +13,21 @@ def did_you_mean(word: str, choices: Iterable[str], shown: Mapping[str, object] 
     write for a choice where it differs (a file's path, for its name matched without the folder)."""
     near = difflib.get_close_matches(word, list(choices), n=1)
     return f"; did you mean '{(shown or {}).get(near[0], near[0])}'?" if near else ""
+
+
+BOUNDS = {"greater_than": ("greater than", "gt"), "greater_than_equal": ("at least", "ge"),
+          "less_than": ("less than", "lt"), "less_than_equal": ("at most", "le")}
+
+
+def allowed(error: dict, field) -> str:
+    """What a setting's value must be, in words, from pydantic's first complaint about it (`field`: the
+    setting's pydantic FieldInfo): a trainer's config and a curriculum's sampler say it alike."""
+    if error["type"] in BOUNDS:
+        phrase, key = BOUNDS[error["type"]]
+        return f"must be {phrase} {error['ctx'][key]}"
+    if error["type"] == "finite_number":
+        return "must be a finite number"
+    kind = typing.get_origin(field.annotation) or field.annotation
+    words = {int: "a whole number", float: "a number", bool: "true or false",
+             tuple: "a list of layer widths, whole numbers above 0"}
+    return f"must be {words.get(kind, kind.__name__)}"

@@ -37,11 +37,10 @@ import numpy as np
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
-from fieldgen.agents.config import allowed
 from fieldgen.curriculum.levels import LevelError, LevelSpace
 from fieldgen.curriculum.schedule import Mixed
 from fieldgen.schema import FieldSpec, SpecError
-from fieldgen.suggest import did_you_mean
+from fieldgen.suggest import allowed, did_you_mean
 
 LEVELS = 8  # levels on the path from the easy end to the spec, the spec included
 SOLVED = 0.8  # a level at this success or above is behind the frontier

@@ -1,6 +1,6 @@
 """When a staged run moves on: the rule a curriculum states, applied to the run's history.
 
-The trainers only ask which stage comes next (agents.loop.Schedule, answered by
+The trainers only ask which stage comes next (fieldgen.curriculum.contract.Schedule, answered by
 fieldgen.curriculum.schedule.Staged); the rule is the curriculum's, written in its curriculum.yaml
 and kept in the run's run.json."""
 

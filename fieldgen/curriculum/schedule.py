@@ -1,5 +1,5 @@
 """How a run moves through a curriculum's variants: the answers to what the training loop asks after
-each evaluation (agents.loop.Schedule), and which environments its trainers get.
+each evaluation (fieldgen.curriculum.contract.Schedule), and which environments its trainers get.
 
 A staged run trains one variant (a stage) at a time and moves on when the curriculum's promotion rule
 is met; a mixed run trains every variant at once, each environment of the batch playing its own, and
@@ -14,7 +14,7 @@ from typing import Sequence
 import jax
 import jax.numpy as jnp
 
-from fieldgen.agents.loop import OneStage
+from fieldgen.curriculum.contract import OneStage
 from fieldgen.curriculum.promotion import Promotion
 
 WEIGHT_FLOOR = 0.1  # every variant keeps at least this share of the weight mass (before normalising)

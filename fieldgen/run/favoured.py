@@ -43,15 +43,16 @@ def span(low: float, high: float) -> str:
 def level_buffer(run) -> list[BufferLevel]:
     """Each seed's level buffer after the run's last evaluation, level by level (`BufferLevel`); none for a
     run without kick-off points or without `learner.msgpack` yet. RunError where that file cannot be read."""
-    from fieldgen.agents import checkpoint, loop
+    from fieldgen.agents import checkpoint
     from fieldgen.curriculum.auto import Sampler, estimated_success, kickoff_coordinates
+    from fieldgen.curriculum.contract import level_sampling_shapes
 
     learner = run.folder / record.LEARNER
     if not run.kickoffs or not learner.is_file():
         return []
     coordinates = kickoff_coordinates(run.kickoffs)
     try:
-        sampling = checkpoint.load_tail(learner, loop.level_sampling_shapes(len(run.seeds), *coordinates.shape))
+        sampling = checkpoint.load_tail(learner, level_sampling_shapes(len(run.seeds), *coordinates.shape))
     except checkpoint.CheckpointError as exc:
         raise record.RunError(str(exc)) from None
     if sampling is None:
@@ -86,8 +87,12 @@ def favoured_levels(folder: Path, camera: str, top: int = 6) -> tuple[bytes, str
         raise record.RunError(f"{folder} has no evaluation yet: the levels are weighed after each one; draw all of "
                               f"them with fieldgen render {folder}, or train it first")
     last = [r for r in run.rows if r["eval"] == run.rows[-1]["eval"]]
-    share = np.mean([r["variants"]["weight"] for r in last], axis=0)
-    success = np.mean([r["variants"]["success_any"] for r in last], axis=0)
+    if not all(isinstance(r.get("variants"), dict) and {"weight", "success_any"} <= r["variants"].keys() for r in last):
+        raise record.RunError(f"{folder / record.METRICS}: the rows of evaluation {last[0]['eval']} lack the levels' "
+                              "weights and success (variants); the file was edited or damaged: restore it from a copy")
+    share = np.mean([r["variants"]["weight"] for r in last], axis=0)  # in [0, 1]: record.read_metrics checks
+    measured = np.array([r["variants"]["success_any"] for r in last], dtype=float)  # NaN: a level no episode played
+    success = [np.nanmean(column) if np.isfinite(column).any() else None for column in measured.T]
     coordinates = record.read_run(folder).levels
     order = [int(k) for k in np.argsort(-share, kind="stable")[:top]]
     kind = run.variant_name
@@ -96,7 +101,8 @@ def favoured_levels(folder: Path, camera: str, top: int = 6) -> tuple[bytes, str
         images.append(render_pose(run.envs[k].artifact.model(), camera=camera, height=240))
         where = textwrap.fill(level_text(coordinates[k]), 40) if coordinates else ""  # a title's width
         name = "the field itself" if k == len(run.envs) - 1 else f"{kind} {k + 1}"
-        titles.append(f"{name}: {share[k]:.0%} of episodes, success {success[k]:.2f}" + (f"\n{where}" if where else ""))
+        measured = "not measured" if success[k] is None else f"{success[k]:.2f}"
+        titles.append(f"{name}: {share[k]:.0%} of episodes, success {measured}" + (f"\n{where}" if where else ""))
     said = (f"the {len(order)} most played of {len(run.envs)} levels after evaluation {last[0]['eval']} "
             f"({last[0]['env_steps']:,} env steps)")
     buffer = level_buffer(run)

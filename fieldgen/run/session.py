@@ -20,6 +20,7 @@ from fieldgen.agents import checkpoint, loop, memory, programs, registry, shardi
 from fieldgen.agents.config import ConfigError
 from fieldgen.compile.artifact import ArtifactError, load_artifact, write_artifact
 from fieldgen.compile.variants import VariantError
+from fieldgen.curriculum.contract import episode_sampling
 from fieldgen.curriculum.promotion import Promotion
 from fieldgen.curriculum.kinds import schedule
 from fieldgen.curriculum.schedule import Mixed, Staged
@@ -45,7 +46,7 @@ class Run:
     curriculum: str = ""  # the name of the curriculum it trains through (its folder's; -mixed, -auto), "" for a field
     kickoffs: list = dataclasses.field(default_factory=list)  # an automatic curriculum's kick-off points (run.json)
     sampler: object = None  # an automatic curriculum's curriculum.auto.Sampler (run.json); None: its defaults
-    sampling: dict | None = None  # how a state of what was learned alone drew its episodes (loop.episode_sampling)
+    sampling: dict | None = None  # how a state of what was learned alone drew its episodes (episode_sampling)
 
     @property
     def finished(self) -> bool:
@@ -105,28 +106,27 @@ class Run:
         return registry.trainer(self.algo).make_train(self.config, self.env)
 
 
-def field_spec(source: Path) -> FieldSpec:
-    """The field a field, build folder or curriculum folder (its first stage) trains on, read before anything
-    compiles: its kind of agent picks the trainer's preset (agents/presets), its reward what to warn of."""
+def agent_kind(source: Path) -> str:
+    """The kind of agent (ant, point) a field, build folder or curriculum folder trains: it picks the
+    trainer's preset (agents/presets) before anything compiles."""
     try:
         if curriculum.is_curriculum(source):
-            return curriculum.load(source).specs()[0]
+            return curriculum.load(source).specs()[0].agent.kind
         if source.is_dir():
-            return load_artifact(source).spec
+            return load_artifact(source).spec.agent.kind
     except (curriculum.CurriculumError, ArtifactError) as exc:
         raise record.RunError(str(exc)) from None
-    return load_spec(source)
+    return load_spec(source).agent.kind
 
 
 def new_run(source: Path, algo: str, seeds: Sequence[int], config, out: Path, mixed: bool = False,
             init_from: Path | None = None, auto: bool = False, levels: int | None = None,
-            processes: dict | None = None, trains_here: bool = True, sampler=None, recipe: dict | None = None) -> Run:
+            processes: dict | None = None, trains_here: bool = True, sampler=None) -> Run:
     """A run folder for a field (a YAML file or a build folder) or a curriculum folder (staged, or mixed:
     every stage in one batch, built to one structure); with `auto`, a field trained through `levels` levels
     (curriculum.auto.LEVELS by default) between its easy end and itself, drawn as `sampler`
     (curriculum.auto.Sampler, its defaults where None) says; with `init_from`, starting from what that run
-    learned; with `recipe`, the recipe it was set up from (run/recipe.py), as run.json keeps it. A run over
-    several processes (`processes`: their layout, recorded in run.json) is set up alike in
+    learned. A run over several processes (`processes`: their layout, recorded in run.json) is set up alike in
     each, and written by the first alone. Nothing is written before every setting is known good, the memory
     the run needs included where it `trains_here` (a run prepared to train elsewhere is checked where it
     resumes); `seeds` may be a range."""
@@ -196,7 +196,6 @@ def new_run(source: Path, algo: str, seeds: Sequence[int], config, out: Path, mi
                                  **({"levels": coordinates, "kickoffs": kickoffs} if coordinates else {}),
                                  **({"sampler": sampler.model_dump()} if auto else {}),
                                  **({"init_from": run.init_from} if run.init_from else {}),
-                                 **({"recipe": recipe} if recipe else {}),
                                  **({"processes": processes} if processes else {})})
     except OSError as exc:
         raise record.RunError(f"cannot set up the run folder {folder}: {exc.strerror}; free some space, fix the "
@@ -236,8 +235,9 @@ def auto_environments(source: Path, count: int | None) -> tuple[list, list[dict]
 
 def learner_contents(trainer: loop.Trainer, state) -> tuple:
     """What `learner.msgpack` holds of `state`, in this order: what it learned (Trainer.learned), then how its
-    environments draw their episodes (loop.episode_sampling: a curriculum's weights and level counts)."""
-    return trainer.learned(state), loop.episode_sampling(state.env_state)
+    environments draw their episodes (curriculum.contract.episode_sampling: a curriculum's weights and level
+    counts)."""
+    return trainer.learned(state), episode_sampling(state.env_state)
 
 
 def _learned_to_the_end(run: Run) -> tuple | None:

@@ -145,32 +145,6 @@ def test_sampled_actions_take_a_fresh_key_at_every_step_and_the_mean_ones_none(w
     assert float(other["closest_distance"]) != float(moving["closest_distance"])
 
 
-def test_how_a_batch_draws_its_episodes_is_kept_once_and_put_back_in_every_environment():
-    """episode_sampling keeps the level weights once (the same in every environment) and the counts summed,
-    with or without a leading seed axis; with_episode_sampling puts them back into a fresh batch."""
-    from flax import struct
-
-    @struct.dataclass
-    class Batch:
-        info: dict
-
-    weights = np.tile(np.arange(6, dtype=np.float32).reshape(1, 2, 3) / 15, (4, 1, 1))  # 4 environments
-    counts = np.arange(4 * 2 * 2 * 3, dtype=np.float32).reshape(4, 2, 2, 3)
-    batch = Batch({"level_weights": weights, "level_counts": counts, "rng": np.zeros((4, 2), np.uint32)})
-    kept = loop.episode_sampling(batch)
-    assert set(kept) == {"level_weights", "level_counts"}
-    np.testing.assert_array_equal(kept["level_weights"], weights[0])
-    np.testing.assert_array_equal(kept["level_counts"], counts.sum(axis=0))
-    seeds = Batch({name: np.stack([x, 2 * x]) for name, x in batch.info.items()})  # two seeds stacked
-    np.testing.assert_array_equal(loop.episode_sampling(seeds)["level_counts"][1], 2 * counts.sum(axis=0))
-    fresh = Batch({"level_weights": np.zeros_like(weights), "level_counts": np.zeros_like(counts),
-                   "rng": batch.info["rng"]})
-    put = loop.with_episode_sampling(fresh, kept)
-    np.testing.assert_array_equal(put.info["level_weights"], weights)
-    np.testing.assert_array_equal(np.asarray(put.info["level_counts"]).sum(axis=0), counts.sum(axis=0))
-    assert loop.episode_sampling(Batch({"rng": batch.info["rng"]})) == {}  # one variant: nothing to keep
-
-
 def test_a_trainers_start_is_traced_once_for_its_shapes_checkpoints_and_program():
     """The shapes a run's checkpoint and learner are read through and its programs placed by come from one
     trace of its start per seed count, which the start program's compile reuses."""

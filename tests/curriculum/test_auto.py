@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from fieldgen.agents.loop import KICKOFF_BINS
 from fieldgen.cli import app
 from fieldgen.curriculum.auto import (HARDER, Auto, Sampler, initial_buffer, kickoff_tables, level_weights, levels,
                                      next_levels, path)
+from fieldgen.curriculum.contract import KICKOFF_BINS, episode_sampling
 from fieldgen.curriculum.levels import LevelError, LevelSpace
 from fieldgen.env import FieldEnv
 from fieldgen.curriculum.schedule import sampling_weights
@@ -266,7 +266,7 @@ def test_an_auto_run_copied_without_its_checkpoint_draws_its_levels_as_it_did(tm
     interrupt_after_eval(None)
     run = tmp_path / "point_soccer-auto-crl-0to1"
     whole = session.open_run(run)
-    drawn = loop.episode_sampling(whole.state.env_state)
+    drawn = episode_sampling(whole.state.env_state)
     assert set(drawn) == {"level_weights", "level_counts"} and float(np.sum(drawn["level_counts"])) > 0
     (run / record.CHECKPOINT).unlink()
     moved = session.open_run(run)
@@ -284,7 +284,7 @@ def test_an_auto_run_copied_without_its_checkpoint_draws_its_levels_as_it_did(tm
     assert resumed.exit_code == 0, resumed.output
     assert "its episodes drawn as they were" in " ".join(resumed.output.split())
     assert len(put) == 1
-    for name, kept in loop.episode_sampling(put[0].env_state).items():
+    for name, kept in episode_sampling(put[0].env_state).items():
         np.testing.assert_allclose(kept, drawn[name], rtol=1e-6)
     assert json.loads((run / "metrics.jsonl").read_text().splitlines()[-1])["eval"] == 3
     _, sampling = checkpoint.load(run / record.LEARNER, *session.learner_template(moved))

@@ -93,7 +93,7 @@ def test_sampling_weights_favour_variants_being_learnt():
 def test_schedules_answer_what_the_loop_asks():
     """A mixed run re-weights its variants and never moves on; a staged run moves on once its promotion rule
     is met on the stage it trains, and never past its last stage."""
-    from fieldgen.agents import loop
+    from fieldgen.curriculum.contract import OneStage
     from fieldgen.curriculum.promotion import Promotion
 
     success = jnp.array([0.0, 0.5, 1.0])
@@ -103,8 +103,8 @@ def test_schedules_answer_what_the_loop_asks():
     assert staged.next_stage([{"eval": 1, "stage": 0, "success_any": 0.4}], 0, 3) == 0
     assert staged.next_stage([{"eval": 1, "stage": 0, "success_any": 0.6}], 0, 3) == 1
     assert staged.next_stage([{"eval": 1, "stage": 2, "success_any": 0.9}], 2, 3) == 2
-    assert loop.OneStage().next_stage([{"eval": 1, "stage": 0, "success_any": 1.0}], 0, 1) == 0
-    np.testing.assert_allclose(loop.OneStage().variant_weights(success), 1 / 3)
+    assert OneStage().next_stage([{"eval": 1, "stage": 0, "success_any": 1.0}], 0, 1) == 0
+    np.testing.assert_allclose(OneStage().variant_weights(success), 1 / 3)
 
 
 def test_new_episodes_draw_their_variant_from_the_weights(walled):
