@@ -1,7 +1,8 @@
 """Every trainer's settings, one validated model per algorithm, and what each checks before a run.
 
 A config is layered (`RunConfig.layered`): defaults < the bundled preset for the field's kind
-of agent (presets/<algo>_<agent>.yaml) < a named preset (`--preset cpu`: presets/cpu.yaml, a
+of agent (presets/<algo>_<agent>.yaml) < the field's recipe (presets/recipes.yaml, agents/recipes.py)
+< a named preset (`--preset cpu`: presets/cpu.yaml, a
 section per algorithm) < a config file ({algo: {key: value}}) < `--set algo.key=value` < explicit options, each value checked by pydantic as it comes in, so
 that a bad one is reported where it was written. `validate_env` holds what only the
 environment can tell (its episode length, its actuators, its success), so that a run fails
@@ -24,6 +25,7 @@ from ..suggest import allowed, did_you_mean
 from .buffer import gradient_steps, iterations
 from .contrastive import ENERGIES, LOSSES
 from .networks import MATMULS, residual_blocks
+from .recipes import Recipe
 from .registry import ALGORITHMS, EVAL_ACTIONS, PRESETS as NAMED_PRESETS
 from .sharding import by_seed
 from .team import GROUPINGS, split
@@ -112,32 +114,48 @@ class RunConfig(BaseModel):
 
     @classmethod
     def layered(cls, file: Path | None = None, sets: Sequence[str] = (), others: tuple[str, ...] = (),
-                agent: str | None = None, preset: str | None = None, **options) -> RunConfig:
-        """Defaults < the preset for `agent` < the named `preset` < config file ({algo: {key: value}}) <
-        --set algo.key=value < options (None: not given).
+                agent: str | None = None, preset: str | None = None, recipe: Recipe | None = None,
+                **options) -> RunConfig:
+        """Defaults < the preset for `agent` < the field's `recipe` < the named `preset` < config file
+        ({algo: {key: value}}) < --set algo.key=value < options (None: not given).
 
         Sections and --set items of the algorithms in `others` (those compared beside this one) are skipped;
         a named preset holds a section for every algorithm."""
         values = {}
         everyone = tuple(a for a in ALGORITHMS if a != cls.algo)
-        for source, skipped in ((cls.preset(agent), others), (cls.named_preset(preset), everyone), (file, others)):
-            section, lines = cls._section(source, skipped)
-            values.update({key: cls._checked(key, value, f"{source}:{lines[key]}" if key in lines else f"{source}")
-                           for key, value in section.items()})  # a key merged in (<<: *defaults) has no line
-        for item in sets:
+        values.update(cls._section_values(cls.preset(agent), others))
+        if recipe is not None:
+            values.update(cls._assigned(recipe.assignments(), others, f"{recipe.where}: recipe '{recipe.field}': "))
+        for source, skipped in ((cls.named_preset(preset), everyone), (file, others)):
+            values.update(cls._section_values(source, skipped))
+        values.update(cls._assigned(sets, others, "--set "))
+        values.update({key: cls._checked(key, value, key) for key, value in options.items() if value is not None})
+        return cls(**values)
+
+    @classmethod
+    def _section_values(cls, source: Path | None, skipped: tuple[str, ...]) -> dict:
+        """This algorithm's keys in a preset or config file, each checked at its line."""
+        section, lines = cls._section(source, skipped)
+        return {key: cls._checked(key, value, f"{source}:{lines[key]}" if key in lines else f"{source}")
+                for key, value in section.items()}  # a key merged in (<<: *defaults) has no line
+
+    @classmethod
+    def _assigned(cls, items: Sequence[str], others: tuple[str, ...], source: str) -> dict:
+        """ALGO.KEY=VALUE items (--set's, a recipe's), each checked; `source` says where each was written."""
+        values = {}
+        for item in items:
             name, sep, raw = item.partition("=")
             section, dot, key = name.partition(".")
             if section in others:
                 continue
             if not sep or not dot or section != cls.algo:
-                raise ConfigError(f"--set {item!r}: write {cls.algo}.KEY=VALUE, e.g. {cls.example()}")
+                raise ConfigError(f"{source}{item!r}: write {cls.algo}.KEY=VALUE, e.g. {cls.example()}")
             try:
                 value = yaml.safe_load(raw)
             except yaml.YAMLError:
-                raise ConfigError(f"--set {item}: '{raw}' is not a YAML value") from None
-            values[key] = cls._checked(key, value, f"--set {item}")
-        values.update({key: cls._checked(key, value, key) for key, value in options.items() if value is not None})
-        return cls(**values)
+                raise ConfigError(f"{source}{item}: '{raw}' is not a YAML value") from None
+            values[key] = cls._checked(key, value, f"{source}{item}")
+        return values
 
     @classmethod
     def example(cls) -> str:

@@ -106,27 +106,28 @@ class Run:
         return registry.trainer(self.algo).make_train(self.config, self.env)
 
 
-def agent_kind(source: Path) -> str:
-    """The kind of agent (ant, point) a field, build folder or curriculum folder trains: it picks the
-    trainer's preset (agents/presets) before anything compiles."""
+def field_spec(source: Path) -> FieldSpec:
+    """The field a field, build folder or curriculum folder (its first stage) trains on, read before anything
+    compiles: its kind of agent picks the trainer's preset (agents/presets), its reward what to warn of."""
     try:
         if curriculum.is_curriculum(source):
-            return curriculum.load(source).specs()[0].agent.kind
+            return curriculum.load(source).specs()[0]
         if source.is_dir():
-            return load_artifact(source).spec.agent.kind
+            return load_artifact(source).spec
     except (curriculum.CurriculumError, ArtifactError) as exc:
         raise record.RunError(str(exc)) from None
-    return load_spec(source).agent.kind
+    return load_spec(source)
 
 
 def new_run(source: Path, algo: str, seeds: Sequence[int], config, out: Path, mixed: bool = False,
             init_from: Path | None = None, auto: bool = False, levels: int | None = None,
-            processes: dict | None = None, trains_here: bool = True, sampler=None) -> Run:
+            processes: dict | None = None, trains_here: bool = True, sampler=None, recipe: dict | None = None) -> Run:
     """A run folder for a field (a YAML file or a build folder) or a curriculum folder (staged, or mixed:
     every stage in one batch, built to one structure); with `auto`, a field trained through `levels` levels
     (curriculum.auto.LEVELS by default) between its easy end and itself, drawn as `sampler`
     (curriculum.auto.Sampler, its defaults where None) says; with `init_from`, starting from what that run
-    learned. A run over several processes (`processes`: their layout, recorded in run.json) is set up alike in
+    learned; with `recipe`, the recipe it was set up from (run/recipe.py), as run.json keeps it. A run over
+    several processes (`processes`: their layout, recorded in run.json) is set up alike in
     each, and written by the first alone. Nothing is written before every setting is known good, the memory
     the run needs included where it `trains_here` (a run prepared to train elsewhere is checked where it
     resumes); `seeds` may be a range."""
@@ -196,6 +197,7 @@ def new_run(source: Path, algo: str, seeds: Sequence[int], config, out: Path, mi
                                  **({"levels": coordinates, "kickoffs": kickoffs} if coordinates else {}),
                                  **({"sampler": sampler.model_dump()} if auto else {}),
                                  **({"init_from": run.init_from} if run.init_from else {}),
+                                 **({"recipe": recipe} if recipe else {}),
                                  **({"processes": processes} if processes else {})})
     except OSError as exc:
         raise record.RunError(f"cannot set up the run folder {folder}: {exc.strerror}; free some space, fix the "
