@@ -1,7 +1,8 @@
 """An exported policy's folder: `policy.json` says what the network reads, how it is built and what its
 outputs drive; `params.msgpack` holds its weights (flax's msgpack serialization).
 
-`policy.json` also holds the SHA-256 of `params.msgpack`, so weights damaged or swapped are refused.
+`policy.json` also holds the SHA-256 of `params.msgpack`, so weights damaged or swapped are refused. Exported with
+`--format onnx`, the folder also holds `policy.onnx`, the same policy as an ONNX graph (fieldgen.policy_onnx).
 
 `load_policy(folder)` gives a jit-able `act(obs) -> action` from these two files alone: no trainer,
 run folder, field or simulator is needed, so the policy can go wherever JAX and flax run.
@@ -25,9 +26,9 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 from fieldgen.agents.actor import Policy
 from fieldgen.files import Output, replace_folder, write_atomic
 
-DESCRIPTION, PARAMS = "policy.json", "params.msgpack"
+DESCRIPTION, PARAMS, ONNX = "policy.json", "params.msgpack", "policy.onnx"
 MAX_DESCRIPTION_BYTES = 10_000_000  # a description names each observation and action: kilobytes
-POLICY = Output("fieldgen export", (DESCRIPTION, PARAMS), DESCRIPTION, "-o")
+POLICY = Output("fieldgen export", (DESCRIPTION, PARAMS, ONNX), DESCRIPTION, "-o")
 ACTION = "tanh of each agent's first network outputs, one per action it drives, in order"
 
 
@@ -116,14 +117,22 @@ def describe(policy: Policy, observation_names, action_names, **about) -> Descri
                        agents=agents, normalizer=normalizer, **about)
 
 
-def save_policy(policy: Policy, description: Description, folder: Path) -> None:
-    """Write (or replace whole) an exported policy's folder."""
+def save_policy(policy: Policy, description: Description, folder: Path, fmt: str = "flax") -> None:
+    """Write (or replace whole) an exported policy's folder; with `fmt` "onnx" (fieldgen.policy_onnx.FORMATS)
+    policy.onnx too, built before anything is written (OnnxMissing where onnx is not installed)."""
     params = serialization.msgpack_serialize(jax.device_get(policy.params))
     description = description.model_copy(update={"params_sha256": hashlib.sha256(params).hexdigest()})
+    graph = None
+    if fmt == "onnx":
+        from fieldgen.policy_onnx import model_bytes
+
+        graph = model_bytes(policy, description)
 
     def fill(staging: Path) -> None:
         write_atomic(staging / DESCRIPTION, (description.model_dump_json(indent=1) + "\n").encode())
         write_atomic(staging / PARAMS, params)
+        if graph is not None:
+            write_atomic(staging / ONNX, graph)
 
     replace_folder(folder, fill, POLICY)
 

@@ -16,6 +16,7 @@ from fieldgen.agents.registry import ALGORITHMS, DEFAULT_ALGORITHM, EVAL_ACTIONS
 from fieldgen.cli.app import app, choice, count, duration, err, fail, field_source, out, video_format
 from fieldgen.command import TIME_LIMIT_STATUS
 from fieldgen.cameras import CAMERAS
+from fieldgen.policy_onnx import FORMATS as POLICY_FORMATS
 from fieldgen.run.loggers import LOGGERS
 from fieldgen.schema import SpecError
 from fieldgen.video import FORMATS as VIDEO_FORMATS
@@ -435,7 +436,10 @@ def evaluate(
             evaluations = [judging.evaluate(run, episodes, seed, video and k == 0, actions) for k, run in enumerate(runs)]
         except record.RunError as exc:  # the physics outgrew its capacities
             fail(str(exc))
-        result = judging.summarize(runs, evaluations, episodes, _command_line(ctx), actions)
+        try:
+            result = judging.summarize(runs, evaluations, episodes, _command_line(ctx), actions)
+        except summary.SummaryError as exc:  # a seed measured nothing that can be a figure
+            fail(str(exc))
         length = runs[0].env.episode_length
         steps = sorted({e.env_steps for e in evaluations})
         several = len(runs) > 1
@@ -596,20 +600,29 @@ def export(
     folder: Annotated[Path, typer.Option("--out", "-o", metavar="DIR", help="the folder to write the policy to")],
     seed: Annotated[Optional[int], typer.Option(metavar="SEED",
                                                 help="which of the run's seeds (default: its first)")] = None,
+    fmt: Annotated[str, typer.Option(
+        "--format", help="flax: policy.json and params.msgpack; onnx: also policy.onnx, the policy as an ONNX graph "
+                         "(observation -> action) for onnxruntime without JAX (pip install 'fieldgen[onnx]')",
+        **choice("format", POLICY_FORMATS))] = "flax",
 ) -> None:
     """Write a run's policy (policy.json and params.msgpack) for fieldgen.load_policy, which needs no trainer or run.
 
     Example: fieldgen export runs/point_nav-crl-0 -o policies/point_nav
+    Example: fieldgen export runs/point_nav-crl-0 -o policies/point_nav --format onnx
     """
     from fieldgen.agents.config import ConfigError
     from fieldgen.files import FolderError
+    from fieldgen.policy_onnx import OnnxMissing, require
     from fieldgen.run import record
     from fieldgen.run.export import export as write_policy
 
     try:
-        d = write_policy(run_dir, folder, seed).description
-    except (SpecError, ConfigError, record.RunError, FolderError) as exc:
+        if fmt == "onnx":
+            require()  # before the run is read
+        d = write_policy(run_dir, folder, seed, fmt).description
+    except (SpecError, ConfigError, record.RunError, FolderError, OnnxMissing) as exc:
         fail(str(exc))
+    onnx = f", or run {folder}/policy.onnx in onnxruntime" if fmt == "onnx" else ""
     out.print(f"exported {d.algorithm} seed {d.seed} at {d.env_steps:,} env steps ({d.field}: "
               f"{len(d.observation_names)} observations -> {len(d.action_names)} actions) to {folder}; "
-              f"load it with fieldgen.load_policy('{folder}')", highlight=False)
+              f"load it with fieldgen.load_policy('{folder}'){onnx}", highlight=False)

@@ -20,8 +20,9 @@ class Exported:
     description: Description
 
 
-def export(run_dir: Path, out: Path, seed: int | None = None) -> Exported:
-    """Write the policy of `seed` (the run's first by default) to `out`, replacing what was there."""
+def export(run_dir: Path, out: Path, seed: int | None = None, fmt: str = "flax") -> Exported:
+    """Write the policy of `seed` (the run's first by default) to `out`, replacing what was there; with `fmt`
+    "onnx" also as policy.onnx (fieldgen.policy_folder.save_policy)."""
     run = session.open_run(run_dir, learned=True)
     if run.state is None:
         raise record.RunError(f"{run_dir} has not trained yet, so it has no policy; start it with: "
@@ -37,7 +38,7 @@ def export(run_dir: Path, out: Path, seed: int | None = None) -> Exported:
     description = describe(policy, env.observation_names, env.action_names, algorithm=run.algo, field=env.spec.name,
                            seed=seed, env_steps=int(jax.device_get(state.env_steps)))
     try:
-        save_policy(policy, description, out)
+        save_policy(policy, description, out, fmt)
     except WriteError as exc:
         raise record.RunError(f"{exc}; free some space, fix the folder's permissions or choose another -o") from None
     return Exported(out, description)

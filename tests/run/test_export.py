@@ -50,6 +50,22 @@ def test_exported_policy_acts_as_the_run(trained, tmp_path):
     np.testing.assert_allclose(np.asarray(jax.jit(lambda a, o: a(o))(act, obs[0])), own[0], rtol=0, atol=1e-6)
 
 
+def test_exported_onnx_policy_acts_as_the_run_in_onnxruntime(trained, tmp_path):
+    import onnxruntime
+
+    folder = tmp_path / "policy"
+    result = runner.invoke(app, ["export", str(trained), "-o", str(folder), "--format", "onnx"])
+    assert result.exit_code == 0, result.output
+    assert f"or run {folder}/policy.onnx in onnxruntime" in " ".join(result.output.split())
+    run = session.open_run(trained)
+    obs = jax.vmap(run.env.reset)(jax.random.split(jax.random.PRNGKey(3), 1000)).obs
+    obs = obs.at[:, :2].add(jax.random.normal(jax.random.PRNGKey(4), (1000, 2)))  # spread the agents over the field
+    own = np.asarray(run.trainers[0].act(loop.seed_slice(run.state, 0), obs))
+    session_ = onnxruntime.InferenceSession(str(folder / "policy.onnx"))
+    (by_onnx,) = session_.run(["action"], {"observation": np.asarray(obs, np.float32)})
+    np.testing.assert_allclose(by_onnx, own, rtol=0, atol=1e-5)
+
+
 def test_export_errors_are_one_sentence(trained, tmp_path, tiny_crl_args):
     unknown = runner.invoke(app, ["export", str(trained), "-o", str(tmp_path / "p"), "--seed", "7"])
     assert unknown.exit_code == 1 and "trained seeds 0, 1, not 7" in unknown.output
