@@ -90,10 +90,17 @@ def legend(model: mujoco.MjModel, width: int) -> np.ndarray:
             name.startswith(s) if s.endswith("_") else name == s for s in shown_by)]
         if geoms:
             entries.append(Patch(facecolor=model.geom_rgba[geoms[0]][:3], edgecolor="0.6", label=label))
-    fig = plt.figure(figsize=(width / 100, LEGEND_HEIGHT / 100), dpi=100, facecolor="0.2")
-    fig.legend(handles=entries, loc="center", ncol=len(entries), frameon=False, labelcolor="white", fontsize=9,
-               handlelength=1.2, columnspacing=1.5)
-    fig.canvas.draw()
+    # as many entries a row as fit the width: one view alone is narrower than the preview's two
+    for columns in range(max(len(entries), 1), 0, -1):
+        rows = -(-len(entries) // columns)
+        fig = plt.figure(figsize=(width / 100, LEGEND_HEIGHT * (1 + 0.6 * (rows - 1)) / 100), dpi=100,
+                         facecolor="0.2")
+        shown = fig.legend(handles=entries, loc="center", ncol=columns, frameon=False, labelcolor="white",
+                           fontsize=9, handlelength=1.2, columnspacing=1.5)
+        fig.canvas.draw()
+        if columns == 1 or shown.get_window_extent().width <= width:
+            break
+        plt.close(fig)
     strip = np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
     plt.close(fig)
     return strip

@@ -110,6 +110,27 @@ def test_the_preview_has_a_legend_of_the_colours_its_field_shows():
     assert swatches("point_nav") == {"target", "line"}  # no ball, goal, walls or obstacles there
 
 
+def test_a_legend_narrower_than_its_entries_wraps_them_into_rows():
+    """One view alone (a third of the preview's width) still names every colour: its legend takes two rows."""
+    from fieldgen.render import LEGEND_HEIGHT, legend
+
+    soccer = model("soccer_v2")
+    wide, narrow = legend(soccer, 1024), legend(soccer, 384)
+    assert wide.shape == (LEGEND_HEIGHT, 1024, 3)
+    assert narrow.shape[0] > LEGEND_HEIGHT and narrow.shape[1] == 384
+    inked = (narrow.astype(int) - 51).any(axis=-1)  # not the strip's grey background
+    assert inked[:, :8].sum() == 0 and inked[:, -8:].sum() == 0  # nothing cut at either edge
+
+
+def test_captions_tell_fields_apart_by_goal_goalie_and_target():
+    from fieldgen.curriculum.sheet import field_caption
+    from fieldgen.schema import bundled_fields, load_spec
+
+    fields = bundled_fields()
+    assert field_caption(load_spec(fields["v2_wide_goalie"])) == "field 32 wide, 40 long; goal 20 ahead, 8 wide; goalie 3 wide"
+    assert field_caption(load_spec(fields["ant_nav"])) == "field 26 wide, 26 long; target 10 away"
+
+
 def test_fields_of_different_sizes_drawn_at_one_scale(write_spec):
     """same_scale frames every model alike, so a field twice as wide is drawn twice as wide."""
     from fieldgen.render import same_scale
@@ -177,7 +198,9 @@ def test_a_curriculum_sheet_draws_its_stages_at_one_scale_with_their_sizes(monke
     monkeypatch.setattr(sheet, "contact_sheet", lambda images, titles, captions: drawn.update(
         images=images, captions=captions) or b"")
     sheet.stage_sheet(curriculum.load(Path(__file__).parents[1] / "curricula" / "point_nav_to_far"), "top")
-    assert drawn["captions"] == [f"field {n} wide, {n} long" for n in (10, 20, 30, 40)]
+    assert [caption.split(";")[0] for caption in drawn["captions"]] == [f"field {n} wide, {n} long"
+                                                                         for n in (10, 20, 30, 40)]
+    assert all("; target " in caption for caption in drawn["captions"])  # where each stage's target lies
     assert len({image.shape for image in drawn["images"]}) == 1
     lines = [(image.min(axis=-1) > 115) & (np.ptp(image, axis=-1) < 20) for image in drawn["images"]]  # light grey
     spans = [np.ptp(np.nonzero(line.any(axis=0))[0]) for line in lines]

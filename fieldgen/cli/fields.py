@@ -156,10 +156,11 @@ def render(
     Example: fieldgen render runs/soccer_v2-auto-crl-0 --levels -o levels.png
     Example: fieldgen render runs/soccer_v2-auto-crl-0 -o all_levels.png  (every level the run has built)
     """
+    import numpy as np
+
     from fieldgen.compile.artifact import ArtifactError, compile_spec, load_artifact
     from fieldgen.files import write_atomic
-    from fieldgen.render import RenderError, png_bytes, preview, render_pose
-
+    from fieldgen.render import RenderError, legend, png_bytes, preview, render_pose
     from fieldgen import curriculum
 
     if output is not None and output.suffix.lower() != ".png":
@@ -212,7 +213,11 @@ def render(
         fail(str(exc))
     model = artifact.model()
     try:
-        image = preview(model) if camera == "both" else render_pose(model, camera=camera)
+        if camera == "both":
+            image = preview(model)
+        else:  # one view over the legend of its colours, as the preview has
+            view = render_pose(model, camera=camera)
+            image = np.concatenate([view, legend(model, view.shape[1])], axis=0)
         write_atomic(output, png_bytes(image))
     except (RenderError, OSError) as exc:
         fail(str(exc))

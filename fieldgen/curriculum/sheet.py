@@ -34,10 +34,32 @@ def built_sheet(folders: list[Path], camera: str, captions: list[str] | None = N
     return _sheet(artifacts, [f"{f.name}: {a.spec.name}" for f, a in zip(folders, artifacts)], camera, captions)
 
 
+def field_caption(spec) -> str:
+    """What tells a sheet's fields apart at a glance: the field's size, its goal, goalie and other obstacles, and
+    where its target lies."""
+    parts = [f"field {spec.field.width:g} wide, {spec.field.length:g} long"]
+    if spec.goal.enabled:
+        parts.append(f"goal {spec.goal.distance:g} ahead, {spec.goal.width:g} wide")
+    obstacles = dict(spec.obstacles or {})
+    if "goalie" in obstacles:
+        parts.append(f"goalie {obstacles.pop('goalie').width:g} wide")
+    if obstacles:
+        parts.append(f"{len(obstacles)} obstacle{'s' if len(obstacles) > 1 else ''}")
+    target = spec.task.target
+    if target.kind == "ring":
+        low, high = target.radius
+        parts.append(f"target {low:g} away" if low == high else f"target {low:g}-{high:g} away")
+    elif target.kind == "point":
+        parts.append(f"target at ({target.x:g}, {target.y:g})")
+    elif not spec.goal.enabled:
+        parts.append("target at the goal point")
+    return "; ".join(parts)
+
+
 def _sheet(artifacts: list, names: list[str], camera: str, captions: list[str] | None = None) -> bytes:
     models = [a.model() for a in artifacts]
     if camera == "top":
         same_scale(models, camera)
     images = [render_pose(model, camera=camera, height=240) for model in models]
-    captions = captions or [f"field {a.spec.field.width:g} wide, {a.spec.field.length:g} long" for a in artifacts]
+    captions = captions or [field_caption(a.spec) for a in artifacts]
     return contact_sheet(images, [f"{i}. {name}" for i, name in enumerate(names, 1)], captions=captions)
