@@ -90,6 +90,12 @@ def _choice_label(schema: dict, node: dict) -> str:
     return name or "value"
 
 
+def _listed(node: dict) -> dict:
+    """The list a key holds, where it holds one: the node itself, or its list among the choices (task.reward's
+    terms, or `dense`)."""
+    return next((n for n in [node, *node.get("anyOf", [])] if n.get("type") == "array"), {})
+
+
 def _section(schema: dict, path: str, node: dict, defaults, out: list[str], depth: int) -> None:
     """A table of one mapping's keys, then a subsection for each key that is a mapping or a choice."""
     props = node.get("properties", {})
@@ -116,9 +122,9 @@ def _section(schema: dict, path: str, node: dict, defaults, out: list[str], dept
         elif "anyOf" in prop and any("$ref" in n for n in prop["anyOf"]):
             forms = [(_choice_label(schema, n), _ref(schema, n)[1]) for n in prop["anyOf"] if "$ref" in n]
             nested.append((f"{path}.{key}" if path else key, forms, sub_defaults, prop))
-        elif prop.get("type") == "array" and "$ref" in prop.get("items", {}):
-            nested.append((f"{path}.{key}[]" if path else f"{key}[]", [(None, _ref(schema, prop["items"])[1])], None,
-                           prop))
+        elif "$ref" in _listed(prop).get("items", {}):
+            item = _ref(schema, _listed(prop)["items"])[1]
+            nested.append((f"{path}.{key}[]" if path else f"{key}[]", [(None, item)], None, prop))
     for sub_path, forms, sub_defaults, prop in nested:
         out += ["", f"{'#' * depth} `{sub_path}`", ""]
         if prop.get("description"):
@@ -137,7 +143,7 @@ def dsl_reference() -> str:
     """Every key of a field spec, section by section, from the schema `fieldgen schema` prints."""
     from fieldgen.schema.editor import json_schema
     from fieldgen.schema.models import FieldSpec
-    from fieldgen.schema.terms import TERMS
+    from fieldgen.schema.terms import DENSE_REWARDS, TERMS
 
     schema = json_schema()
     defaults = FieldSpec.model_validate({"name": "example"}).model_dump(mode="json")
@@ -167,7 +173,21 @@ def dsl_reference() -> str:
         needs = [part for part, flag in (("a ball", spec.ball), ("a goal", spec.goal), ("a torso (ant)", spec.torso))
                  if flag]
         out.append(f"| `{term}` | {_cell(spec.description)} | {', '.join(needs) or '-'} |")
+    out += ["", "## Dense rewards", "",
+            "`task: {reward: dense}` stands for the terms generated for the task's success kind, from "
+            "`DENSE_REWARDS` in `fieldgen/schema/terms.py` (terms that need a torso only for the ant); a success kind "
+            "not listed has none, and the spec lists its terms itself.", "",
+            "| success kind | terms |", "|---|---|"]
+    for kind, terms in DENSE_REWARDS.items():
+        out.append(f"| `{kind}` | {_cell(', '.join(_dense_term(t) for t in terms))} |")
     return "\n".join(out) + "\n"
+
+
+def _dense_term(term: dict) -> str:
+    """A generated term as a spec would write it: `{term: upright, band: [0.2, 1.0]}`."""
+    shown = {k: list(v) if isinstance(v, tuple) else format(v, "g") if isinstance(v, float) else v
+             for k, v in term.items()}
+    return "`{" + ", ".join(f"{k}: {v}" for k, v in shown.items()) + "}`"
 
 
 # --- the command line --------------------------------------------------------------------------------

@@ -121,9 +121,20 @@ def test_the_dsl_reference_gives_every_key_with_its_default_range_and_descriptio
 def test_the_dsl_reference_lists_the_registered_reward_terms():
     from fieldgen.schema.terms import TERMS
 
-    section = hooks().dsl_reference().split("## Reward terms", 1)[1]
+    section = hooks().dsl_reference().split("## Reward terms", 1)[1].split("\n## ", 1)[0]
     rows = re.findall(r"^\| `(\w+)` \| (.+?) \|", section, re.MULTILINE)
     assert rows == [(name, term.description) for name, term in TERMS.items()]
+
+
+def test_the_dsl_reference_lists_the_terms_reward_dense_stands_for():
+    from fieldgen.schema.terms import DENSE_REWARDS
+
+    section = hooks().dsl_reference().split("## Dense rewards", 1)[1]
+    rows = dict(re.findall(r"^\| `(\w+)` \| (.+?) \|$", section, re.MULTILINE))
+    assert list(rows) == list(DENSE_REWARDS)
+    assert rows["ball_near_target"].startswith("`{term: ball_progress, weight: 10}`, `{term: agent_approaches_ball")
+    assert rows["agent_near_target"] == ("`{term: agent_progress}`, `{term: upright, band: [0.2, 1.0]}`, "
+                                         "`{term: control_cost, weight: 0.5}`")
 
 
 def test_the_cli_reference_gives_every_command_and_option():

@@ -13,7 +13,7 @@ from fieldgen.agents.recipes import Found, Recipe
 from fieldgen.agents.registry import DEFAULT_ALGORITHM
 from fieldgen.schema import FieldSpec, bundled_fields
 from fieldgen.schema.loader import lineage
-from fieldgen.schema.terms import TERMS
+from fieldgen.schema.terms import DENSE_REWARDS, TERMS
 
 DENSE_TWIN = "{}_dense"  # the bundled field that gives a field's task a dense reward
 
@@ -111,8 +111,12 @@ def sparse_warning(spec: FieldSpec, algo: str) -> str | None:
     if algo != "ppo" or not is_sparse(spec):
         return None
     twin = DENSE_TWIN.format(spec.name)
-    instead = (f"train its dense twin instead: fieldgen train {twin}" if twin in bundled_fields() else
-               "give the field a reward that shapes the way there under task.reward")
+    if twin in bundled_fields():
+        instead = f"train its dense twin instead: fieldgen train {twin}"
+    elif spec.task.success.kind in DENSE_REWARDS:
+        instead = "give the field the dense reward of its task: task: {reward: dense}"
+    else:
+        instead = "list reward terms that shape the way there under task.reward"
     return f"warning: PPO learns nothing from a success signal alone, and {spec.name}'s reward is its success; {instead}"
 
 

@@ -12,15 +12,16 @@ import typing
 from typing import Annotated, Literal, Union
 
 from pydantic import (AfterValidator, BaseModel, BeforeValidator, ConfigDict, Discriminator, Field, Tag, WithJsonSchema,
-                      model_validator)
+                      field_validator, model_validator)
 
 from fieldgen.schema.backends import BACKENDS, backend_description
 from fieldgen.schema.errors import shown_text
-from fieldgen.schema.terms import TERMS
+from fieldgen.schema.terms import DENSE_REWARDS, TERMS, dense_reward
 
 MAX_EXTENT = 500.0  # metres; anything larger is a typo, not a field
 MAX_OBJECT = 50.0  # metres; the largest single body (ball, goal, obstacle)
 MAX_OBSTACLES = 1000  # a spec of this many validates in half a second; a field needs a few
+DENSE = "dense"  # task.reward: the terms generated for the task (terms.DENSE_REWARDS)
 
 
 class Section(BaseModel):
@@ -272,6 +273,15 @@ class RewardTerm(Section):
         return self
 
 
+def _reward_form(value) -> str:
+    """Which form task.reward is written in: text (`dense`) or a list of terms; each form's own errors alone."""
+    return "generated" if isinstance(value, str) else "listed"
+
+
+Reward = Annotated[Union[Annotated[Annotated[list[RewardTerm], Field(min_length=1)], Tag("listed")],
+                         Annotated[Literal[DENSE], Tag("generated")]], Discriminator(_reward_form)]
+
+
 class TaskSection(Section):
     target: Target = Field(default_factory=lambda: TargetGoal(kind="goal"), description="where the goal point lies")
     success: Success = Field(default_factory=Success, description="the success predicate")
@@ -280,11 +290,22 @@ class TaskSection(Section):
         description="whose x, y the goal names, in this order, each commanded to the target; default: what the "
                     "success judges. [agent, ball] gives hindsight the agent's own moves to learn from before the "
                     "ball ever moves")
-    reward: list[RewardTerm] = Field(
+    reward: Reward = Field(
         default_factory=lambda: [RewardTerm(term="success")],
-        min_length=1,
-        description="weighted reward terms, summed; the default is the sparse success reward",
+        description="weighted reward terms, summed; the default is the sparse success reward; dense: the terms "
+                    "generated for the task's success kind (see Dense rewards below)",
     )
+
+    @field_validator("reward")
+    @classmethod
+    def _dense_known(cls, reward, info):
+        """`dense` left as written: the task's success kind has no generated terms (FieldSpec expands the rest)."""
+        if reward == DENSE:
+            kind = getattr(info.data.get("success"), "kind", "this success kind")
+            kinds = ", ".join(DENSE_REWARDS)
+            raise ValueError(f"dense names the terms generated for a task, and success kind '{kind}' has none; "
+                             f"the kinds with them: {kinds}; list this task's terms instead")
+        return reward
 
     @model_validator(mode="after")
     def _goal_of_success(self):
@@ -394,6 +415,21 @@ class FieldSpec(Section):
     episode: EpisodeSection = Field(default_factory=EpisodeSection, description="timing and termination")
     sim: SimSection = Field(default_factory=SimSection, description="physics pipeline and its options")
     observation: ObservationSection = Field(default_factory=ObservationSection, description="observation extras")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _dense_reward(cls, data):
+        """`task: {reward: dense}` as the terms generated for the task's success kind and the agent (terms.py)."""
+        task = data.get("task") if isinstance(data, dict) else None
+        if not isinstance(task, dict) or task.get("reward") != DENSE:
+            return data
+        success, agent = task.get("success"), data.get("agent")
+        kind = success.get("kind", Success.model_fields["kind"].default) if isinstance(success, dict) else None
+        agent_kind = agent.get("kind", AgentSection.model_fields["kind"].default) if isinstance(agent, dict) else \
+            AgentSection.model_fields["kind"].default
+        if kind not in DENSE_REWARDS:
+            return data  # TaskSection says which kinds have terms
+        return {**data, "task": {**task, "reward": dense_reward(kind, torso=agent_kind == "ant")}}
 
     @model_validator(mode="after")
     def _backend_defaults(self):

@@ -29,3 +29,22 @@ TERMS: dict[str, Term] = {
     "control_cost": Term("-sum(action^2): give it a positive weight"),
     "ball_in_goal": Term("1 while the ball's centre is inside the goal box", ball=True, goal=True, sparse=True),
 }
+
+# `task: {reward: dense}`: the terms generated for a task, by what its success judges (task.success.kind), as the
+# bundled _dense fields use them: for the ball, the ball's progress to the target, the agent's approach to the
+# ball, a bonus while the success holds; for the agent, its own progress; for both, staying upright (only for an
+# agent with a torso) and a control cost.
+DENSE_REWARDS: dict[str, tuple[dict, ...]] = {
+    "ball_near_target": ({"term": "ball_progress", "weight": 10.0}, {"term": "agent_approaches_ball", "weight": 1.0},
+                         {"term": "success", "weight": 10.0}, {"term": "upright", "band": (0.2, 1.0)},
+                         {"term": "control_cost", "weight": 0.5}),
+    "agent_near_target": ({"term": "agent_progress"}, {"term": "upright", "band": (0.2, 1.0)},
+                          {"term": "control_cost", "weight": 0.5}),
+}
+
+
+def dense_reward(success_kind: str, torso: bool) -> list[dict]:
+    """The reward terms `reward: dense` stands for on a task of this success kind, for an agent with or
+    without a torso (the terms that need one are left out)."""
+    return [dict(t) for t in DENSE_REWARDS[success_kind] if torso or not TERMS[t["term"]].torso]
+

@@ -51,6 +51,9 @@ def test_ppo_on_a_success_signal_alone_is_warned_of_naming_the_dense_twin():
         "train its dense twin instead: fieldgen train v2_wide_goalie_dense")
     assert recipe.sparse_warning(wide, "crl") is None
     assert recipe.sparse_warning(load_spec(bundled_fields()["v2_wide_goalie_dense"]), "ppo") is None
+    nav = load_spec(bundled_fields()["point_nav"])  # no twin: the dense reward its task has
+    assert recipe.sparse_warning(nav, "ppo").endswith("give the field the dense reward of its task: task: "
+                                                      "{reward: dense}")
 
 
 def test_train_prints_the_recipe_its_overrides_and_the_warning_once_and_run_json_keeps_the_recipe(tmp_path):

@@ -1,0 +1,73 @@
+"""`task: {reward: dense}`: the terms generated for a task's success kind, which the bundled _dense fields use and
+build to the very field.json their written-out terms built to."""
+
+from __future__ import annotations
+
+import pytest
+
+from fieldgen.schema import SpecError, bundled_fields, load_spec
+
+# the terms the bundled dense fields listed before they asked for the generated ones
+BALL_TERMS = """  reward:
+    - {term: ball_progress, weight: 10}
+    - {term: agent_approaches_ball, weight: 1}
+    - {term: success, weight: 10}
+    - {term: upright, band: [0.2, 1.0]}
+    - {term: control_cost, weight: 0.5}
+"""
+AGENT_TERMS = """  reward:
+    - {term: agent_progress}
+    - {term: upright, band: [0.2, 1.0]}
+    - {term: control_cost, weight: 0.5}
+"""
+WRITTEN_OUT = {"soccer_v1_dense": ("soccer_v1", BALL_TERMS), "soccer_v2_dense": ("soccer_v2", BALL_TERMS),
+               "ant_nav_dense": ("ant_nav", AGENT_TERMS)}
+
+
+def written_out(tmp_path, name: str):
+    """The bundled dense field as it was written before, its terms listed: its name, description and parent."""
+    bundled = load_spec(bundled_fields()[name])
+    parent, terms = WRITTEN_OUT[name]
+    path = tmp_path / f"{name}.yaml"
+    path.write_text(f"name: {name}\ndescription: {bundled.description}\nextends: {parent}\ntask:\n{terms}")
+    return path
+
+
+@pytest.mark.parametrize("name", WRITTEN_OUT)
+def test_the_bundled_dense_fields_ask_for_the_generated_terms_and_get_the_ones_they_listed(tmp_path, name):
+    assert "reward: dense" in bundled_fields()[name].read_text()
+    generated = load_spec(bundled_fields()[name])
+    assert generated.model_dump(mode="json") == load_spec(written_out(tmp_path, name)).model_dump(mode="json")
+
+
+def test_a_dense_field_builds_to_the_same_field_json_byte_for_byte(tmp_path):
+    from fieldgen.compile.build import build
+
+    generated = build(bundled_fields()["soccer_v2_dense"], tmp_path / "generated", preview=False)
+    listed = build(written_out(tmp_path, "soccer_v2_dense"), tmp_path / "listed", preview=False)
+    assert (generated.out_dir / "field.json").read_bytes() == (listed.out_dir / "field.json").read_bytes()
+    assert (generated.out_dir / "scene.xml").read_bytes() == (listed.out_dir / "scene.xml").read_bytes()
+
+
+def test_fields_that_extend_a_dense_field_inherit_its_generated_terms():
+    wide = load_spec(bundled_fields()["v2_wide_goalie_dense"]).task.reward
+    assert wide == load_spec(bundled_fields()["soccer_v2_dense"]).task.reward
+    assert [(t.term, t.weight) for t in wide] == [("ball_progress", 10.0), ("agent_approaches_ball", 1.0),
+                                                 ("success", 10.0), ("upright", 1.0), ("control_cost", 0.5)]
+
+
+def test_the_terms_follow_the_task_and_leave_out_what_the_agent_lacks(write_spec):
+    ball = load_spec(write_spec("extends: ant_ball\nname: b\ntask: {reward: dense}\n")).task.reward
+    assert [t.term for t in ball] == ["ball_progress", "agent_approaches_ball", "success", "upright", "control_cost"]
+    point = load_spec(write_spec("extends: point_nav\nname: p\ntask: {reward: dense}\n")).task.reward
+    assert [(t.term, t.weight) for t in point] == [("agent_progress", 1.0), ("control_cost", 0.5)]  # no torso
+
+
+def test_a_task_kind_without_generated_terms_is_one_line_naming_the_kinds_with_them(write_spec):
+    path = write_spec("extends: point_soccer\nname: s\ntask:\n  reward: dense\n")
+    with pytest.raises(SpecError) as caught:
+        load_spec(path)
+    (problem,) = caught.value.problems
+    assert str(problem) == (f"{path}:4:3: task.reward: dense names the terms generated for a task, and success kind "
+                            "'ball_in_goal' has none; the kinds with them: ball_near_target, agent_near_target; list "
+                            "this task's terms instead (got 'dense')")
