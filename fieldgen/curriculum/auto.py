@@ -72,8 +72,9 @@ class Sampler(BaseModel):
     target_share: float = Field(0.2, gt=0, lt=1, description="of new episodes, on the spec itself")
     frontier_share: float = Field(0.3, ge=0, le=1, description="of new episodes, on the easiest level not yet "
                                                                "solved (levels without kick-off points)")
-    floor: float = Field(0.05, ge=0, lt=1, description="of new episodes, spread evenly over every level but the "
-                                                       "spec: none is ever forgotten")
+    floor: float = Field(0.05, ge=0, lt=1, description="of new episodes, spread evenly over the levels but the "
+                                                       "spec (with kick-off points, over the buffer's entries but "
+                                                       "the spec's own): none of them is starved")
     buffer: int = Field(32, ge=2, le=4096, description="levels (a level and one of its kick-off points) episodes "
                                                        "are drawn from")
     replaced: int = Field(4, ge=0, le=4096, description="of the buffer's levels, replaced after each evaluation "
