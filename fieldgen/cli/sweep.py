@@ -91,11 +91,20 @@ def _report(planned, standing, command: str) -> None:
     counts = {state: sum(s.state == state for s in found) for state in dict.fromkeys(s.state for s in found)}
     out.print(", ".join(f"{n} {state}" for state, n in counts.items()), highlight=False)
     if counts.get(standing.DONE) != len(found):
+        for s in found:
+            if s.state == standing.FAILED:  # whole, as the table's cell may cut it
+                out.print(f"{s.run.id} failed: {s.detail}", highlight=False, soft_wrap=True)
         if counts.get(standing.FAILED):
             out.print("a failed run's whole output is in "
                       f"{planned.folder / 'logs'}; fix its cause and start the sweep again to retry it", highlight=False)
         return
-    rows, folder = standing.summarize(planned, command)
+    from fieldgen.run.record import RunError
+    from fieldgen.run.summary import SummaryError
+
+    try:
+        rows, folder = standing.summarize(planned, command)
+    except (SummaryError, RunError) as exc:  # no figure over values that cannot be what they claim
+        fail(str(exc))
     summary = Table("field", "setting", "seeds", "success_any", "time_at_goal",
                     caption="IQM [95% stratified bootstrap interval] of each seed's last evaluation")
     for row in rows:

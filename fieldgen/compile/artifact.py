@@ -148,14 +148,24 @@ RECORD_DIGEST = "record_sha256"
 
 def record_digest(meta: dict) -> str:
     """The SHA-256 of field.json's keys other than RECORD_DIGEST, written canonically (sorted keys, no spaces)."""
-    rest = {k: v for k, v in meta.items() if k != RECORD_DIGEST}
-    return hashlib.sha256(json.dumps(rest, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
+    return hashlib.sha256(_canonical({k: v for k, v in meta.items() if k != RECORD_DIGEST}).encode()).hexdigest()
+
+
+def _canonical(resolved: dict) -> str:
+    return json.dumps(resolved, sort_keys=True, separators=(",", ":"))
 
 
 def spec_hash(spec: FieldSpec) -> str:
     """Content hash of the resolved spec and the compiler code that reads it."""
-    canonical = json.dumps(spec.model_dump(mode="json"), sort_keys=True, separators=(",", ":"))
+    canonical = _canonical(spec.model_dump(mode="json"))
     return hashlib.sha256(f"{compiler_digest()}\n{canonical}".encode()).hexdigest()[:16]
+
+
+def field_digest(resolved: dict) -> str:
+    """The SHA-256 of a resolved spec (`FieldSpec.model_dump(mode="json")`, as run.json keeps it): what tells two
+    fields apart where names do not (a bundled point_nav and a point_nav of your own), so that figures pool
+    seeds of one field only."""
+    return hashlib.sha256(_canonical(resolved).encode()).hexdigest()
 
 
 def compile_spec(spec: FieldSpec) -> Artifact:

@@ -11,6 +11,7 @@ from pathlib import Path
 import jax
 
 from fieldgen.agents import loop, memory, programs
+from fieldgen.compile.artifact import field_digest
 from fieldgen.env.mjx_physics import OVERFLOW, PhysicsOverflow
 from fieldgen.run import record, session, summary
 from fieldgen.run.session import Run
@@ -63,6 +64,12 @@ def _trained_on(run: Run) -> str:
     return " then ".join(env.spec.name for env in run.envs)
 
 
+def field_digests(run: Run) -> list[str]:
+    """The digest of each field the run trained on (its stages in order): what tells a user's point_nav from
+    the bundled one, where names agree."""
+    return [field_digest(env.spec.model_dump(mode="json")) for env in run.envs]
+
+
 def open_runs(folders: list[Path], field: Path | None = None) -> list[Run]:
     """The runs to judge together, each with its last checkpoint (its policy put on `field` where given).
     Refused before any checkpoint loads: a folder that is not a run or has not trained, runs of another
@@ -74,10 +81,11 @@ def open_runs(folders: list[Path], field: Path | None = None) -> list[Run]:
             raise record.RunError(f"{folder} has no checkpoint: it has not trained yet; train it with "
                                   f"fieldgen train --resume {folder}, then evaluate it")
         first = first or run
-        if (run.algo, _trained_on(run)) != (first.algo, _trained_on(first)):
+        if (run.algo, field_digests(run)) != (first.algo, field_digests(first)):
+            alike = " (fields of one name that differ)" if _trained_on(run) == _trained_on(first) else ""
             raise record.RunError(f"{folder} trained {run.algo} on {_trained_on(run)}, {first.folder} {first.algo} "
-                                  f"on {_trained_on(first)}: runs evaluated together are seeds of one field and "
-                                  "algorithm; evaluate them separately")
+                                  f"on {_trained_on(first)}{alike}: runs evaluated together are seeds of one field "
+                                  "and algorithm; evaluate them separately")
         for s in run.seeds:
             if s in owners:
                 raise record.RunError(f"seed {s} is in both {owners[s]} and {folder}: each seed counts once in a "
@@ -101,4 +109,5 @@ def summarize(runs: list[Run], evaluations: list[Evaluation], episodes: int, com
     per_seed = {metric: {s: float(e.metrics[metric][i]) for s, e, i in seeds} for metric in summary.METRICS}
     before = {s: run.learned_before for run in runs for s in run.seeds if run.learned_before}
     return summary.summarize([runs[0].env.spec.name], runs[0].algo, [run.folder for run in runs], episodes,
-                             {s: e.env_steps for s, e, _ in seeds}, per_seed, command, before, actions)
+                             {s: e.env_steps for s, e, _ in seeds}, per_seed, command, before, actions,
+                             [field_digest(runs[0].env.spec.model_dump(mode="json"))])

@@ -14,13 +14,16 @@ from __future__ import annotations
 import csv
 import io
 import json
+import math
 from pathlib import Path, PurePosixPath
 from typing import Annotated
 
-from pydantic import AfterValidator, BaseModel, ConfigDict, Field, StrictBool, StrictInt, StrictStr, ValidationError
+from pydantic import (AfterValidator, BaseModel, ConfigDict, Field, StrictBool, StrictInt, StrictStr, ValidationError,
+                      model_validator)
 
 from fieldgen.curriculum.promotion import Promotion
 from fieldgen.files import Output, write_atomic
+from fieldgen.schema.errors import shown_text
 
 RUN, METRICS, CSV, CHECKPOINT, PLOT = "run.json", "metrics.jsonl", "metrics.csv", "checkpoint.msgpack", "success.png"
 LEARNER, INITIAL, VIDEOS = "learner.msgpack", "initial.msgpack", "videos"
@@ -113,14 +116,53 @@ class RunRecord(BaseModel):
     recipe: dict = {}  # the recipe the run was set up from (fieldgen/run/recipe.py); {} (left out): none
 
 
+# what the metrics that figures are computed over can hold: success is a share of episodes, time at the goal a
+# count of steps, a variant's weight its share of new episodes
+METRIC_RANGES = {"success_any": (0.0, 1.0), "last_stage_success_any": (0.0, 1.0), "time_at_goal": (0.0, math.inf),
+                 "weight": (0.0, 1.0)}
+
+
+def metric_problem(metric: str, value) -> str | None:
+    """What is wrong with `value` as `metric` (None where it can be what it claims, or the metric has no
+    range): a figure is computed only over values that pass, and a file holding another is refused."""
+    if metric not in METRIC_RANGES:
+        return None
+    low, high = METRIC_RANGES[metric]
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return f"{metric} is {shown_text(repr(value))}, not a number"
+    if math.isnan(value):
+        return f"{metric} is NaN: it was not measured"
+    if not (math.isfinite(value) and low <= value <= high):
+        span = f"from {low:g} to {high:g}" if math.isfinite(high) else f"a finite number from {low:g} up"
+        return f"{metric} is {value!r}, outside its range ({span})"
+    return None
+
+
 class MetricsRow(BaseModel):
-    """What a metrics row must hold for a run to go on from it; its other values are only reported."""
+    """What a metrics row must hold for a run to go on from it; its other values are only reported, except that
+    the metrics of METRIC_RANGES, where present, must lie in their range (in `variants`, NaN where an
+    evaluation played no episode of that variant)."""
 
     model_config = ConfigDict(extra="allow")
     eval: Index
     env_steps: Index
     stage: Index = 0
     promoted_to: Index = 0
+
+    @model_validator(mode="after")
+    def _in_range(self):
+        extra = self.model_extra or {}
+        for metric in METRIC_RANGES.keys() & extra.keys():
+            if (said := metric_problem(metric, extra[metric])) is not None:
+                raise ValueError(said)
+        variants = extra.get("variants")
+        for metric in METRIC_RANGES.keys() & (variants.keys() if isinstance(variants, dict) else set()):
+            values = variants[metric] if isinstance(variants[metric], list) else [variants[metric]]
+            for value in values:
+                unmeasured = metric != "weight" and isinstance(value, float) and math.isnan(value)
+                if not unmeasured and (said := metric_problem(metric, value)) is not None:
+                    raise ValueError(f"variants.{said}")
+        return self
 
 
 def _problems(exc: ValidationError) -> str:
@@ -131,7 +173,8 @@ def _problems(exc: ValidationError) -> str:
     for e in errors:
         if e["type"] != "missing":
             what = str(e["ctx"]["error"]) if e["type"] == "value_error" else e["msg"].removeprefix("Input ")
-            said.append(f"{'.'.join(map(str, e['loc']))} {what}, not {e['input']!r}")
+            where = ".".join(map(str, e["loc"]))
+            said.append(f"{where} {what}, not {e['input']!r}" if where else what)  # a whole row's check says its key
     return "; ".join(said)
 
 

@@ -17,10 +17,11 @@ from typing import Annotated, Literal, Sequence
 
 import numpy as np
 import scipy.stats
-from pydantic import BaseModel, Field, ValidationError
+from pydantic import BaseModel, Field, ValidationError, model_validator
 
 from fieldgen.agents.registry import EVAL_ACTIONS
 from fieldgen.files import write_atomic
+from fieldgen.run.record import metric_problem
 
 SUMMARY = "summary.json"
 METRICS = ("success_any", "time_at_goal")  # what a summary holds, per seed and over them
@@ -95,6 +96,9 @@ class SeedSummary(BaseModel):
     seed of one algorithm on its fields, over the seeds, and how they were measured."""
 
     fields: list[str]
+    # each field's fieldgen.compile.artifact.field_digest: what seeds are pooled by, since two fields may share a
+    # name; empty in summaries written before it was kept, which are not pooled
+    field_digests: list[str] = []
     algo: str
     runs: list[str]  # the run folders the seeds come from
     episodes: Count  # evaluation episodes per seed
@@ -109,6 +113,16 @@ class SeedSummary(BaseModel):
     confidence: float = CONFIDENCE
     command: str  # the command line that produced it
 
+    @model_validator(mode="after")
+    def _measured(self):
+        """Every seed's value can be what it claims (a success rate in [0, 1], a finite time at the goal), so that
+        no interval is computed over a damaged or unmeasured one."""
+        for metric in METRICS:
+            for seed, value in getattr(self, metric).per_seed.items():
+                if (said := metric_problem(metric, value)) is not None:
+                    raise ValueError(f"seed {seed}'s {said}")
+        return self
+
     @property
     def seeds(self) -> list[int]:
         return list(self.success_any.per_seed)
@@ -120,17 +134,25 @@ class SeedSummary(BaseModel):
         return "IQM (one seed)" if count == 1 else f"IQM ({count} seeds)"
 
 
+class SummaryError(ValueError):
+    """Summaries that cannot be read, pooled or computed, said in one line naming the file."""
+
+
 def summarize(fields: list[str], algo: str, runs: list[Path], episodes: int, env_steps: dict[int, int],
               per_seed: dict[str, dict[int, float]], command: str,
-              env_steps_before: dict[int, int] | None = None, actions: str = "mean") -> SeedSummary:
-    """A SeedSummary of `per_seed` (metric -> seed -> value, for each of METRICS)."""
-    return SeedSummary(fields=fields, algo=algo, runs=[str(r) for r in runs], episodes=episodes,
-                       env_steps=env_steps, command=command, env_steps_before=env_steps_before or {}, actions=actions,
-                       **{metric: MetricSummary.of(per_seed[metric]) for metric in METRICS})
-
-
-class SummaryError(ValueError):
-    """Summaries that cannot be read or pooled, said in one line naming the file."""
+              env_steps_before: dict[int, int] | None = None, actions: str = "mean",
+              field_digests: list[str] | None = None) -> SeedSummary:
+    """A SeedSummary of `per_seed` (metric -> seed -> value, for each of METRICS); SummaryError naming the seed
+    where a value cannot be what it claims (a success rate of 7.5, NaN where nothing was measured)."""
+    for metric in METRICS:
+        for seed, value in per_seed[metric].items():
+            if (said := metric_problem(metric, value)) is not None:
+                raise SummaryError(f"no summary of {', '.join(map(str, runs))}: seed {seed}'s {said}; a figure is "
+                                   "computed only over values that can be what they claim: evaluate the run again "
+                                   "(fieldgen eval), or restore its metrics.jsonl from a copy")
+    return SeedSummary(fields=fields, field_digests=field_digests or [], algo=algo, runs=[str(r) for r in runs],
+                       episodes=episodes, env_steps=env_steps, command=command, env_steps_before=env_steps_before or {},
+                       actions=actions, **{metric: MetricSummary.of(per_seed[metric]) for metric in METRICS})
 
 
 def read(path: Path) -> SeedSummary:
@@ -148,11 +170,21 @@ def read(path: Path) -> SeedSummary:
 def _first_problem(exc: ValidationError) -> str:
     error = exc.errors()[0]
     where = ".".join(str(p) for p in error["loc"])
-    return f"{where}: {error['msg']}" if where else error["msg"]
+    said = error["msg"].removeprefix("Value error, ")
+    return f"{where}: {said}" if where else said
 
 
-# what summaries pooled into one must share, and the word for it in an error
-POOLED_ALIKE = {"fields": "field", "algo": "algorithm", "actions": "actions", "episodes": "episodes per seed"}
+# what summaries pooled into one must share, and the word for it in an error: fields by their digests, since two
+# fields may share a name
+POOLED_ALIKE = {"field_digests": "field (the digest of its spec, though names may agree)", "algo": "algorithm",
+                "actions": "actions", "episodes": "episodes per seed"}
+
+
+def _shown(one: SeedSummary, key: str) -> str:
+    """A value summaries must share, as an error shows it: a field by its name and its digest's start."""
+    if key == "field_digests":
+        return ", ".join(f"{name} {digest[:12]}" for name, digest in zip(one.fields, one.field_digests))
+    return str(getattr(one, key))
 
 
 def pooled(summaries: Sequence[tuple[Path, SeedSummary]], command: str) -> SeedSummary:
@@ -162,10 +194,14 @@ def pooled(summaries: Sequence[tuple[Path, SeedSummary]], command: str) -> SeedS
     SummaryError naming the two files."""
     (first_path, first), owners = summaries[0], {}
     for path, one in summaries:
+        if not one.field_digests:
+            raise SummaryError(f"{path} does not record its field's digest (an earlier fieldgen wrote it), so "
+                               "seeds of two fields of one name could be pooled: evaluate its run again with "
+                               "fieldgen eval, then pool")
         for key, word in POOLED_ALIKE.items():
             if getattr(one, key) != getattr(first, key):
-                raise SummaryError(f"{path} and {first_path} differ in {word} ({getattr(one, key)} against "
-                                   f"{getattr(first, key)}): pooled seeds must be judged alike")
+                raise SummaryError(f"{path} and {first_path} differ in {word} ({_shown(one, key)} against "
+                                   f"{_shown(first, key)}): pooled seeds must be judged alike")
         for seed in one.seeds:
             if seed in owners:
                 raise SummaryError(f"seed {seed} is in both {owners[seed]} and {path}; pool each seed once")
@@ -174,7 +210,8 @@ def pooled(summaries: Sequence[tuple[Path, SeedSummary]], command: str) -> SeedS
     per_seed = {metric: {s: v for _, one in summaries for s, v in getattr(one, metric).per_seed.items()}
                 for metric in METRICS}
     return summarize(first.fields, first.algo, [r for _, one in summaries for r in one.runs], first.episodes,
-                     merged("env_steps"), per_seed, command, merged("env_steps_before"), first.actions)
+                     merged("env_steps"), per_seed, command, merged("env_steps_before"), first.actions,
+                     first.field_digests)
 
 
 def write(summary: SeedSummary, path: Path) -> None:

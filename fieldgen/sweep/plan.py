@@ -181,6 +181,7 @@ def load(path: Path, out: Path | None = None, **overrides) -> Sweep:
     if config is not None and not config.is_file():
         found.append(source.problem(("config",), f"there is no file {config}"))
     _assignments(spec, source, found)
+    _each_once(spec, names, source, found)
     if spec.levels is not None and spec.curriculum is None:
         found.append(source.problem(("levels",), f"{spec.levels} levels of the automatic curriculum: add "
                                                  "curriculum: auto to the sweep"))
@@ -263,6 +264,31 @@ def _field_names(path: Path, spec: SweepFile, source: Source, found: list[Proble
         except (SpecError, ArtifactError) as exc:
             found.append(source.problem(("fields", i), f"'{ref}' cannot be read: {exc}".replace("\n", " ")))
     return names
+
+
+def _each_once(spec: SweepFile, names: list[str], source: Source, found: list[Problem]) -> None:
+    """Refuse a sweep that would plan one run twice (a seed, an algorithm or a grid value listed twice, or two
+    fields of one name, whose runs share folders): trained twice, or counted twice in a summary, it would weigh
+    as two seeds."""
+    lists = [(("seeds",), spec.seed_list if isinstance(spec.seeds, list) else [], "seed"),
+             (("algorithms",), spec.algorithms, "algorithm"),
+             *((("grid", key), [_shown(v) for v in values], "value") for key, values in spec.grid.items())]
+    for where, values, what in lists:
+        seen: dict = {}
+        for i, value in enumerate(values):
+            if value in seen:
+                found.append(source.problem((*where, i), f"{what} {value} is listed twice (items {seen[value]} and "
+                                                         f"{i}); list each once, or the same run is planned twice"))
+                break
+            seen[value] = i
+    first: dict[str, int] = {}
+    for i, name in enumerate(names if len(names) == len(spec.fields) else []):  # else a field is refused already
+        if name in first:
+            found.append(source.problem(("fields", i), f"'{spec.fields[i]}' is the field {name}, as "
+                                                       f"'{spec.fields[first[name]]}' (fields[{first[name]}]) is: "
+                                                       "their runs would share folders and a summary; give one "
+                                                       "another name, or list it once"))
+        first.setdefault(name, i)
 
 
 def _assignments(spec: SweepFile, source: Source, found: list[Problem]) -> None:

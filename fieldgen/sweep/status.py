@@ -62,13 +62,28 @@ def progress(run: PlannedRun) -> str:
     return f"evaluation {rows[-1]['eval']} of {num_evals}, {rows[-1]['env_steps']:,} env steps"
 
 
+def damaged(run: PlannedRun) -> str | None:
+    """Why the run's folder cannot be read (its run.json or metrics.jsonl edited or damaged: a success rate of
+    7.5, say), or None: such a run is failed, neither waiting nor done, and none of its values reach a figure."""
+    if not (run.folder / record.RUN).is_file():
+        return None
+    try:
+        record.read_run(run.folder)
+        record.read_metrics(run.folder)
+    except record.RunError as exc:
+        return str(exc)
+    return None
+
+
 def states(sweep: Sweep) -> list[RunState]:
     jobs = (_read(sweep.folder / PLAN) or {}).get("jobs", {})
     out = []
     for run in sweep.runs:
         started, ended = _read(log_path(sweep.folder, run, ".started")), _read(log_path(sweep.folder, run, ".ended"))
         far = progress(run)
-        if finished(run):
+        if (said := damaged(run)) is not None:
+            out.append(RunState(run, FAILED, said))
+        elif finished(run):
             out.append(RunState(run, DONE, far))
         elif ended is not None and ended.get("exit") not in (0, None, TIME_LIMIT_STATUS):
             out.append(RunState(run, FAILED, str(ended.get("why") or f"exit status {ended.get('exit')}")))
@@ -127,7 +142,8 @@ def summarize(sweep: Sweep, command: str) -> tuple[list[dict], Path]:
         result = summary.summarize([group.field], group.algo, [r.folder for r in group.runs],
                                    config.get("eval_envs", 1), {s: int(row["env_steps"]) for s, row in last.items()},
                                    {m: {s: float(compare.on_field(row, m)) for s, row in last.items()}
-                                    for m in summary.METRICS}, command, actions=config.get("eval_actions", "mean"))
+                                    for m in summary.METRICS}, command, actions=config.get("eval_actions", "mean"),
+                                   field_digests=[one_field(group)])
         table.append({"field": group.field, "setting": group.label, "point": group.runs[0].point,
                       "summary": result.model_dump(mode="json")})
         by_setting.setdefault(group.label, []).append(result)
@@ -150,6 +166,27 @@ def summarize(sweep: Sweep, command: str) -> tuple[list[dict], Path]:
         compare.plot(chosen, sweep.folder / f"summary-{field}.png", f"{field}: sweep {sweep.path.stem} ({each})",
                      labels=[g.label for g in chosen])
     return table, sweep.folder
+
+
+def one_field(group: Group) -> str:
+    """The digest of the field every seed of `group` was judged on (summary.SummaryError where the seeds' fields
+    differ: the field's file was edited between them, and seeds of two fields are not one figure)."""
+    from fieldgen.compile.artifact import field_digest
+    from fieldgen.run.summary import SummaryError
+
+    digests = {}
+    for run in group.runs:
+        field = record.read_run(run.folder).field
+        if field is None:
+            raise SummaryError(f"no summary of {group.field} ({group.label}): {run.folder / record.RUN} does not "
+                               "record the field it trained on; start that run again in the sweep")
+        digests.setdefault(field_digest(field), []).append(run.folder)
+    if len(digests) > 1:
+        (one, *_), (other, *_) = list(digests.values())[0], list(digests.values())[-1]
+        raise SummaryError(f"no summary of {group.field} ({group.label}): {one} and {other} trained on fields of "
+                           "that name that differ (its file was edited between their runs); train the seeds of a "
+                           "setting on one field: move the odd runs aside and start the sweep again")
+    return next(iter(digests))
 
 
 def interval_text(entry: dict, digits: int) -> str:

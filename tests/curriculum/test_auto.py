@@ -179,6 +179,31 @@ def test_levels_of_a_run_of_one_stage_is_one_sentence(tmp_path):
     assert not (tmp_path / "l.png").exists()
 
 
+def test_levels_are_drawn_only_over_shares_and_success_that_can_be_what_they_claim(tmp_path):
+    """`render --levels` reads the last evaluation's weights and success: a success of 7.5 is a damaged file,
+    refused at its line; a level no evaluation episode played (NaN) is said to be unmeasured, not drawn as nan."""
+    prepared = runner.invoke(app, ["train", "point_soccer", "--curriculum", "auto", "--levels", "3", "--steps", "20000",
+                                   "--envs", "8", "--prepare", "--out", str(tmp_path)])
+    assert prepared.exit_code == 0, prepared.output
+    run = next(p for p in tmp_path.iterdir() if p.is_dir())
+    count = len(json.loads((run / record.RUN).read_text())["fields"])
+
+    def last_row(success: list) -> None:
+        row = {"eval": 1, "seed": 0, "env_steps": 800, "success_any": 0.5, "time_at_goal": 1.0,
+               "variants": {"success_any": success, "weight": [1 / count] * count}}
+        (run / record.METRICS).write_text(json.dumps(row) + "\n")
+
+    last_row([7.5] + [0.5] * (count - 1))
+    bad = runner.invoke(app, ["render", str(run), "--levels", "-o", str(tmp_path / "bad.png")])
+    message = " ".join(bad.output.split())
+    assert bad.exit_code == 1 and "metrics.jsonl:1 is not a metrics row (variants.success_any is 7.5, outside its " \
+                                  "range (from 0 to 1))" in message and "Traceback" not in message, bad.output
+    assert not (tmp_path / "bad.png").exists()
+    last_row([float("nan")] + [0.5] * (count - 1))
+    drawn = runner.invoke(app, ["render", str(run), "--levels", "-o", str(tmp_path / "ok.png")])
+    assert drawn.exit_code == 0 and (tmp_path / "ok.png").is_file(), drawn.output
+
+
 @pytest.mark.slow
 def test_an_auto_run_killed_and_resumed_continues_its_levels_exactly(tmp_path, interrupt_after_eval, monkeypatch):
     """The level buffer lives in the training state (each environment's weights and counts), so a run stopped

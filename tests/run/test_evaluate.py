@@ -182,6 +182,20 @@ def test_bad_evaluations_are_one_line_and_write_nothing(tmp_path):
     assert sorted(tmp_path.rglob("*")) == before
 
 
+def test_runs_of_two_fields_that_share_a_name_are_not_judged_as_seeds_of_one(tmp_path):
+    """A summary pools seeds by their field's digest: the bundled point_nav and a point_nav of your own are
+    two fields, whatever their names say."""
+    mine = tmp_path / "mine.yaml"
+    mine.write_text("extends: point_nav\nname: point_nav\nfield: {length: 12, width: 12}\n")
+    bundled = looks_trained(prepared(tmp_path / "a", "point_nav", "--seed", "1"))
+    own = looks_trained(prepared(tmp_path / "b", str(mine), "--seed", "2"))
+    result = runner.invoke(app, ["eval", str(bundled), str(own), "--no-video", "--summary", str(tmp_path / "s.json")])
+    message = " ".join(result.output.split())
+    assert result.exit_code == 1 and message.startswith(f"error: {own} trained crl on point_nav, {bundled} crl on "
+                                                        "point_nav (fields of one name that differ)"), result.output
+    assert "Traceback" not in message and not (tmp_path / "s.json").exists()
+
+
 def test_ctrl_c_says_what_an_evaluation_wrote_and_exits_as_train_does(tmp_path, monkeypatch):
     """Stopped while it evaluates, an evaluation has written nothing; stopped while it draws its video, the
     summary written whole before it is all there is. Either way one line says so, and the status is Ctrl-C's."""

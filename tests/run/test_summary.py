@@ -101,6 +101,9 @@ def test_a_summary_records_how_its_episodes_acted():
         SeedSummary.model_validate({**one.model_dump(), "actions": "random"})
 
 
+POINT_NAV = "a" * 64  # a field's digest, as fieldgen eval records it
+
+
 def one_seed_each(tmp_path, **changes):
     """summary.json files of seeds 0-4 of one recipe, each judged on its own, written as fieldgen eval does."""
     from fieldgen.run.summary import write
@@ -110,7 +113,7 @@ def one_seed_each(tmp_path, **changes):
     for s in range(5):
         one = summarize(["point_nav"], "crl", [f"runs/point_nav-crl-{s}"], 8, {s: 1760 + s},
                         {"success_any": {s: success[s]}, "time_at_goal": {s: at_goal[s]}}, "fieldgen eval",
-                        **(changes if s == 4 else {}))
+                        **{"field_digests": [POINT_NAV], **(changes if s == 4 else {})})
         paths.append(tmp_path / f"s{s}" / "summary.json")
         paths[-1].parent.mkdir()
         write(one, paths[-1])
@@ -124,13 +127,16 @@ def test_summaries_of_seeds_judged_apart_pool_into_the_summary_of_all_of_them(tm
     pool = pooled([(p, read(p)) for p in paths], "fieldgen aggregate")
     together = summarize(["point_nav"], "crl", [f"runs/point_nav-crl-{s}" for s in range(5)], 8,
                          {s: 1760 + s for s in range(5)}, {"success_any": dict(enumerate(success)),
-                                                           "time_at_goal": dict(enumerate(at_goal))}, "fieldgen aggregate")
+                                                           "time_at_goal": dict(enumerate(at_goal))}, "fieldgen aggregate",
+                         field_digests=[POINT_NAV])
     assert pool == together and pool.success_any.iqm == pytest.approx(0.5) and pool.label == "IQM (5 seeds)"
 
 
 @pytest.mark.parametrize("changes,phrase", [
     ({"actions": "sampled"}, "differ in actions (sampled against mean): pooled seeds must be judged alike"),
     ({"env_steps_before": {4: 10}}, None),  # a chain of runs pools as any other
+    ({"field_digests": ["b" * 64]}, "differ in field (the digest of its spec, though names may agree) (point_nav "
+                                    "bbbbbbbbbbbb against point_nav aaaaaaaaaaaa): pooled seeds must be judged alike"),
 ])
 def test_summaries_judged_otherwise_are_refused_in_one_line(tmp_path, changes, phrase):
     from fieldgen.run.summary import SummaryError, pooled, read
@@ -169,3 +175,47 @@ def test_aggregate_prints_and_writes_the_pooled_seeds_and_says_what_is_wrong_in_
         message = " ".join(result.output.split())  # the console breaks long paths over lines
         assert result.exit_code == 1 and phrase in message and "Traceback" not in message, result.output
         assert message.startswith("error:") and message.count("error:") == 1
+
+
+def test_a_summary_that_does_not_record_its_fields_digest_is_not_pooled(tmp_path):
+    """Two fields may share a name (the bundled point_nav and one of your own): a summary without its field's
+    digest cannot say which it judged, so it is evaluated again rather than pooled by name."""
+    from fieldgen.run.summary import SummaryError, pooled, read
+
+    paths, _, _ = one_seed_each(tmp_path, field_digests=[])
+    with pytest.raises(SummaryError, match=rf"^{paths[4]} does not record its field's digest .*evaluate its run "
+                                           "again with fieldgen eval, then pool$"):
+        pooled([(p, read(p)) for p in paths], "")
+
+
+@pytest.mark.parametrize("value,phrase", [
+    ("7.5", "seed 4's success_any is 7.5, outside its range (from 0 to 1)"),
+    ("NaN", "seed 4's success_any is NaN: it was not measured"),
+    ("-1.0", "seed 4's success_any is -1.0, outside its range (from 0 to 1)"),
+])
+def test_aggregate_refuses_a_seed_whose_success_cannot_be_a_rate_rather_than_average_it(tmp_path, value, phrase):
+    from typer.testing import CliRunner
+
+    from fieldgen.cli import app
+
+    paths, _, _ = one_seed_each(tmp_path)
+    edited = json.loads(paths[4].read_text())
+    edited["success_any"]["per_seed"]["4"] = "@"
+    paths[4].write_text(json.dumps(edited).replace('"@"', value))
+    out = tmp_path / "all.json"
+    result = CliRunner().invoke(app, ["aggregate", *map(str, paths), "--summary", str(out)])
+    message = " ".join(result.output.split())
+    assert result.exit_code == 1 and message.startswith(f"error: {paths[4]} is not a summary of fieldgen eval: "
+                                                        f"{phrase}"), result.output
+    assert "Traceback" not in message and not out.exists()
+
+
+@pytest.mark.parametrize("metric,value", [("success_any", 7.5), ("success_any", float("nan")),
+                                          ("time_at_goal", float("inf")), ("time_at_goal", -2.0)])
+def test_no_summary_is_computed_over_a_value_that_cannot_be_what_it_claims(metric, value):
+    from fieldgen.run.summary import SummaryError
+
+    per_seed = {"success_any": {0: 0.5, 1: 0.25}, "time_at_goal": {0: 2.0, 1: 3.0}}
+    per_seed[metric][1] = value
+    with pytest.raises(SummaryError, match=rf"^no summary of runs/a: seed 1's {metric} is "):
+        summarize(["point_nav"], "crl", ["runs/a"], 8, {0: 800, 1: 800}, per_seed, "")

@@ -36,12 +36,14 @@ def sweep_file(folder: Path, body: str = "", name: str = "sweep.yaml", seeds: in
     return path
 
 
-def hand_made(run: plan.PlannedRun, evals: int, success: float, num_evals: int = 2) -> None:
-    """A run folder as fieldgen train leaves it after `evals` evaluations (no checkpoint: nothing reads one)."""
+def hand_made(run: plan.PlannedRun, evals: int, success: float, num_evals: int = 2, field: dict | None = None) -> None:
+    """A run folder as fieldgen train leaves it after `evals` evaluations (no checkpoint: nothing reads one);
+    `field` stands for the resolved spec it records (its name alone by default)."""
     run.folder.mkdir(parents=True, exist_ok=True)
     (run.folder / "run.json").write_text(json.dumps({"algo": run.algo, "config": {"num_evals": num_evals,
                                                                                    "eval_envs": 8},
-                                                     "observation": {}, "seeds": [run.seed]}))
+                                                     "observation": {}, "seeds": [run.seed],
+                                                     "field": field or {"name": run.field}}))
     rows = [{"eval": e, "seed": run.seed, "env_steps": 800 + 480 * e, "success_any": success * e / num_evals,
              "time_at_goal": 10.0 * success, "closest_distance": 1.0, "wall_seconds": float(e)}
             for e in range(evals + 1)]
@@ -151,6 +153,62 @@ def test_bad_sweep_files_are_one_line_at_the_key(tmp_path, body, phrase):
     assert result.output.startswith(f"error: {path}") and phrase in result.output, result.output
     assert len(result.output.strip().splitlines()) == 1 and "Traceback" not in result.output
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("body,phrase", [
+    ("seeds: [0, 3, 0]\n", ":3:15: seeds[2]: seed 0 is listed twice (items 0 and 2); list each once"),
+    ("algorithms: [crl, crl]\n", ":2:19: algorithms[1]: algorithm crl is listed twice"),
+    ("grid:\n  crl.repr_dim: [8, 16, 8]\n", ":7:25: grid.crl.repr_dim[2]: value 8 is listed twice (items 0 and 2)"),
+    ("fields: [point_nav, mine.yaml]\n", ":1:21: fields[1]: 'mine.yaml' is the field point_nav, as 'point_nav' "
+                                        "(fields[0]) is: their runs would share folders and a summary"),
+])
+def test_a_sweep_that_would_plan_one_run_twice_is_refused_at_the_key(tmp_path, body, phrase):
+    """Two entries that plan the same run folder would train it twice, or count one seed twice in a summary."""
+    (tmp_path / "mine.yaml").write_text("extends: point_nav\nname: point_nav\nfield: {length: 12, width: 12}\n")
+    path = tmp_path / "sweep.yaml"
+    base = {"fields": "[point_nav]", "algorithms": "[crl]", "seeds": "2", "steps": "1900", "envs": "8"}
+    given = body.partition(":")[0]
+    path.write_text("".join(f"{k}: {v}\n" if k != given else body for k, v in base.items())
+                    + ("" if given in base else body))
+    result = runner.invoke(app, ["sweep", str(path), "--dry-run", "--out", str(tmp_path / "out")])
+    assert result.exit_code == 1 and result.output.startswith(f"error: {path}") and phrase in result.output, \
+        result.output
+    assert len(result.output.strip().splitlines()) == 1 and "fieldgen train" not in result.output
+
+
+@pytest.mark.parametrize("last,phrase", [
+    ({"success_any": 7.5}, "metrics.jsonl:3 is not a metrics row (success_any is 7.5, outside its range (from 0 to 1))"),
+    ({"success_any": float("nan")}, "metrics.jsonl:3 is not a metrics row (success_any is NaN: it was not measured)"),
+    ({"variants": {"success_any": [0.5, float("nan")]}}, "seed 1's success_any is NaN: it was not measured"),
+])
+def test_status_computes_no_summary_over_a_seed_whose_success_cannot_be_a_rate(tmp_path, last, phrase):
+    """A seed edited to 7.5, or NaN where nothing was measured, is named, not averaged into the figure."""
+    path = sweep_file(tmp_path, seeds=2)
+    sweep = plan.load(path)
+    for run in sweep.runs:
+        hand_made(run, 2, 0.5)
+    metrics = sweep.runs[1].folder / "metrics.jsonl"
+    rows = [json.loads(line) for line in metrics.read_text().splitlines()]
+    rows[-1].update(last)
+    metrics.write_text("".join(json.dumps(r) + "\n" for r in rows))
+    result = runner.invoke(app, ["sweep", str(path), "--status"])
+    message = " ".join(result.output.split())
+    assert phrase in message and "Traceback" not in message, result.output
+    assert not (sweep.folder / status.SUMMARY).exists() and not (sweep.folder / status.TABLE).exists()
+
+
+def test_status_does_not_pool_seeds_of_a_field_edited_between_their_runs(tmp_path):
+    """Seeds are pooled by their field's digest, not its name: a field file edited between two seeds' runs
+    gives two fields of one name."""
+    path = sweep_file(tmp_path, seeds=2)
+    sweep = plan.load(path)
+    hand_made(sweep.runs[0], 2, 0.5, field={"name": "point_nav", "task": {"target": {"radius": 2}}})
+    hand_made(sweep.runs[1], 2, 0.5, field={"name": "point_nav", "task": {"target": {"radius": 4}}})
+    result = runner.invoke(app, ["sweep", str(path), "--status"])
+    message = " ".join(result.output.split())
+    assert result.exit_code == 1 and "no summary of point_nav (crl)" in message, result.output
+    assert "trained on fields of that name that differ" in message and "Traceback" not in message
+    assert not (sweep.folder / status.SUMMARY).exists()
 
 
 def test_the_slurm_backend_without_submitit_or_sbatch_is_one_line(tmp_path, monkeypatch):
