@@ -30,9 +30,13 @@ class BufferLevel:
 
     def text(self, levels: int) -> str:
         name = "the field itself" if self.level == levels - 1 else f"level {self.level + 1}"
+        if self.episodes < 0.05:  # the sampler knows nothing here yet: its estimate is the prior's
+            counted = f"no episode counted yet, success {span(*self.success)} (the prior)"
+        else:  # older episodes count for less, so a count is seldom whole
+            amount = f"{self.episodes:.1f}" if self.episodes < 10 else f"{self.episodes:,.0f}"
+            counted = f"{amount} episodes counted, success {span(*self.success)}"
         return (f"seed {self.seed}, {name}: {self.points} point{'s' * (self.points > 1)} at kick-off "
-                f"{span(*self.kickoff)}, {self.share:.0%} of new episodes, {self.episodes:,.0f} episodes counted, "
-                f"success {span(*self.success)}")
+                f"{span(*self.kickoff)}, {self.share:.0%} of new episodes, {counted}")
 
 
 def span(low: float, high: float) -> str:
