@@ -17,7 +17,7 @@ import yaml
 
 from fieldgen.curriculum.folder import CurriculumError, layout_key
 from fieldgen.schema import FieldSpec, SpecError, geometry, load_spec
-from fieldgen.schema.loader import merge, validate
+from fieldgen.schema.loader import bundled_names_where, merge, validate
 from fieldgen.schema.source import Source
 from fieldgen.suggest import did_you_mean
 
@@ -235,8 +235,12 @@ def _rounded(x: float) -> float:
 
 def _check_compatible(a_path: Path, sa: FieldSpec, b_path: Path, sb: FieldSpec) -> None:
     if sa.agent.kind != sb.agent.kind:
+        same = bundled_names_where(lambda s: s.agent.kind == sb.agent.kind and s.name != sb.name
+                                   and layout_key(s) == layout_key(sb))
+        offer = f"; bundled fields that could start one to {b_path}: {', '.join(same)}" if same else ""
         raise CurriculumError(f"{a_path} drives the {sa.agent.kind} agent and {b_path} the {sb.agent.kind}: "
-                              "a curriculum keeps one agent (the policy's actions and observations depend on it)")
+                              "a curriculum keeps one agent (the policy's actions and observations depend on it)"
+                              + offer)
     if layout_key(sa) != layout_key(sb):
         raise CurriculumError(f"{a_path} observes {layout_key(sa)} but {b_path} observes {layout_key(sb)}: "
                               "a curriculum needs one observation layout")

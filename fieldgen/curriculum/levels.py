@@ -18,7 +18,7 @@ import numpy as np
 
 from fieldgen.schema import FieldSpec, SpecError
 from fieldgen.schema.geometry import AGENT_REACH, ball_spawn_centre
-from fieldgen.schema.loader import merge, validate
+from fieldgen.schema.loader import bundled_names_where, merge, validate
 from fieldgen.schema.source import Source
 
 START_NEAR = 1.5  # the easy end's ball spawn centre, this far from the target
@@ -51,8 +51,11 @@ class LevelSpace:
         soccer fields. Refused, in a sentence, for a spec of another kind."""
         target = spec.target_fixed()
         if not spec.ball.enabled or spec.ball.spawn.mode != "region" or target is None:
+            fit = bundled_names_where(lambda s: s.agent.kind == spec.agent.kind and s.ball.enabled
+                                      and s.ball.spawn.mode == "region" and s.target_fixed() is not None)
+            offer = f"; bundled fields for the {spec.agent.kind} agent that have both: {', '.join(fit)}" if fit else ""
             raise LevelError(f"{spec.name}: the automatic curriculum moves a ball spawned in a region towards a "
-                             "fixed target (a goal or a point); this spec has no such ball or target")
+                             "fixed target (a goal or a point); this spec has no such ball or target" + offer)
         centre = ball_spawn_centre(spec)
         if math.dist(centre, target) <= START_NEAR:
             raise LevelError(f"{spec.name}: the ball already spawns within {START_NEAR:g} of the target; there is "

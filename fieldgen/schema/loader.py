@@ -30,6 +30,20 @@ def bundled_fields() -> dict[str, Path]:
     return {p.stem: p for p in sorted(folder.glob("*.yaml"))}
 
 
+def bundled_names_where(keep) -> list[str]:
+    """The bundled fields whose spec `keep(spec)` accepts, in name order: what an error can offer in place of
+    a field that cannot serve (a bundled spec that does not load is left out, not raised)."""
+    names = []
+    for name, path in bundled_fields().items():
+        try:
+            spec = load_spec(path)
+        except SpecError:
+            continue
+        if keep(spec):
+            names.append(name)
+    return names
+
+
 def resolve_spec_path(ref: str, relative_to: Path | None = None) -> Path:
     """A bundled name, or a path (relative to `relative_to`'s folder if given)."""
     looks_like_path = "/" in ref or ref.endswith((".yaml", ".yml"))

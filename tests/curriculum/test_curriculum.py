@@ -310,3 +310,18 @@ def test_a_curriculum_of_more_stages_than_fieldgen_reads_is_refused_before_it_is
                                  str(tmp_path / "c")])
     assert result.exit_code == 1 and "100,000 stages asked for; a curriculum has at most 1,000" in result.output
     assert list(tmp_path.iterdir()) == []
+
+
+def test_refusals_name_the_bundled_fields_that_would_serve(tmp_path):
+    """A curriculum across agents offers fields of the target's agent; the automatic curriculum on a field
+    without a ball and a fixed target offers fields of its agent that have both."""
+    from fieldgen.curriculum.levels import LevelError, LevelSpace
+
+    refused = runner.invoke(app, ["curriculum", "point_soccer", "--to", "soccer_v1", "--stages", "3",
+                                  "-o", str(tmp_path / "c")])
+    said = " ".join(refused.output.split())
+    assert refused.exit_code == 1 and "bundled fields that could start one to soccer_v1:" in said, said
+    offered = said.split("could start one to soccer_v1:")[1].replace(",", " ").split()
+    assert "soccer_v2" in offered and "point_nav" not in offered and "soccer_v1" not in offered
+    with pytest.raises(LevelError, match="bundled fields for the point agent that have both: point_soccer"):
+        LevelSpace.of(load_spec(bundled_fields()["point_nav"]))
