@@ -21,6 +21,9 @@ import yaml
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, StrictBool, ValidationError
 
 from ..env.contract import Environment
+from ..limits import MAX_SEEDS, SEED_MAX
+from ..schema.errors import shown_text
+from ..schema.source import SpecLoader
 from ..suggest import allowed, did_you_mean
 from .buffer import gradient_steps, iterations
 from .contrastive import ENERGIES, LOSSES
@@ -32,8 +35,6 @@ from .team import GROUPINGS, split
 
 PRESETS = Path(__file__).with_name("presets")
 COUNTER_MAX = 2**31 - 1  # env steps are counted on the device in int32, up to the last iteration's end
-SEED_MAX = 2**32 - 1  # a random key takes 32 bits of seed: 2**32 would give seed 0's key
-MAX_SEEDS = 65_536  # seeds vmapped in one run: their list is written in run.json and their keys made at once
 REWARDS = ("dense", "sparse")
 SPREADS = ("global", "state")
 
@@ -151,9 +152,11 @@ class RunConfig(BaseModel):
             if not sep or not dot or section != cls.algo:
                 raise ConfigError(f"{source}{item!r}: write {cls.algo}.KEY=VALUE, e.g. {cls.example()}")
             try:
-                value = yaml.safe_load(raw)
-            except yaml.YAMLError:
-                raise ConfigError(f"{source}{item}: '{raw}' is not a YAML value") from None
+                value = yaml.load(raw, Loader=SpecLoader)  # as a file's values are read: numbers bounded in digits
+            except yaml.YAMLError as exc:
+                said = f": {exc.problem}" if isinstance(exc, yaml.constructor.ConstructorError) else ""
+                raise ConfigError(f"{source}{shown_text(item)}: {shown_text(repr(raw))} is not a YAML value{said}") \
+                    from None
             values[key] = cls._checked(key, value, f"{source}{item}")
         return values
 

@@ -12,6 +12,7 @@ from typer.testing import CliRunner
 
 from fieldgen.cli import app
 from fieldgen.schema import bundled_fields
+from fieldgen.schema.errors import shown_text
 
 runner = CliRunner()
 
@@ -398,3 +399,53 @@ def test_a_path_the_system_refuses_is_one_line_naming_it(tmp_path, monkeypatch, 
     (line,) = result.output.strip().splitlines()
     said = "q" * 280 + "... (5,00" if TOO_LONG in command[-1] else "loop.yaml: Too many levels of symbolic links"
     assert line.startswith("error: ") and said in line and len(line) < 400, line
+
+
+DIGITS = "9" * 5000
+SHOWN = shown_text(DIGITS)  # as a message echoes it: '9999... (5,000 characters)'
+
+
+@pytest.mark.parametrize("args,phrase", [
+    (["train", "point_soccer", "--curriculum", "auto", "--levels", "1e20"], "--levels 1e20: the automatic "
+                                                                            "curriculum's levels"),
+    (["train", "point_soccer", "--curriculum", "auto", "--levels", "1000000"], "is a whole number from 2 to 64"),
+    (["train", "point_nav", "--num-processes", "99999999999"], "--num-processes 99999999999: the processes of one "
+                                                               "run is a whole number from 1 to 65,536"),
+    (["train", "point_nav", "--coordinator-timeout", "99999999999"], "--coordinator-timeout 99999999999: the seconds "
+                                                                     "to wait"),
+    (["train", "point_nav", "--process-id", "-1"], "--process-id -1: a process's id"),
+    (["train", "point_nav", "--seed", "2.5"], "--seed 2.5: a seed (a random key takes 32 bits) is a whole number "
+                                              "from 0 to 4,294,967,295"),
+    (["train", "point_nav", "--seeds", "0"], "--seeds 0: seeds trained at once is a whole number from 1 to 65,536"),
+    (["compare", "point_nav", "--seeds", "1e9"], "--seeds 1e9: seeds trained at once"),
+    (["eval", "runs/none", "--seed", "-1"], "--seed -1: a seed"),
+    (["export", "runs/none", "-o", "x", "--seed", DIGITS], f"--seed {SHOWN}: a seed"),
+    (["curriculum", "point_nav", "--to", "point_nav", "--stages", "99999999999", "-o", "c"], "--stages 99999999999: "
+                                                                                               "a curriculum's stages"),
+    (["curriculum", "point_nav", "--to", "point_nav", "--then", "point_nav", "--then-stages", "99999999999", "-o", "c"],
+     "--then-stages 99999999999: the stages each --then adds is a whole number from 1 to 1,000"),
+    (["bench", "point_nav", "--steps", "1e14"], "--steps 1e14: the steps of a timed rollout"),
+    (["train", "point_soccer", "--curriculum", "auto", "--sampler", f"prior={DIGITS}"],
+     f"--sampler prior={shown_text(repr(DIGITS))}: prior must be at most 1000.0"),
+    (["train", "point_nav", "--set", f"crl.repr_dim={DIGITS}"], "is not a YAML value: a number of 5,000 digits; a "
+                                                                "number here has at most 100"),
+])
+def test_every_number_is_checked_against_its_stated_range_before_work_starts(tmp_path, monkeypatch, args, phrase):
+    """A number past its range (fieldgen.limits) is one line stating the range, before anything is written or
+    waited for: never a traceback, a preparation without end, or a wait of three thousand years."""
+    monkeypatch.chdir(tmp_path)
+    result = runner.invoke(app, [*args, *(["--prepare"] if args[0] == "train" else [])])
+    said = result.output[result.output.find("error:"):]  # after any line on the recipe a run starts from
+    message = " ".join(said.split())
+    assert result.exit_code == 1 and message.startswith("error:") and phrase in message, result.output
+    assert len(said.strip().splitlines()) <= 3 and "Traceback" not in result.output and len(message) < 600
+    assert not any(tmp_path.iterdir())  # nothing written
+
+
+def test_a_number_of_thousands_of_digits_in_a_spec_is_refused_at_its_line(write_spec):
+    spec = write_spec(f"extends: point_nav\nname: big\nfield: {{length: {DIGITS}}}\n")
+    result = runner.invoke(app, ["validate", str(spec)])
+    assert result.exit_code == 1 and f"{spec}:3:17: a number of 5,000 digits; a number here has at most 100" in \
+        " ".join(result.output.split()) and "Traceback" not in result.output, result.output
+    steps = runner.invoke(app, ["train", "point_nav", "--steps", DIGITS, "--prepare"])
+    assert steps.exit_code == 2 and "(5,000 characters)' is not a positive whole count" in steps.output, steps.output

@@ -11,7 +11,7 @@ import typer
 from rich.console import Console
 from rich.text import Text
 
-from fieldgen import counts, files, xla_cache, xla_flags
+from fieldgen import counts, files, limits, xla_cache, xla_flags
 from fieldgen.cli.helptext import ReadableCommand, ReadableTyper
 from fieldgen.schema import bundled_fields, resolve_spec_path
 from fieldgen.schema.errors import shown_text
@@ -72,6 +72,20 @@ def choice(what: str, choices: tuple[str, ...]) -> dict:
     return {"metavar": "|".join(choices), "callback": check, "autocompletion": complete}
 
 
+def bounded(option: str, allowed: limits.Range):
+    """A typer parser for a number in `allowed` (fieldgen.limits): read as people write it (2e6 too), and one
+    line stating the range where it is out of it or no number, before anything loads."""
+
+    def parse(text: str | int | float) -> int | float:
+        value = limits.number(text, allowed.whole)
+        said = allowed.problem(value)  # None, for no number, is out of every range
+        if said is not None:
+            fail(f"{option} {shown_text(str(text))}: {said}; give one in that range")
+        return value
+
+    return parse
+
+
 def count(text: str | int) -> int:
     """A whole count as people write them (fieldgen.counts), read as an option's value."""
     try:
@@ -89,7 +103,7 @@ def duration(text: str | float) -> float:
     hours, minutes, seconds = (float(part or 0) for part in match.groups()) if match and any(match.groups()) \
         else (0.0, 0.0, 0.0)
     total = hours * 3600 + minutes * 60 + seconds
-    if not 0 < total < 10**9:
+    if not 0 < total < limits.TIME_LIMIT_SECONDS:
         raise typer.BadParameter(f"'{text}' is not a length of time; write it as 570 (seconds), 9m30s, 45m or 1.5h")
     return total
 

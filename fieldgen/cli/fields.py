@@ -11,7 +11,9 @@ import typer
 from rich.table import Column, Table
 from rich.text import Text
 
-from fieldgen.cli.app import SpecArg, app, choice, count, err, fail, field_source, os_problem, out, spec_path
+from fieldgen import limits
+from fieldgen.cli.app import (SpecArg, app, bounded, choice, count, err, fail, field_source, os_problem, out,
+                              spec_path)
 from fieldgen.cameras import CAMERAS
 from fieldgen.schema import SpecError, bundled_fields, geometry, load_spec
 
@@ -230,7 +232,8 @@ def make_curriculum(
     output: Annotated[Path, typer.Option("-o", "--out", metavar="DIR", help="curriculum folder to write")],
     to: Annotated[Optional[str], typer.Option(metavar="SPEC",
                                               help="the last (hardest) field: interpolate from BASE to it")] = None,
-    stages: Annotated[int, typer.Option(metavar="N", help="stages of an interpolation, both ends included")] = 5,
+    stages: Annotated[int, typer.Option(parser=bounded("--stages", limits.STAGES), metavar="N",
+                                        help="stages of an interpolation, both ends included")] = 5,
     geometric: Annotated[Optional[list[str]], typer.Option(metavar="KEY",
                                                            help="interpolate this key geometrically")] = None,
     switch_at: Annotated[Optional[int], typer.Option(metavar="STAGE",
@@ -248,7 +251,7 @@ def make_curriculum(
              "widen the gap back to BASE's")] = None,
     then: Annotated[Optional[list[str]], typer.Option(metavar="SPEC",
         help="then go on from the last stage to this field by interpolation (repeat to go on further)")] = None,
-    then_stages: Annotated[Optional[int], typer.Option(metavar="N",
+    then_stages: Annotated[Optional[int], typer.Option(parser=bounded("--then-stages", limits.THEN_STAGES), metavar="N",
         help="stages each --then adds, SPEC the last of them (default: one fewer than --stages)")] = None,
     threshold: Annotated[float, typer.Option(help="success_any that promotes a run to the next stage")] = 0.5,
     window: Annotated[int, typer.Option(metavar="N", help="evaluations averaged for promotion")] = 2,
@@ -361,7 +364,8 @@ def bench(
     spec: SpecArg,
     envs: Annotated[Optional[list[int]], typer.Option("--envs", parser=count, metavar="N",
                                                       help="batch sizes; repeat the option")] = None,
-    steps: Annotated[int, typer.Option(parser=count, metavar="N", help="steps per timed rollout")] = 200,
+    steps: Annotated[int, typer.Option(parser=bounded("--steps", limits.ROLLOUT_STEPS), metavar="N",
+                                       help="steps per timed rollout")] = 200,
 ) -> None:
     """Measure env-steps per second of a field at several batch sizes (random actions, lax.scan).
 

@@ -9,7 +9,8 @@ import typer
 from rich.table import Table
 from rich.text import Text
 
-from fieldgen.cli.app import app, choice, fail, out
+from fieldgen import limits
+from fieldgen.cli.app import app, bounded, choice, fail, out
 from fieldgen.sweep.plan import BACKENDS
 
 
@@ -26,9 +27,10 @@ def sweep(
     backend: Annotated[Optional[str], typer.Option(help="where the runs train (default: the file's backend:)",
                                                    **choice("backend", BACKENDS))] = None,
     partition: Annotated[Optional[str], typer.Option(help="slurm: the partition")] = None,
-    time: Annotated[Optional[int], typer.Option(metavar="MIN", help="slurm: minutes a task runs before it is "
-                                                                    "requeued to go on")] = None,
-    gpus_per_task: Annotated[Optional[int], typer.Option(metavar="N", help="slurm: GPUs of each task")] = None,
+    time: Annotated[Optional[int], typer.Option(parser=bounded("--time", limits.SLURM_MINUTES), metavar="MIN",
+                                                help="slurm: minutes a task runs before it is requeued")] = None,
+    gpus_per_task: Annotated[Optional[int], typer.Option(parser=bounded("--gpus-per-task", limits.GPUS_PER_TASK),
+                                                         metavar="N", help="slurm: GPUs of each task")] = None,
 ) -> None:
     """Train every combination of a sweep file's fields, algorithms, grid values and seeds, one `fieldgen train`
     run each, and summarize them over seeds (IQM with 95% bootstrap intervals) when all are done.
@@ -42,9 +44,6 @@ def sweep(
     from fieldgen.sweep import launch, plan
     from fieldgen.sweep import status as standing
 
-    for name, value in (("--time", time), ("--gpus-per-task", gpus_per_task)):
-        if value is not None and value < (1 if name == "--time" else 0):
-            fail(f"{name} {value}: give {'at least one minute' if name == '--time' else 'zero or more GPUs'}")
     try:
         planned = plan.load(file, runs, backend=backend, partition=partition, time=time, gpus_per_task=gpus_per_task)
         if not status:

@@ -13,7 +13,8 @@ from rich.table import Column, Table
 from rich.text import Text
 
 from fieldgen.agents.registry import ALGORITHMS, DEFAULT_ALGORITHM, EVAL_ACTIONS, PRESETS, judged_on
-from fieldgen.cli.app import app, choice, count, duration, err, fail, field_source, out, video_format
+from fieldgen import limits
+from fieldgen.cli.app import app, bounded, choice, count, duration, err, fail, field_source, out, video_format
 from fieldgen.command import TIME_LIMIT_STATUS
 from fieldgen.cameras import CAMERAS
 from fieldgen.policy_onnx import FORMATS as POLICY_FORMATS
@@ -109,8 +110,9 @@ def train(
                                                  f"2e6 {STEPS}; or the field's recipe's")] = None,
     envs: Annotated[Optional[int], typer.Option(parser=count, metavar="N",
                                                 help=f"parallel environments {ENVS}; or the field's recipe's")] = None,
-    seed: Annotated[int, typer.Option(help="random seed; names the run folder")] = 0,
-    seeds: Annotated[int, typer.Option(metavar="K",
+    seed: Annotated[int, typer.Option(parser=bounded("--seed", limits.SEED), metavar="SEED",
+                                      help="random seed; names the run folder")] = 0,
+    seeds: Annotated[int, typer.Option(parser=bounded("--seeds", limits.SEEDS), metavar="K",
                                        help="train this many seeds at once (seed, seed+1, ...), vmapped")] = 1,
     sets: Annotated[Optional[list[str]], typer.Option("--set", metavar="KEY=VALUE",
                                                       help="override a config key: crl.repr_dim=128")] = None,
@@ -134,9 +136,9 @@ def train(
                              "the target, agent behind it, obstacles narrow and aside, walls off) to the field, all "
                              "trained at once, each weighted by how much is being learnt there; the field keeps a "
                              "fixed share", **choice("curriculum", ("auto",)))] = None,
-    levels: Annotated[Optional[int], typer.Option(metavar="N", help="with --curriculum auto: levels from the easy "
-                                                                    "end to the field, the field included "
-                                                                    "[default: 8]")] = None,
+    levels: Annotated[Optional[int], typer.Option(
+        parser=bounded("--levels", limits.LEVELS), metavar="N",
+        help="with --curriculum auto: levels from the easy end to the field, the field included [default: 8]")] = None,
     samplers: Annotated[Optional[list[str]], typer.Option(
         "--sampler", metavar="KEY=VALUE", help="with --curriculum auto: a setting of its level sampler, kept in "
                                                "run.json: target_share, frontier_share, floor, buffer, replaced, "
@@ -151,13 +153,16 @@ def train(
         help="process 0's host and a free port: every process started with it joins one run over all their "
              "devices (under srun or mpirun this and the two below come from the launcher)")] = None,
     num_processes: Annotated[Optional[int], typer.Option(
-        metavar="N", envvar="FIELDGEN_NUM_PROCESSES", rich_help_panel="One run over several processes",
+        parser=bounded("--num-processes", limits.PROCESSES), metavar="N", envvar="FIELDGEN_NUM_PROCESSES",
+        rich_help_panel="One run over several processes",
         help="how many processes the run has")] = None,
     process_id: Annotated[Optional[int], typer.Option(
-        metavar="I", envvar="FIELDGEN_PROCESS_ID", rich_help_panel="One run over several processes",
+        parser=bounded("--process-id", limits.PROCESS_ID), metavar="I", envvar="FIELDGEN_PROCESS_ID",
+        rich_help_panel="One run over several processes",
         help="this process's id, 0 to N-1; process 0 writes the run folder")] = None,
     coordinator_timeout: Annotated[int, typer.Option(
-        metavar="SECONDS", rich_help_panel="One run over several processes",
+        parser=bounded("--coordinator-timeout", limits.COORDINATOR_TIMEOUT), metavar="SECONDS",
+        rich_help_panel="One run over several processes",
         help="how long to wait for the coordinator and the other processes")] = 300,
     time_limit: Annotated[Optional[float], typer.Option(
         parser=duration, metavar="DURATION",
@@ -219,8 +224,6 @@ def train(
         else:
             if spec is None:
                 fail("name a field to train on, or --resume a run folder")
-            if seeds < 1:
-                fail(f"--seeds {seeds}: train at least one seed")
             source = field_source(spec)
             _read_config(config)
             field, chosen = session.field_spec(source), recipes.choose(source, algo, use_recipe)
@@ -290,7 +293,8 @@ def compare(
                                                  help=f"total env steps of each run: 40000, 50M, 1.5k {STEPS}")] = None,
     envs: Annotated[Optional[int], typer.Option(parser=count, metavar="N",
                                                 help=f"parallel environments of each run {ENVS}")] = None,
-    seeds: Annotated[int, typer.Option(metavar="K", help="seeds per algorithm (0, 1, ...), vmapped in one run")] = 1,
+    seeds: Annotated[int, typer.Option(parser=bounded("--seeds", limits.SEEDS), metavar="K",
+                                       help="seeds per algorithm (0, 1, ...), vmapped in one run")] = 1,
     sets: Annotated[Optional[list[str]], typer.Option("--set", metavar="KEY=VALUE",
                                                       help="override a config key: sac.her=0.8")] = None,
     preset: Preset = None,
@@ -327,8 +331,6 @@ def compare(
     if trained is not None:
         _compare_trained(ctx, trained, runs)
         return
-    if seeds < 1:
-        fail(f"--seeds {seeds}: compare at least one seed")
     source = field_source(sources[0])
     names = [a.strip() for a in algos.split(",") if a.strip()]
     try:
@@ -389,7 +391,8 @@ def evaluate(
     video: Annotated[bool, typer.Option(help="write eval.mp4 of one episode of the first run's first seed")] = True,
     video_fmt: VideoFormat = None,
     camera: Annotated[str, typer.Option(help="video camera", **choice("camera", CAMERAS))] = "follow",
-    seed: Annotated[int, typer.Option(help="evaluation seed")] = 0,
+    seed: Annotated[int, typer.Option(parser=bounded("--seed", limits.SEED), metavar="SEED",
+                                      help="evaluation seed")] = 0,
     actions: Annotated[Optional[str], typer.Option(
         help="mean: the policy's mean action at every step; sampled: actions drawn from the policy as in training "
              "[default: as the (first) run's evaluations acted, its eval_actions]",
@@ -598,7 +601,7 @@ def videos(
 def export(
     run_dir: Annotated[Path, typer.Argument(metavar="RUN", help="a run folder written by fieldgen train")],
     folder: Annotated[Path, typer.Option("--out", "-o", metavar="DIR", help="the folder to write the policy to")],
-    seed: Annotated[Optional[int], typer.Option(metavar="SEED",
+    seed: Annotated[Optional[int], typer.Option(parser=bounded("--seed", limits.SEED), metavar="SEED",
                                                 help="which of the run's seeds (default: its first)")] = None,
     fmt: Annotated[str, typer.Option(
         "--format", help="flax: policy.json and params.msgpack; onnx: also policy.onnx, the policy as an ONNX graph "

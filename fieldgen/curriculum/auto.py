@@ -37,9 +37,11 @@ import numpy as np
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
+from fieldgen import limits
 from fieldgen.curriculum.levels import LevelError, LevelSpace
 from fieldgen.curriculum.schedule import Mixed
 from fieldgen.schema import FieldSpec, SpecError
+from fieldgen.schema.errors import shown_text
 from fieldgen.suggest import allowed, did_you_mean
 
 LEVELS = 8  # levels on the path from the easy end to the spec, the spec included
@@ -118,8 +120,8 @@ class Sampler(BaseModel):
                 raise LevelError(f"{where} {setting}: unknown key '{key}'{did_you_mean(key, list(cls.model_fields))} "
                                  f"Keys: {', '.join(cls.model_fields)}")
             try:
-                values[key] = yaml.safe_load(text)
-            except yaml.YAMLError:
+                values[key] = yaml.safe_load(text) if len(text) <= limits.MAX_DIGITS else text
+            except (yaml.YAMLError, ValueError):  # ValueError: an integer of more digits than Python converts
                 values[key] = text
         return cls.checked(values, where)
 
@@ -133,7 +135,7 @@ class Sampler(BaseModel):
             key = error["loc"][0] if error["loc"] else None
             if key in cls.model_fields:
                 info = cls.model_fields[key]
-                raise LevelError(f"{where} {key}={values.get(key)!r}: {key} {allowed(error, info)} "
+                raise LevelError(f"{where} {key}={shown_text(repr(values.get(key)))}: {key} {allowed(error, info)} "
                                  f"({info.description})") from None
             raise LevelError(f"{where}: {error['msg'].removeprefix('Value error, ')}") from None
 
@@ -152,9 +154,8 @@ def path(axes: int, count: int) -> np.ndarray:
 def levels(spec: FieldSpec, count: int = LEVELS) -> list[Level]:
     """The playable levels of `spec`'s path, easiest first, the spec itself last (LevelError where the spec
     has no easy end, or too few levels are asked for)."""
-    if count < 2:
-        raise LevelError(f"--levels {count}: the automatic curriculum needs at least 2 levels (an easy end and "
-                         "the spec itself)")
+    if (said := limits.LEVELS.problem(count)) is not None:
+        raise LevelError(f"--levels {count}: {said}")
     space = LevelSpace.of(spec)
     out, seen = [], set()
     for point in path(len(space.axes), count)[:-1]:

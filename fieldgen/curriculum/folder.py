@@ -14,13 +14,13 @@ from pydantic import AfterValidator, BaseModel, ConfigDict, Field, StrictInt, St
 
 from fieldgen.curriculum.promotion import Promotion
 from fieldgen.files import Output, claim, replace_folder
+from fieldgen.limits import MAX_STAGES
 from fieldgen.schema import FieldSpec, SpecError, load_spec, messages
 from fieldgen.schema.editor import SCHEMA_FILE
 from fieldgen.schema.source import read_yaml
 
 INDEX = "curriculum.yaml"
 CURRICULUM = Output("fieldgen curriculum", (INDEX, "stage_*.yaml"), INDEX, "-o")
-MAX_STAGES = 1000  # stages of one curriculum, written or read
 
 
 class CurriculumError(Exception):

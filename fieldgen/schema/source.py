@@ -21,6 +21,7 @@ from pathlib import Path
 
 import yaml
 
+from fieldgen.limits import MAX_DIGITS
 from fieldgen.schema.errors import Problem, SpecError, format_path, shown_text
 
 Pos = tuple[Path, int, int]
@@ -74,6 +75,19 @@ SpecLoader.add_implicit_resolver(
     "tag:yaml.org,2002:float", re.compile(r"^[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"), list("-+0123456789"))
 
 
+def _bounded_int(loader: yaml.constructor.SafeConstructor, node: yaml.ScalarNode) -> int:
+    """An integer of at most MAX_DIGITS digits: Python converts no more than 4,300, and no setting needs a
+    hundred, so a longer one is refused at its line rather than in a traceback."""
+    digits = sum(c.isdigit() for c in node.value)
+    if digits > MAX_DIGITS:
+        raise yaml.constructor.ConstructorError(None, None, f"a number of {digits:,} digits; a number here has at "
+                                                f"most {MAX_DIGITS}", node.start_mark)
+    return loader.construct_yaml_int(node)
+
+
+SpecLoader.add_constructor("tag:yaml.org,2002:int", _bounded_int)
+
+
 def read_yaml(path: Path, document: str = "a field spec", needs: str = "a field needs at least 'name:'") -> Source:
     """The file as data and key positions; `document` (what the file is) and `needs` (what it cannot go
     without) word the complaints about a file that holds no mapping."""
@@ -103,7 +117,8 @@ def read_yaml(path: Path, document: str = "a field spec", needs: str = "a field 
         if mark and _indented_with_tab(text, mark.line):
             what = f"{what}: the line is indented with a tab, and YAML indents with spaces alone; replace the tab " \
                    "with spaces"
-        raise SpecError([Problem(path, line, col, "", f"YAML syntax error: {what}")]) from None
+        said = what if isinstance(exc, yaml.constructor.ConstructorError) else f"YAML syntax error: {what}"
+        raise SpecError([Problem(path, line, col, "", said)]) from None
     finally:
         loader.dispose()
     return Source(data, positions, (path,))

@@ -22,6 +22,7 @@ import yaml
 from pydantic import (BaseModel, BeforeValidator, ConfigDict, Field, StrictBool, StrictFloat, StrictInt, StrictStr,
                       ValidationError)
 
+from fieldgen import limits
 from fieldgen.agents.registry import ALGORITHMS
 from fieldgen.counts import count
 from fieldgen.schema import Problem, SpecError, bundled_fields, resolve_spec_path
@@ -50,8 +51,14 @@ def _count(value):
 
 
 Count = Annotated[int, BeforeValidator(_count)]
-Positive = Annotated[StrictInt, Field(gt=0)]
-Seed = Annotated[StrictInt, Field(ge=0)]
+
+
+def within(allowed: limits.Range, strict=StrictInt):
+    """A sweep file's number in `allowed`, the same range as the command line's (fieldgen.limits)."""
+    return Annotated[strict, Field(ge=allowed.low, le=allowed.high)]
+
+
+Seed = within(limits.SEED)
 
 
 class Local(BaseModel):
@@ -59,7 +66,7 @@ class Local(BaseModel):
     lists; an empty list: no GPU, one run at a time)."""
 
     model_config = ConfigDict(extra="forbid")
-    gpus: Union[Literal["auto"], list[Seed]] = "auto"
+    gpus: Union[Literal["auto"], list[within(limits.GPU_INDEX)]] = "auto"
 
 
 class Slurm(BaseModel):
@@ -67,17 +74,19 @@ class Slurm(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
     partition: StrictStr | None = None
-    time: Positive = 60  # minutes a task may run before it is stopped and requeued
-    gpus_per_task: Annotated[StrictInt, Field(ge=0)] = 1
-    cpus_per_task: Positive | None = None
-    mem_gb: Positive | None = None
-    parallel: Positive | None = None  # array tasks running at once (default: as the scheduler allows)
+    time: within(limits.SLURM_MINUTES) = 60  # minutes a task may run before it is stopped and requeued
+    gpus_per_task: within(limits.GPUS_PER_TASK) = 1
+    cpus_per_task: within(limits.CPUS_PER_TASK) | None = None
+    mem_gb: within(limits.MEMORY_GB) | None = None
+    # array tasks running at once (default: as the scheduler allows)
+    parallel: Annotated[StrictInt, Field(ge=1, le=limits.SWEEP_RUNS)] | None = None
     account: StrictStr | None = None
     qos: StrictStr | None = None
-    requeues: Annotated[StrictInt, Field(ge=0)] = 3  # times a task is requeued after its time limit runs out
+    requeues: within(limits.REQUEUES) = 3  # times a task is requeued after its time limit runs out
     # minutes before `time` at which the run stops at an evaluation, checkpointed, and its task requeues itself
     # (0: the run trains until submitit's signal, and the chunk under way then is lost)
-    stop_before: Annotated[Union[StrictInt, StrictFloat], Field(ge=0)] = 5
+    stop_before: Annotated[Union[StrictInt, StrictFloat], Field(ge=0, le=limits.SLURM_MINUTES.high,
+                                                                allow_inf_nan=False)] = 5
 
     @property
     def run_minutes(self) -> float | None:
@@ -91,12 +100,12 @@ class SweepFile(BaseModel):
     model_config = ConfigDict(extra="forbid")
     fields: Annotated[list[StrictStr], Field(min_length=1)]  # bundled names, YAML files or folders
     algorithms: Annotated[list[Literal[ALGORITHMS]], Field(min_length=1)]
-    seeds: Union[Positive, Annotated[list[Seed], Field(min_length=1)]] = 1  # K: seeds 0..K-1
+    seeds: Union[within(limits.SEEDS), Annotated[list[Seed], Field(min_length=1)]] = 1  # K: seeds 0..K-1
     steps: Count | None = None
     envs: Count | None = None
     config: StrictStr | None = None  # a config file, as `fieldgen train --config` reads it
     curriculum: Literal["auto"] | None = None  # every run through its field's automatic curriculum
-    levels: Annotated[StrictInt, Field(ge=2)] | None = None  # with curriculum: auto, as --levels
+    levels: within(limits.LEVELS) | None = None  # with curriculum: auto, as --levels
     set: dict[StrictStr, Any] = {}  # config values every run of that algorithm gets: crl.batch_size: 256
     grid: dict[StrictStr, Annotated[list, Field(min_length=1)]] = {}  # axes: crl.repr_dim: [32, 64]
     videos: StrictBool = False
@@ -189,6 +198,8 @@ def load(path: Path, out: Path | None = None, **overrides) -> Sweep:
         found.append(source.problem(("slurm", "stop_before"), f"{spec.slurm.stop_before:g} minutes before the end "
                                     f"of a task of {spec.slurm.time} minutes (slurm.time) leaves its run no time to "
                                     "train: give fewer, or 0 to let the run train until submitit's signal"))
+    if not found:
+        _few_enough(spec, source, found)
     if found:
         raise SweepError(found)
     folder = (Path(spec.out) if out is None and spec.out else out or Path("runs") / f"sweep-{path.stem}").absolute()
@@ -264,6 +275,22 @@ def _field_names(path: Path, spec: SweepFile, source: Source, found: list[Proble
         except (SpecError, ArtifactError) as exc:
             found.append(source.problem(("fields", i), f"'{ref}' cannot be read: {exc}".replace("\n", " ")))
     return names
+
+
+def _few_enough(spec: SweepFile, source: Source, found: list[Problem]) -> None:
+    """Refuse a sweep of more than SWEEP_RUNS runs, counted from its lists before a run is planned (a plan of a
+    million runs would take gigabytes before its first line)."""
+    planned = 0
+    for algo in spec.algorithms:
+        points = 1
+        for key, values in spec.grid.items():
+            points *= len(values) if key.partition(".")[0] in (algo, SAMPLER) else 1
+        planned += points
+    planned *= len(spec.fields) * (spec.seeds if isinstance(spec.seeds, int) else len(spec.seeds))
+    if planned > limits.SWEEP_RUNS:
+        found.append(source.problem((), f"plans {planned:,} runs (fields x algorithms x grid points x seeds); a sweep "
+                                         f"runs at most {limits.SWEEP_RUNS:,}: split it into several sweep files, "
+                                         "or list fewer values"))
 
 
 def _each_once(spec: SweepFile, names: list[str], source: Source, found: list[Problem]) -> None:

@@ -60,7 +60,7 @@ def test_unplayable_levels_are_never_used(monkeypatch):
 def test_a_spec_without_an_easy_end_is_one_sentence():
     with pytest.raises(LevelError, match="point_nav: the automatic curriculum moves a ball"):
         levels(load_spec(FIELDS["point_nav"]))
-    with pytest.raises(LevelError, match="at least 2 levels"):
+    with pytest.raises(LevelError, match="is a whole number from 2 to 64"):
         levels(load_spec(FIELDS["soccer_v1"]), 1)
 
 

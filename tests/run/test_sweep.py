@@ -127,7 +127,7 @@ def test_dry_run_on_the_command_line_shows_each_command_and_the_backend(tmp_path
     ("backend: slurmm\n", ":6:1: backend: Input should be 'local' or 'slurm' (got 'slurmm'; did you mean 'slurm'?)"),
     ("fields: [point_nav, nowhere.yaml]\n", "fields[1]: 'nowhere.yaml' is neither a file nor a folder"),
     ("algorithms: [crll]\n", "did you mean 'crl'?"),
-    ("seeds: 0\n", "seeds: Input should be greater than 0"),
+    ("seeds: 0\n", "seeds: Input should be greater than or equal to 1"),
     ("steps: lots\n", "steps: 'lots' is not a positive whole count"),
     ("colour: red\n", "unknown key 'colour'"),
     ("backend: slurm\nslurm: {time: 30, stop_before: 30}\n", ":7:19: slurm.stop_before: 30 minutes before the end of a "
@@ -141,6 +141,11 @@ def test_dry_run_on_the_command_line_shows_each_command_and_the_backend(tmp_path
     ("curriculum: auto\nset:\n  sampler.kept: 2\n", ":8:3: set.sampler.kept: kept=2: kept must be at most 1.0 (of a "
                                                      "level's episode counts"),
     ("curriculum: manual\n", "curriculum: Input should be 'auto'"),
+    ("curriculum: auto\nlevels: 1000000\n", ":7:1: levels: Input should be less than or equal to 64"),
+    ("backend: slurm\nslurm: {time: 1000000000000}\n", "slurm.time: Input should be less than or equal to 525600"),
+    ("backend: slurm\nslurm: {requeues: 99999999999}\n", "slurm.requeues: Input should be less than or equal to 1000"),
+    ("seeds: 1000000000\n", "seeds: Input should be less than or equal to 65536"),
+    (f"steps: {'9' * 5000}\n", ":4:8: a number of 5,000 digits; a number here has at most 100"),
 ])
 def test_bad_sweep_files_are_one_line_at_the_key(tmp_path, body, phrase):
     path = tmp_path / "sweep.yaml"
@@ -209,6 +214,25 @@ def test_status_does_not_pool_seeds_of_a_field_edited_between_their_runs(tmp_pat
     assert result.exit_code == 1 and "no summary of point_nav (crl)" in message, result.output
     assert "trained on fields of that name that differ" in message and "Traceback" not in message
     assert not (sweep.folder / status.SUMMARY).exists()
+
+
+def test_a_sweep_of_a_million_runs_is_refused_before_it_is_planned(tmp_path):
+    """The runs are counted from the file's lists before any is planned: a million of them is one line, not
+    gigabytes of plans before the first line of a dry run."""
+    import tracemalloc
+
+    path = sweep_file(tmp_path, seeds=1000, grid=f"  crl.repr_dim: {list(range(1, 1001))}")
+    tracemalloc.start()
+    try:
+        with pytest.raises(plan.SweepError, match=r"plans 1,000,000 runs .*a sweep runs at most 10,000: split it"):
+            plan.load(path)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 100_000_000, f"{peak:,} bytes"
+    result = runner.invoke(app, ["sweep", str(path), "--dry-run", "--time", "1e12"])
+    assert result.exit_code == 1 and result.output.startswith("error: --time 1e12: the minutes of a SLURM task") \
+        and "from 1 to 525,600" in result.output, result.output
 
 
 def test_the_slurm_backend_without_submitit_or_sbatch_is_one_line(tmp_path, monkeypatch):
