@@ -56,8 +56,7 @@ def sweep(
             out.print(line, highlight=False, soft_wrap=True)
         return
     if status:
-        _report(planned, standing, command)
-        return
+        raise typer.Exit(_report(planned, standing, command))
     try:
         if planned.spec.backend == "slurm":
             jobs = launch.submit(planned)
@@ -65,9 +64,12 @@ def sweep(
                 out.print(f"submitted {len(jobs)} runs as job array {jobs[0].job_id.split('_')[0]}; follow them with: "
                           f"fieldgen sweep {file} --status", highlight=False)
             else:
-                _report(planned, standing, command)
+                raise typer.Exit(_report(planned, standing, command))
             return
         launch.run_local(planned, lambda line: out.print(line, highlight=False))
+        if not planned.folder.is_dir():
+            fail(f"the sweep's folder {planned.folder} was removed while its runs trained, and with it their "
+                 f"results; start the sweep again to train them anew: fieldgen sweep {file}")
     except launch.BackendError as exc:
         fail(str(exc))
     except plan.SweepError as exc:
@@ -76,11 +78,15 @@ def sweep(
         out.print(f"interrupted; the runs keep their last checkpoints: fieldgen sweep {file} continues them",
                   soft_wrap=True)  # one line: the command stays whole to copy
         raise typer.Exit(130) from None
-    _report(planned, standing, command)
+    raise typer.Exit(_report(planned, standing, command))
 
 
-def _report(planned, standing, command: str) -> None:
-    """The table of runs; once all are done, the summary over seeds, written beside them."""
+def _report(planned, standing, command: str) -> int:
+    """The table of runs; once all are done, the summary over seeds, written beside them. Returns the sweep's
+    exit status, as make and schedulers read it: 0 when every run is done, 1 when any failed, and
+    TIME_LIMIT_STATUS (75, "try again later") while the others wait, train or stopped to go on."""
+    from fieldgen.command import TIME_LIMIT_STATUS
+
     found = standing.states(planned)
     table = Table("run", "state", "", title=f"{planned.path}: {len(found)} runs in {planned.folder}")
     styles = {standing.DONE: "green", standing.FAILED: "red", standing.RUNNING: "cyan"}
@@ -96,7 +102,8 @@ def _report(planned, standing, command: str) -> None:
         if counts.get(standing.FAILED):
             out.print("a failed run's whole output is in "
                       f"{planned.folder / 'logs'}; fix its cause and start the sweep again to retry it", highlight=False)
-        return
+            return 1
+        return TIME_LIMIT_STATUS
     from fieldgen.run.record import RunError
     from fieldgen.run.summary import SummaryError
 
@@ -113,3 +120,4 @@ def _report(planned, standing, command: str) -> None:
     out.print(summary)
     out.print(f"summary: {folder / standing.SUMMARY}, {folder / standing.TABLE}; plots: {folder}/summary-<field>.png",
               highlight=False)
+    return 0

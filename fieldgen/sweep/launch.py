@@ -148,7 +148,13 @@ def run_local(sweep: Sweep, say: Callable[[str], None]) -> list[tuple[PlannedRun
                 return
             where = f"GPU {gpu}" if gpu is not None else "this machine"
             say(f"{'continues' if run.command() == run.resume else 'starts'} {run.id} on {where}")
-            code = execute(sweep.folder, run, None if gpu is None else {"CUDA_VISIBLE_DEVICES": gpu})
+            try:
+                code = execute(sweep.folder, run, None if gpu is None else {"CUDA_VISIBLE_DEVICES": gpu})
+            except OSError as exc:  # its log or record could not be written: the sweep's folder is gone or full
+                results.append((run, 1))
+                stopping.set()  # every later run would fail alike
+                say(f"{run.id} failed: cannot write {exc.filename or sweep.folder}: {exc.strerror or exc}")
+                continue
             results.append((run, code))
             if code == 130:
                 stopping.set()

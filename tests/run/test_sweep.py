@@ -290,7 +290,7 @@ def test_status_tells_done_failed_stopped_and_waiting_then_summarizes_once_all_a
     launch.log_path(sweep.folder, c, ".ended").write_text(json.dumps({"exit": 1, "why": launch.why(
         launch.log_path(sweep.folder, c, ".log"), 1)}))
     result = runner.invoke(app, ["sweep", str(path), "--status"])
-    assert result.exit_code == 0, result.output
+    assert result.exit_code == 1, result.output  # a run failed: the sweep's status says so, as make reads it
     found = {s.run.id: (s.state, s.detail) for s in status.states(sweep)}
     assert found[a.id] == ("done", "evaluation 2 of 2, 1,760 env steps")
     assert found[b.id][0] == "failed" and found[c.id] == ("failed", "error: --steps 10 is too few")
@@ -316,6 +316,51 @@ def test_status_tells_done_failed_stopped_and_waiting_then_summarizes_once_all_a
     assert by_setting["crl crl.repr_dim=16"]["episodes"] == 8 and by_setting["crl crl.repr_dim=16"]["actions"] == "mean"
     assert "| point_nav | crl crl.repr_dim=16 | 2 | 1,760 | 0.500 [" in (sweep.folder / status.TABLE).read_text()
     assert (sweep.folder / "summary-point_nav.png").stat().st_size > 10_000
+
+
+def test_status_exits_zero_when_done_one_when_a_run_failed_and_75_while_runs_wait(tmp_path):
+    """`--status` tells failed from waiting in its exit status too, for scripts that poll it: 75 (sysexits'
+    "try again later") while no run failed and some are still to come."""
+    path = sweep_file(tmp_path, seeds=2)
+    sweep = plan.load(path)
+    waiting = runner.invoke(app, ["sweep", str(path), "--status"])
+    assert waiting.exit_code == 75 and "2 waiting" in waiting.output, waiting.output
+    hand_made(sweep.runs[0], 2, 0.5)
+    assert runner.invoke(app, ["sweep", str(path), "--status"]).exit_code == 75
+    log = launch.log_path(sweep.folder, sweep.runs[1], ".log")
+    log.parent.mkdir(parents=True)
+    log.write_text("error: --steps 10 is too few\n")
+    launch._write_json(launch.log_path(sweep.folder, sweep.runs[1], ".ended"), {"exit": 1, "why": launch.why(log, 1)})
+    failed = runner.invoke(app, ["sweep", str(path), "--status"])
+    assert failed.exit_code == 1 and "1 done, 1 failed" in failed.output, failed.output
+    assert "point_nav-crl-1 failed: error: --steps 10 is too few" in failed.output
+    hand_made(sweep.runs[1], 2, 0.25)
+    done = runner.invoke(app, ["sweep", str(path), "--status"])
+    assert done.exit_code == 0 and "2 done" in done.output, done.output
+
+
+def test_a_sweep_whose_every_run_failed_exits_one(tmp_path):
+    """A run refused before it compiles (too few steps) fails fast; the sweep that ran it says so in its exit."""
+    path = sweep_file(tmp_path, seeds=1)
+    path.write_text(path.read_text().replace("steps: 1900", "steps: 100"))
+    result = runner.invoke(app, ["sweep", str(path)])
+    assert result.exit_code == 1 and "1 failed" in result.output and "--steps 100 is too few" in result.output, \
+        result.output
+    assert "Traceback" not in result.output
+
+
+def test_a_sweep_folder_removed_while_a_run_trains_is_one_line_and_not_success(tmp_path, monkeypatch):
+    """Its runs' records cannot be written: the queue stops, and the sweep says what happened and exits 1,
+    with no traceback from the thread that ran the run."""
+    path = sweep_file(tmp_path, seeds=2)
+    folder = plan.load(path).folder
+    monkeypatch.setattr(launch, "fieldgen_command", lambda *words: [sys.executable, "-c",
+                                                                     f"import shutil; shutil.rmtree({str(folder)!r})"])
+    result = runner.invoke(app, ["sweep", str(path)])
+    assert result.exit_code == 1, result.output
+    assert result.output.rstrip().splitlines()[-1].startswith(f"error: the sweep's folder {folder} was removed while "
+                                                              "its runs trained")
+    assert "Traceback" not in result.output and "starts point_nav-crl-1" not in result.output
 
 
 def test_a_sweep_file_changed_under_started_runs_is_refused(tmp_path):
