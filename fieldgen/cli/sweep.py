@@ -111,7 +111,7 @@ def _report(planned, standing, command: str) -> int:
         rows, folder = standing.summarize(planned, command)
     except (SummaryError, RunError) as exc:  # no figure over values that cannot be what they claim
         fail(str(exc))
-    summary = Table("field", "setting", "seeds", "success_any", "time_at_goal",
+    summary = Table("field", "setting", "seeds", "success_any", "time at goal",
                     caption="IQM [95% stratified bootstrap interval] of each seed's last evaluation")
     for row in rows:
         s = row["summary"]

@@ -452,7 +452,7 @@ def evaluate(
         if result.env_steps_before:  # runs started from others' networks: count the chain from nothing too
             whole = sorted({result.env_steps[s] + result.env_steps_before.get(s, 0) for s in result.seeds})
             at += f" ({whole[0]:,}" + (f" to {whole[-1]:,}" if len(whole) > 1 else "") + " from nothing learned)"
-        table = Table(*["run"] * several, "seed", "success_any", "time_at_goal", "closest", "length", "return",
+        table = Table(*["run"] * several, "seed", "success_any", "time at goal", "closest", "length", "return",
                       title=f"{judged} at {at} on {runs[0].env.spec.name}, {episodes} episodes per seed"
                             + judged_on(actions))
         for run, evaluation in zip(runs, evaluations):
@@ -513,7 +513,7 @@ def aggregate(
         result = summary.pooled(summaries, _command_line(ctx))
     except summary.SummaryError as exc:
         fail(str(exc))
-    table = Table("seed", "success_any", "time_at_goal", "env steps", Column("from", overflow="fold"),
+    table = Table("seed", "success_any", "time at goal", "env steps", Column("from", overflow="fold"),
                   title=f"{result.algo} on {', '.join(result.fields)}, {result.episodes} episodes per seed"
                         + judged_on(result.actions))
     owner = {s: f for f, one in summaries for s in one.seeds}

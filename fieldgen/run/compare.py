@@ -175,7 +175,7 @@ def report(runs_: list[session.Run], folder: Path, console: Console, command: st
     write_atomic(folder / TABLE, (json.dumps(rows, indent=1) + "\n").encode())
     each = f"{seeds} seeds each, IQM, 95% bootstrap interval shaded" if seeds > 1 else "one seed each"
     plot(runs_, folder / PLOT, f"{field}: {', '.join(r.algo for r in runs_)} ({each})")
-    table = Table("algo", "env steps", "success_any (last)", "best", "time_at_goal", "closest", "steps/s", "wall s",
+    table = Table("algo", "env steps", "success_any (last)", "best", "time at goal", "closest", "steps/s", "wall s",
                   title=f"{field}: {folder}",
                   caption=f"over {seeds} seeds each: interquartile mean [95% bootstrap interval]"
                   if seeds > 1 else "one seed each: its value [an interval of one seed is the value alone]")

@@ -121,7 +121,7 @@ def stats(rows: list[dict], stages: int = 1) -> str:
 
 def summary(run: Run, console: Console) -> None:
     """The last evaluation of every seed against the untrained one, and where the files are."""
-    table = Table("seed", "env steps", "success_any", "time_at_goal", "closest", "return", "steps/s",
+    table = Table("seed", "env steps", "success_any", "time at goal", "closest", "return", "steps/s",
                   title=str(run.folder))
     for seed in run.seeds:
         mine = [r for r in run.rows if r.get("seed", seed) == seed]

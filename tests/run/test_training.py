@@ -346,7 +346,7 @@ def test_cli_run_folder_and_resume_of_a_finished_run(tmp_path, monkeypatch, tiny
     (tmp_path / "learner.msgpack").rename(run / "learner.msgpack")
     evaluated = runner.invoke(app, ["eval", str(run), "--episodes", "8"])
     assert evaluated.exit_code == 0, evaluated.output
-    assert "success_any" in evaluated.output and "time_at_goal" in evaluated.output
+    assert "success_any" in evaluated.output and "time at goal" in evaluated.output
     assert re.search(r"│ 100 +│", evaluated.output), evaluated.output  # length: point_nav's episodes never end early
     import imageio.v3 as iio
 
