@@ -143,7 +143,7 @@ def dsl_reference() -> str:
     """Every key of a field spec, section by section, from the schema `fieldgen schema` prints."""
     from fieldgen.schema.editor import json_schema
     from fieldgen.schema.models import FieldSpec
-    from fieldgen.schema.terms import DENSE_REWARDS, TERMS
+    from fieldgen.schema.terms import DENSE_REWARDS, MATCH_TERMS, TERMS
 
     schema = json_schema()
     defaults = FieldSpec.model_validate({"name": "example"}).model_dump(mode="json")
@@ -173,6 +173,13 @@ def dsl_reference() -> str:
         needs = [part for part, flag in (("a ball", spec.ball), ("a goal", spec.goal), ("a torso (ant)", spec.torso))
                  if flag]
         out.append(f"| `{term}` | {_cell(spec.description)} | {', '.join(needs) or '-'} |")
+    out += ["", "## Match reward terms", "",
+            "The terms `task.reward` may name on a field with `teams`, from `MATCH_TERMS` in "
+            "`fieldgen/schema/terms.py`: each side's reward is the sum of `weight * term` read from its own side, "
+            "and a zero-sum term's values for the two sides sum to zero.", "",
+            "| term | value | zero-sum |", "|---|---|---|"]
+    for term, spec in MATCH_TERMS.items():
+        out.append(f"| `{term}` | {_cell(spec.description)} | {'yes' if spec.zero_sum else '-'} |")
     out += ["", "## Dense rewards", "",
             "`task: {reward: dense}` stands for the terms generated for the task's success kind, from "
             "`DENSE_REWARDS` in `fieldgen/schema/terms.py` (terms that need a torso only for the ant); a success kind "

@@ -20,10 +20,12 @@ PERSPECTIVE_ASPECT = 4 / 3
 # area and the target.
 MARKINGS, SIDE_VIEW = 1, 2
 MARKED = ("torso", "agent", "ball")  # geoms the top view puts a disc under: the ant's torso, the point, the ball
+TEAM_AGENTS = tuple(f"{side}{i}_" for side in ("home", "away") for i in range(2))  # prefixes of a team field's agents
 MARK_RADIUS = 0.02  # of the top view's height
 # what the preview's legend names, and the geoms that show it: a name, or a prefix ending in _ (the first
 # geom found gives the colour; an entry with none, or only hidden ones, is left out)
-LEGEND = {"agent": ("torso", "agent"), "ball": ("ball",), "target": ("target",), "goal": ("goal_area",),
+LEGEND = {"agent": ("torso", "agent"), "home": ("home0_torso", "home0_agent"), "away": ("away0_torso", "away0_agent"),
+          "ball": ("ball",), "target": ("target",), "goal": ("goal_area", "away_goal_area"),
           "walls": ("wall_",), "obstacles": ("obstacle_",), "field lines": ("line_",)}
 LEGEND_HEIGHT = 32  # pixels of the strip under the preview
 MAX_FOVY = 180  # mujoco takes no camera fovy of this or more, an orthographic camera's metres included
@@ -199,7 +201,7 @@ def _mark(model: mujoco.MjModel, data: mujoco.MjData, scene: mujoco.MjvScene, ca
     if height is None:
         return
     radius = MARK_RADIUS * height
-    for name in MARKED:
+    for name in MARKED + tuple(prefix + name for prefix in TEAM_AGENTS for name in MARKED[:2]):
         geom = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, name)
         if geom < 0 or scene.ngeom == scene.maxgeom:
             continue

@@ -25,7 +25,7 @@ from pydantic import ValidationError
 from fieldgen.files import Output, replace_folder, write_atomic
 from fieldgen.version import VERSION
 from fieldgen.compile.contacts import candidate_pairs
-from fieldgen.compile.layout import Layout, observation_layout
+from fieldgen.compile.layout import Layout, observation_layout, team_layout
 from fieldgen.schema.models import FieldSpec
 from fieldgen.source_imports import imports
 
@@ -119,7 +119,6 @@ class Artifact:
     def metadata(self) -> dict:
         """field.json: what the build is, sealed by the digest of all of it (record_digest)."""
         model = self.model()
-        layout: Layout = observation_layout(self.spec, model)
         pairs = candidate_pairs(model)
         meta = {
             "fieldgen_version": VERSION,
@@ -128,10 +127,7 @@ class Artifact:
             "hash": self.hash,
             "scene_sha256": scene_digest(self.xml),
             "name": self.spec.name,
-            "observation": layout.to_json(),
-            "state_dim": layout.state_dim,
-            "goal_indices": list(layout.goal_indices),
-            "action_size": int(model.nu),
+            **self._observed(model),
             "model": {k: int(getattr(model, k)) for k in ("nbody", "ngeom", "nq", "nv", "nu")},
             "episode_length": self.spec.episode.length,
             "reward": [t.model_dump(exclude_none=True) for t in self.spec.task.reward],
@@ -141,6 +137,17 @@ class Artifact:
         }
         meta = json.loads(json.dumps(meta))  # as it reads back: tuples as lists
         return {**meta, RECORD_DIGEST: record_digest(meta)}
+
+    def _observed(self, model: mujoco.MjModel) -> dict:
+        """field.json's observation and action sizes: of the single agent, or of each agent of a team field (every
+        agent observes as many entries and acts with as many), with the agents' names."""
+        if self.spec.teams is None:
+            layout: Layout = observation_layout(self.spec, model)
+            return {"observation": layout.to_json(), "state_dim": layout.state_dim,
+                    "goal_indices": list(layout.goal_indices), "action_size": int(model.nu)}
+        team = team_layout(self.spec, model)
+        return {"observation": team.to_json(), "state_dim": team.size, "goal_indices": [],
+                "action_size": len(team.action_names), "agents": list(team.agents)}
 
 
 RECORD_DIGEST = "record_sha256"

@@ -29,6 +29,8 @@ def relation(spec: FieldSpec) -> set[frozenset[str]]:
             pairs.add(frozenset(("ball", "floor")))
         pairs |= {frozenset(("ball", s)) for s in STATIC}
     pairs |= {frozenset((a, s)) for a in AGENT_CONTACTS[spec.sim.agent_contacts] for s in STATIC}
+    if spec.teams is not None:  # agents push each other: torso on torso (an agent's own torso is one geom)
+        pairs.add(frozenset(("torso",)))
     return pairs
 
 
@@ -67,7 +69,8 @@ def contact_limit(spec: FieldSpec) -> int | None:
         return None
     if limit != "auto":
         return limit
-    resting = 4 if spec.agent.kind == "ant" else 0
+    agents = 1 if spec.teams is None else spec.teams.home.agents + spec.teams.away.agents
+    resting = 4 * agents if spec.agent.kind == "ant" else 0
     resting += 1 if spec.ball.enabled and ball_touches_floor(spec) else 0
     return resting + 8
 

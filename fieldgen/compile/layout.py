@@ -100,3 +100,65 @@ def observation_layout(spec: FieldSpec, model: mujoco.MjModel) -> Layout:
     goal_names = ["goal.x", "goal.y"] if len(positions) == 1 else [f"goal.{p}.{c}" for p in positions for c in "xy"]
     return Layout(slices, agent_qpos, agent_qvel, ball_qpos, ball_qvel, state_dim, goal_indices,
                   (judged, judged + 1), (*names, *goal_names))
+
+
+OTHER_ENTRIES = ("x", "y", "vx", "vy")  # what an agent observes of each other agent: its planar position and velocity
+
+
+@dataclass(frozen=True)
+class TeamLayout:
+    """A team field's agents and what each observes, the same for every agent, in its side's own frame:
+    its own joints, the ball, then each teammate's and each opponent's OTHER_ENTRIES."""
+
+    agents: tuple[str, ...]  # home0, home1, away0, away1: the order of observations and actions
+    sides: tuple[int, ...]  # each agent's side: 0 home, 1 away
+    agent_qpos: np.ndarray  # [agent, entry] qpos addresses of each agent's own joints
+    agent_qvel: np.ndarray
+    ball_qpos: np.ndarray
+    ball_qvel: np.ndarray  # empty unless observation.ball_velocity
+    actuators: np.ndarray  # [agent, entry] each agent's actuators, in the same order for every agent
+    slices: dict[str, tuple[int, int]]
+    names: tuple[str, ...]  # one per entry of an agent's observation
+    action_names: tuple[str, ...]  # one per entry of an agent's action: its joints' names without the prefix
+
+    @property
+    def size(self) -> int:
+        return len(self.names)
+
+    def to_json(self) -> dict:
+        return {"agents": list(self.agents), "slices": {k: list(v) for k, v in self.slices.items()},
+                "size": self.size, "names": list(self.names)}
+
+
+def team_layout(spec: FieldSpec, model: mujoco.MjModel) -> TeamLayout:
+    from fieldgen.schema.geometry import kickoffs
+
+    agents = tuple(name for name, _ in kickoffs(spec))
+    per_agent = [_addresses(model, tuple(f"{a}_{j}" for j in AGENT_JOINTS[spec.agent.kind])) for a in agents]
+    _, _, qpos_names, qvel_names = per_agent[0]
+    own = [n.removeprefix(f"{agents[0]}_") for n in qpos_names + qvel_names]
+    joints = ("ball",) if spec.ball.joint == "free" else ("ball_x", "ball_y")
+    ball_qpos, ball_qvel, _, _ = _addresses(model, joints)
+    ball_qpos = ball_qpos[:3] if spec.ball.joint == "free" else ball_qpos
+    ball_qvel = (ball_qvel[:3] if spec.ball.joint == "free" else ball_qvel) if spec.observation.ball_velocity else \
+        np.zeros(0, dtype=np.int32)
+    n = len(agents) // 2
+    parts = [("agent_qpos", len(per_agent[0][0])), ("agent_qvel", len(per_agent[0][1])), ("ball_pos", len(ball_qpos))]
+    names = own + ["ball.x", "ball.y", "ball.z"][:len(ball_qpos)]
+    if len(ball_qvel):
+        parts.append(("ball_vel", len(ball_qvel)))
+        names += ["ball.vx", "ball.vy", "ball.vz"][:len(ball_qvel)]
+    parts += [("teammates", len(OTHER_ENTRIES) * (n - 1)), ("opponents", len(OTHER_ENTRIES) * n)]
+    names += [f"{who}{i}.{c}" for who, count in (("teammate", n - 1), ("opponent", n)) for i in range(count)
+              for c in OTHER_ENTRIES]
+    slices, at = {}, 0
+    for name, size in parts:
+        slices[name] = (at, at + size)
+        at += size
+    actuator_names = [model.actuator(i).name for i in range(model.nu)]
+    actuators = np.array([[i for i, a in enumerate(actuator_names) if a.startswith(f"{agent}_")] for agent in agents],
+                         dtype=np.int32)
+    return TeamLayout(agents, tuple(0 if a.startswith("home") else 1 for a in agents),
+                      np.stack([p[0] for p in per_agent]), np.stack([p[1] for p in per_agent]), ball_qpos, ball_qvel,
+                      actuators, slices, tuple(names),
+                      tuple(actuator_names[i].removeprefix(f"{agents[0]}_") for i in actuators[0]))

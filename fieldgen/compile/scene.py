@@ -12,7 +12,7 @@ import math
 
 from dm_control import mjcf
 
-from fieldgen.compile.bodies import BUILDERS
+from fieldgen.compile.bodies import BUILDERS, SIDE_RGBA, Placement
 from fieldgen.cameras import TOP
 from fieldgen.compile.contacts import ball_touches_floor, bits, contact_limit
 from fieldgen.compile.pipelines import brax_parameters
@@ -49,20 +49,36 @@ def build_scene(spec: FieldSpec, statics: list[dict] | None = None) -> mjcf.Root
     _options(root, spec)
     _floor(root, spec)
     _top_camera(root, spec)
-    agent_home = BUILDERS[spec.agent.kind](root, spec)
+    agent_home = _agents(root, spec)
     ball_home = _ball(root, spec) if spec.ball.enabled else ()
-    _target_marker(root, spec)
+    if spec.teams is None:  # a match's targets are the goals
+        _target_marker(root, spec)
     for attrs in fixtures(spec) if statics is None else statics:
         root.worldbody.add("geom", **attrs)
     root.keyframe.add("key", name="home", qpos=agent_home + ball_home)
     return root
 
 
+def _agents(root: mjcf.RootElement, spec: FieldSpec) -> tuple[float, ...]:
+    """The single agent, or each team agent (home0_, ..., away0_, ...) at its kick-off in its side's colour, the
+    away side facing -y and the follow camera on home0; returns their home qpos, in that order."""
+    build = BUILDERS[spec.agent.kind]
+    if spec.teams is None:
+        return build(root, spec)
+    home: tuple[float, ...] = ()
+    for name, start in geometry.kickoffs(spec):
+        side = name.rstrip("0123456789")
+        home += build(root, spec, Placement(prefix=f"{name}_", start=start, turned=side == "away",
+                                            rgba=SIDE_RGBA[side], camera=name == "home0"))
+    return home
+
+
 def fixtures(spec: FieldSpec) -> list[dict]:
     """The field's static geoms (goal, walls, obstacles) as MJCF geom attributes, in scene order.
 
     Variants trained in one batch share one list of fixtures (fieldgen.compile.variants)."""
-    return _goal(spec) + [_box(b, "wall", spec) for b in geometry.walls(spec)] + [
+    goals = _goal(spec) if spec.teams is None else _goal(spec, "away_") + _goal(spec, "home_", turned=True)
+    return goals + [_box(b, "wall", spec) for b in geometry.walls(spec)] + [
         _box(b, "obstacle", spec) for b in geometry.obstacles(spec)]
 
 
@@ -145,9 +161,7 @@ def _framed_extent(spec: FieldSpec) -> tuple[float, float, float, float]:
     """x0, x1, y0, y1 of the field and everything standing on or beside it."""
     hx, hy = spec.field.width / 2, spec.field.length / 2
     boxes = [b.xy_bounds() for b in geometry.walls(spec) + geometry.obstacles(spec)]
-    goal = geometry.goal_region(spec)
-    if goal is not None:
-        boxes.append(goal.xy_bounds(inflate=spec.goal.post_radius))
+    boxes += [goal.xy_bounds(inflate=spec.goal.post_radius) for goal in geometry.goal_regions(spec)]
     x0s, x1s, y0s, y1s = zip((-hx, hx, -hy, hy), *boxes)
     return min(x0s), max(x1s), min(y0s), max(y1s)
 
@@ -192,7 +206,9 @@ def _target_marker(root: mjcf.RootElement, spec: FieldSpec) -> None:
              contype=0, conaffinity=0, group=MARKINGS)
 
 
-def _goal(spec: FieldSpec) -> list[dict]:
+def _goal(spec: FieldSpec, prefix: str = "", turned: bool = False) -> list[dict]:
+    """The goal at +y, its geoms' names prefixed; `turned`: half a turn about the kick-off point, at -y (a team
+    field's home goal)."""
     region = geometry.goal_region(spec)
     if region is None:
         return []
@@ -218,6 +234,12 @@ def _goal(spec: FieldSpec) -> list[dict]:
         ):
             out.append(dict(name=name, type="box", pos=pos, size=size, rgba=RGBA["net"], contype=0, conaffinity=0,
                             group=SIDE_VIEW))
+    for geom in out:
+        geom["name"] = prefix + geom["name"]
+        if turned and "pos" in geom:
+            geom["pos"] = geometry.turn(geom["pos"])
+        if turned and "fromto" in geom:
+            geom["fromto"] = geometry.turn(geom["fromto"][:3]) + geometry.turn(geom["fromto"][3:])
     return out
 
 

@@ -14,8 +14,9 @@ from scipy import ndimage
 
 from fieldgen.schema import geometry
 from fieldgen.schema.backends import backend_problems
-from fieldgen.schema.models import FieldSpec
-from fieldgen.schema.terms import TERMS
+from fieldgen.schema.backends import BACKENDS
+from fieldgen.schema.models import SIDES, FieldSpec
+from fieldgen.schema.terms import MATCH_TERMS, TERMS
 
 GRID = 0.05  # metres per cell of the reachability grid
 MAX_CELLS = 2000  # cells a side at most: a 500 x 500 field is judged on 0.25 m cells
@@ -37,12 +38,14 @@ def physics_problems(spec: FieldSpec) -> Found:
     out: Found = []
     out += _timing(spec)
     out += backend_problems(spec)
-    out += _task_needs(spec)
+    out += _task_needs(spec) if spec.teams is None else _match(spec)
     out += _fits_on_field(spec)
     if spec.ball.enabled and not out:
         out += _ball_spawn(spec)
     if not out:
         out += _goal_reachable(spec)
+    if not out and spec.teams is not None:  # the home side's goal, at -y: the away side's goal of the field turned
+        out += _goal_reachable(geometry.turned(spec))
     return out
 
 
@@ -85,7 +88,11 @@ def _task_needs(spec: FieldSpec) -> Found:
     if "ball" in positions and not spec.ball.enabled:
         out.append((("task", "goal_positions"), "'ball' needs a ball, but ball.enabled is false"))
     for i, term in enumerate(spec.task.reward):
-        needs, where = TERMS[term.term], ("task", "reward", i, "term")
+        needs, where = TERMS.get(term.term), ("task", "reward", i, "term")
+        if needs is None:
+            out.append((where, f"'{term.term}' is a term of a match (a field with teams); with one agent, one of "
+                        f"{', '.join(TERMS)}"))
+            continue
         if needs.ball and not spec.ball.enabled:
             out.append((where, f"the '{term.term}' term needs a ball, but ball.enabled is false"))
         if needs.goal and not spec.goal.enabled:
@@ -95,6 +102,68 @@ def _task_needs(spec: FieldSpec) -> Found:
     if spec.ball.spawn.mode == "toward_target" and spec.task.target.kind == "goal":
         out.append((("ball", "spawn", "mode"), "'toward_target' needs a ring or point target; use 'region' with a goal"))
     return out
+
+
+def _match(spec: FieldSpec) -> Found:
+    """What a field with teams needs and refuses: a match is played with a ball between two goals, won by
+    goals, and ends at a goal or on time; both sides field as many agents, so that one policy plays either."""
+    out: Found = []
+    teams, task = spec.teams, spec.task
+    why = "a match is won by goals"
+    if "start" in spec.agent.model_fields_set:
+        out.append((("agent", "start"), "places the single agent; a team field places its agents with "
+                    "teams.home.start and teams.away.start"))
+    if teams.home.agents != teams.away.agents:
+        out.append((Among(("teams", "home", "agents"), ("teams", "away", "agents")),
+                    f"home fields {teams.home.agents} agents and away {teams.away.agents}; both sides field as many, "
+                    "so that one policy plays either side"))
+    for side in SIDES:
+        team = getattr(spec.teams, side)
+        if team.start is not None and len(team.start) != team.agents:
+            out.append((Among(("teams", side, "start"), ("teams", side, "agents")),
+                        f"{len(team.start)} kick-offs for {team.agents} agent{'s' * (team.agents != 1)}; give one "
+                        "(x, y) per agent, or leave start out for the default"))
+    if not spec.goal.enabled:
+        out.append((("goal", "enabled"), "a team field needs a goal at each end, one for each side to defend; "
+                    "set goal.enabled: true"))
+    if not spec.ball.enabled:
+        out.append((("ball", "enabled"), "a match needs a ball; set ball.enabled: true"))
+    if task.success.kind != "ball_in_goal":
+        out.append((("task", "success", "kind"), f"'{task.success.kind}' judges one agent's task; {why}: a side "
+                    "succeeds when the ball enters the opponent's goal (ball_in_goal, the default with teams)"))
+    if task.target.kind != "goal":
+        out.append((("task", "target", "kind"), f"a '{task.target.kind}' target is one agent's; each side's target "
+                    "is the opponent's goal (kind: goal, the default)"))
+    if "goal_positions" in task.model_fields_set:
+        out.append((("task", "goal_positions"), "a match observation names no goal; leave goal_positions out"))
+    if spec.episode.fall.kind != "never":
+        out.append((("episode", "fall", "kind"), f"'{spec.episode.fall.kind}' ends one agent's episode; a match "
+                    "ends at a goal or on time (kind: never)"))
+    if BACKENDS[spec.sim.backend].brax:
+        mjx = ", ".join(name for name, b in BACKENDS.items() if not b.brax)
+        out.append((("sim", "backend"), f"a team field runs on MJX ({mjx}), not on brax's {spec.sim.backend} pipeline"))
+    if spec.ball.spawn.mode == "toward_target":
+        out.append((("ball", "spawn", "mode"), "'toward_target' follows one agent's target; a match spawns the ball "
+                    "in a region (mode: region)"))
+    if spec.sim.contacts == "study":
+        out.append((("sim", "contacts"), "'study' is the soccer study's contact set for one ant, in which agents "
+                    "never touch each other; use pruned"))
+    for i, term in enumerate(task.reward):
+        needs, where = MATCH_TERMS.get(term.term), ("task", "reward", i, "term")
+        if needs is None:
+            out.append((where, f"'{term.term}' is a term of one agent's task; a match's terms: "
+                        f"{', '.join(MATCH_TERMS)}"))
+        elif needs.torso and spec.agent.kind != "ant":
+            out.append((where, f"the '{term.term}' term needs agents with a torso (kind: ant)"))
+    return out
+
+
+def _start_key(spec: FieldSpec, name: str) -> tuple:
+    """The key that placed an agent: agent.start, or its side's start (or agents, where the start is default)."""
+    if spec.teams is None:
+        return ("agent", "start")
+    side = name.rstrip("0123456789")
+    return ("teams", side, "start" if getattr(spec.teams, side).start is not None else "agents")
 
 
 def _fits_on_field(spec: FieldSpec) -> Found:
@@ -111,17 +180,26 @@ def _fits_on_field(spec: FieldSpec) -> Found:
             out.append((Among(("goal", "width"), ("field", "width")),
                         f"the goal ({g.width:g} wide) is wider than the field ({spec.field.width:g})"))
     reach = geometry.AGENT_REACH[spec.agent.kind]
-    sx, sy = spec.agent.start
-    if not (x0 + reach <= sx <= x1 - reach and y0 + reach <= sy <= y1 - reach):
-        out.append((Among(("agent", "start"), *FIELD_SIZE),
-                    f"the agent at ({sx:g}, {sy:g}) with reach {reach:.2f} does not fit inside the field"))
+    starts = geometry.kickoffs(spec)
+    for agent, (sx, sy) in starts:
+        if not (x0 + reach <= sx <= x1 - reach and y0 + reach <= sy <= y1 - reach):
+            out.append((Among(_start_key(spec, agent), *FIELD_SIZE),
+                        f"the {agent} at ({sx:g}, {sy:g}) with reach {reach:.2f} does not fit inside the field"))
+    for i, (agent, (sx, sy)) in enumerate(starts):
+        for other, (ox, oy) in starts[:i]:
+            if math.hypot(sx - ox, sy - oy) < 2 * reach:
+                out.append((_start_key(spec, agent), f"the kick-offs of {other} at ({ox:g}, {oy:g}) and {agent} at "
+                            f"({sx:g}, {sy:g}) overlap: agents of reach {reach:.2f} start at least {2 * reach:.2f} "
+                            "apart (the away side's kick-offs are its own frame's turned half a turn)"))
     for box in geometry.obstacles(spec):
         name = box.name.removeprefix("obstacle_")
         bx0, bx1, by0, by1 = box.xy_bounds()
         if bx1 < -hx or bx0 > hx or by1 < -hy or by0 > hy:
             out.append((Among(("obstacles", name), *FIELD_SIZE), f"obstacle '{name}' lies entirely off the field"))
-        if _disc_hits_rect(sx, sy, reach, box.xy_bounds()):
-            out.append((("obstacles", name), f"obstacle '{name}' overlaps the agent's start at ({sx:g}, {sy:g})"))
+        for agent, (sx, sy) in starts:
+            if _disc_hits_rect(sx, sy, reach, box.xy_bounds()):
+                out.append((("obstacles", name), f"obstacle '{name}' overlaps the {agent}'s start at ({sx:g}, {sy:g})"))
+    sx, sy = spec.agent.start
     t = spec.task.target
     if t.kind == "ring":
         far = t.radius[1]
@@ -164,10 +242,11 @@ def _ball_spawn(spec: FieldSpec) -> Found:
     goal = geometry.goal_region(spec)
     if goal is not None and _rects_overlap(rect, goal.xy_bounds(inflate=r)):
         out.append((where, "the ball can spawn inside or touching the goal"))
-    gap = _rect_distance(rect, sx, sy)
-    if gap < r + reach:
-        out.append((where, f"the ball can spawn {gap:.2f} from the agent's start; it needs {r + reach:.2f} "
-                    "(ball radius + agent reach)"))
+    for agent, (ax, ay) in geometry.kickoffs(spec):
+        gap = _rect_distance(rect, ax, ay)
+        if gap < r + reach:
+            out.append((where, f"the ball can spawn {gap:.2f} from the {agent}'s start; it needs {r + reach:.2f} "
+                        "(ball radius + agent reach)"))
     return out
 
 

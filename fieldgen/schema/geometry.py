@@ -44,7 +44,8 @@ class Capsule(Part):
 
 
 def walls(spec: FieldSpec) -> list[Box]:
-    """Wall boxes centred on the field's edges; the front wall opens at the goal mouth."""
+    """Wall boxes centred on the field's edges; the front wall opens at the goal mouth, and so does the back
+    wall of a team field, which has a goal at each end."""
     w = spec.walls
     if not w.enabled:
         return []
@@ -54,18 +55,24 @@ def walls(spec: FieldSpec) -> list[Box]:
         for side, x in (("left", -hx), ("right", hx)):
             out.append(Box(f"wall_{side}", (x, 0.0, hz), (t / 2, hy + t / 2, hz), w.solid))
     if w.back:
-        out.append(Box("wall_back", (0.0, -hy, hz), (hx + t / 2, t / 2, hz), w.solid))
+        out += _goal_line(spec, "back", -hy, has_goal=spec.teams is not None)
     if w.front:
-        g = spec.goal
-        mouth = g.enabled and g.distance - g.depth / 2 <= hy <= g.distance + g.depth / 2
-        if mouth and g.width / 2 < hx:
-            seg = (hx + t / 2 - g.width / 2) / 2
-            for side, sign in (("left", -1), ("right", 1)):
-                cx = sign * (g.width / 2 + seg)
-                out.append(Box(f"wall_front_{side}", (cx, hy, hz), (seg, t / 2, hz), w.solid))
-        elif not mouth:
-            out.append(Box("wall_front", (0.0, hy, hz), (hx + t / 2, t / 2, hz), w.solid))
+        out += _goal_line(spec, "front", hy, has_goal=True)
     return out
+
+
+def _goal_line(spec: FieldSpec, end: str, y: float, has_goal: bool) -> list[Box]:
+    """The wall along one end of the field (y = +-length/2): open at the goal mouth where a goal stands on it."""
+    w, g = spec.walls, spec.goal
+    hx, hy, t, hz = spec.field.width / 2, spec.field.length / 2, w.thickness, w.height / 2
+    mouth = has_goal and g.enabled and g.distance - g.depth / 2 <= hy <= g.distance + g.depth / 2
+    if not mouth:
+        return [Box(f"wall_{end}", (0.0, y, hz), (hx + t / 2, t / 2, hz), w.solid)]
+    if g.width / 2 >= hx:
+        return []
+    seg = (hx + t / 2 - g.width / 2) / 2
+    return [Box(f"wall_{end}_{side}", (sign * (g.width / 2 + seg), y, hz), (seg, t / 2, hz), w.solid)
+            for side, sign in (("left", -1), ("right", 1))]
 
 
 def goal_behind_wall(spec: FieldSpec) -> str:
@@ -124,12 +131,66 @@ def _segment_meets(a, b, rect) -> bool:
     return enter <= leave
 
 
+def kickoffs(spec: FieldSpec) -> list[tuple[str, tuple[float, float]]]:
+    """Each agent's name and kick-off (x, y) in the field's frame: the single agent's start, or each team
+    agent's (home0, home1, away0, ...), the away side's turned half a turn from its own frame."""
+    if spec.teams is None:
+        return [("agent", tuple(spec.agent.start))]
+    out = []
+    for side in ("home", "away"):
+        for i, (x, y) in enumerate(side_starts(spec, side)):
+            out.append((f"{side}{i}", (x, y) if side == "home" else turn((x, y))))
+    return out
+
+
+def side_starts(spec: FieldSpec, side: str) -> list[tuple[float, float]]:
+    """A side's kick-offs in its own frame (attacking along +y): as written, or by default side by side a
+    third of the field's width apart, halfway between the centre and the side's own goal."""
+    team = getattr(spec.teams, side)
+    if team.start is not None:
+        return [tuple(p) for p in team.start]
+    n, spacing = team.agents, spec.field.width / 3
+    return [((i - (n - 1) / 2) * spacing, -spec.goal.distance / 2) for i in range(n)]
+
+
+def turned(spec: FieldSpec) -> FieldSpec:
+    """A team field turned half a turn about the kick-off point: the home side's view of it is the away side's
+    of the original. The checks judge the home side's goal as the away side's goal of the turned field."""
+    data = spec.model_dump(mode="json")
+    for name, o in spec.obstacles.items():
+        y = o.y + (spec.goal.distance if o.relative_to == "goal" else 0.0)
+        data["obstacles"][name].update(x=-o.x, y=-y, relative_to="kickoff")
+    if spec.ball.spawn.mode == "region":
+        data["ball"]["spawn"].update(x=[-spec.ball.spawn.x[1], -spec.ball.spawn.x[0]],
+                                     y=[-spec.ball.spawn.y[1], -spec.ball.spawn.y[0]])
+    data["walls"].update(front=spec.walls.back, back=spec.walls.front)
+    data["teams"] = {"home": data["teams"]["away"], "away": data["teams"]["home"]}
+    return FieldSpec.model_validate(data)
+
+
+def turn(point: tuple) -> tuple:
+    """A point (x, y[, z...]) turned half a turn about the vertical through the kick-off point (0.0, never -0.0,
+    where it lies on an axis)."""
+    return (0.0 - point[0], 0.0 - point[1], *point[2:])
+
+
 def goal_region(spec: FieldSpec) -> Box | None:
     """The goal box: the region that counts as 'in the goal'; it never collides."""
     g = spec.goal
     if not g.enabled:
         return None
     return Box("goal_region", (0.0, g.distance, g.height / 2), (g.width / 2, g.depth / 2, g.height / 2), False)
+
+
+def goal_regions(spec: FieldSpec) -> list[Box]:
+    """Every goal's box: the goal at +y, and on a team field the home side's goal at -y (the away side's turned)."""
+    region = goal_region(spec)
+    if region is None:
+        return []
+    if spec.teams is None:
+        return [region]
+    return [Box("away_goal_region", region.center, region.half, False),
+            Box("home_goal_region", turn(region.center), region.half, False)]
 
 
 def goal_frame(spec: FieldSpec) -> list[Capsule]:

@@ -12,15 +12,16 @@ import typing
 from typing import Annotated, Literal, Union
 
 from pydantic import (AfterValidator, BaseModel, BeforeValidator, ConfigDict, Discriminator, Field, Tag, WithJsonSchema,
-                      field_validator, model_validator)
+                      field_validator, model_serializer, model_validator)
 
 from fieldgen.schema.backends import BACKENDS, backend_description
 from fieldgen.schema.errors import shown_text
-from fieldgen.schema.terms import DENSE_REWARDS, TERMS, dense_reward
+from fieldgen.schema.terms import DENSE_REWARDS, MATCH_TERMS, TERMS, dense_reward
 
 MAX_EXTENT = 500.0  # metres; anything larger is a typo, not a field
 MAX_OBJECT = 50.0  # metres; the largest single body (ball, goal, obstacle)
 MAX_OBSTACLES = 1000  # a spec of this many validates in half a second; a field needs a few
+MAX_AGENTS_A_SIDE = 2  # of a team field; its environment's observation names each other agent
 DENSE = "dense"  # task.reward: the terms generated for the task (terms.DENSE_REWARDS)
 
 
@@ -217,6 +218,25 @@ class AgentSection(Section):
     gear: float | None = Field(None, gt=0, le=10000, description="motor gear; default 150 for ant, 10 for point")
 
 
+class TeamSide(Section):
+    agents: int = Field(1, ge=1, le=MAX_AGENTS_A_SIDE, description="agents on this side; both sides field as many")
+    start: list[tuple[float, float]] | None = Field(
+        None, min_length=1, max_length=MAX_AGENTS_A_SIDE,
+        description="each agent's kick-off (x, y) in this side's own frame, where it attacks along +y (the away "
+                    "side's is the field's turned half a turn); default: side by side, halfway between the centre "
+                    "and the side's own goal")
+
+
+class TeamsSection(Section):
+    home: TeamSide = Field(default_factory=TeamSide,
+                           description="the side that attacks the goal at +y and defends the one at -y")
+    away: TeamSide = Field(default_factory=TeamSide,
+                           description="the side that attacks the goal at -y and defends the one at +y")
+
+
+SIDES = ("home", "away")  # a team field's sides, in the order its agents and rewards come
+
+
 class Obstacle(Section):
     x: float = Field(0.0, ge=-MAX_EXTENT, le=MAX_EXTENT, description="x of the box centre")
     y: float = Field(0.0, ge=-MAX_EXTENT, le=MAX_EXTENT, description="y of the box centre")
@@ -260,7 +280,9 @@ class Success(Section):
 
 
 class RewardTerm(Section):
-    term: Literal[tuple(TERMS)] = Field(description="a term from the reward-term registry (fieldgen/schema/terms.py)")
+    term: Literal[tuple(dict.fromkeys([*TERMS, *MATCH_TERMS]))] = Field(
+        description="a term from the reward-term registry (fieldgen/schema/terms.py): TERMS for one agent, "
+                    "MATCH_TERMS for a field with teams")
     weight: float = Field(1.0, ge=-1e4, le=1e4, description="the term's factor in the reward sum")
     band: Span | None = Field(None, description="upright only: torso height band that earns the bonus")
 
@@ -408,7 +430,10 @@ class FieldSpec(Section):
     walls: WallsSection = Field(default_factory=WallsSection, description="walls around the field")
     goal: GoalSection = Field(default_factory=GoalSection, description="the goal box, posts and crossbar")
     ball: BallSection = Field(default_factory=BallSection, description="the ball")
-    agent: AgentSection = Field(default_factory=AgentSection, description="the controlled agent")
+    agent: AgentSection = Field(default_factory=AgentSection, description="the controlled agent; with teams, "
+                                "every agent's kind, gear and reset noise")
+    teams: TeamsSection | None = Field(None, description="two sides playing a match, each attacking the other's goal "
+                                       "(a goal at each end from the goal keys); null: one agent")
     obstacles: dict[Annotated[str, Field(pattern=OBSTACLE_NAME_PATTERN, max_length=32)], Obstacle] = Field(
         default_factory=dict, max_length=MAX_OBSTACLES, description="named boxes, e.g. a goalie")
     task: TaskSection = Field(default_factory=TaskSection, description="target, success predicate, reward")
@@ -440,6 +465,30 @@ class FieldSpec(Section):
                 setattr(part, key, value)
                 part.model_fields_set.discard(key)  # still a default: another backend brings its own
         return self
+
+    @model_validator(mode="after")
+    def _match_defaults(self):
+        """A match is won by goals: a team field's success is the ball in a goal and its reward the goal term,
+        where the spec leaves them out (checks.py refuses other settings that make no sense for a match)."""
+        if self.teams is None:
+            return self
+        task = self.task
+        if "success" not in task.model_fields_set:
+            task.success = Success(kind="ball_in_goal")
+            task.model_fields_set.discard("success")
+        if "reward" not in task.model_fields_set:
+            task.reward = [RewardTerm(term="goal")]
+            task.model_fields_set.discard("reward")
+        return self
+
+    @model_serializer(mode="wrap")
+    def _without_teams_unless_set(self, handler):
+        """A single-agent field dumps as it did before teams existed, so its field.json, build hash and run
+        records' field digest stay what they were."""
+        data = handler(self)
+        if self.teams is None and isinstance(data, dict):
+            data.pop("teams", None)
+        return data
 
     def target_fixed(self) -> tuple[float, float] | None:
         """The target point when it does not vary between episodes."""

@@ -43,6 +43,27 @@ DENSE_REWARDS: dict[str, tuple[dict, ...]] = {
 }
 
 
+@dataclass(frozen=True)
+class MatchTerm:
+    description: str  # one line, as the DSL reference's "Match reward terms" table gives it
+    zero_sum: bool = False  # one side's value is the other's negated: the sides' rewards of it sum to zero
+    per_agent: bool = False  # the single-agent term of the same name (TERMS), averaged over the side's agents
+    torso: bool = False  # needs agents with a torso (agent.kind: ant)
+
+
+# The terms `task.reward` may name on a field with `teams`: each side's reward is sum(weight * term), the term
+# read from that side's view. They need a ball and a goal at each end, which every team field has.
+MATCH_TERMS: dict[str, MatchTerm] = {
+    "goal": MatchTerm("+1 on the step the side scores, -1 on the step it concedes", zero_sum=True),
+    "ball_progress": MatchTerm("the ball's speed towards the opponent's goal line, along the field (m/s)",
+                               zero_sum=True),
+    "agent_approaches_ball": MatchTerm("agent_approaches_ball of each of the side's agents, averaged", per_agent=True),
+    "upright": MatchTerm("upright of each of the side's agents, averaged", per_agent=True, torso=True),
+    "control_cost": MatchTerm("control_cost of each of the side's agents, averaged", per_agent=True),
+}
+assert all(name in TERMS for name, t in MATCH_TERMS.items() if t.per_agent)
+
+
 def dense_reward(success_kind: str, torso: bool) -> list[dict]:
     """The reward terms `reward: dense` stands for on a task of this success kind, for an agent with or
     without a torso (the terms that need one are left out)."""

@@ -33,10 +33,11 @@ def test_bundled_field_compiles_and_loads(name):
     artifact = compile_spec(spec)
     model = mujoco.MjModel.from_xml_string(artifact.xml)
     mjx.put_model(model)
-    assert model.nu == (8 if spec.agent.kind == "ant" else 2)
-    assert model.key("home").qpos.shape == (model.nq,)
     meta = artifact.metadata()
-    assert meta["observation"]["size"] == meta["state_dim"] + 2
+    agents = len(meta.get("agents", ["agent"]))
+    assert model.nu == agents * (8 if spec.agent.kind == "ant" else 2)
+    assert model.key("home").qpos.shape == (model.nq,)
+    assert meta["observation"]["size"] == meta["state_dim"] + (2 if spec.teams is None else 0)
     assert spec.description and bundled_fields()[name].read_text().startswith("#")
 
 

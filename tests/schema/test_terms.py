@@ -14,8 +14,12 @@ from fieldgen.schema.models import RewardTerm
 from fieldgen.schema.terms import TERMS
 
 def test_the_schema_offers_exactly_the_registered_terms():
-    assert typing.get_args(RewardTerm.model_fields["term"].annotation) == tuple(TERMS)
-    assert json_schema()["$defs"]["RewardTerm"]["properties"]["term"]["enum"] == list(TERMS)
+    """A single agent's terms, then the terms only a match has (fieldgen.schema.terms.MATCH_TERMS)."""
+    from fieldgen.schema.terms import MATCH_TERMS
+
+    names = tuple(dict.fromkeys([*TERMS, *MATCH_TERMS]))
+    assert typing.get_args(RewardTerm.model_fields["term"].annotation) == names
+    assert json_schema()["$defs"]["RewardTerm"]["properties"]["term"]["enum"] == list(names)
 
 
 # a field that lacks each thing a term may need, and what the check then says
