@@ -1,4 +1,5 @@
-"""Every trainer's settings, one validated model per algorithm, and what each checks before a run.
+"""What every trainer's settings share, and the settings several trainers share; each algorithm's own
+model is its folder's config.py (agents/<algo>/config.py), built from the types and checks here.
 
 A config is layered (`RunConfig.layered`): defaults < the bundled preset for the field's kind
 of agent (presets/<algo>_<agent>.yaml) < the field's recipe (presets/recipes.yaml, agents/recipes.py)
@@ -26,17 +27,13 @@ from ..schema.errors import shown_text
 from ..schema.source import SpecLoader
 from ..suggest import allowed, did_you_mean
 from .buffer import gradient_steps, iterations
-from .contrastive import ENERGIES, LOSSES
-from .networks import MATMULS, residual_blocks
+from .choices import ALGORITHMS, EVAL_ACTIONS, PRESETS as NAMED_PRESETS
 from .recipes import Recipe
-from .registry import ALGORITHMS, EVAL_ACTIONS, PRESETS as NAMED_PRESETS
 from .sharding import by_seed
-from .team import GROUPINGS, split
 
 PRESETS = Path(__file__).with_name("presets")
 COUNTER_MAX = 2**31 - 1  # env steps are counted on the device in int32, up to the last iteration's end
 REWARDS = ("dense", "sparse")
-SPREADS = ("global", "state")
 
 
 class ConfigError(Exception):
@@ -71,16 +68,8 @@ Discount = Annotated[Float, Field(gt=0, lt=1)]
 Hidden = Annotated[tuple[Count, ...], BeforeValidator(_listed), Field(min_length=1)]
 Reward = Annotated[Literal[REWARDS], Unknown(
     "unknown reward '{}'; choose dense (the field's terms) or sparse (its success)")]
-Spread = Annotated[Literal[SPREADS], Unknown(
-    "unknown ppo.spread '{}'; choose global (one learned log-std per action) "
-    "or state (the policy network's own spread for each state)")]
 EvalActions = Annotated[Literal[EVAL_ACTIONS], Unknown(
     f"unknown eval_actions '{{}}'; choose one of {', '.join(EVAL_ACTIONS)}")]
-Energy = Annotated[Literal[ENERGIES], Unknown(f"unknown energy '{{}}'; choose one of {', '.join(ENERGIES)}")]
-Loss = Annotated[Literal[LOSSES], Unknown(f"unknown contrastive_loss '{{}}'; choose one of {', '.join(LOSSES)}")]
-Matmul = Annotated[Literal[tuple(MATMULS)], Unknown(f"unknown matmul '{{}}'; choose one of {', '.join(MATMULS)}")]
-Grouping = Annotated[Literal[GROUPINGS], Unknown(
-    f"icrl.agents: unknown grouping '{{}}'; choose one of {', '.join(GROUPINGS)}")]
 
 
 class RunConfig(BaseModel):
@@ -106,7 +95,7 @@ class RunConfig(BaseModel):
 
     @classmethod
     def named_preset(cls, name: str | None) -> Path | None:
-        """A bundled preset by its name (registry.PRESETS): settings sized for a kind of machine, for every
+        """A bundled preset by its name (choices.PRESETS): settings sized for a kind of machine, for every
         trainer, layered over the agent's preset."""
         if name is not None and name not in NAMED_PRESETS:
             raise ConfigError(f"unknown preset '{name}'{did_you_mean(name, NAMED_PRESETS) or '.'} "
@@ -229,39 +218,6 @@ class RunConfig(BaseModel):
         return self.num_envs * self.unroll_length
 
 
-class PPOConfig(RunConfig):
-    algo: ClassVar[str] = "ppo"
-
-    total_steps: Count = 50_000_000
-    num_envs: Count = 2048
-    unroll_length: Count = 20
-    num_minibatches: Count = 32
-    update_epochs: Count = 4
-    learning_rate: Rate = 3e-4
-    discount: Discount = 0.97
-    gae_lambda: Share = 0.95
-    clip: Rate = 0.3
-    entropy_coef: Annotated[Float, Field(ge=0)] = 1e-2
-    value_coef: Rate = 0.5
-    max_grad_norm: Rate = 1.0
-    hidden: Hidden = (256, 256)
-    # state: the policy network's softplus head (brax's); global: one learned log-std per action
-    spread: Spread = "state"
-    reward: Reward = "dense"  # dense: the field's weighted terms; sparse: its success metric
-    normalize_observations: StrictBool = True
-
-    def validate_env(self, env: Environment, devices: int = 1, seeds: int = 1) -> None:
-        super().validate_env(env, devices, seeds)
-        per_iter = self.per_iteration
-        if per_iter % self.num_minibatches:
-            raise ConfigError(f"num_envs x unroll_length = {per_iter:,} does not divide into {self.num_minibatches} "
-                              "minibatches; change num_envs, unroll_length or num_minibatches")
-        need = self.num_evals * per_iter
-        if self.total_steps < need:
-            raise ConfigError(f"--steps {self.total_steps:,} is too few: {self.num_evals} evaluations of "
-                              f"{per_iter:,}-step iterations need at least {need:,}")
-
-
 class ReplayConfig(RunConfig):
     """What every trainer with a replay buffer of episode-long windows shares (CRL, SAC, TD3)."""
 
@@ -297,51 +253,6 @@ class ReplayConfig(RunConfig):
                               f"batch ({self.batch_size}); raise {self.algo}.windows or lower {self.algo}.batch_size")
 
 
-class CRLConfig(ReplayConfig):
-    algo: ClassVar[str] = "crl"
-
-    alpha_lr: Rate = 3e-4
-    repr_dim: Count = 64
-    skip_every: Annotated[Int, Field(ge=0)] = 0  # residual blocks of this many hidden layers after the first (agents.networks.MLP); 0: none
-    matmul: Matmul = "float32"  # bfloat16: the networks' products on bfloat16 operands, summed in float32
-    energy: Energy = "norm"
-    contrastive_loss: Loss = "fwd_infonce"
-    logsumexp_penalty: Annotated[Float, Field(ge=0)] = 0.1
-    target_entropy_per_action: Float = -0.5
-    # share of the actor's goals that are the episode's commanded goal rather than a later state of it (the
-    # critic learns from the later states alone): the actor then practises the goals it is asked for
-    actor_commanded_goals: Share = 0.0
-    # a minibatch's pairs drawn this many at a time from one episode's window (agents.buffer.minibatch_rows):
-    # its negatives then include states of the same episode, told apart by what moved; 1: the reference
-    pairs_per_window: Count = 1
-
-    def validate_env(self, env: Environment, devices: int = 1, seeds: int = 1) -> None:
-        super().validate_env(env, devices, seeds)
-        if self.batch_size % self.pairs_per_window or self.pairs_per_window > env.episode_length:
-            raise ConfigError(f"{self.algo}.pairs_per_window {self.pairs_per_window} must divide batch_size "
-                              f"({self.batch_size}) and be at most an episode's {env.episode_length} steps")
-        if self.skip_every:
-            try:
-                residual_blocks(self.hidden, self.skip_every)
-            except ValueError as exc:
-                raise ConfigError(f"{self.algo}.skip_every: {exc}") from None
-
-
-class ICRLConfig(CRLConfig):
-    algo: ClassVar[str] = "icrl"
-
-    # leg: one agent per leg (the study's code); joint: one per actuated joint (its text)
-    agents: Grouping = "leg"
-    share_parameters: StrictBool = False  # one actor and one critic applied by every agent
-
-    def validate_env(self, env: Environment, devices: int = 1, seeds: int = 1) -> None:
-        super().validate_env(env, devices, seeds)
-        try:
-            split(env, self.agents)
-        except ValueError as exc:
-            raise ConfigError(f"icrl.agents: {exc}") from None
-
-
 class OffPolicyConfig(ReplayConfig):
     """SAC's and TD3's: twin critics with target networks, on the dense reward or the success, with
     hindsight relabelling."""
@@ -361,19 +272,3 @@ class OffPolicyConfig(ReplayConfig):
             raise ConfigError(f"{algo}.her needs a success that depends on the goal; {env.name}'s does not "
                               "(a field's ball_in_goal judges the goal box, wherever the goal is); use "
                               "ball_near_target or agent_near_target")
-
-
-class SACConfig(OffPolicyConfig):
-    algo: ClassVar[str] = "sac"
-
-    alpha_lr: Rate = 3e-4
-    target_entropy_per_action: Float = -1.0
-
-
-class TD3Config(OffPolicyConfig):
-    algo: ClassVar[str] = "td3"
-
-    exploration_noise: Annotated[Float, Field(ge=0)] = 0.1  # std of the Gaussian added to actions while collecting
-    policy_noise: Annotated[Float, Field(ge=0)] = 0.2  # std of the smoothing noise on target actions
-    noise_clip: Annotated[Float, Field(ge=0)] = 0.5
-    policy_delay: Count = 2  # critic steps per actor step (and target update)

@@ -2,7 +2,7 @@
 curriculum), keyed by the field's name in presets/recipes.yaml, beside the presets they layer over.
 
 A recipe writes a trainer's settings only as `--set` writes them (`steps` and `envs` are total_steps and
-num_envs), so config.py and the presets stay the one owner of what a setting means and allows:
+num_envs), so the configs and the presets stay the one owner of what a setting means and allows:
 `RunConfig.layered` checks a recipe's settings as it checks --set's, each at its line of the recipes file.
 `measured` is what README.md and bench/results report of the recipe on its field, and nothing else; it is
 never inherited, so a field that takes another's recipe says it is not measured yet.
@@ -17,7 +17,7 @@ from typing import Sequence
 import yaml
 
 from ..suggest import did_you_mean
-from .registry import ALGORITHMS, PRESETS
+from .choices import ALGORITHMS, PRESETS
 
 RECIPES = Path(__file__).with_name("presets") / "recipes.yaml"
 CURRICULA = ("auto",)  # the curricula a recipe may name, as `fieldgen train --curriculum` does
@@ -48,7 +48,7 @@ class Recipe:
     steps: int | None = None
     envs: int | None = None
     sets: tuple[str, ...] = ()  # ALGO.KEY=VALUE, as --set writes them
-    preset: str | None = None  # a named preset (registry.PRESETS), as --preset names it
+    preset: str | None = None  # a named preset (choices.PRESETS), as --preset names it
     curriculum: str | None = None
     measured: Measured | None = None
     where: str = ""  # file:line of the recipe, for messages about its settings

@@ -1,8 +1,9 @@
-"""The trainers by the names `--algo`, config files and a run's run.json call them, and the other names the
-command line offers before JAX loads.
+"""The trainers by the names `--algo`, config files and a run's run.json call them.
 
-The names are all this module holds until a trainer is looked up: its module, and JAX with it, loads
-then, so the command line lists and checks the names (--algo's choices) without importing JAX.
+An algorithm is the folder agents/<name>/: its config.py defines its settings (a RunConfig whose `algo`
+is the folder's name) and its train.py its `make_train`. The names (choices.py, handed on here for the
+command line) come from the folder list alone; a trainer's modules, and JAX with them, load when it is
+looked up.
 """
 
 from __future__ import annotations
@@ -10,30 +11,17 @@ from __future__ import annotations
 import dataclasses
 import functools
 import importlib
+import inspect
 from typing import TYPE_CHECKING, Callable
 
 from ..suggest import did_you_mean
+from .choices import ALGORITHMS, DEFAULT_ALGORITHM, EVAL_ACTIONS, PRESETS, judged_on
 
 if TYPE_CHECKING:
     from .config import RunConfig
     from .loop import Trainer
 
-# each algorithm's name -> the name of its config class in agents/config.py; its trainer is the
-# make_train of the module agents/<name>.py
-CONFIG_CLASSES = {"crl": "CRLConfig", "icrl": "ICRLConfig", "ppo": "PPOConfig", "sac": "SACConfig",
-                  "td3": "TD3Config"}
-ALGORITHMS: tuple[str, ...] = tuple(CONFIG_CLASSES)
-DEFAULT_ALGORITHM = "crl"  # what `fieldgen train` trains a field with when neither --algo nor a recipe names one
-# named presets, `--preset NAME`: agents/presets/NAME.yaml, settings of every trainer sized for a kind of machine
-PRESETS: tuple[str, ...] = ("cpu",)
-# how a policy acts when it is judged (a run's evaluations, `eval_actions`; fieldgen eval --actions): its mean
-# action, or actions drawn from it as in training, where the mean alone may do less (or more)
-EVAL_ACTIONS: tuple[str, ...] = ("mean", "sampled")
-
-
-def judged_on(actions: str) -> str:
-    """What a figure's title adds about the actions it was judged on: nothing for the mean action."""
-    return ", actions sampled from the policy" if actions == "sampled" else ""
+__all__ = ["ALGORITHMS", "DEFAULT_ALGORITHM", "EVAL_ACTIONS", "PRESETS", "Entry", "judged_on", "trainer"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -45,7 +33,7 @@ class Entry:
 def trainer(name: str) -> Entry:
     from .config import ConfigError
 
-    if name not in CONFIG_CLASSES:
+    if name not in ALGORITHMS:
         raise ConfigError(f"unknown algorithm '{name}'{did_you_mean(name, ALGORITHMS)} "
                           f"Available: {', '.join(ALGORITHMS)}.")
     return _load(name)
@@ -53,7 +41,20 @@ def trainer(name: str) -> Entry:
 
 @functools.cache
 def _load(name: str) -> Entry:
-    config = getattr(importlib.import_module(".config", __package__), CONFIG_CLASSES[name])
+    return Entry(config_class(importlib.import_module(f".{name}.config", __package__), name),
+                 importlib.import_module(f".{name}.train", __package__).make_train)
+
+
+def config_class(module, name: str) -> type[RunConfig]:
+    """The one config class `module` (agents/<name>/config.py) defines, checked to be listed under `name`."""
+    from .config import RunConfig
+
+    defined = [value for value in vars(module).values() if inspect.isclass(value) and issubclass(value, RunConfig)
+               and value.__module__ == module.__name__]
+    if len(defined) != 1:
+        raise TypeError(f"{module.__name__} defines {len(defined)} config classes; an algorithm's config.py "
+                        "defines one")
+    config = defined[0]
     if config.algo != name:
         raise TypeError(f"{config.__name__}.algo is '{config.algo}', but the registry lists it as '{name}'")
-    return Entry(config, importlib.import_module(f".{name}", __package__).make_train)
+    return config

@@ -23,7 +23,7 @@ SOURCES = sorted([*ROOT.glob("fieldgen/**/*.py"), *ROOT.glob("agents/**/*.py")])
 # what each list names, and the one module that writes it
 REGISTRIES = {
     "reward terms": (tuple(TERMS), "fieldgen/schema/terms.py"),
-    "algorithms": (ALGORITHMS, "agents/registry.py"),
+    "algorithms": (ALGORITHMS, "agents/choices.py"),
     "backends": (tuple(BACKENDS), "fieldgen/schema/backends.py"),
     "agent contacts": (tuple(AGENT_CONTACTS), "fieldgen/schema/models.py"),
     "cameras": (CAMERAS, "fieldgen/cameras.py"),

@@ -10,6 +10,8 @@ import sysconfig
 import textwrap
 from pathlib import Path
 
+from fieldgen.agents.registry import ALGORITHMS
+
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -52,6 +54,11 @@ def test_a_built_wheel_installed_elsewhere_has_its_fields_and_trainers(tmp_path)
         assert wide.obstacles["goalie"].width == 3.0 and wide.goal.distance == 20
         from fieldgen.agents.crl import CRLConfig
         assert CRLConfig.layered(agent="ant").layer_norm  # the bundled preset came with the wheel
+        from fieldgen.agents import registry
+        assert registry.ALGORITHMS == {ALGORITHMS!r}, registry.ALGORITHMS  # every algorithm's folder came along
+        for name in registry.ALGORITHMS:
+            entry = registry.trainer(name)
+            assert entry.config.algo == name and entry.make_train.__module__ == f"fieldgen.agents.{{name}}.train"
         print("installed ok", env.observation_size)
     """)
     assert "installed ok 33" in run(python, "-c", check, cwd=work, env=env)

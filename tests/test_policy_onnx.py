@@ -82,16 +82,17 @@ def test_ppo_with_its_observation_normaliser_acts_alike_in_onnxruntime(tmp_path,
     """PPO's own export (its policy network and running statistics) of a state whose normaliser has seen
     observations far from zero mean and unit spread, some beyond its clip."""
     from fieldgen.agents import ppo
+    from fieldgen.agents.ppo.train import Normalizer
 
     env = env_cache("point_nav")
     config = ppo.PPOConfig(num_envs=4, unroll_length=5, num_minibatches=4, hidden=(32, 32), total_steps=10_000)
     trainer = ppo.make_train(config, env)
     shapes = jax.eval_shape(trainer.init, jax.random.PRNGKey(0))
     seen = np.random.default_rng(2).normal(1.0, 0.2, (256, env.observation_size))
-    normalizer = ppo.Normalizer(jnp.float32(len(seen)), jnp.asarray(seen.mean(0), jnp.float32),
+    normalizer = Normalizer(jnp.float32(len(seen)), jnp.asarray(seen.mean(0), jnp.float32),
                                 jnp.asarray(seen.var(0) * len(seen), jnp.float32))
     policy = trainer.export(shapes.replace(params=random_params(shapes.params, 3), normalizer=normalizer))
-    assert policy.obs_mean is not None and policy.clip == ppo.Normalizer.CLIP
+    assert policy.obs_mean is not None and policy.clip == Normalizer.CLIP
     by_jax, by_onnx = exported_actions(policy, tmp_path / "p", env.observation_size, env.action_size, "ppo")
     np.testing.assert_allclose(by_onnx, by_jax, atol=TOLERANCE, rtol=0)
     assert json.loads((tmp_path / "p" / "policy.json").read_text())["normalizer"]["clip"] == 10.0

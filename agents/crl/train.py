@@ -21,14 +21,14 @@ import jax
 import jax.numpy as jnp
 import optax
 
-from . import buffer as replay
+from .. import buffer as replay
 from .config import CRLConfig
-from .contrastive import critic_terms, energy, paired_energy, weighted_mean
-from .loop import Trainer
-from .networks import Stacked, gaussian_head, sample_tanh_gaussian
-from .optim import adam_by_group
-from .actor import Policy
-from .team import Team, whole
+from ..contrastive import critic_terms, energy, paired_energy, weighted_mean
+from ..loop import Trainer
+from ..networks import Stacked, gaussian_head, sample_tanh_gaussian
+from ..optim import adam_by_group
+from ..actor import Policy
+from ..team import Team, whole
 
 
 @flax.struct.dataclass

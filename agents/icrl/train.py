@@ -13,10 +13,10 @@ the field's one body.
 
 from __future__ import annotations
 
-from . import crl
+from .. import crl
 from .config import ICRLConfig
-from .loop import Trainer
-from .team import split
+from ..loop import Trainer
+from ..team import split
 
 
 def make_train(config: ICRLConfig, env) -> Trainer:

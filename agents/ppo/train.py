@@ -21,9 +21,9 @@ import jax.numpy as jnp
 import optax
 
 from .config import PPOConfig
-from .loop import Trainer
-from .networks import MLP, tanh_log_slope
-from .actor import Policy
+from ..loop import Trainer
+from ..networks import MLP, tanh_log_slope
+from ..actor import Policy
 
 
 @flax.struct.dataclass

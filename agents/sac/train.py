@@ -9,11 +9,11 @@ import jax
 import jax.numpy as jnp
 import optax
 
-from . import offpolicy
+from .. import offpolicy
 from .config import SACConfig
-from .contrastive import weighted_mean
-from .loop import Trainer
-from .networks import sample_tanh_gaussian
+from ..contrastive import weighted_mean
+from ..loop import Trainer
+from ..networks import sample_tanh_gaussian
 
 
 @flax.struct.dataclass

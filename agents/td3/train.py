@@ -8,10 +8,10 @@ import flax.struct
 import jax
 import jax.numpy as jnp
 
-from . import offpolicy
+from .. import offpolicy
 from .config import TD3Config
-from .contrastive import weighted_mean
-from .loop import Trainer
+from ..contrastive import weighted_mean
+from ..loop import Trainer
 
 
 @flax.struct.dataclass

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from fieldgen.agents import loop, ppo
-from fieldgen.agents.config import SPREADS
+from fieldgen.agents.ppo.config import SPREADS
+from fieldgen.agents.ppo.train import Normalizer
 
 
 def tiny(**kw):
@@ -20,7 +21,7 @@ def tiny(**kw):
 def test_normalizer_matches_numpy():
     rng = np.random.default_rng(0)
     a, b = rng.normal(3, 2, (50, 3)), rng.normal(-1, 0.5, (70, 3))
-    n = ppo.Normalizer(jnp.zeros(()), jnp.zeros(3), jnp.zeros(3)).update(jnp.asarray(a)).update(jnp.asarray(b))
+    n = Normalizer(jnp.zeros(()), jnp.zeros(3), jnp.zeros(3)).update(jnp.asarray(a)).update(jnp.asarray(b))
     both = np.concatenate([a, b])
     np.testing.assert_allclose(n.mean, both.mean(0), rtol=1e-5)
     np.testing.assert_allclose(n.m2 / n.count, both.var(0), rtol=1e-4)

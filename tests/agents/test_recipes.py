@@ -6,7 +6,9 @@ from __future__ import annotations
 import pytest
 
 from fieldgen.agents import recipes
-from fieldgen.agents.config import ConfigError, CRLConfig, PPOConfig
+from fieldgen.agents.config import ConfigError
+from fieldgen.agents.crl import CRLConfig
+from fieldgen.agents.ppo import PPOConfig
 from fieldgen.agents.recipes import RecipeError
 from fieldgen.agents.registry import trainer
 

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import subprocess
 import sys
+import types
+from pathlib import Path
 
 import pytest
 
@@ -30,11 +32,26 @@ def test_an_unknown_algorithm_is_refused_with_a_suggestion():
     assert str(info.value) == f"unknown algorithm 'ppo2'; did you mean 'ppo'? Available: {', '.join(registry.ALGORITHMS)}."
 
 
+def test_the_algorithms_are_the_folders_holding_a_config_and_a_training_function():
+    folders = Path(registry.__file__).parent
+    assert registry.ALGORITHMS == tuple(sorted(
+        f.name for f in folders.iterdir() if (f / "config.py").is_file() and (f / "train.py").is_file()))
+    assert {"crl", "icrl", "ppo", "sac", "td3"} <= set(registry.ALGORITHMS) and "presets" not in registry.ALGORITHMS
+
+
 def test_a_config_class_listed_under_another_algorithm_is_refused(monkeypatch):
-    monkeypatch.setitem(registry.CONFIG_CLASSES, "crl", "PPOConfig")
+    from fieldgen.agents.crl.config import CRLConfig
+
+    monkeypatch.setattr(CRLConfig, "algo", "ppo")
     registry._load.cache_clear()
     try:
-        with pytest.raises(TypeError, match="PPOConfig.algo is 'ppo', but the registry lists it as 'crl'"):
+        with pytest.raises(TypeError, match="CRLConfig.algo is 'ppo', but the registry lists it as 'crl'"):
             registry.trainer("crl")
     finally:
         registry._load.cache_clear()
+
+
+def test_a_config_module_must_define_exactly_one_config_class():
+    module = types.ModuleType("fieldgen.agents.mine.config")
+    with pytest.raises(TypeError, match="defines 0 config classes"):
+        registry.config_class(module, "mine")

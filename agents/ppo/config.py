@@ -1,0 +1,48 @@
+"""PPO's settings: its rollouts' minibatches and epochs, GAE, the clipped surrogate and the policy's spread."""
+
+from __future__ import annotations
+
+from typing import Annotated, ClassVar, Literal
+
+from pydantic import Field, StrictBool
+
+from ...env.contract import Environment
+from ..config import ConfigError, Count, Discount, Float, Hidden, Rate, Reward, RunConfig, Share, Unknown
+
+SPREADS = ("global", "state")
+Spread = Annotated[Literal[SPREADS], Unknown(
+    "unknown ppo.spread '{}'; choose global (one learned log-std per action) "
+    "or state (the policy network's own spread for each state)")]
+
+
+class PPOConfig(RunConfig):
+    algo: ClassVar[str] = "ppo"
+
+    total_steps: Count = 50_000_000
+    num_envs: Count = 2048
+    unroll_length: Count = 20
+    num_minibatches: Count = 32
+    update_epochs: Count = 4
+    learning_rate: Rate = 3e-4
+    discount: Discount = 0.97
+    gae_lambda: Share = 0.95
+    clip: Rate = 0.3
+    entropy_coef: Annotated[Float, Field(ge=0)] = 1e-2
+    value_coef: Rate = 0.5
+    max_grad_norm: Rate = 1.0
+    hidden: Hidden = (256, 256)
+    # state: the policy network's softplus head (brax's); global: one learned log-std per action
+    spread: Spread = "state"
+    reward: Reward = "dense"  # dense: the field's weighted terms; sparse: its success metric
+    normalize_observations: StrictBool = True
+
+    def validate_env(self, env: Environment, devices: int = 1, seeds: int = 1) -> None:
+        super().validate_env(env, devices, seeds)
+        per_iter = self.per_iteration
+        if per_iter % self.num_minibatches:
+            raise ConfigError(f"num_envs x unroll_length = {per_iter:,} does not divide into {self.num_minibatches} "
+                              "minibatches; change num_envs, unroll_length or num_minibatches")
+        need = self.num_evals * per_iter
+        if self.total_steps < need:
+            raise ConfigError(f"--steps {self.total_steps:,} is too few: {self.num_evals} evaluations of "
+                              f"{per_iter:,}-step iterations need at least {need:,}")
