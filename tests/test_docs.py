@@ -1,5 +1,6 @@
 """The documentation cannot drift from the code: its references are generated from the schema and the typer
-app (docs/hooks.py) and must cover every key and option, and every code block marked runnable runs.
+app (docs/hooks.py) and must cover every key and option, the API reference (mkdocstrings, from the docstrings)
+must document every entry point, and every code block marked runnable runs.
 
 A block is marked by a line `<!-- runnable -->` (run by the default suite) or `<!-- runnable: slow -->`
 (compiles or trains: run with `-m slow`) right before its fence. A page's blocks run in order in one
@@ -8,6 +9,8 @@ temporary folder, so a later block may use what an earlier one wrote.
 
 from __future__ import annotations
 
+import ast
+import importlib
 import importlib.util
 import json
 import os
@@ -159,3 +162,63 @@ def test_the_reference_pages_ask_for_their_generated_parts():
     generated = hooks().render((DOCS / "reference" / "dsl.md").read_text() + (DOCS / "reference" / "cli.md").read_text())
     assert "<!-- generated:" not in generated
     assert "## `task.reward[]`" in generated and "## `fieldgen train`" in generated
+
+
+API = DOCS / "reference" / "api.md"
+DIRECTIVE = re.compile(r"^::: (?P<name>[\w.]+)\n(?P<options>(?:    .*\n)*)", re.M)
+# what code outside fieldgen imports, by the name it is imported under -> the object the API page documents
+ENTRY_POINTS = {
+    "fieldgen.make": "fieldgen.env.make.make",
+    "fieldgen.FieldEnv": "fieldgen.env.field.FieldEnv",
+    "fieldgen.load_policy": "fieldgen.policy_folder.load_policy",
+    **{name: name for name in (
+        "fieldgen.env.contract.Environment", "fieldgen.env.contract.State",
+        "fieldgen.curriculum.contract.Schedule", "fieldgen.curriculum.contract.adapt",
+        "fieldgen.brax.register", "fieldgen.brax.BraxField", "fieldgen.playground.PlaygroundField",
+        "fieldgen.run.summary.iqm", "fieldgen.run.summary.interval", "fieldgen.run.summary.MetricSummary",
+        "fieldgen.policy_onnx.model_bytes")},
+}
+
+
+def documented(text: str) -> dict[str, str]:
+    """Every object the page's `::: name` directives document, with the directive's options: the name, and each
+    of its `members` where it lists them; a module without a list documents all its public members (`name.*`)."""
+    objects = {}
+    for m in DIRECTIVE.finditer(text):
+        objects[m["name"]] = m["options"]
+        listed = re.search(r"^ +members: \[(.*)\]$", m["options"], re.M)
+        members = [member.strip() for member in listed[1].split(",")] if listed else ["*"]
+        for member in members:
+            objects.setdefault(f"{m['name']}.{member}", "")
+    return objects
+
+
+def _object(dotted: str):
+    module, _, name = dotted.rpartition(".")
+    return getattr(importlib.import_module(module), name)
+
+
+def test_what_fieldgen_serves_is_an_entry_point():
+    """`fieldgen.make` and the other names fieldgen/__init__.py's __getattr__ serves lazily are all documented."""
+    served = next(f for f in ast.parse((ROOT / "fieldgen" / "__init__.py").read_text()).body
+                  if isinstance(f, ast.FunctionDef) and f.name == "__getattr__")
+    names = {c.value for test in ast.walk(served) if isinstance(test, ast.Compare)
+             for c in ast.walk(test) if isinstance(c, ast.Constant) and isinstance(c.value, str)}
+    assert names and {f"fieldgen.{name}" for name in names} <= set(ENTRY_POINTS)
+
+
+def test_the_api_reference_documents_every_entry_point_under_the_name_it_is_imported_by():
+    objects = documented(API.read_text())
+    for imported, source in ENTRY_POINTS.items():
+        assert source in objects or source.rpartition(".")[0] + ".*" in objects, \
+            f"the API reference does not document {imported}"
+        assert _object(imported) is _object(source), f"{imported} is not {source}, which the API reference documents"
+        if imported != source:  # re-exported: headed by the name it is imported under
+            assert f"heading: {imported}\n" in objects[source], f"the API reference heads {source} other than {imported}"
+
+
+def test_an_entry_point_left_off_the_api_reference_is_missed():
+    text = API.read_text()
+    assert "fieldgen.run.summary.MetricSummary" in documented(text)
+    assert "fieldgen.run.summary.MetricSummary" not in documented(text.replace(", MetricSummary]", "]"))
+    assert "fieldgen.env.contract.*" not in documented(text.replace("::: fieldgen.env.contract\n", ""))
