@@ -28,6 +28,10 @@ class CheckpointError(Exception):
     """A checkpoint that is missing, corrupt, or from a different run shape."""
 
 
+class CheckpointDamaged(CheckpointError):
+    """A checkpoint that cannot be read whole (missing, cut short, edited): no question of its run's shape."""
+
+
 def pieces(state) -> Iterator[bytes]:
     """The checkpoint of `state`, a msgpack map from leaf index to leaf, as consecutive pieces of bytes,
     closed by the checksum of all of them.
@@ -102,25 +106,25 @@ def _read_leaves(path: Path) -> list[np.ndarray]:
     try:
         blob = path.read_bytes()
     except FileNotFoundError:
-        raise CheckpointError(f"no checkpoint at {path}") from None
+        raise CheckpointDamaged(f"no checkpoint at {path}") from None
     except OSError as exc:
-        raise CheckpointError(f"cannot read the checkpoint {path}: {exc.strerror}; put the run's checkpoint file "
+        raise CheckpointDamaged(f"cannot read the checkpoint {path}: {exc.strerror}; put the run's checkpoint file "
                               "there, or move what is there aside to train the run again from its start") from None
     corrupt = (f"checkpoint corrupt: {path} was damaged after it was written (on disk or in a copy); "
                "restore it from a copy, or start the run again in a new folder")
     try:
         saved = serialization.msgpack_restore(blob)
-        if DIGEST not in saved:
-            raise CheckpointError(f"{path} holds no {DIGEST} entry, so it cannot be told from a damaged one (cut "
+        if not isinstance(saved, dict) or DIGEST not in saved:
+            raise CheckpointDamaged(f"{path} holds no {DIGEST} entry, so it cannot be told from a damaged one (cut "
                                   "short, edited, or written by another program): restore it from a copy, or start "
                                   "the run again in a new folder")
         if saved[DIGEST] != hashlib.sha256(blob[:-_TRAILER]).hexdigest():
-            raise CheckpointError(corrupt)
+            raise CheckpointDamaged(corrupt)
         return [_joined(saved[str(i)]) for i in range(len(saved) - 1)]
     except CheckpointError:
         raise
     except Exception:  # msgpack raises many types on damaged input
-        raise CheckpointError(f"{corrupt}; it may also be truncated") from None
+        raise CheckpointDamaged(f"{corrupt}; it may also be truncated") from None
 
 
 def _joined(leaf) -> np.ndarray:

@@ -176,7 +176,10 @@ def take(folder: Path) -> None:
                     break  # else its last holder removed the file between our open and our lock: open the new one
             os.close(fd)
     except FileExistsError:
-        raise WriteError(errno.ENOTDIR, "a file is in the way of the folder", str(_in_the_way(folder))) from None
+        blocker = _in_the_way(folder)
+        why = ("a link that leads nowhere (a loop of links, or to nothing) is in the way of the folder"
+               if blocker.is_symlink() else "a file is in the way of the folder")
+        raise WriteError(errno.ENOTDIR, why, str(blocker)) from None
     except OSError as exc:
         raise WriteError(exc.errno, exc.strerror, str(folder)) from None
     holder = {"pid": os.getpid(), "host": socket.gethostname(), "since": time.strftime("%Y-%m-%d %H:%M:%S"),
@@ -359,7 +362,10 @@ def _is_leftover(name: str) -> bool:
 
 
 def _in_the_way(folder: Path) -> Path:
-    return next(p for p in (folder.parent, *folder.parent.parents) if p.exists() and not p.is_dir())
+    """The file, or the link that leads nowhere (a loop, a missing target), where a folder above `folder` should
+    be; the nearest parent where the system raced us to it."""
+    above = (folder.parent, *folder.parent.parents)
+    return next((p for p in above if (p.is_symlink() or p.exists()) and not p.is_dir()), folder.parent)
 
 
 def _umask() -> int:

@@ -24,6 +24,7 @@ from flax import serialization
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from fieldgen.agents.actor import Policy
+from fieldgen.agents.networks import residual_blocks
 from fieldgen.files import Output, replace_folder, write_atomic
 
 DESCRIPTION, PARAMS, ONNX = "policy.json", "params.msgpack", "policy.onnx"
@@ -88,7 +89,7 @@ class Description(_Strict):
 
     @model_validator(mode="after")
     def _consistent(self):
-        """What the network is built from agrees: every agent's network reads as many entries and drives as many
+        """What the network is built from agrees: its hidden layers form its residual blocks; every agent's network reads as many entries and drives as many
         actions as the others (one stacked network), and has an output for each; the normalizer has a mean and
         a spread for each observation."""
         if len({len(a.observes) for a in self.agents}) > 1 or len({len(a.drives) for a in self.agents}) > 1:
@@ -96,6 +97,11 @@ class Description(_Strict):
         if len(self.agents[0].drives) > self.network.outputs:
             raise ValueError(f"agents drive {len(self.agents[0].drives)} actions each, but network.outputs is "
                              f"{self.network.outputs}")
+        if self.network.skip_every:  # the blocks the network is built of can be formed
+            try:
+                residual_blocks(self.network.hidden, self.network.skip_every)
+            except ValueError as exc:
+                raise ValueError(f"network: {exc}") from None
         n = self.normalizer
         if n is not None and not len(n.mean) == len(n.std) == len(self.observation_names):
             raise ValueError(f"normalizer: mean and std need one value per observation "

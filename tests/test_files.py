@@ -298,3 +298,16 @@ def test_a_build_killed_as_it_swaps_keeps_the_old_build(tmp_path, write_spec):
     again = runner.invoke(app, ["build", "point_nav", "--out", str(out), "--no-preview"])
     assert again.exit_code == 0 and "cache hit" in again.output
     assert sorted(p.name for p in out.iterdir()) == ["point_nav"] and listing(out / "point_nav") == old
+
+
+@pytest.mark.parametrize("command", [["build", "point_nav"], ["train", "point_nav", "--preset", "cpu", "--prepare"]],
+                         ids=["build", "train"])
+def test_a_loop_of_links_given_as_out_is_one_line(tmp_path, command):
+    """Before: a StopIteration traceback, as the search for what stood in the folder's way found nothing."""
+    loop = tmp_path / "loop"
+    loop.symlink_to("loop")
+    result = runner.invoke(app, [*command, "--out", str(loop)])
+    message = " ".join(result.output.split())
+    assert result.exit_code == 1 and "Traceback" not in message, result.output
+    assert f"cannot write {loop}: a link that leads nowhere (a loop of links, or to nothing)" in message
+    assert loop.is_symlink() and os.readlink(loop) == "loop"

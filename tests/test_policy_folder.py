@@ -57,11 +57,13 @@ def edited(**changes):
     (edited(observation_names=[]), "observation_names: List should have at least 1 item"),
     (edited(seed=-4), "seed: Input should be greater than or equal to 0"),
     (lambda d: [d], "(the file): Input should be an object"),
+    (edited(network=lambda d: {**d["network"], "hidden": [4, 4], "skip_every": 2}), "network: residual blocks of 2 "
+     "layers need 1 + a multiple of 2 hidden layers of one width, not [4, 4]"),
 ], ids=["no_agents", "uneven_agents", "observes_nothing", "outputs", "no_layers", "empty_layer", "skip", "mean",
-        "std", "clip", "no_observations", "seed", "list"])
+        "std", "clip", "no_observations", "seed", "list", "residual_layout"])
 def test_a_damaged_or_edited_policy_json_is_one_sentence(exported, edit, phrase):
     """Before: an empty agent list was an IndexError traceback, a zero std gave infinite actions, a short mean a
-    broadcasting error at the first call."""
+    broadcasting error at the first call, residual blocks the hidden layers cannot form a ValueError traceback."""
     path = exported / DESCRIPTION
     path.write_text(json.dumps(edit(json.loads(path.read_text()))))
     with pytest.raises(PolicyError) as caught:

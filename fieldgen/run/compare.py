@@ -34,6 +34,9 @@ def runs(source: Path, algos: list[str], seeds: list[int], folder: Path | None, 
          sets: list[str], preset: str | None = None, **fixed) -> tuple[Path, list[session.Run]]:
     """(the comparison's folder, default runs/compare-<field>; a run per algorithm in it: an existing one,
     checked to have the same settings, or a new one). Every config is checked before anything is written."""
+    if not algos:
+        raise record.RunError(f"--algos names no algorithm; give one or more, comma-separated, of "
+                              f"{', '.join(registry.ALGORITHMS)} (--algos crl,ppo)")
     entries = {algo: registry.trainer(algo) for algo in algos}
     if len(set(algos)) != len(algos):
         raise record.RunError(f"--algos lists an algorithm twice: {','.join(algos)}")

@@ -23,7 +23,7 @@ from pydantic import (AfterValidator, BaseModel, ConfigDict, Field, StrictBool, 
 
 from fieldgen.curriculum.promotion import Promotion
 from fieldgen.files import Output, write_atomic
-from fieldgen.schema.errors import shown_text
+from fieldgen.schema.errors import shown_text, shown_value
 
 RUN, METRICS, CSV, CHECKPOINT, PLOT = "run.json", "metrics.jsonl", "metrics.csv", "checkpoint.msgpack", "success.png"
 LEARNER, INITIAL, VIDEOS = "learner.msgpack", "initial.msgpack", "videos"
@@ -173,8 +173,8 @@ def _problems(exc: ValidationError) -> str:
     for e in errors:
         if e["type"] != "missing":
             what = str(e["ctx"]["error"]) if e["type"] == "value_error" else e["msg"].removeprefix("Input ")
-            where = ".".join(map(str, e["loc"]))
-            said.append(f"{where} {what}, not {e['input']!r}" if where else what)  # a whole row's check says its key
+            where = ".".join(shown_text(str(part)) for part in e["loc"])
+            said.append(f"{where} {what}, not {shown_value(e['input'])}" if where else what)  # a whole row's check says its key
     return "; ".join(said)
 
 

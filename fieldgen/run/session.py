@@ -284,6 +284,8 @@ def started_from(run: Run, source: Path) -> tuple[object, dict]:
                               f"{len(run.seeds)}; give --seeds {len(other.seeds)}")
     try:  # its networks alone: how its episodes were drawn belongs to its own levels
         state, _ = checkpoint.load(learner, learner_template(run)[0], learner_template(other)[1])
+    except checkpoint.CheckpointDamaged as exc:  # no question of networks: the file itself cannot be read
+        raise record.RunError(f"--init-from {source}: {exc}") from None
     except checkpoint.CheckpointError as exc:
         theirs, mine = other.config.model_dump(), run.config.model_dump()
         differ = [f"{run.algo}.{k} ({json.dumps(theirs[k])} there, {json.dumps(mine[k])} here)"

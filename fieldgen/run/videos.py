@@ -4,6 +4,8 @@ or kept as joint positions (.npz) where nothing renders and drawn later."""
 from __future__ import annotations
 
 import io
+import math
+import zipfile
 from pathlib import Path
 
 import jax
@@ -86,6 +88,28 @@ def _check_episode(path: Path, episode: dict, model, camera: str) -> None:
 
 
 MAX_FRAMES = 100_000  # a kept episode holds at most an episode's steps, cut to about 300 frames
+MAX_KEPT_BYTES = 256 * 2**20  # unpacked: ~300 frames of joint positions take kilobytes to a few megabytes
+
+
+def _check_sizes(path: Path, kept) -> None:
+    """What the arrays of a kept episode unpack to, from their headers, before any is read: a file of megabytes
+    packed from gigabytes of zeros is refused, not unpacked into memory."""
+    from fieldgen.run.record import RunError
+
+    total = 0
+    for member in kept.zip.namelist():
+        with kept.zip.open(member) as stream:
+            version = np.lib.format.read_magic(stream)
+            if version not in ((1, 0), (2, 0)):
+                raise ValueError(f"{member} is an array of format {version}, which numpy.savez does not write")
+            read_header = np.lib.format.read_array_header_1_0 if version == (1, 0) else \
+                np.lib.format.read_array_header_2_0
+            shape, _, dtype = read_header(stream)
+        total += math.prod(shape) * dtype.itemsize
+    if total > MAX_KEPT_BYTES:
+        raise RunError(f"{path} unpacks to {total:,} bytes, more than an episode fieldgen keeps ever holds "
+                       f"({MAX_KEPT_BYTES:,}); it is not one fieldgen train kept (edited or damaged): delete it or "
+                       "train again")
 
 
 def draw_episode(model, episode, camera: str, fmt: str) -> tuple[bytes, int]:
@@ -110,8 +134,9 @@ def draw_kept(path: Path, models: dict, fmt: str) -> tuple[str, int | None]:
 
     try:
         with np.load(path) as kept:
+            _check_sizes(path, kept)
             played, camera, episode = str(kept["field"]), str(kept["camera"]), dict(kept)
-    except (OSError, ValueError, KeyError) as exc:
+    except (OSError, ValueError, KeyError, zipfile.BadZipFile) as exc:
         raise RunError(f"{path} is not an episode kept by fieldgen train ({exc}); delete it or train again") from None
     if played not in models:
         raise RunError(f"{path} records field '{played}', which is not one of this run's fields "

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import reprlib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -50,6 +51,19 @@ def shown_text(text: str, most: int = SHOWN_CHARACTERS, quoted: bool = False) ->
     kept = text[:most - 20] if cut else text
     kept = repr(kept) if quoted else kept
     return f"{kept}... ({len(text):,} characters)" if cut else kept
+
+
+def shown_value(value) -> str:
+    """Any value a record holds as a problem echoes it: Python's repr, cut as `shown_text` cuts text, and never
+    written out whole first (a list of millions of items, a number of a million digits, is cut at its start)."""
+    if isinstance(value, str):
+        return shown_text(value, quoted=True)
+    brief = reprlib.Repr()
+    brief.maxstring = brief.maxother = brief.maxlong = SHOWN_CHARACTERS
+    try:
+        return shown_text(brief.repr(value))
+    except ValueError:  # an integer past Python's digits for a string
+        return f"a {type(value).__name__} too long to show"
 
 
 def format_path(parts: tuple) -> str:

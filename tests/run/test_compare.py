@@ -44,6 +44,8 @@ def test_compare_trains_each_algorithm_then_only_redraws(tmp_path, tiny_crl_args
 @pytest.mark.parametrize("algos,phrase", [
     ("crl,crl", "lists an algorithm twice"),
     ("crl,sca", "unknown algorithm 'sca'; did you mean 'sac'?"),
+    ("", "--algos names no algorithm; give one or more, comma-separated, of crl,"),  # before: an IndexError
+    (" , ", "--algos names no algorithm"),
 ])
 def test_bad_comparisons_are_refused_before_anything_is_written(tmp_path, algos, phrase):
     result = runner.invoke(app, ["compare", "point_nav", "--algos", algos, "--out", str(tmp_path / "c")])

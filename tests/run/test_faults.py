@@ -367,6 +367,17 @@ def test_damaged_run_folders_are_clear_errors(tmp_path, damage, phrase, tiny_crl
     assert "".join(phrase.split()) in "".join(result.output.split()), result.output
 
 
+def test_a_huge_value_in_a_record_is_quoted_by_its_start(tmp_path):
+    """Before: a run.json whose algo was a list of a 5 MB text was quoted whole in the refusal."""
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "run.json").write_text(json.dumps({"algo": ["x" * 5_000_000], "config": {}, "observation": {}}))
+    with pytest.raises(record.RunError) as caught:
+        record.read_run(run)
+    said = str(caught.value)
+    assert len(said) < 400 and "algo should be a valid string, not ['xxxx" in said, said
+
+
 @pytest.mark.parametrize("torn", [TORN.encode(), b'{"eval": 1, "env_steps": "\xe2\x82'])
 def test_a_torn_last_metrics_line_is_dropped(tmp_path, torn):
     """A last line cut short (mid-JSON or mid-character) is what a kill leaves: the rows before it stand."""

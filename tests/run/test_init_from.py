@@ -5,6 +5,7 @@ networks it could not take before writing anything."""
 from __future__ import annotations
 
 import json
+import shutil
 
 import jax
 import numpy as np
@@ -81,6 +82,20 @@ def test_a_source_whose_networks_do_not_fit_is_refused_before_anything_is_writte
     assert result.exit_code == 1 and "Traceback" not in result.output
     assert flat(phrase) in flat(result.output)
     assert not (tmp_path / "runs").exists()
+
+
+def test_a_damaged_source_is_said_to_be_damaged_not_to_differ(tmp_path, source, tiny_crl_args):
+    """Before: a learner.msgpack cut short read as 'its networks do not fit', the configs differing in nothing."""
+    damaged = tmp_path / "source"
+    shutil.copytree(source, damaged)
+    whole = (source / record.LEARNER).read_bytes()
+    (damaged / record.LEARNER).write_bytes(whole[:len(whole) // 2])
+    result = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path / "runs"), "--prepare", "--init-from",
+                                 str(damaged), *tiny_crl_args])
+    assert result.exit_code == 1 and "Traceback" not in result.output
+    assert flat(f"--init-from {damaged}: checkpoint corrupt: {damaged / record.LEARNER} was damaged") \
+        in flat(result.output)
+    assert "do not fit" not in result.output and not (tmp_path / "runs").exists()
 
 
 def test_a_source_of_another_algorithm_is_refused(tmp_path, source):

@@ -45,8 +45,8 @@ def prepared(tmp_path_factory, tiny_crl_args):
     return out / "point_nav-crl-0"
 
 
-def kept(run, **changes) -> None:
-    """videos/eval_000.npz as a machine that cannot render keeps it, with `changes`."""
+def kept(run, pack=np.savez, **changes) -> None:
+    """videos/eval_000.npz as a machine that cannot render keeps it (`pack`: numpy's savez), with `changes`."""
     from fieldgen.run.session import open_run
 
     model = open_run(run, load_state=False).env.mj_model
@@ -54,7 +54,7 @@ def kept(run, **changes) -> None:
                "mocap_pos": np.zeros((30, model.nmocap, 3)), "fps": 25.0,
                **{k: v(model) if callable(v) else v for k, v in changes.items()}}
     buf = io.BytesIO()
-    np.savez(buf, **{k: v for k, v in episode.items() if v is not None})
+    pack(buf, **{k: v for k, v in episode.items() if v is not None})
     (run / "videos").mkdir(exist_ok=True)
     (run / "videos" / "eval_000.npz").write_bytes(buf.getvalue())
 
@@ -77,3 +77,13 @@ def test_a_damaged_kept_episode_is_named_not_drawn(prepared, changes, phrase):
     assert result.exit_code == 1 and "Traceback" not in message, result.output
     assert f"{prepared / 'videos' / 'eval_000.npz'} is not an episode kept by fieldgen train: " in message
     assert phrase in message and "delete it or train again" in message
+
+
+def test_a_kept_episode_that_unpacks_to_gigabytes_is_refused_unread(prepared):
+    """Before: an .npz of half a megabyte packed from 512 MB of zeros was unpacked whole before any check."""
+    kept(prepared, np.savez_compressed, qpos=np.zeros((8192, 8192)))
+    assert (prepared / "videos" / "eval_000.npz").stat().st_size < 2**20
+    result = runner.invoke(app, ["videos", str(prepared), "--video-format", "gif"])
+    message = " ".join(result.output.split())
+    assert result.exit_code == 1 and "Traceback" not in message, result.output
+    assert f"{prepared / 'videos' / 'eval_000.npz'} unpacks to 536,8" in message and "delete it or train again" in message
