@@ -6,3 +6,4 @@ view draws."""
 TOP = "top"  # straight down, orthographic, framing the field (compile/scene.py)
 FOLLOW = "follow"  # behind the agent, tracking it (compile/bodies.py)
 CAMERAS = (TOP, FOLLOW)
+FREE = "free"  # not the scene's: the interactive viewer's own (fieldgen view), which the mouse turns

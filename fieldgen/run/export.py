@@ -9,6 +9,7 @@ from pathlib import Path
 import jax
 
 from fieldgen.agents import loop
+from fieldgen.agents.actor import Policy
 from fieldgen.files import WriteError
 from fieldgen.policy_folder import Description, describe, save_policy
 from fieldgen.run import record, session
@@ -24,16 +25,7 @@ def export(run_dir: Path, out: Path, seed: int | None = None, fmt: str = "flax")
     """Write the policy of `seed` (the run's first by default) to `out`, replacing what was there; with `fmt`
     "onnx" also as policy.onnx (fieldgen.policy_folder.save_policy)."""
     run = session.open_run(run_dir, learned=True)
-    if run.state is None:
-        raise record.RunError(f"{run_dir} has not trained yet, so it has no policy; start it with: "
-                              f"fieldgen train --resume {run_dir}")
-    seed = run.seeds[0] if seed is None else seed
-    if seed not in run.seeds:
-        raise record.RunError(f"{run_dir} trained seeds {', '.join(map(str, run.seeds))}, not {seed}; "
-                              "pick one of them with --seed")
-    trainer = run.judged_trainer
-    state = loop.seed_slice(run.state, run.seeds.index(seed))
-    policy = trainer.export(state)
+    seed, policy, state = learned_policy(run, seed)
     env = run.env
     description = describe(policy, env.observation_names, env.action_names, algorithm=run.algo, field=env.spec.name,
                            seed=seed, env_steps=int(jax.device_get(state.env_steps)))
@@ -42,3 +34,17 @@ def export(run_dir: Path, out: Path, seed: int | None = None, fmt: str = "flax")
     except WriteError as exc:
         raise record.RunError(f"{exc}; free some space, fix the folder's permissions or choose another -o") from None
     return Exported(out, description)
+
+
+def learned_policy(run: session.Run, seed: int | None = None) -> tuple[int, Policy, object]:
+    """(seed, its policy, its training state) of a run opened with what it learned (session.open_run(...,
+    learned=True)), `seed` the run's first by default: what an export writes and `fieldgen view` plays."""
+    if run.state is None:
+        raise record.RunError(f"{run.folder} has not trained yet, so it has no policy; start it with: "
+                              f"fieldgen train --resume {run.folder}")
+    seed = run.seeds[0] if seed is None else seed
+    if seed not in run.seeds:
+        raise record.RunError(f"{run.folder} trained seeds {', '.join(map(str, run.seeds))}, not {seed}; "
+                              "pick one of them with --seed")
+    state = loop.seed_slice(run.state, run.seeds.index(seed))
+    return seed, run.judged_trainer.export(state), state

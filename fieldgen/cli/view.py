@@ -1,0 +1,103 @@
+"""`fieldgen view`: a field, or a run's or an exported policy's play on it, in MuJoCo's interactive viewer."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+
+from fieldgen.cameras import CAMERAS, FREE
+from fieldgen.cli.app import app, choice, fail, field_source, out
+
+
+@app.command()
+def view(
+    source: Annotated[str, typer.Argument(
+        metavar="FIELD|RUN|POLICY", help="a YAML file, bundled field name or build folder; a run folder (its "
+                                         "policy at its last evaluation plays); or a folder of fieldgen export")],
+    field: Annotated[Optional[str], typer.Option(
+        metavar="SPEC", help="the field a policy plays on (YAML file, bundled name or build folder) [default: the "
+                             "run's own; for an exported policy, the bundled field it names]")] = None,
+    seed: Annotated[Optional[int], typer.Option(metavar="SEED",
+                                                help="which of a run's seeds plays (default: its first)")] = None,
+    camera: Annotated[str, typer.Option(help="the view: free turns with the mouse; the others are the scene's",
+                                        **choice("camera", (FREE, *CAMERAS)))] = FREE,
+) -> None:
+    """Watch a field, or a policy play on it, live in MuJoCo's interactive viewer.
+
+    One environment steps in real time on the CPU through the environment's own reset and step, so what the
+    policy observes is what training gave it. Space pauses and resumes; Backspace starts a new episode (goal,
+    ball and kick-off drawn as a reset draws them); the viewer's own keys and mouse work as usual.
+
+    Example: fieldgen view soccer_v1
+    Example: fieldgen view runs/point_nav-crl-0
+    Example: fieldgen view policies/point_nav --field my_nav.yaml
+    """
+    from fieldgen.view import no_display_reason
+
+    reason = no_display_reason()
+    if reason is not None:  # said before anything loads
+        _no_display(reason, source)
+    env, act = _playing(source, field, seed)
+    from fieldgen.view import KEYS, NoDisplay, Player, open_viewer, play
+
+    player = Player(env, act)
+    try:
+        handle = open_viewer(player, camera)
+    except NoDisplay as exc:
+        _no_display(str(exc), source)
+    out.print(f"viewing {env.spec.name}" + (" played by the policy" if act is not None else "") +
+              f" at {1 / env.dt:g} control steps a second; {KEYS}", soft_wrap=True)
+    try:
+        play(handle, player, camera)
+    except KeyboardInterrupt:
+        handle.close()
+        raise typer.Exit(130) from None
+
+
+def _no_display(reason: str, source: str) -> None:
+    fail(f"no display here ({reason}), so no viewer opens; `fieldgen render {source} -o field.png` draws a field, "
+         f"`fieldgen eval RUN` writes videos of a run's policy")
+
+
+def _playing(source: str, field: str | None, seed: int | None):
+    """(environment, policy's act or None) of what `source` names; a policy with the environment it plays on."""
+    import jax
+
+    import fieldgen
+    from fieldgen.agents.config import ConfigError
+    from fieldgen.compile.artifact import ArtifactError
+    from fieldgen.policy_folder import DESCRIPTION, PolicyError, load_policy, read_description
+    from fieldgen.run import record, session
+    from fieldgen.run.export import learned_policy
+    from fieldgen.schema import SpecError, bundled_fields
+
+    folder = Path(source)
+    try:
+        if (folder / record.RUN).is_file():
+            run = session.open_run(folder, learned=True)
+            if field is not None:
+                run = session.on_field(run, field_source(field))
+            _, policy, _ = learned_policy(run, seed)
+            return run.env, jax.tree_util.Partial(type(policy).__call__, policy)
+        if seed is not None:
+            fail(f"--seed picks one of a run's seeds; {source} is not a run folder (it holds no {record.RUN})")
+        if (folder / DESCRIPTION).is_file():
+            about = read_description(folder)
+            if field is None and about.field not in bundled_fields():
+                fail(f"{folder / DESCRIPTION} names field '{about.field}', which is not a bundled one; name its YAML "
+                     f"file or build folder: fieldgen view {source} --field SPEC")
+            act = load_policy(folder)
+            env = fieldgen.make(field_source(field or about.field))
+            if (tuple(about.observation_names), tuple(about.action_names)) != (env.observation_names, env.action_names):
+                fail(f"{folder} observes or acts differently from {env.spec.name} ({len(about.observation_names)} "
+                     f"observations and {len(about.action_names)} actions against {env.observation_size} and "
+                     f"{env.action_size}, or other names); a policy plays only on a field of its layout: --field SPEC")
+            return env, act
+        if field is not None:
+            fail(f"--field names the field a policy plays on; {source} is a field itself (no {record.RUN} or "
+                 f"{DESCRIPTION} in it)")
+        return fieldgen.make(field_source(source)), None
+    except (SpecError, ArtifactError, ConfigError, record.RunError, PolicyError) as exc:
+        fail(str(exc))
