@@ -41,9 +41,10 @@ def _files(folder: Path):
 # before the rule on its folder. Outside fieldgen, the modules a layer may never load.
 FIELDGEN = ("fieldgen",)
 BELOW_CURRICULA = ("fieldgen.schema", "fieldgen.compile", "fieldgen.env", "fieldgen.files", "fieldgen.render",
-             "fieldgen.cameras", "fieldgen.suggest", "fieldgen.command", "fieldgen.video", "fieldgen.version")
+             "fieldgen.cameras", "fieldgen.suggest", "fieldgen.limits", "fieldgen.command", "fieldgen.video",
+             "fieldgen.version")
 RULES = [  # (folder or file, the fieldgen modules it may import, modules outside fieldgen it may not, why)
-    ("fieldgen/schema", ("fieldgen.suggest",), ("jax", "mujoco"), "reading a spec needs no simulator"),
+    ("fieldgen/schema", ("fieldgen.suggest", "fieldgen.limits"), ("jax", "mujoco"), "reading a spec needs no simulator"),
     ("fieldgen/compile", ("fieldgen.schema", "fieldgen.files", "fieldgen.render", "fieldgen.cameras",
                           "fieldgen.source_imports", "fieldgen.version"), (), "build time never reaches run time"),
     ("fieldgen/render.py", ("fieldgen.cameras",), (), "the drawings are below the build that marks what they draw"),
@@ -54,8 +55,11 @@ RULES = [  # (folder or file, the fieldgen modules it may import, modules outsid
      "all the trainers know of curricula, beside the environment contract"),
     ("fieldgen/curriculum", FIELDGEN + BELOW_CURRICULA, (),
      "a curriculum chooses what environments play, not who trains"),
-    ("agents", ("fieldgen.env.contract", "fieldgen.curriculum.contract", "fieldgen.suggest"), (),
+    ("agents", ("fieldgen.env.contract", "fieldgen.curriculum.contract", "fieldgen.suggest", "fieldgen.limits"), (),
      "trainers know environments and curricula through their contracts alone"),
+    ("agents/config.py", ("fieldgen.agents", "fieldgen.env.contract", "fieldgen.suggest", "fieldgen.limits", "fieldgen.schema.source",
+                          "fieldgen.schema.errors"), (),
+     "the settings read a --set value as a spec's values are read, and echo it as a spec's problems do"),
     ("fieldgen/sweep", FIELDGEN + BELOW_CURRICULA + ("fieldgen.curriculum", "fieldgen.agents", "fieldgen.run",
                                                "fieldgen.counts"), (),
      "a sweep runs the command, and is below the command line"),
