@@ -212,6 +212,16 @@ class RunConfig(BaseModel):
             raise ConfigError(f"num_envs {self.num_envs} does not split evenly over the {devices} devices; "
                               f"use a multiple of {devices}, or train a multiple of {devices} seeds at once")
 
+    def instead(self, envs: int, evals: int) -> str:
+        """What else would fit the steps asked for: `envs` environments, or `evals` evaluations, where either
+        is a smaller number that still trains (the steps may be what the user meant to set)."""
+        ways = []
+        if 1 <= envs < self.num_envs:
+            ways.append(f"--envs {envs}")
+        if 1 <= evals < self.num_evals:
+            ways.append(f"--set {self.algo}.num_evals={evals}")
+        return f"; or keep the steps with {' or '.join(ways)}" if ways else ""
+
     @property
     def per_iteration(self) -> int:
         """Env steps of one training iteration, over all environments."""
@@ -241,9 +251,12 @@ class ReplayConfig(RunConfig):
         prefill = prefill_iters * self.per_iteration
         need = prefill + self.num_evals * self.per_iteration
         if per_eval < 1:
+            envs = self.total_steps // ((prefill_iters + self.num_evals) * self.unroll_length)
+            evals = self.total_steps // self.per_iteration - prefill_iters
             raise ConfigError(f"--steps {self.total_steps:,} is too few: {self.num_envs} envs x unroll "
                               f"{self.unroll_length} need {prefill:,} steps to prefill the buffer and "
-                              f"{self.num_evals} more iterations; use at least {need:,}")
+                              f"{self.num_evals} more iterations; use at least {need:,}"
+                              + self.instead(envs, evals))
         if self.max_replay_rows < max(self.min_replay_rows, env.episode_length):
             raise ConfigError(f"max_replay_rows {self.max_replay_rows} must hold min_replay_rows "
                               f"({self.min_replay_rows}) and one episode ({env.episode_length} steps)")

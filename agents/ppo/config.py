@@ -44,5 +44,8 @@ class PPOConfig(RunConfig):
                               "minibatches; change num_envs, unroll_length or num_minibatches")
         need = self.num_evals * per_iter
         if self.total_steps < need:
+            step = self.num_minibatches  # envs that keep a minibatch whole at any unroll
+            envs = self.total_steps // (self.num_evals * self.unroll_length) // step * step
             raise ConfigError(f"--steps {self.total_steps:,} is too few: {self.num_evals} evaluations of "
-                              f"{per_iter:,}-step iterations need at least {need:,}")
+                              f"{per_iter:,}-step iterations need at least {need:,}"
+                              + self.instead(envs, self.total_steps // per_iter))
