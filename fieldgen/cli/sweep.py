@@ -46,8 +46,7 @@ def sweep(
 
     try:
         planned = plan.load(file, runs, backend=backend, partition=partition, time=time, gpus_per_task=gpus_per_task)
-        if not status:
-            plan.check_plan(planned)
+        plan.check_plan(planned)  # sweep.json read and checked: --status trusts it as going on does
     except plan.SweepError as exc:
         fail(str(exc))
     command = f"fieldgen sweep {file}"

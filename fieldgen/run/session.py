@@ -342,6 +342,7 @@ def open_run(folder: Path, load_state: bool = True, to_train: bool = False, lear
         raise record.RunError(f"{folder / record.RUN} holds kick-off points that do not fit its {len(envs)} levels "
                               "(as many points for each, at least 2, the last its own); it was edited or damaged: "
                               "start the run again in a new folder")
+    _check_levels_results(folder, rows, kind, len(envs))
     sampler = None
     if saved.sampler:
         from fieldgen.curriculum.auto import Sampler
@@ -406,6 +407,24 @@ def open_run(folder: Path, load_state: bool = True, to_train: bool = False, lear
         raise record.RunError(f"{path} holds the run at {done:,} env steps, but {folder / record.METRICS} has no "
                               f"evaluation there ({last}): the two disagree; {damaged}")
     return run
+
+
+def _check_levels_results(folder: Path, rows: list[dict], kind: str, levels: int) -> None:
+    """Every metrics row of a run that draws its episodes over several levels at once (mixed, auto) holds each
+    level's weight and success (`variants`), one per level, and no other run's rows hold them: a schedule edited
+    in run.json, or rows of another run, are refused here, not found by a plot or the level buffer's table."""
+    weighs = kind != "staged" and levels > 1
+    for row in rows:
+        variants = row.get("variants")
+        sized = isinstance(variants, dict) and all(isinstance(variants.get(k), list) and len(variants[k]) == levels
+                                                   for k in ("weight", "success_any"))
+        if sized != weighs or (variants is not None and not weighs):
+            what = (f"lack the {levels} levels' weights and success (variants)" if weighs else
+                    "hold levels' results (variants)")
+            raise record.RunError(f"{folder / record.METRICS}: the rows of evaluation {row['eval']} {what}, where "
+                                  f"{folder / record.RUN} records a {kind} run of {levels} field"
+                                  f"{'s' if levels != 1 else ''}; one of the two was edited or damaged: restore the "
+                                  "run from a copy, or start it again in a new folder")
 
 
 def on_field(run: Run, source: Path) -> Run:

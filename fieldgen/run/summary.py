@@ -22,6 +22,7 @@ from pydantic import BaseModel, Field, ValidationError, model_validator
 from fieldgen.agents.registry import EVAL_ACTIONS
 from fieldgen.files import write_atomic
 from fieldgen.run.record import metric_problem
+from fieldgen.schema.errors import shown_text
 
 SUMMARY = "summary.json"
 METRICS = ("success_any", "time_at_goal")  # what a summary holds, per seed and over them
@@ -115,12 +116,19 @@ class SeedSummary(BaseModel):
 
     @model_validator(mode="after")
     def _measured(self):
-        """Every seed's value can be what it claims (a success rate in [0, 1], a finite time at the goal), so that
-        no interval is computed over a damaged or unmeasured one."""
+        """Every seed's value can be what it claims (a success rate in [0, 1], a finite time at the goal), and every
+        seed has one of each, so that no interval is computed over a damaged, unmeasured or missing one."""
         for metric in METRICS:
             for seed, value in getattr(self, metric).per_seed.items():
                 if (said := metric_problem(metric, value)) is not None:
                     raise ValueError(f"seed {seed}'s {said}")
+        seeds = sorted(self.env_steps)
+        for metric in METRICS:
+            if sorted(per_seed := getattr(self, metric).per_seed) != seeds:
+                raise ValueError(f"{metric}.per_seed holds seeds {_seed_list(per_seed)} where env_steps holds "
+                                 f"{_seed_list(self.env_steps)}: every seed has a value of each")
+        if self.field_digests and len(self.field_digests) != len(self.fields):
+            raise ValueError(f"field_digests holds {len(self.field_digests)} digests for {len(self.fields)} fields")
         return self
 
     @property
@@ -132,6 +140,11 @@ class SeedSummary(BaseModel):
         """'IQM (K seeds)', or a word that a single seed's interval is the value alone."""
         count = len(self.seeds)
         return "IQM (one seed)" if count == 1 else f"IQM ({count} seeds)"
+
+
+def _seed_list(per_seed: dict) -> str:
+    seeds = sorted(per_seed)
+    return shown_text(", ".join(map(str, seeds))) if seeds else "none"
 
 
 class SummaryError(ValueError):

@@ -25,7 +25,7 @@ from typing import Callable
 
 from fieldgen.command import TIME_LIMIT_STATUS, fieldgen_command
 from fieldgen.files import write_atomic
-from fieldgen.sweep.plan import PLAN, PlannedRun, Sweep, check_plan, shell
+from fieldgen.sweep.plan import PLAN, PlannedRun, PlanRecord, Sweep, check_plan, read_plan, shell
 
 LOGS = "logs"
 SUBMITIT = "slurm"  # submitit's folder of job scripts, pickles and scheduler logs
@@ -104,10 +104,10 @@ def record_plan(sweep: Sweep, jobs: dict[str, str] | None = None) -> None:
     check_plan(sweep)
     sweep.folder.mkdir(parents=True, exist_ok=True)
     path = sweep.folder / PLAN
-    before = json.loads(path.read_text()) if path.is_file() else {}
+    before = read_plan(sweep.folder) or PlanRecord(file="", backend="")
     _write_json(path, {"file": str(sweep.path.absolute()), "backend": sweep.spec.backend,
-                       "runs": {**before.get("runs", {}), **{r.id: list(r.start) for r in sweep.runs}},
-                       "jobs": {**before.get("jobs", {}), **(jobs or {})}})
+                       "runs": {**before.runs, **{r.id: list(r.start) for r in sweep.runs}},
+                       "jobs": {**before.jobs, **{k: str(v) for k, v in (jobs or {}).items()}}})
 
 
 def gpus(setting) -> list[str]:

@@ -27,6 +27,7 @@ from fieldgen.agents.registry import ALGORITHMS
 from fieldgen.counts import count
 from fieldgen.schema import Problem, SpecError, bundled_fields, resolve_spec_path
 from fieldgen.schema.messages import problems
+from fieldgen.schema.errors import shown_text
 from fieldgen.schema.source import Source, read_yaml
 
 BACKENDS = ("local", "slurm")
@@ -360,17 +361,49 @@ def _assignments(spec: SweepFile, source: Source, found: list[Problem]) -> None:
                     break
 
 
+class PlanRecord(BaseModel):
+    """What sweep.json holds (launch.record_plan writes it): the sweep file, each run's command as it was first
+    started, and (slurm) each run's job id."""
+
+    model_config = ConfigDict(extra="forbid")
+    file: StrictStr
+    backend: StrictStr
+    runs: dict[StrictStr, Annotated[list[StrictStr], Field(min_length=1)]] = {}
+    jobs: dict[StrictStr, StrictStr] = {}
+
+
+MAX_PLAN_BYTES = 64 * 2**20  # a command line per run, at most limits' run count: megabytes at most
+
+
+def read_plan(folder: Path) -> PlanRecord | None:
+    """The sweep's record of its runs, None where there is none yet; SweepError naming the file and what is wrong
+    where it was edited or damaged, as nothing in it can then be trusted to say how its runs were started."""
+    path = folder / PLAN
+    aside = "move it aside to plan the sweep anew (runs already started keep their own settings)"
+    try:
+        if path.stat().st_size > MAX_PLAN_BYTES:
+            raise SweepError([Problem(path, None, None, "", f"has {path.stat().st_size:,} bytes, more than a sweep's "
+                                                            f"plan ever holds ({MAX_PLAN_BYTES:,}); {aside}")])
+        return PlanRecord.model_validate_json(path.read_bytes())
+    except FileNotFoundError:
+        return None
+    except OSError as exc:
+        raise SweepError([Problem(path, None, None, "", f"cannot be read ({exc.strerror}); {aside}")]) from None
+    except ValidationError as exc:
+        error = exc.errors()[0]
+        where = ".".join(shown_text(str(part)) for part in error["loc"])
+        said = f"{where}: {error['msg']}" if where else error["msg"]
+        raise SweepError([Problem(path, None, None, "", f"is not a plan fieldgen sweep wrote ({said}; edited or "
+                                                        f"damaged); {aside}")]) from None
+
+
 def check_plan(sweep: Sweep) -> None:
     """Refuse to go on in a folder whose runs were planned otherwise (the sweep file edited since): a run
     would resume with the settings it started with, not those the file now gives."""
-    recorded = sweep.folder / PLAN
-    try:
-        before = json.loads(recorded.read_text()).get("runs", {})
-    except FileNotFoundError:
+    recorded = read_plan(sweep.folder)
+    if recorded is None:
         return
-    except (OSError, ValueError, AttributeError) as exc:
-        raise SweepError([Problem(recorded, None, None, "", f"cannot be read ({exc}); move it aside to "
-                                                            "plan the sweep anew")]) from None
+    before = recorded.runs
     for run in sweep.runs:
         if run.id in before and before[run.id] != list(run.start) and (run.folder / "run.json").is_file():
             raise SweepError([Problem(sweep.path, None, None, "", f"{run.folder} was started as `{shell(before[run.id])}`, "

@@ -16,7 +16,7 @@ from fieldgen.command import TIME_LIMIT_STATUS
 from fieldgen.files import write_atomic
 from fieldgen.run import record
 from fieldgen.sweep.launch import finished, log_path
-from fieldgen.sweep.plan import PLAN, PlannedRun, Sweep
+from fieldgen.sweep.plan import PlannedRun, Sweep, read_plan
 
 SUMMARY, TABLE = "summary.json", "summary.md"
 DONE, FAILED, RUNNING, STOPPED, WAITING = "done", "failed", "running", "stopped", "waiting"
@@ -76,7 +76,8 @@ def damaged(run: PlannedRun) -> str | None:
 
 
 def states(sweep: Sweep) -> list[RunState]:
-    jobs = (_read(sweep.folder / PLAN) or {}).get("jobs", {})
+    recorded = read_plan(sweep.folder)
+    jobs = recorded.jobs if recorded is not None else {}
     out = []
     for run in sweep.runs:
         started, ended = _read(log_path(sweep.folder, run, ".started")), _read(log_path(sweep.folder, run, ".ended"))

@@ -204,6 +204,32 @@ def test_levels_are_drawn_only_over_shares_and_success_that_can_be_what_they_cla
     assert drawn.exit_code == 0 and (tmp_path / "ok.png").is_file(), drawn.output
 
 
+def test_a_run_whose_schedule_or_levels_results_were_edited_is_refused_where_it_is_read(tmp_path):
+    """Before: an automatic curriculum's rows without their levels' results, or its run.json edited to another
+    schedule, were read on until a plot or table failed with a KeyError traceback."""
+    prepared = runner.invoke(app, ["train", "point_soccer", "--curriculum", "auto", "--levels", "3", "--steps", "20000",
+                                   "--envs", "8", "--prepare", "--out", str(tmp_path)])
+    assert prepared.exit_code == 0, prepared.output
+    run = next(p for p in tmp_path.iterdir() if p.is_dir())
+    count = len(json.loads((run / record.RUN).read_text())["fields"])
+    row = {"eval": 1, "seed": 0, "env_steps": 800, "success_any": 0.5, "time_at_goal": 1.0,
+           "variants": {"success_any": [0.5] * count, "weight": [1 / count] * count}}
+    cases = [({k: v for k, v in row.items() if k != "variants"}, {}, f"lack the {count} levels' weights and success"),
+             ({**row, "variants": {"success_any": [0.5], "weight": [1.0]}}, {}, "lack the"),
+             (row, {"schedule": "staged"}, "hold levels' results (variants), where")]
+    for metrics, changes, phrase in cases:
+        (run / record.METRICS).write_text(json.dumps(metrics) + "\n")
+        saved = json.loads((run / record.RUN).read_text())
+        (run / record.RUN).write_text(json.dumps({**saved, **changes}))
+        for args in (["render", str(run), "--levels", "-o", str(tmp_path / "l.png")], ["train", "--resume", str(run)]):
+            result = runner.invoke(app, args)
+            message = " ".join(result.output.split())
+            assert result.exit_code == 1 and "Traceback" not in message, result.output
+            assert f"{run / record.METRICS}: the rows of evaluation 1 {phrase}" in message, message
+        (run / record.RUN).write_text(json.dumps(saved))
+    assert not (tmp_path / "l.png").exists()
+
+
 @pytest.mark.slow
 def test_an_auto_run_killed_and_resumed_continues_its_levels_exactly(tmp_path, interrupt_after_eval, monkeypatch):
     """The level buffer lives in the training state (each environment's weights and counts), so a run stopped

@@ -177,6 +177,20 @@ def test_aggregate_prints_and_writes_the_pooled_seeds_and_says_what_is_wrong_in_
         assert message.startswith("error:") and message.count("error:") == 1
 
 
+@pytest.mark.parametrize("metric", ["success_any", "time_at_goal"])
+def test_a_summary_whose_seeds_do_not_line_up_is_refused_naming_the_file(tmp_path, metric):
+    """Before: seed 4's value missing from one metric was a KeyError traceback in fieldgen aggregate."""
+    from fieldgen.run.summary import SummaryError, read
+
+    paths, _, _ = one_seed_each(tmp_path)
+    saved = json.loads(paths[4].read_text())
+    saved[metric]["per_seed"] = {"3": 0.5}
+    paths[4].write_text(json.dumps(saved))
+    with pytest.raises(SummaryError, match=rf"^{paths[4]} is not a summary of fieldgen eval: {metric}.per_seed holds "
+                                           r"seeds 3 where env_steps holds 4: every seed has a value of each$"):
+        read(paths[4])
+
+
 def test_a_summary_that_does_not_record_its_fields_digest_is_not_pooled(tmp_path):
     """Two fields may share a name (the bundled point_nav and one of your own): a summary without its field's
     digest cannot say which it judged, so it is evaluated again rather than pooled by name."""

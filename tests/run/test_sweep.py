@@ -374,6 +374,28 @@ def test_a_sweep_file_changed_under_started_runs_is_refused(tmp_path):
     assert "--steps 1900" in result.output and "now plans" in result.output
 
 
+@pytest.mark.parametrize("edit,phrase", [
+    (lambda plan_: {**plan_, "runs": []}, "runs: Input should be an object"),
+    (lambda plan_: {**plan_, "runs": {"point_nav-crl-0": "fieldgen train"}}, "runs.point_nav-crl-0: Input should be a "
+     "valid array"),
+    (lambda plan_: {**plan_, "jobs": {"point_nav-crl-0": 7}}, "jobs.point_nav-crl-0: Input should be a valid string"),
+    (lambda plan_: [plan_], "Input should be an object"),
+], ids=["runs_list", "command_text", "job_number", "list"])
+def test_a_hand_edited_sweep_json_is_one_line_naming_it(tmp_path, edit, phrase):
+    """Before: an AttributeError or TypeError traceback from the plan's check, or --status reading past it."""
+    path = sweep_file(tmp_path, seeds=1)
+    sweep = plan.load(path)
+    launch.record_plan(sweep)
+    recorded = sweep.folder / plan.PLAN
+    recorded.write_text(json.dumps(edit(json.loads(recorded.read_text()))))
+    for args in ([], ["--status"]):
+        result = runner.invoke(app, ["sweep", str(path), *args])
+        message = " ".join(result.output.split())
+        assert result.exit_code == 1 and "Traceback" not in message, result.output
+        assert f"{recorded}: is not a plan fieldgen sweep wrote ({phrase}" in message, message
+        assert "move it aside to plan the sweep anew" in message
+
+
 def test_a_slurm_task_requeued_after_its_time_limit_continues_its_run(tmp_path):
     """submitit's checkpointing protocol: the requeued task is the same task with the same run, and a run
     whose folder exists goes on from it (`--resume`)."""
