@@ -43,6 +43,25 @@ def diverged(data: mjx.Data) -> jax.Array:
     return ~(jnp.all(jnp.abs(data.qpos) < mujoco.mjMAXVAL) & jnp.all(jnp.abs(data.qvel) < mujoco.mjMAXVAL))
 
 
+def advance(sys, data: mjx.Data, ctrl: jax.Array, substeps: int, impl: str) -> tuple[mjx.Data, jax.Array | None]:
+    """The physics steps of one control step, and Warp's overflow flags they raised (None on JAX's)."""
+    data = data.replace(ctrl=ctrl)
+    if impl != "warp":
+        return jax.lax.fori_loop(0, substeps, lambda _, d: mjx.step(sys, d), data), None
+
+    def one(_, carry):
+        d, bits = carry
+        d = mjx.step(sys, d)
+        return d, bits | mjx_physics.overflow_bits(d)
+
+    return jax.lax.fori_loop(0, substeps, one, (data, jnp.zeros((), jnp.int32)))
+
+
+def restart(done: jax.Array, fresh: mjx.Data, data: mjx.Data) -> mjx.Data:
+    """`fresh` where the episode is done, else `data`: only what carries from step to step is swapped."""
+    return data.replace(**{f: jnp.where(done, getattr(fresh, f), getattr(data, f)) for f in _STATE_FIELDS})
+
+
 class FieldEnv:
     """A goal-conditioned environment: obs = concat(state, goal).
 
@@ -314,21 +333,10 @@ class FieldEnv:
         return {"succeeded": jnp.where(done, 0.0, succeeded), "level_counts": counts}
 
     def _advance(self, sys, data: mjx.Data, action: jax.Array) -> tuple[mjx.Data, jax.Array | None]:
-        """The physics steps of one control step, and Warp's overflow flags they raised (None on JAX's)."""
-        data = data.replace(ctrl=action)
-        if self.impl != "warp":
-            return jax.lax.fori_loop(0, self.n_substeps, lambda _, d: mjx.step(sys, d), data), None
-
-        def one(_, carry):
-            d, bits = carry
-            d = mjx.step(sys, d)
-            return d, bits | mjx_physics.overflow_bits(d)
-
-        return jax.lax.fori_loop(0, self.n_substeps, one, (data, jnp.zeros((), jnp.int32)))
+        return advance(sys, data, action, self.n_substeps, self.impl)
 
     def _restart(self, done: jax.Array, fresh: mjx.Data, data: mjx.Data) -> mjx.Data:
-        """`fresh` where the episode is done, else `data`."""
-        return data.replace(**{f: jnp.where(done, getattr(fresh, f), getattr(data, f)) for f in _STATE_FIELDS})
+        return restart(done, fresh, data)
 
     # -- views -------------------------------------------------------------
 

@@ -11,7 +11,8 @@ if TYPE_CHECKING:  # the physics loads when an environment is made, not with fie
 
 def make(source, backend: str | None = None, **kwargs) -> FieldEnv:
     """An environment from a FieldSpec, a YAML path, a bundled name or a build directory, stepped by
-    the physics its spec names (sim.backend), or by `backend` in its place.
+    the physics its spec names (sim.backend), or by `backend` in its place. A field with teams gives a
+    match (fieldgen.env.team.TeamFieldEnv, the contract of fieldgen.env.team_contract).
 
     Building from a spec needs dm_control; a build directory needs only mujoco, and runs on the
     backend it was built for. Keyword arguments (episode_length, auto_reset) go to FieldEnv.
@@ -40,9 +41,15 @@ def environment(artifacts, **kwargs) -> FieldEnv:
 
     if isinstance(artifacts, (list, tuple)):
         check_batchable(artifacts)
+        if len(artifacts) > 1 and any(a.spec.teams is not None for a in artifacts):
+            raise ValueError(f"{artifacts[-1].spec.name}: team fields play one field at a time, not variants in one batch")
         if len(artifacts) > 1:
             return FieldEnv(artifacts, **kwargs)
         artifacts = artifacts[0]
+    if artifacts.spec.teams is not None:  # a match: fieldgen.env.team_contract's environment
+        from fieldgen.env.team import TeamFieldEnv
+
+        return TeamFieldEnv(artifacts, **kwargs)
     if mjx_impl(artifacts.spec):
         return FieldEnv(artifacts, **kwargs)
     return BraxFieldEnv(artifacts, **kwargs)

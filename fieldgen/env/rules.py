@@ -13,6 +13,12 @@ from fieldgen.env.falls import fall_fn
 from fieldgen.env.task import Transition, task_fns
 from fieldgen.schema.backends import mjx_impl
 
+def ball_in_region(key: jax.Array, spawn) -> jax.Array:
+    """The ball's x, y drawn uniformly in a spawn region (ball.spawn of mode region)."""
+    return jax.random.uniform(key, (2,), minval=jnp.array([spawn.x[0], spawn.y[0]]),
+                              maxval=jnp.array([spawn.x[1], spawn.y[1]]))
+
+
 class EpisodeRules:
     """One variant's episode rules: how episodes start, how a step scores, when an episode ends."""
 
@@ -66,9 +72,7 @@ class EpisodeRules:
     def _sample_ball(self, key: jax.Array, target: jax.Array) -> jax.Array:
         s = self.spec.ball.spawn
         if s.mode == "region":
-            lo = jnp.array([s.x[0], s.y[0]])
-            hi = jnp.array([s.x[1], s.y[1]])
-            return jax.random.uniform(key, (2,), minval=lo, maxval=hi)
+            return ball_in_region(key, s)
         start = jnp.asarray(self.spec.agent.start)
         jitter = jax.random.uniform(key, (2,), minval=-s.jitter, maxval=s.jitter)
         return start + s.fraction * (target - start) + jitter

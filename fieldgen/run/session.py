@@ -20,6 +20,7 @@ from fieldgen.agents import checkpoint, loop, memory, programs, registry, shardi
 from fieldgen.agents.config import ConfigError
 from fieldgen.compile.artifact import ArtifactError, load_artifact, write_artifact
 from fieldgen.compile.variants import VariantError
+from fieldgen.env.team_contract import refuse_team
 from fieldgen.curriculum.contract import episode_sampling
 from fieldgen.curriculum.promotion import Promotion
 from fieldgen.curriculum.kinds import schedule
@@ -157,6 +158,10 @@ def new_run(source: Path, algo: str, seeds: Sequence[int], config, out: Path, mi
             raise record.RunError(f"{source} is a single field; --mixed trains the stages of a curriculum folder "
                                   "(or let fieldgen make the stages: --curriculum auto)")
         envs = [fieldgen.make(source)]
+        try:
+            refuse_team(envs[0], f"fieldgen train's {algo}")
+        except ValueError as exc:
+            raise record.RunError(str(exc)) from None
     folder = out / record.run_name(name or envs[0].spec.name, algo, seeds)
     if record.has_trained(folder):
         raise record.RunError(f"{folder} already holds a run; continue it with --resume {folder}, "

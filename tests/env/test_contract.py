@@ -44,7 +44,8 @@ def distinct_scenes(names: list[str]) -> list[str]:
     return kept
 
 
-ANT_FIELDS = distinct_scenes(sorted(n for n in bundled_fields() if not n.startswith("point")))
+ANT_FIELDS = distinct_scenes(sorted(n for n in bundled_fields() if not n.startswith("point")
+                                    and load_spec(bundled_fields()[n]).teams is None))  # matches: test_team.py
 
 
 def rollout(env, n_envs=2, steps=3, seed=0):

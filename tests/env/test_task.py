@@ -116,10 +116,13 @@ def test_every_term_the_schema_accepts_has_a_function(write_spec):
 
     from fieldgen.schema.models import RewardTerm
 
+    from fieldgen.schema.terms import MATCH_TERMS, TERMS
+
     names = typing.get_args(RewardTerm.model_fields["term"].annotation)
-    reward = "".join(f"    - {{term: {n}}}\n" for n in names)
+    assert set(names) == set(TERMS) | set(MATCH_TERMS)  # a match's own terms: tests/env/test_team.py
+    reward = "".join(f"    - {{term: {n}}}\n" for n in TERMS)
     v, _ = values(write_spec, reward, transition())
-    assert set(v) == set(names) and all(np.isfinite(x) for x in v.values())
+    assert set(v) == set(TERMS) and all(np.isfinite(x) for x in v.values())
 
 
 def test_the_implementations_are_keyed_by_the_registry():
