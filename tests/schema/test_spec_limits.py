@@ -1,22 +1,22 @@
-"""Hostile and heavy specs: each is refused (or accepted) within a second or two and a few hundred MB,
-with one line naming the file, line and key; measured here, not assumed."""
+"""Hostile and heavy specs: each is refused (or accepted) within a few hundred MB, with one line naming the
+file, line and key; measured here, not assumed. Memory, not the clock, bounds the work: a spec that expands
+without end (an alias bomb, a nesting without end) shows as memory long before it shows as minutes, and a
+machine's load changes no count of bytes."""
 
 from __future__ import annotations
 
 import os
-import time
 import tracemalloc
 
 import pytest
 
 from fieldgen.schema import SpecError, load_spec
 
-SECONDS = 2.0
 MEGABYTES = 300
 
 
 def measured(path):
-    """(problems or None, seconds, peak MB): timed on its own, then again under tracemalloc for memory."""
+    """Problems or None, once the load's peak memory under tracemalloc is checked."""
     def run():
         try:
             load_spec(path)
@@ -24,16 +24,13 @@ def measured(path):
             return exc.problems
         return None
 
-    start = time.perf_counter()
-    found = run()
-    seconds = time.perf_counter() - start
     tracemalloc.start()
     try:
-        run()
+        found = run()
         peak = tracemalloc.get_traced_memory()[1] / 2**20
     finally:
         tracemalloc.stop()
-    assert seconds < SECONDS and peak < MEGABYTES, f"{seconds:.2f} s, {peak:.0f} MB"
+    assert peak < MEGABYTES, f"{peak:.0f} MB"
     return found
 
 
