@@ -309,5 +309,5 @@ def test_a_loop_of_links_given_as_out_is_one_line(tmp_path, command):
     result = runner.invoke(app, [*command, "--out", str(loop)])
     message = " ".join(result.output.split())
     assert result.exit_code == 1 and "Traceback" not in message, result.output
-    assert f"cannot write {loop}: a link that leads nowhere (a loop of links, or to nothing)" in message
+    assert str(loop) in message and "a link that leads nowhere (a loop of links, or to nothing)" in message
     assert loop.is_symlink() and os.readlink(loop) == "loop"

@@ -64,10 +64,10 @@ def test_grid_has_the_product_size(tmp_path):
     (["--stage", "goal.distance=200"], "stage 1 (stage_01.yaml) is not a valid field"),
     (["--stage", "goal.distance=9 obstacles={rock:"], "--stage obstacles: the value '{rock:' is not valid YAML"),
     (["--vary", "goal.distance=[8"], "--vary goal.distance: the value '[8' is not valid YAML"),
-    (["--to", "soccer_v2", "--stages", "1"], "at least 2 stages"),
+    (["--to", "soccer_v2", "--stages", "1"], "--stages 1: a curriculum's stages, both ends included is a whole number from 2 to 1,000"),
     (["--start-near", "9"], "--start-near 9: choose a distance between 0 and 7.00"),
     (["--start-near", "3", "--then", "point_nav"], "drives the ant agent and"),
-    (["--start-near", "3", "--then", "soccer_v2", "--then-stages", "0"], "--then-stages 0: going on to another"),
+    (["--start-near", "3", "--then", "soccer_v2", "--then-stages", "0"], "--then-stages 0: the stages each --then adds is a whole number from 1 to 1,000"),
     (["--start-near", "3", "--then-stages", "2"], "--then-stages belongs to --then"),
     (["--to", "soccer_v2", "--stages", "2", "--then", "soccer_v2"], "stage 2 is that field already"),
     (["--start-near", "3", "--then", "soccer_v2", "--geometric", "goal.distanse"], "did you mean 'goal.distance'?"),
@@ -308,7 +308,7 @@ def test_a_curriculum_of_more_stages_than_fieldgen_reads_is_refused_before_it_is
     """Before: --stages 100000 ran for minutes writing a folder no run could use."""
     result = runner.invoke(app, ["curriculum", "point_nav", "--to", "point_nav", "--stages", "100000", "-o",
                                  str(tmp_path / "c")])
-    assert result.exit_code == 1 and "100,000 stages asked for; a curriculum has at most 1,000" in result.output
+    assert result.exit_code == 1 and "is a whole number from 2 to 1,000" in result.output
     assert list(tmp_path.iterdir()) == []
 
 

@@ -24,10 +24,10 @@ runner = CliRunner()
 
 @pytest.mark.parametrize("options,phrase", [
     (["--coordinator", "localhost:1234", "--num-processes", "0", "--process-id", "0"],
-     "--num-processes 0: a run needs at least one process"),
+     "--num-processes 0: the processes of one run is a whole number from 1 to 65,536"),
     (["--coordinator", "localhost:1234", "--num-processes", "2", "--process-id", "2"],
      "--process-id 2 is out of range: with --num-processes 2 the ids are 0 to 1"),
-    (["--coordinator", "localhost:1234", "--num-processes", "2", "--process-id", "-1"], "--process-id -1 is out of range"),
+    (["--coordinator", "localhost:1234", "--num-processes", "2", "--process-id", "-1"], "--process-id -1: a process's id (0 to --num-processes - 1) is a whole number from 0 to 65,535"),
     (["--coordinator", "localhost:1234"], "--num-processes, --process-id missing: a run over several processes needs"),
     (["--coordinator", "node01", "--num-processes", "2", "--process-id", "1"],
      "--coordinator node01: write it as HOST:PORT"),

@@ -37,9 +37,9 @@ def refused(tmp_path, *args: str) -> str:
     (["--steps", "3G"], "--steps 3,000,000,000 with 1,024 envs x unroll 62 per iteration"),
     (["--seed", "4294967000", "--seeds", "1000"], "--seed 4294967000 with --seeds 1,000 runs past seed 4,294,967,295, "
      "the largest a random key takes; train fewer --seeds or start from a lower --seed"),
-    (["--seed", "4294967296"], "crl.seed must be at most 4294967295, not 4294967296"),
+    (["--seed", "4294967296"], "--seed 4294967296: a seed (a random key takes 32 bits) is a whole number from 0 to 4,294,967,295"),
     (["--seed", "4294967295", "--seeds", "2"], "runs past seed 4,294,967,295"),
-    (["--seeds", "1000000"], "--seeds 1,000,000: at most 65,536 seeds train at once, each a whole run"),
+    (["--seeds", "1000000"], "--seeds 1000000: seeds trained at once is a whole number from 1 to 65,536"),
 ], ids=["envs", "steps", "seeds", "seed", "seed_range", "many_seeds"])
 def test_counts_past_what_the_device_counts_are_refused(tmp_path, args, phrase):
     """Before: an OverflowError traceback (and a run folder) for --envs, a run whose step counter would wrap
@@ -106,7 +106,7 @@ def test_the_estimate_of_a_training_state_is_what_it_allocates(env_cache, tiny_c
      "than the 16 GB of this machine; lower --envs"),
     (["--envs", "0"], "'0' is not a positive whole count"),
     (["--envs", "-3"], "'-3' is not a positive whole count"),
-    (["--steps", "0"], "'0' is not a positive whole count"),
+    (["--steps", "0"], "--steps 0: the steps of a timed rollout is a whole number from 1 to 1,000,000"),
 ], ids=["envs", "zero", "negative", "steps"])
 def test_bench_counts_are_checked(machine_of, args, phrase):
     """Before: --envs -3 was a traceback from XLA, --envs 0 a row of zeros, --envs 1e11 an allocation failure."""
