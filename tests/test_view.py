@@ -45,6 +45,7 @@ def test_no_display_is_one_line_naming_render_and_eval(monkeypatch):
     assert no_display_reason({}, "darwin") is None  # there the viewer itself says why it cannot open
 
 
+@pytest.mark.slow
 def test_a_step_observes_what_the_batched_environment_observes(player):
     env = player.env
     player.new_episode()

@@ -30,6 +30,7 @@ def test_with_a_key_an_algorithm_acts_as_in_training_and_without_one_on_its_mean
     np.testing.assert_array_equal(drawn[0], np.asarray(trainer.act(state, obs, jax.random.PRNGKey(1))))
 
 
+@pytest.mark.slow
 def test_an_evaluation_acts_as_the_config_says_unless_told(env_cache):
     """loop.evaluate judges the mean action under eval_actions "mean" and the drawn ones under "sampled", as
     it does when told outright; an unknown value is refused naming the choices."""

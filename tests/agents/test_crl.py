@@ -187,6 +187,7 @@ def test_crl_learns_point_nav(env_cache, network):
     assert history[-1]["time_at_goal"] > 30
 
 
+@pytest.mark.slow
 def test_the_buffer_keeps_the_commanded_goal_only_for_an_actor_that_learns_from_it(env_cache, tiny_crl):
     """With `actor_commanded_goals` the buffer keeps each step's commanded goal (point_nav's target, one per
     episode); without it the buffer, and so a checkpoint, is as it was."""

@@ -76,6 +76,7 @@ def test_a_controller_ignores_the_joints_of_the_others(ant_icrl):
             assert moved.tolist() == [name == joint for name in env.action_names]
 
 
+@pytest.mark.slow
 def test_success_is_counted_by_the_environment_for_every_algorithm(env_cache):
     """The study suspected its ICRL over-counted successes. Here every algorithm is judged by one function,
     on the environment's success metric: a scripted episode, replayed through each algorithm's evaluation,

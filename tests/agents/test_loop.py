@@ -90,6 +90,7 @@ def test_two_devices_match_one(seed_one, tiny_crl):
                     assert b[name] == pytest.approx(a[name], rel=rel, abs=rel / 2), (seeds, name)
 
 
+@pytest.mark.slow
 def test_evaluation_reports_each_reward_terms_mean(write_spec):
     """point_nav never terminates early, so return = time at goal + 0.1 x 100 steps x mean agent_progress."""
     import fieldgen
@@ -116,6 +117,7 @@ def test_evaluation_reports_each_reward_terms_mean(write_spec):
     assert np.linalg.norm(qpos[-1, :2] - first.info["goal"]) < np.linalg.norm(qpos[0, :2] - first.info["goal"])
 
 
+@pytest.mark.slow
 def test_sampled_actions_take_a_fresh_key_at_every_step_and_the_mean_ones_none(write_spec):
     """With sampled, evaluate_policy hands the policy a key per step (the same steps of two episodes get
     different ones, two steps of one episode too); without, the policy is called on observations alone."""

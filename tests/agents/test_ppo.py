@@ -28,6 +28,7 @@ def test_normalizer_matches_numpy():
 
 
 @pytest.mark.parametrize("spread", SPREADS)
+@pytest.mark.slow
 def test_resume_reproduces_the_uninterrupted_run(env_cache, spread):
     algo = ppo.make_train(tiny(spread=spread), env_cache("point_nav"))
     full, _ = loop.run(algo, [0], 2)

@@ -7,6 +7,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[2]
 SCRIPT = ROOT / "bench" / "program_lowering.py"
 
@@ -18,6 +20,7 @@ def test_a_reference_folder_without_fieldgen_is_one_line(tmp_path):
     assert "Traceback" not in result.stderr
 
 
+@pytest.mark.slow
 def test_each_program_of_a_tiny_run_is_lowered_and_timed(tmp_path):
     out = tmp_path / "rows.jsonl"
     result = subprocess.run([sys.executable, str(SCRIPT), "--field", "point_nav", "--envs", "8", "--json", str(out)],

@@ -62,6 +62,7 @@ def test_goal_reached_judges_by_each_variants_own_rule(tmp_path):
     assert float(env.goal_reached(state, goal, 1)) == 1.0
     assert float(env.goal_reached(state, goal)) == 1.0  # the last variant's rule by default
 
+@pytest.mark.slow
 def test_each_environment_pushes_its_ball_into_its_own_walls(walled):
     """One vmapped step over three geometries: a ball kicked sideways stops at its own wall, or runs on."""
     env = walled
@@ -107,6 +108,7 @@ def test_schedules_answer_what_the_loop_asks():
     np.testing.assert_allclose(OneStage().variant_weights(success), 1 / 3)
 
 
+@pytest.mark.slow
 def test_new_episodes_draw_their_variant_from_the_weights(walled):
     env = FieldEnv(walled.artifacts, episode_length=1)
     state = jax.vmap(env.reset)(jax.random.split(jax.random.PRNGKey(1), 512))
@@ -162,6 +164,7 @@ def test_mixed_training_reports_every_stage_and_resumes(tmp_path):
     assert sorted(p.name for p in (run / "stages").iterdir()) == ["01", "02"]
 
 
+@pytest.mark.slow
 def test_the_video_of_a_mixed_evaluation_is_of_its_last_variant(walled):
     """A mixed curriculum is judged on its last stage: its video must show that stage, not the first."""
     from fieldgen.agents import loop

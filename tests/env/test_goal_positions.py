@@ -45,6 +45,7 @@ def test_the_goal_names_the_agent_then_the_ball_each_at_the_target(envs):
     np.testing.assert_allclose(state.obs[:, both.state_dim:], np.concatenate([target, target], axis=1))
 
 
+@pytest.mark.slow
 def test_episodes_score_as_with_the_balls_goal_alone(envs):
     """Naming the agent in the goal changes what the agent is told, not the physics, reward or success;
     the evaluation's closest distance stays the ball's to the target."""
@@ -67,6 +68,7 @@ def test_hindsight_success_reads_the_balls_entries_of_a_goal(envs):
     assert float(both.goal_reached(state, jnp.concatenate([agent, far]))) == 0.0
 
 
+@pytest.mark.slow
 def test_crl_trains_on_goals_of_agent_and_ball(envs, tiny_crl):
     """CRL's positive pairs, drawn from the steps it stored as it trained: each step whose episode goes on is
     paired with the agent's and the ball's x, y at a later step of that episode; the episode's last step with

@@ -29,6 +29,7 @@ def source(tmp_path_factory, tiny_crl_args):
     return out / "point_nav-crl-0"
 
 
+@pytest.mark.slow
 def test_a_run_starts_from_what_another_learned_and_trains_on(tmp_path, source, tiny_crl_args):
     prepared = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path), "--seed", "3", "--prepare",
                                    "--init-from", str(source), *tiny_crl_args])

@@ -53,6 +53,7 @@ def no_opengl(*args, **kwargs):
     raise RuntimeError("no OpenGL here")
 
 
+@pytest.mark.slow
 def test_resume_after_interrupt_reproduces_the_uninterrupted_run(env_cache, tmp_path, tiny_crl):
     algo = crl.make_train(tiny_crl(), env_cache("point_nav"))
     full, _ = loop.run(algo, [0], 2)
@@ -317,6 +318,7 @@ def test_checkpoint_errors_are_clear(tmp_path, env_cache, tiny_crl):
         checkpoint.load(other, template)
 
 
+@pytest.mark.slow
 def test_cli_run_folder_and_resume_of_a_finished_run(tmp_path, monkeypatch, tiny_crl_args):
     args = ["train", "point_nav", "--out", str(tmp_path), *tiny_crl_args]
     result = runner.invoke(app, args)
@@ -511,6 +513,7 @@ def test_a_config_comes_back_from_its_run_json_record(tiny_crl):
     assert again == config and hash(again) == hash(config) and again.hidden == (32, 16)
 
 
+@pytest.mark.slow
 def test_a_machine_that_cannot_render_keeps_episodes_for_fieldgen_videos(tmp_path, monkeypatch, tiny_crl_args):
     import imageio.v3 as iio
     import jax.numpy as jnp
