@@ -99,8 +99,16 @@ def _train(run, videos: bool, logger: str, fmt: str | None = None, deadline: flo
         raise typer.Exit(TIME_LIMIT_STATUS)
 
 
+# what a run is set up with and --resume goes on with: parameter -> how a user gives it
+FIXED_AT_SETUP = {"spec": "a field named beside it", "algo": "--algo", "steps": "--steps", "envs": "--envs", "seed": "--seed",
+                  "seeds": "--seeds", "sets": "--set", "config": "--config", "preset": "--preset",
+                  "use_recipe": "--recipe/--no-recipe", "mixed": "--mixed", "curriculum_kind": "--curriculum",
+                  "levels": "--levels", "samplers": "--sampler"}
+
+
 @app.command()
 def train(
+    ctx: typer.Context,
     spec: Annotated[Optional[str], typer.Argument(
         help="a YAML file, bundled field name or build folder (omit with --resume)")] = None,
     algo: Annotated[Optional[str], typer.Option(
@@ -204,9 +212,8 @@ def train(
     try:
         loggers.require(logger)
         if resume is not None:
-            settings = [name for name, value in (("--steps", steps), ("--envs", envs), ("--set", sets),
-                                                 ("--config", config), ("--preset", preset),
-                                                 ("--sampler", samplers)) if value]
+            settings = [flag for name, flag in FIXED_AT_SETUP.items()
+                        if getattr(ctx.get_parameter_source(name), "name", "DEFAULT") != "DEFAULT"]
             if settings:
                 total = record.read_run(resume).config.get("total_steps")
                 fail(f"--resume goes on with the settings {resume} was set up with (its run.json: "

@@ -254,12 +254,16 @@ def test_a_curriculum_run_is_named_by_its_curriculum_not_its_last_stage(tmp_path
 
 
 def test_resume_says_it_keeps_the_runs_own_settings(tmp_path, tiny_crl_args):
-    """--steps (or --envs, --set, --config, --preset) beside --resume would be ignored: refused, saying how to
-    train on instead, before anything loads."""
+    """--steps (or any setting a run is set up with: --envs, --set, --algo, --seeds, --curriculum, --levels, a
+    field, even --seed 0 said aloud) beside --resume would be ignored: refused, saying how to train on instead,
+    before anything loads."""
     prepared = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path), "--prepare", *tiny_crl_args])
     assert prepared.exit_code == 0, prepared.output
     run = tmp_path / "point_nav-crl-0"
-    for extra, named in ((["--steps", "4000"], "--steps"), (["--envs", "4", "--set", "crl.repr_dim=4"], "--envs and --set")):
+    for extra, named in ((["--steps", "4000"], "--steps"), (["--envs", "4", "--set", "crl.repr_dim=4"], "--envs and --set"),
+                         (["--curriculum", "auto", "--levels", "5", "--seeds", "3", "--algo", "sac"],
+                          "--algo and --seeds and --curriculum and --levels"),
+                         (["point_soccer", "--seed", "0"], "a field named beside it and --seed")):
         result = runner.invoke(app, ["train", "--resume", str(run), *extra])
         message = " ".join(result.output.split())
         assert result.exit_code == 1 and f"(its run.json: 1,900 env steps in all), which {named} cannot change" in \
