@@ -109,7 +109,8 @@ class RunRecord(BaseModel):
     levels: list[dict] = []  # an automatic curriculum's levels: each stage's coordinates on the named axes
     # and each level's kick-off points (curriculum.auto.kickoff_tables): [coordinate, ball spawn x0, y0, x1, y1,
     # agent start x, y], null where the point is not played
-    kickoffs: list[list[Annotated[list[float], Field(min_length=7, max_length=7)] | None]] = []
+    kickoffs: list[list[Annotated[list[Annotated[float, Field(allow_inf_nan=False)]], Field(min_length=7, max_length=7)]
+                        | None]] = []  # finite: an edited NaN would be trained on
     sampler: dict = {}  # an automatic curriculum's sampler settings (curriculum.auto.Sampler); {}: its defaults
     curriculum: StrictStr = ""  # the name of the curriculum the run trains through; "" (left out): a field
     init_from: InitFrom | None = None

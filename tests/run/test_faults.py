@@ -427,3 +427,24 @@ def test_a_checkpoint_and_metrics_that_disagree_are_refused(tmp_path, tiny_crl_a
         assert result.exit_code == 1 and "Traceback" not in result.output, result.output
         assert "".join(f"checkpoint.msgpack holds the run at 1,280 env steps, but {run / 'metrics.jsonl'} has no "
                        f"evaluation there ({said}): the two disagree".split()) in "".join(result.output.split())
+
+
+def test_a_kick_off_point_edited_to_nan_in_run_json_is_refused_where_it_is_read(tmp_path):
+    """Before: the NaN was trained on (a ball spawned at NaN); now run.json is refused in one line naming the key."""
+    from typer.testing import CliRunner
+
+    from fieldgen.cli import app
+
+    cli = CliRunner()
+    prepared = cli.invoke(app, ["train", "point_soccer", "--curriculum", "auto", "--preset", "cpu", "--steps", "40000",
+                                "--prepare", "--out", str(tmp_path)])
+    assert prepared.exit_code == 0, prepared.output
+    run = tmp_path / "point_soccer-auto-crl-0"
+    kept = json.loads((run / "run.json").read_text())
+    level, point = next((i, j) for i, points in enumerate(kept["kickoffs"]) for j, p in enumerate(points) if p)
+    kept["kickoffs"][level][point][1] = float("nan")
+    (run / "run.json").write_text(json.dumps(kept))
+    result = cli.invoke(app, ["train", "--resume", str(run)])
+    said = " ".join(result.output.split())
+    assert result.exit_code == 1 and "Traceback" not in said, said
+    assert f"kickoffs.{level}.{point}.1 should be a finite number, not nan" in said and "run.json" in said, said
