@@ -231,7 +231,13 @@ def auto_environments(source: Path, count: int | None) -> tuple[list, list[dict]
 
     try:
         spec = load_artifact(source).spec if source.is_dir() else load_spec(source)
-        chosen = auto_levels(spec, LEVELS if count is None else count)
+        wanted = LEVELS if count is None else count
+        chosen = auto_levels(spec, wanted)
+        if len(chosen) < 2:  # every level but the field refused: no curriculum is left to train through
+            raise LevelError(f"--levels {wanted} on {spec.name}: the schema refuses the {wanted - 1} easier "
+                             f"level{'s' * (wanted > 2)} of its path (a start the ball cannot leave, say), which "
+                             "leaves the field alone; ask for more levels (--levels N) or train the field without "
+                             "--curriculum auto")
         envs = schedule("auto").stage_environments([level.spec for level in chosen])
         kickoffs = kickoff_tables(spec, chosen)
     except (LevelError, VariantError, ArtifactError, ValueError) as exc:

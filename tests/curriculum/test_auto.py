@@ -610,3 +610,15 @@ def test_a_field_starts_from_a_kickoff_point_and_counts_its_levels(env_cache):
     assert np.all(counts[1] <= counts[0])
     plain = env_cache("point_soccer")
     assert plain.kickoff_coordinates.shape == (1, 0) and "kickoff" not in plain.reset(jax.random.PRNGKey(0)).info
+
+
+def test_levels_the_schema_refuses_down_to_the_field_alone_are_refused_not_a_run_of_one_level(monkeypatch):
+    """Before: `--levels 2` on a field whose easy end the schema refuses set up a run of the field alone."""
+    from fieldgen.curriculum import auto
+    from fieldgen.run import record, session
+
+    every = auto.levels
+    monkeypatch.setattr(auto, "levels", lambda spec, count: every(spec, count)[-1:])  # only the field is playable
+    with pytest.raises(record.RunError, match=r"--levels 2 on point_soccer: the schema refuses the 1 easier level "
+                                              r"of its path .* leaves the field alone; ask for more levels"):
+        session.auto_environments(bundled_fields()["point_soccer"], 2)
