@@ -165,29 +165,31 @@ def dsl_reference() -> str:
             continue
         out += ["", f"## `{key}`", "", prop["description"][0].upper() + prop["description"][1:] + ".", ""]
         _section(schema, key, target, defaults.get(key), out, 3)
-    out += ["", "## Reward terms", "",
-            "The terms `task.reward` may name, from the registry `fieldgen/schema/terms.py`; the reward is the sum of "
-            "`weight * term`, and terms are signed so larger is better.", "",
-            "| term | value | needs |", "|---|---|---|"]
-    for term, spec in TERMS.items():
-        needs = [part for part, flag in (("a ball", spec.ball), ("a goal", spec.goal), ("a torso (ant)", spec.torso))
-                 if flag]
-        out.append(f"| `{term}` | {_cell(spec.description)} | {', '.join(needs) or '-'} |")
-    out += ["", "## Match reward terms", "",
-            "The terms `task.reward` may name on a field with `teams`, from `MATCH_TERMS` in "
-            "`fieldgen/schema/terms.py`: each side's reward is the sum of `weight * term` read from its own side, "
-            "and a zero-sum term's values for the two sides sum to zero.", "",
-            "| term | value | zero-sum |", "|---|---|---|"]
-    for term, spec in MATCH_TERMS.items():
-        out.append(f"| `{term}` | {_cell(spec.description)} | {'yes' if spec.zero_sum else '-'} |")
-    out += ["", "## Dense rewards", "",
-            "`task: {reward: dense}` stands for the terms generated for the task's success kind, from "
-            "`DENSE_REWARDS` in `fieldgen/schema/terms.py` (terms that need a torso only for the ant); a success kind "
-            "not listed has none, and the spec lists its terms itself.", "",
-            "| success kind | terms |", "|---|---|"]
-    for kind, terms in DENSE_REWARDS.items():
-        out.append(f"| `{kind}` | {_cell(', '.join(_dense_term(t) for t in terms))} |")
+    out += _table("Reward terms", "The terms `task.reward` may name, from the registry `fieldgen/schema/terms.py`; the "
+                  "reward is the sum of `weight * term`, and terms are signed so larger is better.",
+                  ("term", "value", "needs"),
+                  [(f"`{term}`", _cell(spec.description), ", ".join(
+                      part for part, flag in (("a ball", spec.ball), ("a goal", spec.goal), ("a torso (ant)", spec.torso))
+                      if flag) or "-") for term, spec in TERMS.items()])
+    out += _table("Match reward terms", "The terms `task.reward` may name on a field with `teams`, from `MATCH_TERMS` "
+                  "in `fieldgen/schema/terms.py`: each side's reward is the sum of `weight * term` read from its own "
+                  "side, and a zero-sum term's values for the two sides sum to zero.",
+                  ("term", "value", "zero-sum"),
+                  [(f"`{term}`", _cell(spec.description), "yes" if spec.zero_sum else "-")
+                   for term, spec in MATCH_TERMS.items()])
+    out += _table("Dense rewards", "`task: {reward: dense}` stands for the terms generated for the task's success kind, "
+                  "from `DENSE_REWARDS` in `fieldgen/schema/terms.py` (terms that need a torso only for the ant); a "
+                  "success kind not listed has none, and the spec lists its terms itself.",
+                  ("success kind", "terms"),
+                  [(f"`{kind}`", _cell(", ".join(_dense_term(t) for t in terms)))
+                   for kind, terms in DENSE_REWARDS.items()])
     return "\n".join(out) + "\n"
+
+
+def _table(title: str, intro: str, header: tuple[str, ...], rows: list[tuple[str, ...]]) -> list[str]:
+    """A reference section: its heading, a paragraph, then a Markdown table of `rows` under `header`."""
+    return (["", f"## {title}", "", intro, "", "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+            + ["| " + " | ".join(row) + " |" for row in rows])
 
 
 def _dense_term(term: dict) -> str:
