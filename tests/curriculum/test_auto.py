@@ -125,7 +125,7 @@ def test_auto_run_records_its_levels_and_weights_and_resumes(tmp_path, monkeypat
         assert v["weight"][-1] >= TARGET_SHARE - 1e-6
         assert row["last_stage_success_any"] == v["success_any"][-1]
     assert rows[-1]["variants"]["kickoff_share"] != rows[0]["variants"]["kickoff_share"]  # the buffer moved
-    assert iio.imread(run / "success.png").shape == (360, 3000, 4)  # with the panels of where episodes go and start
+    assert iio.imread(run / "success.png").shape == (720, 1500, 4)  # six panels, three a row
     from fieldgen import render
 
     drawn = render.contact_sheet

@@ -159,8 +159,8 @@ def test_mixed_training_reports_every_stage_and_resumes(tmp_path):
     assert {"variants.success_any.1", "variants.success_any.2", "variants.weight.2"} <= set(header)
     text = " ".join(result.output.split())
     assert "success_any per stage at the end: 1." in text and "success_any on the last stage (ring_s02)" in text
-    # success, time at goal, closest approach, where episodes go and losses, 500 x 360 pixels each
-    assert iio.imread(run / "success.png").shape == (360, 2500, 4) and (run / "videos" / "eval_002.mp4").exists()
+    # success, time at goal, closest approach, where episodes go and losses, 500 x 360 pixels each, three a row
+    assert iio.imread(run / "success.png").shape == (720, 1500, 4) and (run / "videos" / "eval_002.mp4").exists()
     assert sorted(p.name for p in (run / "stages").iterdir()) == ["01", "02"]
 
 
