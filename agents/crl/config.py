@@ -43,4 +43,5 @@ class CRLConfig(ReplayConfig):
             try:
                 residual_blocks(self.hidden, self.skip_every)
             except ValueError as exc:
-                raise ConfigError(f"{self.algo}.skip_every: {exc}") from None
+                raise ConfigError(f"{self.algo}.skip_every {self.skip_every}: {exc}; {self.algo}.skip_every=0 "
+                                  f"builds plain layers") from None

@@ -28,8 +28,8 @@ def test_the_measured_recipes_are_the_commands_their_figures_came_from():
         "ppo", 250_000_000, 4096, ("ppo.num_evals=25", "ppo.spread=global"))
     assert "0.919" in dense.measured.figure and dense.measured.seeds == "one seed (0)"
     ant = table["ant_nav"]
-    assert (ant.algo, ant.steps) == ("crl", 10_000_000)
-    assert ant.measured.figure.startswith("IQM 0.706 [0.657, 0.750]") and "210-214" in ant.measured.seeds
+    assert (ant.algo, ant.steps, ant.sets) == ("crl", 14_000_000, ("crl.num_evals=7",))
+    assert ant.measured.figure.startswith("IQM 0.923 [0.899, 0.947]") and "600-604" in ant.measured.seeds
     assert table["v2_wide_goalie"].algo == "crl" and table["v2_wide_goalie"].measured is None
 
 
@@ -67,7 +67,7 @@ def test_a_recipe_sits_over_the_agents_preset_and_under_every_setting_the_comman
     cpu = PPOConfig.layered(recipe=recipe, preset="cpu")  # a machine's preset sizes the recipe down
     assert (cpu.total_steps, cpu.num_envs, cpu.spread) == (200_000, 16, "global")
     ant = CRLConfig.layered(recipe=recipes.read()["ant_nav"], agent="ant")
-    assert (ant.total_steps, ant.hidden, ant.num_evals) == (10_000_000, (1024,) * 4, 10)  # with the ant preset
+    assert (ant.total_steps, ant.hidden, ant.num_evals) == (14_000_000, (256,) * 9, 7)  # with the ant preset
 
 
 @pytest.mark.parametrize("text,phrase", [

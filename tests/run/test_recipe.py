@@ -85,8 +85,8 @@ def test_list_shows_each_bundled_fields_recipe_and_measured_figure_with_its_seed
     assert set(rows) == set(bundled_fields())
     assert rows["soccer_v2_dense"] == ("ppo, 250M env steps, 4,096 envs, --set ppo.num_evals=25 ppo.spread=global",
                                        "measured: 0.919 success of 1,024 episodes after 250M env steps, one seed (0)")
-    assert rows["ant_nav"][1] == ("measured: IQM 0.706 [0.657, 0.750] success at 10M env steps, 1,024 episodes a "
-                                  "seed, five fresh seeds (210-214)")
+    assert rows["ant_nav"][1] == ("measured: IQM 0.923 [0.899, 0.947] success at 14M env steps, 1,024 episodes a "
+                                  "seed; five seeds in one program in 414 s on one H200, five fresh seeds (600-604)")
     assert rows["v2_wide_goalie"][1].startswith("not measured yet; the measured route is its dense twin "
                                                 "v2_wide_goalie_dense (ppo, 250M env steps")
     assert rows["soccer_v2_dense_near"][0].endswith("(the recipe of soccer_v2_dense)")

@@ -470,22 +470,40 @@ def test_ant_fields_get_the_ant_preset_under_a_config_file_and_set(tmp_path):
     from fieldgen.agents.sac import SACConfig
 
     ant = crl.CRLConfig.layered(agent="ant")
-    assert (ant.hidden, ant.matmul, ant.layer_norm, ant.windows_per_env, ant.batch_size) == (
-        (1024,) * 4, "bfloat16", True, 2.0, 1024)
-    # twice the reference's windows at any number of environments: 2,048 at 1,024 envs, 32 at a test's 16
-    assert gradient_steps(ant, 1001) == (2048, 2002)
-    assert gradient_steps(crl.CRLConfig.layered(agent="ant", num_envs=16), 1001) == (32, 31)
+    assert (ant.hidden, ant.skip_every, ant.matmul, ant.layer_norm, ant.windows_per_env, ant.batch_size) == (
+        (256,) * 9, 4, "bfloat16", True, 1.0, 1024)
+    # the reference's one window per environment: 1,024 at 1,024 envs, 16 at a test's 16
+    assert gradient_steps(ant, 1001) == (1024, 1001)
+    assert gradient_steps(crl.CRLConfig.layered(agent="ant", num_envs=16), 1001) == (16, 15)
     assert gradient_steps(crl.CRLConfig.layered(agent="ant", sets=["crl.windows=100"]), 1001) == (100, 97)
     assert crl.CRLConfig.layered(agent="point") == crl.CRLConfig.layered() == crl.CRLConfig()
     assert SACConfig.preset("ant") is None
     file = tmp_path / "c.yaml"
     file.write_text("crl: {batch_size: 256}\n")
     mine = crl.CRLConfig.layered(file, ["crl.layer_norm=false"], agent="ant")
-    assert (mine.batch_size, mine.layer_norm, mine.windows_per_env) == (256, False, 2.0)
+    assert (mine.batch_size, mine.layer_norm, mine.windows_per_env) == (256, False, 1.0)
     reference = ROOT / "bench" / "configs" / "crl_reference.yaml"
     assert crl.CRLConfig.layered(reference, agent="ant") == crl.CRLConfig()  # the reference's settings, back
     narrow = crl.CRLConfig.layered(ROOT / "bench" / "configs" / "crl_ant_width256.yaml", agent="ant")
     assert (narrow.hidden, narrow.matmul, narrow.windows_per_env) == ((256,) * 4, "float32", 2.0)
+    wide = crl.CRLConfig.layered(ROOT / "bench" / "configs" / "crl_ant_wide1024.yaml", agent="ant")
+    assert (wide.hidden, wide.skip_every, wide.windows_per_env) == ((1024,) * 4, 0, 2.0)  # the former preset
+    soccer = crl.CRLConfig.layered(ROOT / "bench" / "configs" / "crl_soccer_auto.yaml", agent="ant")
+    assert (soccer.hidden, soccer.skip_every, soccer.windows_per_env) == ((256,) * 4, 0, 2.0)  # as it was measured
+
+
+def test_hidden_layers_that_form_no_residual_block_under_the_ant_preset_are_refused_naming_the_way_out(tmp_path):
+    """The ant preset's residual blocks need 1 + 4k layers of one width: other layers given with --set are
+    refused before the run is set up, naming skip_every=0."""
+    result = runner.invoke(app, ["train", "ant_nav", "--set", "crl.hidden=[256,256]", "--out", str(tmp_path),
+                                 "--prepare"])
+    assert result.exit_code != 0 and "Traceback" not in result.output
+    assert ("crl.skip_every 4: residual blocks of 4 layers need 1 + a multiple of 4 hidden layers of one width, "
+            "not [256, 256]; crl.skip_every=0 builds plain layers") in " ".join(result.output.split())
+    assert not (tmp_path / "ant_nav-crl-0").exists()
+    plain = runner.invoke(app, ["train", "ant_nav", "--set", "crl.hidden=[256,256]", "--set", "crl.skip_every=0",
+                                "--out", str(tmp_path), "--prepare"])
+    assert plain.exit_code == 0, plain.output
 
 
 def test_the_cpu_preset_sizes_training_and_its_evaluations_for_a_laptop(tmp_path, env_cache):
