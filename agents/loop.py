@@ -79,6 +79,9 @@ def evaluate_policy(env, act: Callable, key: jax.Array, n_envs: int, film: Calla
     target and what the success judges (the goal's `env.success_goal_entries` and the state entries
     `env.goal_indices` compares them with), over
     the states observed before the episode ended, a sign of progress long before the first success;
+    farthest_from_start: the mean over episodes of the largest distance what the success judges moved from
+    where the episode began (on a ball field, how far the agent pushed the ball: zero until it first touches
+    it, where hindsight goals about the ball begin to differ from its kick-off);
     episode_length: steps before the episode ended, short where the agent falls (leaves its
     healthy band) early; episode_return; and `term_<name>`: each reward term's mean per live step.
     An environment of several variants (`env.variant_count > 1`) is evaluated on each in turn,
@@ -102,27 +105,33 @@ def evaluate_policy(env, act: Callable, key: jax.Array, n_envs: int, film: Calla
     def goal_distance(obs):
         return jnp.linalg.norm(obs[:, state_entries] - obs[:, goal_entries], axis=-1)
 
+    def distance_from(start, obs):
+        return jnp.linalg.norm(obs[:, state_entries] - start, axis=-1)
+
     filmed = count - 1  # 0 without variants; with them, the last (a mixed curriculum's hardest stage)
 
     def step(carry, act_key):
-        env_state, alive, closest = carry
+        env_state, alive, closest, start, farthest = carry
         nxt = jax.vmap(env.step)(env_state, act(env_state.obs) if act_key is None else act(env_state.obs, act_key))
         out = {"success": nxt.metrics["success"] * alive, "reward": nxt.reward * alive, "alive": alive,
                **{name: nxt.metrics[name] * alive for name in terms}}
         # under auto-reset the obs of an episode's last step is already the next episode's
         still = alive * (1.0 - nxt.done)
         closest = jnp.where(still > 0, jnp.minimum(closest, goal_distance(nxt.obs)), closest)
+        farthest = jnp.where(still > 0, jnp.maximum(farthest, distance_from(start, nxt.obs)), farthest)
         frame = None if film is None else (jax.tree.map(lambda x: x[filmed], film(env_state)), nxt.done[filmed])
-        return (nxt, still, closest), (out, frame)
+        return (nxt, still, closest, start, farthest), (out, frame)
 
-    start = batched_with(key, (env_state, jnp.ones(n_envs), goal_distance(env_state.obs)))
+    start = batched_with(key, (env_state, jnp.ones(n_envs), goal_distance(env_state.obs),
+                               env_state.obs[:, state_entries], jnp.zeros(n_envs)))
     act_keys = jax.random.split(jax.random.fold_in(key, 1), env.episode_length) if sampled else None
-    (last, _, closest), (out, frames) = jax.lax.scan(step, start, act_keys, length=env.episode_length)
+    (last, _, closest, _, farthest), (out, frames) = jax.lax.scan(step, start, act_keys, length=env.episode_length)
     live_steps = jnp.sum(out["alive"])
     succeeded = jnp.any(out["success"] > 0, axis=0)
     at_goal = jnp.sum(out["success"], axis=0)
     metrics = {"success_any": jnp.mean(succeeded), "time_at_goal": jnp.mean(at_goal),
-               "closest_distance": jnp.mean(closest), "episode_length": live_steps / n_envs,
+               "closest_distance": jnp.mean(closest), "farthest_from_start": jnp.mean(farthest),
+               "episode_length": live_steps / n_envs,
                "episode_return": jnp.mean(jnp.sum(out["reward"], axis=0)),
                **{f"term_{name}": jnp.sum(out[name]) / live_steps for name in terms}}
     if OVERFLOW in last.info:  # the physics' overflow flags of any environment (stop_on_overflow reads them)

@@ -1,5 +1,5 @@
-"""success.png: a run's success, time at goal, closest approach and training losses against env steps,
-and the figure conventions every fieldgen plot shares."""
+"""success.png: a run's success, time at goal, closest approach, how far what the success judges moved and
+the training losses against env steps, and the figure conventions every fieldgen plot shares."""
 
 from __future__ import annotations
 
@@ -17,11 +17,12 @@ PANELS_PER_ROW = 3
 # metric -> (axis label, panel title, y limits or None); a panel is drawn where the rows have the metric
 PANELS = {"success_any": ("success_any", "episodes with a success", (-0.02, 1.02)),
           "time_at_goal": ("steps at goal per episode", "time at goal", None),
-          "closest_distance": ("distance", "closest approach to the goal", None)}
+          "closest_distance": ("distance", "closest approach to the goal", None),
+          "farthest_from_start": ("distance", "farthest moved from its start (the ball, on a ball field)", None)}
 
 
 def plot_success(run_dir: Path, rows: list[dict], title: str, variant: str = "stage") -> None:
-    """success_any, time_at_goal and closest_distance against env steps: one line per seed; for a
+    """success_any, time_at_goal, closest_distance and farthest_from_start against env steps: one line per seed; for a
     staged curriculum one colour per stage and a line for the last stage; for a mixed one a line per stage.
     A run of several variants (a mixed or automatic curriculum) also draws which share of new episodes each
     stage was given after each evaluation, and one whose levels start from kick-off points (an automatic
@@ -34,7 +35,8 @@ def plot_success(run_dir: Path, rows: list[dict], title: str, variant: str = "st
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    metrics = [m for m in PANELS if any(m in r for r in rows)]
+    # a run of variants draws what each variant reports (VariantResults), the others what any row holds
+    metrics = [m for m in PANELS if (m in rows[0]["variants"] if "variants" in rows[0] else any(m in r for r in rows))]
     losses = list(dict.fromkeys(k for r in rows for k in r if k.endswith("_loss")))
     weighted = "weight" in rows[0].get("variants", {})
     kickoffs = "kickoff_share" in rows[0].get("variants", {})

@@ -59,6 +59,21 @@ def test_episodes_score_as_with_the_balls_goal_alone(envs):
         assert float(named[name]) == pytest.approx(float(alone[name]), rel=1e-5, abs=1e-6), name
 
 
+@pytest.mark.slow
+def test_the_evaluation_measures_how_far_the_ball_moved_from_its_kick_off(envs):
+    """farthest_from_start is how far what the success judges (here the ball) moved from where the episode
+    began: zero while nothing touches it, the pushed ball's way where the agent walks into it."""
+    ball, _ = envs
+    still = lambda obs: jnp.zeros((obs.shape[0], 2))  # noqa: E731
+    push = lambda obs: jnp.tile(jnp.array([0.0, 1.0]), (obs.shape[0], 1))  # noqa: E731  at the ball and target
+    key = jax.random.PRNGKey(1)
+    rest, _ = loop.evaluate_policy(ball, still, key, 4)
+    pushed, _ = loop.evaluate_policy(ball, push, key, 4)
+    assert float(rest["farthest_from_start"]) == pytest.approx(0.0, abs=1e-3)
+    # the balls start 1.5 ahead of the agent and 1.5 short of the target: a push carries them past 1
+    assert float(pushed["farthest_from_start"]) > 1.0
+
+
 def test_hindsight_success_reads_the_balls_entries_of_a_goal(envs):
     _, both = envs
     state = jax.jit(both.reset)(jax.random.PRNGKey(2)).obs[:both.state_dim]

@@ -62,3 +62,19 @@ def test_six_panels_wrap_into_two_rows_of_three_with_steps_in_millions(tmp_path,
     assert len(tops) == 2 and len(columns) == 3
     assert axes[0].xaxis.get_major_formatter()(20_000_000, 0) == "20M"
     assert (tmp_path / "success.png").stat().st_size > 0
+
+
+def test_a_run_draws_how_far_the_ball_moved_and_a_run_of_levels_only_what_each_level_reports(tmp_path, monkeypatch):
+    """farthest_from_start gets its panel where the rows hold it; a run of variants draws the metrics its
+    variants report, so a top-level metric alone adds no empty panel."""
+    drawn = {}
+    monkeypatch.setattr(plots, "save_figure", lambda fig, axes, title, path: drawn.update(axes=axes))
+    rows = [{"eval": e, "seed": 0, "env_steps": 1000 * (e + 1), "success_any": 0.1 * e, "closest_distance": 2.0,
+             "farthest_from_start": 0.5 * e} for e in range(3)]
+    plots.plot_success(tmp_path, rows, "title")
+    assert [ax.get_title() for ax in drawn["axes"]] == ["episodes with a success", "closest approach to the goal",
+                                                        "farthest moved from its start (the ball, on a ball field)"]
+    assert list(drawn["axes"][2].get_lines()[0].get_ydata()) == [0.0, 0.5, 1.0]
+    levels = [{**row, "variants": {"success_any": [0.2, 0.1], "weight": [0.8, 0.2]}} for row in rows]
+    plots.plot_success(tmp_path, levels, "title", "level")
+    assert [ax.get_title() for ax in drawn["axes"]][0] == "episodes with a success" and len(drawn["axes"]) == 2
