@@ -178,7 +178,8 @@ def train(
              f"last evaluation whose next chunk and checkpoint would not end in time, exit status "
              f"{TIME_LIMIT_STATUS}; continue with --resume")] = None,
 ) -> None:
-    """Train an agent on a field or through a curriculum folder's stages; writes runs/<name>-<algo>-<seed>/.
+    """Train an agent on a field or through a curriculum folder's stages, or a team field by self-play (docs:
+    teams); writes runs/<name>-<algo>-<seed>/.
 
     Resumes exactly after an interrupt (--resume). A curriculum run moves to the next stage when its
     promotion rule is met and reports which stage it reached, when, and success on the last stage;
@@ -189,6 +190,7 @@ def train(
     Example: fieldgen train point_nav --logger tensorboard, then: tensorboard --logdir runs
     Example: fieldgen train soccer_v2 --init-from runs/soccer_v1-crl-0 --seed 1
     Example: fieldgen train soccer_v1 --curriculum auto --steps 50M
+    Example: fieldgen train soccer_1v1   (a team field: self-play PPO, one network on both sides)
     Example: fieldgen train point_nav --seeds 8 --coordinator node01:12345 --num-processes 2 --process-id 0
     Example: fieldgen train --resume runs/soccer_v2-crl-0 --time-limit 55m
     """
