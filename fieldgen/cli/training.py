@@ -226,6 +226,7 @@ def train(
                 fail(f"--init-from sets up a new run; {resume} goes on from its own checkpoint (or from what it "
                      "was set up to start from): drop --init-from, or train into another --out")
             if selfplay.is_team_run(resume):
+                _refuse_for_self_play(str(resume), init_from=init_from, time_limit=time_limit, logger=logger)
                 return _train_team(selfplay.open_run(resume))
             run = session.open_run(resume, to_train=True)
             if run.refills and run.rows and not run.finished:
@@ -239,6 +240,8 @@ def train(
             _read_config(config)
             field = session.field_spec(source)
             if field.teams is not None:  # a match: one network plays both sides (self-play PPO)
+                _refuse_for_self_play(field.name, mixed=mixed, curriculum=curriculum_kind, levels=levels,
+                                      sampler=samplers, init_from=init_from, time_limit=time_limit, logger=logger)
                 team = _team_run(source, field, algo, seeds, config, sets, preset, steps, envs, seed, runs)
                 if prepare:
                     out.print(f"prepared {team.folder}; start it with: fieldgen train --resume {team.folder}",
@@ -304,6 +307,15 @@ def _team_run(source: Path, field, algo: str | None, seeds: int, config: Path | 
     settings = SelfPlayConfig.layered(config, sets or [], agent=field.agent.kind, preset=preset,
                                       total_steps=steps, num_envs=envs, seed=seed)
     return selfplay.new_run(source, settings, runs)
+
+
+def _refuse_for_self_play(what: str, logger: str = "none", **given) -> None:
+    """Fail in one line where an option that a self-play run does not take was given (docs/teams.md)."""
+    flags = [f"--{name.replace('_', '-')}" for name, value in given.items() if value] + \
+        (["--logger"] if logger != "none" else [])
+    if flags:
+        fail(f"{what} trains by self-play, which takes no {', '.join(flags)}: a self-play run trains one team field "
+             "from nothing, to its end, and writes its own metrics and ratings; leave them out")
 
 
 def _train_team(run) -> None:

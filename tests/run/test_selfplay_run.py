@@ -24,6 +24,8 @@ def test_a_team_field_trains_by_self_play_with_ppo_alone(tmp_path):
     assert result.exit_code == 1 and "self-play trains one seed a run" in result.output
     result = runner.invoke(app, ["train", "soccer_1v1", "--set", "ppo.pool_sampling=oldest", "--out", str(tmp_path)])
     assert result.exit_code == 1 and "unknown ppo.pool_sampling 'oldest'" in result.output
+    result = runner.invoke(app, ["train", "soccer_1v1", "--curriculum", "auto", "--out", str(tmp_path)])
+    assert result.exit_code == 1 and "self-play, which takes no --curriculum" in result.output
     assert not list(tmp_path.iterdir())
 
 
