@@ -62,6 +62,37 @@ class TrainState:
     env_steps: jax.Array
 
 
+def gaussian(policy_net, spread: str, params, obs):
+    """The pre-tanh Gaussian's mean and log-std: the policy network's (spread state), or its mean with the one
+    learned log-std per action (spread global)."""
+    out = policy_net.apply(params["policy"], obs)
+    if spread == "global":
+        return out, params["log_std"]
+    mean, raw = jnp.split(out, 2, axis=-1)
+    return mean, jnp.log(jax.nn.softplus(raw) + 1e-3)
+
+
+def advantages(data, last_value, discount: float, gae_lambda: float):
+    """(GAE advantages, value targets) of a rollout [steps, ...] whose `done` ends an episode (no bootstrap)."""
+    def back(carry, t):
+        gae, next_value = carry
+        live = 1.0 - t["done"]
+        delta = t["reward"] + discount * next_value * live - t["value"]
+        gae = delta + discount * gae_lambda * live * gae
+        return (gae, t["value"]), gae
+
+    _, adv = jax.lax.scan(back, (jnp.zeros_like(last_value), last_value), data, reverse=True)
+    return adv, adv + data["value"]
+
+
+def squashed_entropy(mean, log_std, noise):
+    """The squashed Gaussian's entropy per sample, its tanh part estimated at the stored samples (`noise`) moved
+    with the current mean and spread (reparameterised, so it has a gradient)."""
+    fresh = mean + jnp.exp(log_std) * jax.lax.stop_gradient(noise)
+    gaussian = jnp.broadcast_to(log_std, mean.shape) + 0.5 * jnp.log(2 * jnp.pi * jnp.e)
+    return jnp.sum(gaussian + tanh_log_slope(fresh), -1)
+
+
 def make_train(config: PPOConfig, env) -> Trainer:
     c = config
     iters_per_eval = c.total_steps // (c.num_envs * c.unroll_length) // c.num_evals
@@ -85,12 +116,7 @@ def make_train(config: PPOConfig, env) -> Trainer:
         return TrainState(params, tx.init(params), normalizer, env_state, key, jnp.zeros((), jnp.int32))
 
     def distribution(params, obs):
-        """The pre-tanh Gaussian's mean and log-std."""
-        out = policy_net.apply(params["policy"], obs)
-        if c.spread == "global":
-            return out, params["log_std"]
-        mean, raw = jnp.split(out, 2, axis=-1)
-        return mean, jnp.log(jax.nn.softplus(raw) + 1e-3)
+        return gaussian(policy_net, c.spread, params, obs)
 
     def log_prob(mean, log_std, noise):
         """The Gaussian's log-density of mean + std * noise before tanh: a ratio of two policies' densities
@@ -123,17 +149,6 @@ def make_train(config: PPOConfig, env) -> Trainer:
         last = value_net.apply(ts.params["value"], ts.normalizer(env_state.obs, c.normalize_observations))[:, 0]
         return ts.replace(env_state=env_state, key=key), data, last
 
-    def advantages(data, last_value):
-        def back(carry, t):
-            gae, next_value = carry
-            live = 1.0 - t["done"]
-            delta = t["reward"] + c.discount * next_value * live - t["value"]
-            gae = delta + c.discount * c.gae_lambda * live * gae
-            return (gae, t["value"]), gae
-
-        _, adv = jax.lax.scan(back, (jnp.zeros_like(last_value), last_value), data, reverse=True)
-        return adv, adv + data["value"]
-
     def loss(params, normalizer, mb):
         obs = normalizer(mb["obs"], c.normalize_observations)
         mean, log_std = distribution(params, obs)
@@ -142,17 +157,13 @@ def make_train(config: PPOConfig, env) -> Trainer:
         adv = (mb["adv"] - mb["adv"].mean()) / (mb["adv"].std() + 1e-8)
         surrogate = -jnp.mean(jnp.minimum(ratio * adv, jnp.clip(ratio, 1 - c.clip, 1 + c.clip) * adv))
         value_loss = jnp.mean((value_net.apply(params["value"], obs)[:, 0] - mb["target"]) ** 2)
-        # the squashed entropy, its tanh part estimated at the stored samples moved with the current
-        # mean and spread (reparameterised, so it has a gradient)
-        fresh = mean + jnp.exp(log_std) * jax.lax.stop_gradient(noise)
-        gaussian = jnp.broadcast_to(log_std, mean.shape) + 0.5 * jnp.log(2 * jnp.pi * jnp.e)
-        entropy = jnp.mean(jnp.sum(gaussian + tanh_log_slope(fresh), -1))
+        entropy = jnp.mean(squashed_entropy(mean, log_std, noise))
         total = surrogate + c.value_coef * value_loss - c.entropy_coef * entropy
         return total, {"policy_loss": surrogate, "value_loss": value_loss, "entropy": entropy}
 
     def iteration(ts: TrainState):
         ts, data, last = rollout(ts)
-        adv, target = advantages(data, last)
+        adv, target = advantages(data, last, c.discount, c.gae_lambda)
         flat = jax.tree.map(lambda x: x.reshape((batch,) + x.shape[2:]),
                             {"obs": data["obs"], "raw": data["raw"], "log_prob": data["log_prob"],
                              "adv": adv, "target": target})

@@ -178,7 +178,8 @@ def train(
              f"last evaluation whose next chunk and checkpoint would not end in time, exit status "
              f"{TIME_LIMIT_STATUS}; continue with --resume")] = None,
 ) -> None:
-    """Train an agent on a field or through a curriculum folder's stages; writes runs/<name>-<algo>-<seed>/.
+    """Train an agent on a field or through a curriculum folder's stages, or a team field by self-play (docs:
+    teams); writes runs/<name>-<algo>-<seed>/.
 
     Resumes exactly after an interrupt (--resume). A curriculum run moves to the next stage when its
     promotion rule is met and reports which stage it reached, when, and success on the last stage;
@@ -189,6 +190,7 @@ def train(
     Example: fieldgen train point_nav --logger tensorboard, then: tensorboard --logdir runs
     Example: fieldgen train soccer_v2 --init-from runs/soccer_v1-crl-0 --seed 1
     Example: fieldgen train soccer_v1 --curriculum auto --steps 50M
+    Example: fieldgen train soccer_1v1   (a team field: self-play PPO, one network on both sides)
     Example: fieldgen train point_nav --seeds 8 --coordinator node01:12345 --num-processes 2 --process-id 0
     Example: fieldgen train --resume runs/soccer_v2-crl-0 --time-limit 55m
     """
@@ -196,7 +198,7 @@ def train(
     fmt = video_format(video_fmt) if videos else None
     from fieldgen.agents import registry
     from fieldgen.files import FolderError
-    from fieldgen.run import distributed, loggers, record, session, supervisor
+    from fieldgen.run import distributed, loggers, record, selfplay, session, supervisor
     from fieldgen.run import recipe as recipes
     from fieldgen.agents.config import ConfigError
     from fieldgen.agents.recipes import RecipeError
@@ -223,6 +225,9 @@ def train(
             if init_from is not None:
                 fail(f"--init-from sets up a new run; {resume} goes on from its own checkpoint (or from what it "
                      "was set up to start from): drop --init-from, or train into another --out")
+            if selfplay.is_team_run(resume):
+                _refuse_for_self_play(str(resume), init_from=init_from, time_limit=time_limit, logger=logger)
+                return _train_team(selfplay.open_run(resume))
             run = session.open_run(resume, to_train=True)
             if run.refills and run.rows and not run.finished:
                 drawn = "; its episodes drawn as they were (its levels and their counts)" if run.sampling else ""
@@ -233,7 +238,17 @@ def train(
                 fail("name a field to train on, or --resume a run folder")
             source = field_source(spec)
             _read_config(config)
-            field, chosen = session.field_spec(source), recipes.choose(source, algo, use_recipe)
+            field = session.field_spec(source)
+            if field.teams is not None:  # a match: one network plays both sides (self-play PPO)
+                _refuse_for_self_play(field.name, mixed=mixed, curriculum=curriculum_kind, levels=levels,
+                                      sampler=samplers, init_from=init_from, time_limit=time_limit, logger=logger)
+                team = _team_run(source, field, algo, seeds, config, sets, preset, steps, envs, seed, runs)
+                if prepare:
+                    out.print(f"prepared {team.folder}; start it with: fieldgen train --resume {team.folder}",
+                              soft_wrap=True)
+                    return
+                return _train_team(team)
+            chosen = recipes.choose(source, algo, use_recipe)
             algo, recipe = chosen.algo, chosen.recipe
             named = preset or (recipe and recipe.preset)
             curriculum_kind = curriculum_kind or (recipe and recipe.curriculum)
@@ -275,6 +290,48 @@ def train(
             out.print(Text(f"note: {exc}; resume it on a machine that holds it", style="yellow"))
         return
     _train(run, videos, logger, fmt, None if time_limit is None else started + time_limit)
+
+
+def _team_run(source: Path, field, algo: str | None, seeds: int, config: Path | None, sets: list[str] | None,
+              preset: str | None, steps: int | None, envs: int | None, seed: int, runs: Path):
+    """A new self-play run on a team field: PPO's settings (`ppo.` keys, with self-play's own: docs/teams.md)
+    layered as any run's, without a recipe (recipes name single-agent trainers)."""
+    from fieldgen.agents.selfplay import SelfPlayConfig
+    from fieldgen.run import selfplay
+
+    if algo not in (None, SelfPlayConfig.algo):
+        fail(f"{field.name} is a team field: it trains by self-play, whose learner is {SelfPlayConfig.algo}; "
+             f"give --algo {SelfPlayConfig.algo} or leave --algo out")
+    if seeds != 1:
+        fail(f"--seeds {seeds}: self-play trains one seed a run; start a run per seed with --seed")
+    settings = SelfPlayConfig.layered(config, sets or [], agent=field.agent.kind, preset=preset,
+                                      total_steps=steps, num_envs=envs, seed=seed)
+    return selfplay.new_run(source, settings, runs)
+
+
+def _refuse_for_self_play(what: str, logger: str = "none", **given) -> None:
+    """Fail in one line where an option that a self-play run does not take was given (docs/teams.md)."""
+    flags = [f"--{name.replace('_', '-')}" for name, value in given.items() if value] + \
+        (["--logger"] if logger != "none" else [])
+    if flags:
+        fail(f"{what} trains by self-play, which takes no {', '.join(flags)}: a self-play run trains one team field "
+             "from nothing, to its end, and writes its own metrics and ratings; leave them out")
+
+
+def _train_team(run) -> None:
+    """Train a self-play run; Ctrl-C exits with 130 and leaves its last checkpoint."""
+    from fieldgen.files import FolderError
+    from fieldgen.run import record, selfplay
+
+    try:
+        selfplay.train(run, lambda line: out.print(line, soft_wrap=True))
+    except KeyboardInterrupt:
+        out.print(f"interrupted; continue with: fieldgen train --resume {run.folder}", soft_wrap=True)
+        _exit_interrupted()
+    except (record.RunError, FolderError) as exc:
+        fail(str(exc))
+    out.print(f"ratings: {run.folder / selfplay.RATINGS_PLOT}; judge it with: fieldgen eval {run.folder}",
+              soft_wrap=True)
 
 
 def _sampler(settings: list[str]):
@@ -429,6 +486,10 @@ def evaluate(
         fail(f"--summary {summary_file} is a folder; name the file to write, such as {summary_file / summary.SUMMARY}")
     if summary_file is not None and not summary_file.parent.is_dir():
         fail(f"--summary {summary_file}: there is no folder {summary_file.parent} to write it in")
+    from fieldgen.run import selfplay
+
+    if any(selfplay.is_team_run(folder) for folder in run_dirs):
+        return _evaluate_team(run_dirs, episodes, seed, actions, field, summary_file)
     evaluating = (str(run_dirs[0]) if len(run_dirs) == 1 else f"{len(run_dirs)} runs") + \
         (f" on {field}" if field is not None else "")
     summary_written = False  # what Ctrl-C leaves: the summary and the video are each written whole or not at all
@@ -494,6 +555,49 @@ def evaluate(
                   (f"{path} was written, the video was not" if summary_written else "nothing was written"),
                   soft_wrap=True)  # one line, its paths whole
         _exit_interrupted()
+
+
+def _evaluate_team(run_dirs: list[Path], episodes: int | None, seed: int, actions: str | None, field: str | None,
+                   summary_file: Path | None) -> None:
+    """`fieldgen eval` of a self-play run: its last snapshot's wins, draws and losses against a random policy and
+    against the snapshot from a third of the way through, and the snapshots' Elo ratings; written to
+    RUN/selfplay_eval.json (or --summary)."""
+    import json
+
+    from fieldgen.agents.config import ConfigError
+    from fieldgen.files import WriteError, write_atomic
+    from fieldgen.run import record, selfplay
+
+    if len(run_dirs) != 1 or field is not None:
+        fail("a self-play run is evaluated alone, on its own field: name one run folder, without --field")
+    try:
+        run = selfplay.open_run(run_dirs[0])
+        if run.state is None:
+            fail(f"{run_dirs[0]} has no checkpoint: it has not trained yet; train it with "
+                 f"fieldgen train --resume {run_dirs[0]}, then evaluate it")
+        result = selfplay.evaluate(run, episodes, seed, actions)
+    except (ConfigError, record.RunError) as exc:
+        fail(str(exc))
+    except KeyboardInterrupt:
+        out.print(f"interrupted evaluating {run_dirs[0]}; nothing was written")
+        _exit_interrupted()
+    earlier = result["vs_snapshot"]
+    table = Table("opponent", "win", "draw", "loss",
+                  title=f"{run_dirs[0]} (snapshot {result['eval']}, {result['env_steps']:,} env steps), "
+                        f"{result['episodes']} episodes each, half on either side" + judged_on(result["actions"]))
+    table.add_row("random policy", *(str(result["vs_random"][r]) for r in selfplay.RESULTS))
+    table.add_row(f"snapshot {earlier['snapshot']} ({earlier['env_steps']:,} env steps)",
+                  *(str(earlier[r]) for r in selfplay.RESULTS))
+    out.print(table)
+    ranked = sorted(result["ratings"].items(), key=lambda item: -item[1])
+    out.print("Elo ratings (snapshot by evaluation): " + ", ".join(f"{name} {value:.0f}" for name, value in ranked),
+              soft_wrap=True)
+    path = summary_file or run_dirs[0] / selfplay.EVALUATION
+    try:
+        write_atomic(path, (json.dumps(result, indent=1) + "\n").encode())
+    except WriteError as exc:
+        fail(str(exc))
+    out.print(f"summary: {path}")
 
 
 @app.command()

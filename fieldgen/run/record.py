@@ -239,10 +239,20 @@ def write_metrics(run_dir: Path, rows: list[dict]) -> None:
     write_atomic(run_dir / CSV, text.getvalue().encode())
 
 
+def _flat_map(name: str, value) -> dict:
+    if not isinstance(value, dict):
+        return {name: value}
+    return {k: v for key, inner in value.items() for k, v in _flat_map(f"{name}.{key}", inner).items()}
+
+
 def flat_row(row: dict) -> dict:
     """A row as one CSV line (and as loggers name its numbers): a mixed run's per-variant lists become
-    variants.<metric>.<stage from 1>."""
-    out = {k: v for k, v in row.items() if k != "variants"}
+    variants.<metric>.<stage from 1>; another map's entries (a self-play run's league and ratings)
+    <name>.<key>[.<key>...]."""
+    out = {}
+    for k, v in row.items():
+        if k != "variants":
+            out.update(_flat_map(k, v))
     for metric, values in row.get("variants", {}).items():
         out.update({f"variants.{metric}.{k}": v for k, v in enumerate(values, 1)})
     return out

@@ -1,0 +1,342 @@
+"""Self-play PPO on a team field (fieldgen/env/team_contract.py): one network plays both sides of a match.
+
+Every agent observes and acts in its own side's frame, so the one policy drives home and away alike. In each
+environment the policy plays either itself (`self_play_share` of the episodes: every agent's steps are its
+own, to learn from) or an earlier snapshot of itself, on a side drawn at random (only its own side's steps are
+learned from). A snapshot is taken at every evaluation; the opponent pool is the newest `pool_size` of them,
+drawn by recency (weight `recency_decay ** age`, the newest age 0) or by win rate (prioritized fictitious
+self-play: weight (1 - w) ** `win_rate_power`, w the learner's score against that snapshot in training so far,
+wins 1 and draws 1/2, with one win and one loss assumed before any game), as `pool_sampling` says. An episode
+that ends draws its environment's next opponent and side; a new snapshot redraws them all.
+
+The learner is PPO as agents/ppo/train.py trains it (the same clipped surrogate, GAE, squashed Gaussian,
+observation normaliser and settings under `ppo.`), each agent a stream of its own: its side's reward (the
+match's dense reward, zero-sum in its goal and ball-progress terms, or with `reward: sparse` its goals for
+less its goals against), the shared `done`, its own value from its own observation. A snapshot keeps the
+policy with its normaliser's statistics of that moment.
+
+At each evaluation the new snapshot (the current policy) plays `eval_envs` episodes against a random policy
+(uniform actions) and against each of a fixed set of earlier snapshots (`league_opponents`, evenly spaced from
+the first, the untrained policy, to the one before: `fixed_opponents`), on the home side in half the episodes
+and the away side in the other half; an episode is a win or a loss by its goal, a draw where time runs out.
+Those counts rate every snapshot (agents/elo.py, K = `elo_k`); fieldgen/run/selfplay.py keeps the run.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Annotated, Callable, Literal
+
+import flax.struct
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optax
+from pydantic import Field
+
+from .config import ConfigError, Count, Float, Rate, Share, Unknown
+from .networks import MLP
+from .ppo.config import PPOConfig
+from .ppo.train import Normalizer, advantages, gaussian, squashed_entropy
+
+POOL_SAMPLINGS = ("recency", "win_rate")
+PoolSampling = Annotated[Literal[POOL_SAMPLINGS], Unknown(
+    "unknown ppo.pool_sampling '{}'; choose recency (newer snapshots more often) or win_rate (the snapshots the "
+    "policy beats least, more often)")]
+RESULTS = ("win", "draw", "loss")
+
+
+class SelfPlayConfig(PPOConfig):
+    """PPO's settings (under `ppo.`, as a single-agent PPO run takes them) and self-play's own."""
+
+    pool_size: Count = 8  # the newest snapshots the policy trains against
+    pool_sampling: PoolSampling = "recency"
+    recency_decay: Annotated[Float, Field(gt=0, le=1)] = 0.7  # pool_sampling recency: weight decay ** age
+    win_rate_power: Rate = 2.0  # pool_sampling win_rate: weight (1 - win rate) ** power
+    self_play_share: Share = 0.5  # episodes the policy plays against itself rather than a snapshot
+    league_opponents: Count = 4  # earlier snapshots each snapshot plays at its evaluation
+    elo_k: Rate = 32.0  # the Elo K factor
+
+    def validate_env(self, env, devices: int = 1, seeds: int = 1) -> None:
+        super().validate_env(env, devices, seeds)
+        if seeds != 1:
+            raise ConfigError(f"--seeds {seeds}: self-play trains one seed a run; start a run per seed (--seed)")
+        if self.eval_envs % 2:
+            raise ConfigError(f"ppo.eval_envs {self.eval_envs} is odd: a snapshot plays half its evaluation "
+                              "episodes on each side; give an even number")
+
+
+@flax.struct.dataclass
+class SelfPlayState:
+    params: dict  # policy, value (and log_std with spread global)
+    opt: optax.OptState
+    normalizer: Normalizer
+    env_state: object  # [envs] matches
+    key: jax.Array
+    env_steps: jax.Array
+    league: dict  # every snapshot, stacked over [num_evals + 1]: policy (params but the value), obs_mean, obs_std
+    taken: jax.Array  # [num_evals + 1]: which snapshots exist
+    newest: jax.Array  # the newest snapshot's index (its evaluation's)
+    wins: jax.Array  # [num_evals + 1]: the learner's score in training against each snapshot (win 1, draw 1/2)
+    games: jax.Array  # [num_evals + 1]: training episodes the learner played against each snapshot
+    opponent: jax.Array  # [envs]: the snapshot each environment's episode plays, -1 the policy itself
+    learner_side: jax.Array  # [envs]: the side the learner plays against a snapshot (0 home, 1 away)
+
+
+def fixed_opponents(index: int, count: int) -> list[int]:
+    """The earlier snapshots that snapshot `index` plays at its evaluation: up to `count`, evenly spaced from the
+    first (0, the untrained policy) to the one before it, the same for every run."""
+    if index < 1:
+        return []
+    return sorted({int(round(x)) for x in np.linspace(0, index - 1, min(count, index))})
+
+
+def pool_probabilities(config: SelfPlayConfig, newest, taken, wins, games) -> tuple[jax.Array, jax.Array]:
+    """(ids, probabilities), each [pool_size]: the pool's snapshots, newest first (an id below 0 is no snapshot),
+    and the chance each is drawn as an opponent when one is; all zero while there is none."""
+    ids = newest - jnp.arange(config.pool_size)
+    safe = jnp.maximum(ids, 0)
+    valid = (ids >= 0) & taken[safe]
+    if config.pool_sampling == "recency":
+        weight = config.recency_decay ** jnp.arange(config.pool_size, dtype=jnp.float32)
+    else:
+        rate = (wins[safe] + 1.0) / (games[safe] + 2.0)
+        weight = (1.0 - rate) ** config.win_rate_power + 1e-6
+    weight = jnp.where(valid, weight, 0.0)
+    return ids, weight / jnp.maximum(weight.sum(), 1e-12)
+
+
+def draw_opponents(config: SelfPlayConfig, key, count: int, newest, taken, wins, games):
+    """([count] opponents, [count] learner sides): each environment's next opponent, -1 (the policy itself) with
+    chance self_play_share or while no snapshot exists, else a snapshot drawn from the pool."""
+    k_pick, k_self, k_side = jax.random.split(key, 3)
+    ids, probs = pool_probabilities(config, newest, taken, wins, games)
+    picked = ids[jax.random.categorical(k_pick, jnp.log(jnp.maximum(probs, 1e-30)), shape=(count,))]
+    itself = (jax.random.uniform(k_self, (count,)) < config.self_play_share) | (probs.sum() <= 0)
+    return jnp.where(itself, -1, picked).astype(jnp.int32), jax.random.randint(k_side, (count,), 0, 2, jnp.int32)
+
+
+@dataclasses.dataclass(frozen=True)
+class SelfPlay:
+    """Self-play as pure functions of a SelfPlayState (jit them; fieldgen/run/selfplay.py runs them)."""
+
+    config: SelfPlayConfig
+    env: object
+    init: Callable  # key -> the state before training, snapshot 0 not yet taken
+    chunk: Callable  # state -> (state, mean training metrics): the iterations between two evaluations
+    judge: Callable  # (state, index, opponents [league_opponents], key) -> (state with snapshot index, results)
+    act: Callable  # (actor, obs [..., agents, n], key=None) -> actions: an actor's, mean or sampled
+    current: Callable  # state -> the learner as an actor (policy, obs_mean, obs_std)
+    snapshot: Callable  # (state, index) -> an actor: snapshot index
+    match: Callable  # (actor a, actor b or None for random, key) -> [3] a's wins, draws, losses over eval_envs
+    controls: Callable  # (opponent [envs], learner_side [envs]) -> [envs, agents]: the agents the learner drives
+
+
+def make_selfplay(config: SelfPlayConfig, env) -> SelfPlay:
+    c = config
+    iters_per_eval = c.total_steps // (c.num_envs * c.unroll_length) // c.num_evals
+    if iters_per_eval < 1:
+        raise ValueError(f"total_steps {c.total_steps:,} leaves no iteration between evaluations")
+    agents, n_obs, n_act = len(env.agent_names), env.observation_size, env.action_size
+    sides = jnp.asarray(env.agent_sides, jnp.int32)
+    snapshots = c.num_evals + 1
+    policy_net = MLP(c.hidden, n_act * (2 if c.spread == "state" else 1), init_scale=1.0)
+    value_net = MLP(c.hidden, 1, init_scale=1.0)
+    tx = optax.chain(optax.clip_by_global_norm(c.max_grad_norm), optax.adam(c.learning_rate))
+    batch = c.num_envs * c.unroll_length * agents
+    minibatch = batch // c.num_minibatches
+    sampled_eval = c.eval_actions == "sampled"
+
+    def distribution(params, obs):
+        return gaussian(policy_net, c.spread, params, obs)
+
+    def log_prob(log_std, noise):  # as PPO's: the Gaussian's, before tanh
+        return jnp.sum(-0.5 * noise**2 - log_std - 0.5 * jnp.log(2 * jnp.pi), -1)
+
+    def normalized(obs, mean, std):
+        return jnp.clip((obs - mean) / std, -Normalizer.CLIP, Normalizer.CLIP) if c.normalize_observations else obs
+
+    def act(actor, obs, key=None):
+        """The actor's squashed mean action, or with `key` one drawn from it."""
+        mean, log_std = distribution(actor["policy"], normalized(obs, actor["obs_mean"], actor["obs_std"]))
+        if key is not None:
+            mean = mean + jnp.exp(log_std) * jax.random.normal(key, mean.shape)
+        return jnp.tanh(mean)
+
+    def current(ts: SelfPlayState) -> dict:
+        return {"policy": {k: v for k, v in ts.params.items() if k != "value"},
+                "obs_mean": ts.normalizer.mean, "obs_std": ts.normalizer.std}
+
+    def snapshot(ts: SelfPlayState, index) -> dict:
+        return jax.tree.map(lambda x: x[index], ts.league)
+
+    def controls(opponent, learner_side):
+        """[envs, agents]: the agents the learner drives (all of them against itself)."""
+        return (opponent[:, None] < 0) | (sides[None, :] == learner_side[:, None])
+
+    def init(key) -> SelfPlayState:
+        k_pi, k_v, k_env, key = jax.random.split(key, 4)
+        obs = jnp.zeros((1, n_obs))
+        params = {"policy": policy_net.init(k_pi, obs), "value": value_net.init(k_v, obs)}
+        if c.spread == "global":
+            params["log_std"] = jnp.full(n_act, -0.5)
+        normalizer = Normalizer(jnp.zeros(()), jnp.zeros(n_obs), jnp.zeros(n_obs))
+        env_state = jax.vmap(env.reset)(jax.random.split(k_env, c.num_envs))
+        ts = SelfPlayState(params, tx.init(params), normalizer, env_state, key, jnp.zeros((), jnp.int32),
+                           None, jnp.zeros(snapshots, bool), jnp.zeros((), jnp.int32), jnp.zeros(snapshots),
+                           jnp.zeros(snapshots), jnp.full(c.num_envs, -1, jnp.int32),
+                           jnp.zeros(c.num_envs, jnp.int32))
+        league = jax.tree.map(lambda x: jnp.zeros((snapshots,) + x.shape, x.dtype), current(ts))
+        return ts.replace(league=league)
+
+    def rollout(ts: SelfPlayState):
+        ids = jnp.maximum(ts.newest - jnp.arange(c.pool_size), 0)
+        pool = jax.tree.map(lambda x: x[ids], ts.league)  # [pool_size, ...], newest first
+        envs = jnp.arange(c.num_envs)
+
+        def step(carry, key):
+            env_state, opponent, learner_side, wins, games = carry
+            k_act, k_opp, k_draw = jax.random.split(key, 3)
+            obs = ts.normalizer(env_state.obs, c.normalize_observations)  # [envs, agents, n]
+            mean, log_std = distribution(ts.params, obs)
+            noise = jax.random.normal(k_act, mean.shape)
+            raw = mean + jnp.exp(log_std) * noise
+            theirs = jax.vmap(act, in_axes=(0, None, 0))(pool, env_state.obs, jax.random.split(k_opp, c.pool_size))
+            slot = jnp.clip(ts.newest - opponent, 0, c.pool_size - 1)
+            learns = controls(opponent, learner_side)
+            actions = jnp.where(learns[..., None], jnp.tanh(raw), theirs[slot, envs])
+            nxt = jax.vmap(env.step)(env_state, actions)
+            success = nxt.metrics["success"]  # [envs, 2]
+            side_reward = nxt.reward if c.reward == "dense" else success - success[:, ::-1]
+            value = value_net.apply(ts.params["value"], obs)[..., 0]
+            # the learner's training games against snapshots, each scored once, when it ends
+            mine, other = success[envs, learner_side], success[envs, 1 - learner_side]
+            counted = nxt.done * (opponent >= 0)
+            at = jnp.maximum(opponent, 0)
+            wins = wins.at[at].add(counted * (0.5 + 0.5 * (mine - other)))
+            games = games.at[at].add(counted)
+            fresh_opponent, fresh_side = draw_opponents(c, k_draw, c.num_envs, ts.newest, ts.taken, wins, games)
+            ended = nxt.done > 0
+            opponent = jnp.where(ended, fresh_opponent, opponent)
+            learner_side = jnp.where(ended, fresh_side, learner_side)
+            data = {"obs": env_state.obs, "raw": raw, "log_prob": log_prob(log_std, noise), "value": value,
+                    "reward": side_reward[:, sides], "done": nxt.done, "learns": learns.astype(jnp.float32),
+                    "goals": jnp.sum(success, -1)}
+            return (nxt, opponent, learner_side, wins, games), data
+
+        key, k = jax.random.split(ts.key)
+        carry = (ts.env_state, ts.opponent, ts.learner_side, ts.wins, ts.games)
+        (env_state, opponent, learner_side, wins, games), data = jax.lax.scan(
+            step, carry, jax.random.split(k, c.unroll_length))
+        last = value_net.apply(ts.params["value"], ts.normalizer(env_state.obs, c.normalize_observations))[..., 0]
+        ts = ts.replace(env_state=env_state, opponent=opponent, learner_side=learner_side, wins=wins, games=games,
+                        key=key)
+        return ts, data, last
+
+    def loss(params, normalizer, mb):
+        """PPO's loss over the learner's own steps (`learns`); an opponent's steps weigh nothing."""
+        w = mb["learns"]
+        total = jnp.maximum(w.sum(), 1.0)
+
+        def average(x):
+            return jnp.sum(w * x) / total
+
+        obs = normalizer(mb["obs"], c.normalize_observations)
+        mean, log_std = distribution(params, obs)
+        noise = (mb["raw"] - mean) / jnp.exp(log_std)
+        ratio = jnp.exp(log_prob(log_std, noise) - mb["log_prob"])
+        centre = average(mb["adv"])
+        adv = (mb["adv"] - centre) / (jnp.sqrt(average((mb["adv"] - centre) ** 2)) + 1e-8)
+        surrogate = -average(jnp.minimum(ratio * adv, jnp.clip(ratio, 1 - c.clip, 1 + c.clip) * adv))
+        value_loss = average((value_net.apply(params["value"], obs)[:, 0] - mb["target"]) ** 2)
+        entropy = average(squashed_entropy(mean, log_std, noise))
+        objective = surrogate + c.value_coef * value_loss - c.entropy_coef * entropy
+        return objective, {"policy_loss": surrogate, "value_loss": value_loss, "entropy": entropy}
+
+    def iteration(ts: SelfPlayState):
+        ts, data, last = rollout(ts)
+        streams = {"reward": data["reward"], "value": data["value"],
+                   "done": jnp.broadcast_to(data["done"][..., None], data["reward"].shape)}  # per agent
+        adv, target = advantages(streams, last, c.discount, c.gae_lambda)
+        flat = jax.tree.map(lambda x: x.reshape((batch,) + x.shape[3:]),
+                            {"obs": data["obs"], "raw": data["raw"], "log_prob": data["log_prob"], "adv": adv,
+                             "target": target, "learns": data["learns"]})
+        normalizer = ts.normalizer.update(flat["obs"])
+
+        def epoch(carry, key):
+            def sgd(carry, mb):
+                params, opt = carry
+                (_, metrics), grads = jax.value_and_grad(loss, has_aux=True)(params, normalizer, mb)
+                updates, opt = tx.update(grads, opt)
+                return (optax.apply_updates(params, updates), opt), metrics
+
+            perm = jax.random.permutation(key, batch)
+            mbs = jax.tree.map(lambda x: x[perm].reshape((c.num_minibatches, minibatch) + x.shape[1:]), flat)
+            return jax.lax.scan(sgd, carry, mbs)
+
+        key, k = jax.random.split(ts.key)
+        (params, opt), metrics = jax.lax.scan(epoch, (ts.params, ts.opt), jax.random.split(k, c.update_epochs))
+        learner = data["learns"]
+        stats = {"train_reward": jnp.sum(learner * data["reward"]) / jnp.maximum(learner.sum(), 1.0),
+                 "train_goals": jnp.mean(data["goals"]), "self_play_share": jnp.mean(ts.opponent < 0)}
+        ts = ts.replace(params=params, opt=opt, normalizer=normalizer, key=key,
+                        env_steps=ts.env_steps + c.num_envs * c.unroll_length)
+        return ts, {**jax.tree.map(jnp.mean, metrics), **stats}
+
+    def chunk(ts: SelfPlayState):
+        ts, metrics = jax.lax.scan(lambda t, _: iteration(t), ts, None, length=iters_per_eval)
+        return ts, jax.tree.map(jnp.mean, metrics)
+
+    def match(a, b, key):
+        """[3]: a's wins, draws and losses over eval_envs episodes against b (None: a random policy), a on the
+        home side in the even environments and the away side in the odd."""
+        n = c.eval_envs
+        k_reset, k_play = jax.random.split(key)
+        env_state = jax.vmap(env.reset)(jax.random.split(k_reset, n))
+        a_side = jnp.arange(n, dtype=jnp.int32) % 2
+        mine = sides[None, :] == a_side[:, None]
+        rows = jnp.arange(n)
+
+        def step(carry, key):
+            env_state, alive, outcome = carry
+            k_a, k_b = jax.random.split(key)
+            ours = act(a, env_state.obs, k_a if sampled_eval else None)
+            if b is None:
+                theirs = jax.random.uniform(k_b, ours.shape, minval=-1.0, maxval=1.0)
+            else:
+                theirs = act(b, env_state.obs, k_b if sampled_eval else None)
+            nxt = jax.vmap(env.step)(env_state, jnp.where(mine[..., None], ours, theirs))
+            success = nxt.metrics["success"]
+            result = jnp.where(success[rows, a_side] > 0, 1, jnp.where(success[rows, 1 - a_side] > 0, -1, 0))
+            outcome = outcome + alive * result
+            return (nxt, alive * (1 - nxt.done.astype(jnp.int32)), outcome), None
+
+        start = (env_state, jnp.ones(n, jnp.int32), jnp.zeros(n, jnp.int32))
+        (_, _, outcome), _ = jax.lax.scan(step, start, jax.random.split(k_play, env.episode_length))
+        wins, losses = jnp.sum(outcome > 0), jnp.sum(outcome < 0)
+        return jnp.stack([wins, n - wins - losses, losses])
+
+    def judge(ts: SelfPlayState, index, opponents, key):
+        """The state with snapshot `index` taken (the current policy; every environment's opponent drawn anew)
+        and its results: {"random": [3], "earlier": [league_opponents, 3]} (rows of an opponent id below 0
+        are zeros: no match)."""
+        league = jax.tree.map(lambda all_, one: all_.at[index].set(one), ts.league, current(ts))
+        taken = ts.taken.at[index].set(True)
+        wins, games = ts.wins.at[index].set(0.0), ts.games.at[index].set(0.0)
+        key_draw, key_next = jax.random.split(ts.key)
+        opponent, side = draw_opponents(c, key_draw, c.num_envs, index, taken, wins, games)
+        ts = ts.replace(league=league, taken=taken, newest=jnp.asarray(index, jnp.int32), wins=wins, games=games,
+                        opponent=opponent, learner_side=side, key=key_next)
+        me = current(ts)
+        vs_random = match(me, None, jax.random.fold_in(key, 0))
+
+        def against(item):
+            j, k = item
+            return jax.lax.cond(j >= 0, lambda: match(me, snapshot(ts, jnp.maximum(j, 0)), k),
+                                lambda: jnp.zeros(3, jnp.int32))
+
+        keys = jax.vmap(lambda i: jax.random.fold_in(key, i))(jnp.arange(1, c.league_opponents + 1))
+        earlier = jax.lax.map(against, (opponents, keys))
+        return ts, {"random": vs_random, "earlier": earlier}
+
+    return SelfPlay(config, env, init, chunk, judge, act, current, snapshot, match, controls)

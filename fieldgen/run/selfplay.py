@@ -1,0 +1,296 @@
+"""A self-play run on a team field (agents/selfplay.py) in its folder: set up, trained one evaluation at a
+time with a checkpoint after each (resumed exactly from it), rated, plotted and judged.
+
+The folder is a training run's (fieldgen/run/record.py): run.json (its `selfplay` entry marks it), the field's
+own copy in field/, metrics.jsonl and metrics.csv (a row per evaluation), checkpoint.msgpack (the whole
+training state, every snapshot with it), and ratings.png. A row holds, beside the training losses, the new
+snapshot's games against the random policy (`win_vs_random`, `draw_vs_random`, `loss_vs_random`, as shares;
+`success_any` is the share won, as other runs' figures read it), `league` (its win, draw and loss counts against
+`random` and each earlier snapshot it played, by index), `elo` (its rating once those games are counted) and
+`ratings` (every player's).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import time
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from fieldgen import files
+from fieldgen.agents import checkpoint, elo
+from fieldgen.agents.loop import EVAL_STREAM
+from fieldgen.agents.selfplay import RESULTS, SelfPlayConfig, fixed_opponents, make_selfplay
+from fieldgen.compile.artifact import ArtifactError, write_artifact
+from fieldgen.run import record
+
+FIELD = "field"
+RATINGS_PLOT = "ratings.png"
+EVALUATION = "selfplay_eval.json"  # what `fieldgen eval` on a self-play run writes
+RANDOM = "random"
+
+
+@dataclasses.dataclass
+class TeamRun:
+    folder: Path
+    config: SelfPlayConfig
+    env: object
+    rows: list[dict]
+    state: object = None  # the checkpointed training state, where it has one
+
+    @property
+    def seed(self) -> int:
+        return self.config.seed
+
+    @property
+    def finished(self) -> bool:
+        return bool(self.rows) and self.rows[-1]["eval"] >= self.config.num_evals
+
+    @property
+    def label(self) -> str:
+        return f"{self.env.spec.name}: self-play ppo"
+
+    @property
+    def algorithm(self):
+        return programs(self.config, self.env)[0]
+
+
+_compiled: dict = {}  # (config but its seed, the field's spec) -> programs(...)
+
+
+def programs(config: SelfPlayConfig, env) -> tuple:
+    """(SelfPlay, jitted init, chunk, judge) for `config` on `env`'s field, made once in a process: a resume
+    or another seed of the same settings in the same process reuses them instead of compiling again."""
+    key = (config.model_copy(update={"seed": 0}), json.dumps(env.spec.model_dump(mode="json"), sort_keys=True))
+    if key not in _compiled:
+        sp = make_selfplay(config, env)
+        _compiled[key] = (sp, jax.jit(sp.init), jax.jit(sp.chunk, donate_argnums=0),
+                          jax.jit(sp.judge, donate_argnums=0))
+    return _compiled[key]
+
+
+def is_team_run(folder: Path) -> bool:
+    """Whether `folder` holds a self-play run (its run.json says so); False for any other folder."""
+    try:
+        return bool(json.loads((folder / record.RUN).read_bytes()).get("selfplay"))
+    except (OSError, ValueError, AttributeError):
+        return False
+
+
+def _team_env(source):
+    import fieldgen
+
+    env = fieldgen.make(source)
+    if not hasattr(env, "agent_sides"):
+        raise record.RunError(f"{env.spec.name} has no teams: self-play trains a team field (teams.home/away)")
+    return env
+
+
+def new_run(source: Path, config: SelfPlayConfig, out: Path) -> TeamRun:
+    """A run folder for the team field `source`, written once its settings are known good."""
+    from fieldgen.agents.config import ConfigError
+
+    env = _team_env(source)
+    try:
+        config.validate_env(env)
+    except ConfigError as exc:
+        raise record.RunError(str(exc)) from None
+    folder = out / record.run_name(env.spec.name, config.algo, [config.seed])
+    if record.has_trained(folder):
+        raise record.RunError(f"{folder} already holds a run; continue it with --resume {folder}, "
+                              "or pick another --seed or --out")
+    files.claim(folder, record.RUN_FOLDER)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        files.mark(folder, record.RUN_FOLDER)
+        files.remove_leftovers(folder)
+        for stale in (record.METRICS, record.CSV, RATINGS_PLOT):
+            (folder / stale).unlink(missing_ok=True)
+        write_artifact(env.artifact, folder / FIELD)
+        record.write_run(folder, env.spec.model_dump(mode="json"), config.algo, config, env.layout.to_json(),
+                         [config.seed], {"fields": [FIELD], "selfplay": True})
+    except OSError as exc:
+        raise record.RunError(f"cannot set up the run folder {folder}: {exc.strerror}; free some space, fix the "
+                              "folder's permissions or choose another --out") from None
+    return TeamRun(folder, config, env, [])
+
+
+def open_run(folder: Path, load_state: bool = True) -> TeamRun:
+    """A self-play run folder with its field and (with load_state) its last checkpoint; its rows are those up to
+    the checkpoint's evaluation (later ones, of a chunk whose checkpoint a kill cut short, train again)."""
+    from fieldgen.agents.config import ConfigError
+
+    saved = record.read_run(folder)
+    try:
+        env = _team_env(folder / FIELD)
+    except ArtifactError as exc:
+        raise record.RunError(f"{folder / FIELD}: {exc}") from None
+    try:
+        config = SelfPlayConfig.layered(**saved.config)
+    except ConfigError as exc:
+        raise record.RunError(f"{folder / record.RUN} holds no usable self-play config ({exc})") from None
+    run = TeamRun(folder, config, env, record.read_metrics(folder))
+    if load_state and (folder / record.CHECKPOINT).exists():
+        template = jax.eval_shape(run.algorithm.init, jax.random.PRNGKey(0))
+        try:
+            run.state = checkpoint.load(folder / record.CHECKPOINT, template)
+        except checkpoint.CheckpointError as exc:
+            raise record.RunError(str(exc)) from None
+        last = int(run.state.newest)
+        run.rows = [row for row in run.rows if row["eval"] <= last]
+        if not run.rows or run.rows[-1]["eval"] != last:
+            raise record.RunError(f"{folder / record.METRICS} lacks evaluation {last}, which its checkpoint "
+                                  "holds; restore the run from a copy, or start it again in a new folder")
+    return run
+
+
+def opponents_of(index: int, count: int) -> jax.Array:
+    """The fixed earlier snapshots snapshot `index` plays, padded with -1 to `count`."""
+    chosen = fixed_opponents(index, count)
+    return jnp.asarray(chosen + [-1] * (count - len(chosen)), jnp.int32)
+
+
+def eval_key(seed: int, index: int) -> jax.Array:
+    return jax.random.fold_in(jax.random.fold_in(jax.random.PRNGKey(seed), EVAL_STREAM), index)
+
+
+def ratings(rows: list[dict], k: float) -> dict[str, float]:
+    """Every player's Elo rating after the leagues of `rows` in order (agents/elo.py): each snapshot's games
+    against the random policy, then against its earlier snapshots."""
+    return elo.league_ratings(((str(row["eval"]), opponent, games) for row in rows
+                               for opponent, games in row["league"].items()), k)
+
+
+def league_row(index: int, results: dict, count: int) -> dict:
+    """`league` of a metrics row: the snapshot's win, draw and loss counts by opponent."""
+    league = {RANDOM: dict(zip(RESULTS, map(int, results["random"])))}
+    for j, counts in zip(fixed_opponents(index, count), np.asarray(results["earlier"])):
+        league[str(j)] = dict(zip(RESULTS, map(int, counts)))
+    return league
+
+
+def train(run: TeamRun, say=print) -> None:
+    """Train until the run's last evaluation, writing the row, the plot and the checkpoint of each; a resumed run
+    goes on from its checkpoint exactly as if it had never stopped."""
+    c = run.config
+    if run.finished and run.state is not None:
+        say(f"{run.folder} is already complete ({run.rows[-1]['env_steps']:,} env steps)")
+        return
+    _, init, chunk, judge = programs(c, run.env)
+    clock = time.perf_counter() - (run.rows[-1].get("wall_seconds", 0.0) if run.rows else 0.0)
+    with files.locked(run.folder):
+        files.remove_leftovers(run.folder)
+        if run.state is None:
+            run.rows = []
+            state, first = init(jax.random.PRNGKey(c.seed)), 0
+        else:
+            state, first = run.state, run.rows[-1]["eval"] + 1
+        for index in range(first, c.num_evals + 1):
+            began = time.perf_counter()
+            metrics = {}
+            if index > 0:
+                state, metrics = chunk(state)
+            state, results = judge(state, index, opponents_of(index, c.league_opponents), eval_key(c.seed, index))
+            metrics, results, steps = jax.device_get((metrics, results, state.env_steps))
+            row = {"eval": index, "seed": c.seed, "env_steps": int(steps)}
+            row.update({k: float(v) for k, v in metrics.items()})
+            league = league_row(index, results, c.league_opponents)
+            games = sum(league[RANDOM].values())
+            row.update({f"{r}_vs_random": league[RANDOM][r] / games for r in RESULTS})
+            row["success_any"] = row["win_vs_random"]
+            row["league"] = league
+            rated = ratings(run.rows + [row], c.elo_k)
+            row["elo"], row["ratings"] = rated[str(index)], rated
+            if index > 0:
+                row["steps_per_second"] = (int(steps) - run.rows[-1]["env_steps"]) / (time.perf_counter() - began)
+            row["wall_seconds"] = time.perf_counter() - clock
+            stop_if_diverged(run, row)
+            run.rows.append(row)
+            record.write_metrics(run.folder, run.rows)
+            plot_ratings(run.folder, run.rows, run.label)
+            run.state = state
+            files.write_atomic(run.folder / record.CHECKPOINT, checkpoint.pieces(jax.device_get(state)))
+            say(progress_line(row, c))
+
+
+def stop_if_diverged(run: TeamRun, row: dict) -> None:
+    bad = sorted(k for k, v in row.items() if isinstance(v, float) and not np.isfinite(v))
+    if bad:
+        raise record.RunError(f"training diverged: after {row['env_steps']:,} env steps (evaluation {row['eval']}) "
+                              f"{', '.join(bad)} {'is' if len(bad) == 1 else 'are'} not finite; {run.folder} keeps "
+                              "the evaluation before. Train again with a smaller ppo.learning_rate (--set) or "
+                              "another --seed")
+
+
+def progress_line(row: dict, config: SelfPlayConfig) -> str:
+    earlier = [f"vs {j}: {g['win']}/{g['draw']}/{g['loss']}" for j, g in row["league"].items() if j != RANDOM]
+    r = row["league"][RANDOM]
+    return (f"eval {row['eval']}/{config.num_evals} at {row['env_steps']:,} env steps: vs random "
+            f"{r['win']}/{r['draw']}/{r['loss']} (win/draw/loss)" + (f", {', '.join(earlier)}" if earlier else "")
+            + f"; Elo {row['elo']:.0f}")
+
+
+def plot_ratings(run_dir: Path, rows: list[dict], title: str) -> None:
+    """ratings.png: each snapshot's Elo rating as of the last evaluation (and as it stood when it joined) against
+    the env steps it was taken at, the random policy's as a line; the shares of games won, drawn and lost against
+    the random policy at each evaluation."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from fieldgen.run.plots import save_figure
+
+    fig, axes = plt.subplots(1, 2, figsize=(10, 3.6), sharex=True, squeeze=False)
+    axes = list(axes.flat)
+    steps = [row["env_steps"] for row in rows]
+    final = rows[-1]["ratings"]
+    axes[0].plot(steps, [final[str(row["eval"])] for row in rows], marker="o", label="now")
+    axes[0].plot(steps, [row["elo"] for row in rows], ls="--", marker=".", label="when taken")
+    axes[0].axhline(final[RANDOM], color="grey", ls=":", label="random policy")
+    axes[0].set(xlabel="env steps", ylabel="Elo", title="snapshots' ratings")
+    for result in RESULTS:
+        axes[1].plot(steps, [row[f"{result}_vs_random"] for row in rows], marker="o", label=result)
+    axes[1].set(xlabel="env steps", ylabel="share of games", title="against a random policy", ylim=(-0.02, 1.02))
+    save_figure(fig, axes, title, run_dir / RATINGS_PLOT)
+
+
+def earlier_snapshot(run: TeamRun) -> int:
+    """The snapshot `fieldgen eval` sets the policy against: the one from a third of the way through."""
+    return int(round(int(run.state.newest) / 3))
+
+
+def evaluate(run: TeamRun, episodes: int | None = None, seed: int = 0, actions: str | None = None) -> dict:
+    """The last snapshot (the policy as of the last evaluation) against the random policy and against the snapshot
+    from a third of the way through, `episodes` each (half on either side); with the run's ratings."""
+    config = run.config.model_copy(update={"eval_envs": episodes or run.config.eval_envs,
+                                           "eval_actions": actions or run.config.eval_actions})
+    from fieldgen.agents.config import ConfigError
+
+    try:
+        config.validate_env(run.env)
+    except ConfigError as exc:
+        raise record.RunError(str(exc)) from None
+    sp = make_selfplay(config, run.env)
+    state, earlier = run.state, earlier_snapshot(run)
+    newest = int(state.newest)
+    key = jax.random.PRNGKey(seed)
+
+    def both(state, key):
+        me = sp.snapshot(state, newest)
+        return (sp.match(me, None, jax.random.fold_in(key, 0)),
+                sp.match(me, sp.snapshot(state, earlier), jax.random.fold_in(key, 1)))
+
+    vs_random, vs_earlier = jax.device_get(jax.jit(both)(state, key))
+    last = run.rows[-1]
+    return {"run": str(run.folder), "eval": newest, "env_steps": last["env_steps"], "episodes": config.eval_envs,
+            "actions": config.eval_actions, "seed": seed,
+            "vs_random": dict(zip(RESULTS, map(int, vs_random))),
+            "vs_snapshot": {"snapshot": earlier, "env_steps": next(r["env_steps"] for r in run.rows
+                                                                   if r["eval"] == earlier),
+                            **dict(zip(RESULTS, map(int, vs_earlier)))},
+            "elo": last["elo"], "ratings": last["ratings"]}
