@@ -226,8 +226,8 @@ def train(
                 fail(f"--init-from sets up a new run; {resume} goes on from its own checkpoint (or from what it "
                      "was set up to start from): drop --init-from, or train into another --out")
             if selfplay.is_team_run(resume):
-                _refuse_for_self_play(str(resume), init_from=init_from, time_limit=time_limit, logger=logger)
-                return _train_team(selfplay.open_run(resume))
+                _refuse_for_self_play(str(resume), init_from=init_from, logger=logger)
+                return _train_team(selfplay.open_run(resume), None if time_limit is None else started + time_limit)
             run = session.open_run(resume, to_train=True)
             if run.refills and run.rows and not run.finished:
                 drawn = "; its episodes drawn as they were (its levels and their counts)" if run.sampling else ""
@@ -241,13 +241,13 @@ def train(
             field = session.field_spec(source)
             if field.teams is not None:  # a match: one network plays both sides (self-play PPO)
                 _refuse_for_self_play(field.name, mixed=mixed, curriculum=curriculum_kind, levels=levels,
-                                      sampler=samplers, init_from=init_from, time_limit=time_limit, logger=logger)
+                                      sampler=samplers, init_from=init_from, logger=logger)
                 team = _team_run(source, field, algo, seeds, config, sets, preset, steps, envs, seed, runs)
                 if prepare:
                     out.print(f"prepared {team.folder}; start it with: fieldgen train --resume {team.folder}",
                               soft_wrap=True)
                     return
-                return _train_team(team)
+                return _train_team(team, None if time_limit is None else started + time_limit)
             chosen = recipes.choose(source, algo, use_recipe)
             algo, recipe = chosen.algo, chosen.recipe
             named = preset or (recipe and recipe.preset)
@@ -318,13 +318,14 @@ def _refuse_for_self_play(what: str, logger: str = "none", **given) -> None:
              "from nothing, to its end, and writes its own metrics and ratings; leave them out")
 
 
-def _train_team(run) -> None:
-    """Train a self-play run; Ctrl-C exits with 130 and leaves its last checkpoint."""
+def _train_team(run, deadline: float | None = None) -> None:
+    """Train a self-play run; Ctrl-C exits with 130 and leaves its last checkpoint; a run the deadline
+    (--time-limit) stopped exits with TIME_LIMIT_STATUS."""
     from fieldgen.files import FolderError
     from fieldgen.run import record, selfplay
 
     try:
-        selfplay.train(run, lambda line: out.print(line, soft_wrap=True))
+        complete = selfplay.train(run, lambda line: out.print(line, soft_wrap=True), deadline)
     except KeyboardInterrupt:
         out.print(f"interrupted; continue with: fieldgen train --resume {run.folder}", soft_wrap=True)
         _exit_interrupted()
@@ -332,6 +333,8 @@ def _train_team(run) -> None:
         fail(str(exc))
     out.print(f"ratings: {run.folder / selfplay.RATINGS_PLOT}; judge it with: fieldgen eval {run.folder}",
               soft_wrap=True)
+    if not complete:
+        raise typer.Exit(TIME_LIMIT_STATUS)
 
 
 def _sampler(settings: list[str]):

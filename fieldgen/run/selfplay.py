@@ -173,13 +173,16 @@ def league_row(index: int, results: dict, count: int) -> dict:
     return league
 
 
-def train(run: TeamRun, say=print) -> None:
+def train(run: TeamRun, say=print, deadline: float | None = None) -> bool:
     """Train until the run's last evaluation, writing the row, the plot and the checkpoint of each; a resumed run
-    goes on from its checkpoint exactly as if it had never stopped."""
+    goes on from its checkpoint exactly as if it had never stopped. With `deadline` (time.monotonic()), stop at
+    the last evaluation whose next chunk, as long as the longest one yet with its evaluation, would not end by
+    then. Returns whether the run is complete."""
     c = run.config
     if run.finished and run.state is not None:
         say(f"{run.folder} is already complete ({run.rows[-1]['env_steps']:,} env steps)")
-        return
+        return True
+    took: list[float] = []  # seconds each chunk with its evaluation and checkpoint took in this command
     _, init, chunk, judge = programs(c, run.env)
     clock = time.perf_counter() - (run.rows[-1].get("wall_seconds", 0.0) if run.rows else 0.0)
     with files.locked(run.folder):
@@ -190,6 +193,13 @@ def train(run: TeamRun, say=print) -> None:
         else:
             state, first = run.state, run.rows[-1]["eval"] + 1
         for index in range(first, c.num_evals + 1):
+            if index > 0 and deadline is not None and took and time.monotonic() + max(took) > deadline:
+                last = run.rows[-1]
+                say(f"stopped at the time limit after evaluation {last['eval']} of {c.num_evals} "
+                    f"({last['env_steps']:,} of {c.total_steps:,} env steps): the next chunk with its evaluation "
+                    f"and checkpoint (about {max(took):.0f} s) would not have ended in time. Continue with: "
+                    f"fieldgen train --resume {run.folder}")
+                return False
             began = time.perf_counter()
             metrics = {}
             if index > 0:
@@ -215,6 +225,9 @@ def train(run: TeamRun, say=print) -> None:
             run.state = state
             files.write_atomic(run.folder / record.CHECKPOINT, checkpoint.pieces(jax.device_get(state)))
             say(progress_line(row, c))
+            if index > 0:
+                took.append(time.perf_counter() - began)
+    return True
 
 
 def stop_if_diverged(run: TeamRun, row: dict) -> None:

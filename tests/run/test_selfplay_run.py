@@ -8,6 +8,7 @@ import pytest
 from typer.testing import CliRunner
 
 from fieldgen.cli import app
+from fieldgen.command import TIME_LIMIT_STATUS
 from fieldgen.run import record, selfplay
 
 runner = CliRunner()
@@ -69,3 +70,12 @@ def test_self_play_writes_ratings_resumes_exactly_and_is_judged(tmp_path, interr
     judged = json.loads((run / selfplay.EVALUATION).read_text())
     assert judged["vs_snapshot"]["snapshot"] == 1 and sum(judged["vs_random"].values()) == 8
     assert judged["ratings"] == last["ratings"]
+
+    # a time limit shorter than the first chunk (which compiles) stops after it; the resume ends as the whole run
+    limited = tmp_path / "limited"
+    result = runner.invoke(app, ["train", "soccer_1v1", "--out", str(limited), "--time-limit", "1", *TINY])
+    assert result.exit_code == TIME_LIMIT_STATUS, result.output
+    assert "stopped at the time limit after evaluation 1 of 3 (800 of 2,400 env steps)" in result.output
+    result = runner.invoke(app, ["train", "--resume", str(limited / "soccer_1v1-ppo-0")])
+    assert result.exit_code == 0, result.output
+    assert without_timings(record.read_metrics(limited / "soccer_1v1-ppo-0")) == without_timings(rows)
