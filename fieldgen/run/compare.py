@@ -69,7 +69,7 @@ def runs(source: Path, algos: list[str], seeds: list[int], folder: Path | None, 
 
 def curves(run: session.Run, judge=None) -> dict:
     """Per evaluation: env steps, wall seconds, and each metric success.png plots (success_any, time_at_goal,
-    closest_distance) over the seeds (NaN in rows written before the metric was logged), each row judged by
+    closest_distance, farthest_from_start) over the seeds (NaN in rows written before the metric was logged), each row judged by
     `judge` (default `on_field`)."""
     judge = judge or on_field
     evals = sorted({r["eval"] for r in run.rows})
@@ -141,8 +141,9 @@ def _finite(x: float) -> float | None:
 
 
 def plot(runs_: list[session.Run], path: Path, title: str, labels: list[str] | None = None, judge=None) -> None:
-    """success_any against env steps and against wall-clock seconds, time at goal and the closest approach
-    to the goal against env steps: the interquartile mean over seeds, with its 95% bootstrap interval shaded.
+    """success_any against env steps and against wall-clock seconds, time at goal, the closest approach to the
+    goal and, where measured, how far the ball moved against env steps: the interquartile mean over seeds, with
+    its 95% bootstrap interval shaded.
     Each run (anything with the `rows` and `seeds` of one) is a line named by its algorithm, or by `labels`;
     each row judged by `judge` (default `on_field`)."""
     import matplotlib
@@ -150,11 +151,21 @@ def plot(runs_: list[session.Run], path: Path, title: str, labels: list[str] | N
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, 4, figsize=(18, 3.8))
-    for k, run in enumerate(runs_):
-        c = curves(run, judge)
-        for ax, x, metric in ((axes[0], "env_steps", "success_any"), (axes[1], "wall_seconds", "success_any"),
-                              (axes[2], "env_steps", "time_at_goal"), (axes[3], "env_steps", "closest_distance")):
+    drawn = [curves(run, judge) for run in runs_]
+    # how far the ball moved gets a fifth panel where a run measured it, the five then wrapped three a row
+    moved = any(np.isfinite(v).all() for c in drawn for v in c["farthest_from_start"])
+    if moved:
+        fig, grid = plt.subplots(2, 3, figsize=(15, 7.6))
+        fig.delaxes(grid.flat[5])
+        axes = list(grid.flat[:5])
+    else:
+        fig, axes = plt.subplots(1, 4, figsize=(18, 3.8))
+    panels = [(axes[0], "env_steps", "success_any"), (axes[1], "wall_seconds", "success_any"),
+              (axes[2], "env_steps", "time_at_goal"), (axes[3], "env_steps", "closest_distance")]
+    if moved:
+        panels.append((axes[4], "env_steps", "farthest_from_start"))
+    for k, (run, c) in enumerate(zip(runs_, drawn)):
+        for ax, x, metric in panels:
             centre, low, high = np.array([over_seeds(v) for v in c[metric]]).T
             line, = ax.plot(c[x], centre, marker="o", ms=3, label=labels[k] if labels else run.algo)
             if len(run.seeds) > 1:
@@ -166,6 +177,8 @@ def plot(runs_: list[session.Run], path: Path, title: str, labels: list[str] | N
                 ylim=(-0.02, 1.02), title="against time")
     axes[2].set(xlabel="env steps", ylabel=f"steps at goal per episode{over} (IQM)", title="time at goal")
     axes[3].set(xlabel="env steps", ylabel=f"distance{over} (IQM)", title="closest approach to the goal")
+    if moved:
+        axes[4].set(xlabel="env steps", ylabel=f"distance{over} (IQM)", title=plots.PANELS["farthest_from_start"][1])
     handles, names = axes[0].get_legend_handles_labels()  # one legend under the panels, none over the curves
     fig.legend(handles, names, loc="lower center", ncol=min(len(names), 3), fontsize=9, frameon=False)
     plots.save_figure(fig, axes, title, path)

@@ -96,6 +96,24 @@ def test_compare_plots_the_iqm_over_seeds_with_its_interval_shaded(tmp_path, mon
         assert sum(isinstance(c, PolyCollection) for c in ax.collections) == 1
 
 
+def test_compare_draws_how_far_the_ball_moved_where_a_run_measured_it(tmp_path, monkeypatch):
+    """Runs whose rows hold farthest_from_start get a fifth panel of it (IQM over seeds), the five wrapped three
+    a row; runs without it keep the four panels."""
+    from fieldgen.run import compare, plots
+
+    drawn = {}
+    monkeypatch.setattr(plots, "save_figure", lambda fig, axes, title, path: drawn.update(axes=axes))
+    plain = hand_made_run(tmp_path, "crl", FIVE_SEEDS)
+    compare.plot([plain], tmp_path / "compare.png", "title")
+    assert len(drawn["axes"]) == 4
+    moved = hand_made_run(tmp_path, "crl", FIVE_SEEDS)
+    for row in moved.rows:
+        row["farthest_from_start"] = 0.1 * row["eval"]
+    compare.plot([moved], tmp_path / "compare.png", "title")
+    assert len(drawn["axes"]) == 5 and drawn["axes"][4].get_title() == plots.PANELS["farthest_from_start"][1]
+    np.testing.assert_allclose(drawn["axes"][4].lines[0].get_ydata(), [0.0, 0.1, 0.2])
+
+
 def test_compare_tables_the_iqm_and_its_interval_per_algorithm(tmp_path):
     import io
 
