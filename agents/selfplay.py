@@ -130,6 +130,7 @@ class SelfPlay:
     snapshot: Callable  # (state, index) -> an actor: snapshot index
     match: Callable  # (actor a, actor b or None for random, key) -> [3] a's wins, draws, losses over eval_envs
     controls: Callable  # (opponent [envs], learner_side [envs]) -> [envs, agents]: the agents the learner drives
+    film: Callable  # (actor a, actor b or None, key) -> one match, a at home, filmed: ((qpos, mocap_pos), done) a step
 
 
 def make_selfplay(config: SelfPlayConfig, env) -> SelfPlay:
@@ -316,6 +317,26 @@ def make_selfplay(config: SelfPlayConfig, env) -> SelfPlay:
         wins, losses = jnp.sum(outcome > 0), jnp.sum(outcome < 0)
         return jnp.stack([wins, n - wins - losses, losses])
 
+    def film(a, b, key):
+        """One match, a on the home side against b (None: a random policy) on the away side, acting as in the
+        evaluations: the state before each step ((qpos, mocap_pos) of fieldgen.run.videos.EpisodeRecorder.film)
+        and that step's done, [episode_length, ...]."""
+        k_reset, k_play = jax.random.split(key)
+        env_state = jax.vmap(env.reset)(k_reset[None])
+        home = (sides == 0)[None, :, None]
+
+        def step(env_state, key):
+            k_a, k_b = jax.random.split(key)
+            ours = act(a, env_state.obs, k_a if sampled_eval else None)
+            theirs = jax.random.uniform(k_b, ours.shape, minval=-1.0, maxval=1.0) if b is None else \
+                act(b, env_state.obs, k_b if sampled_eval else None)
+            nxt = jax.vmap(env.step)(env_state, jnp.where(home, ours, theirs))
+            frame = (env_state.pipeline_state.qpos[0], env_state.pipeline_state.mocap_pos[0])
+            return nxt, (frame, nxt.done[0])
+
+        _, filmed = jax.lax.scan(step, env_state, jax.random.split(k_play, env.episode_length))
+        return filmed
+
     def judge(ts: SelfPlayState, index, opponents, key):
         """The state with snapshot `index` taken (the current policy; every environment's opponent drawn anew)
         and its results: {"random": [3], "earlier": [league_opponents, 3]} (rows of an opponent id below 0
@@ -339,4 +360,4 @@ def make_selfplay(config: SelfPlayConfig, env) -> SelfPlay:
         earlier = jax.lax.map(against, (opponents, keys))
         return ts, {"random": vs_random, "earlier": earlier}
 
-    return SelfPlay(config, env, init, chunk, judge, act, current, snapshot, match, controls)
+    return SelfPlay(config, env, init, chunk, judge, act, current, snapshot, match, controls, film)

@@ -227,7 +227,8 @@ def train(
                      "was set up to start from): drop --init-from, or train into another --out")
             if selfplay.is_team_run(resume):
                 _refuse_for_self_play(str(resume), init_from=init_from, logger=logger)
-                return _train_team(selfplay.open_run(resume), None if time_limit is None else started + time_limit)
+                return _train_team(selfplay.open_run(resume), None if time_limit is None else started + time_limit,
+                                   fmt)
             run = session.open_run(resume, to_train=True)
             if run.refills and run.rows and not run.finished:
                 drawn = "; its episodes drawn as they were (its levels and their counts)" if run.sampling else ""
@@ -247,7 +248,7 @@ def train(
                     out.print(f"prepared {team.folder}; start it with: fieldgen train --resume {team.folder}",
                               soft_wrap=True)
                     return
-                return _train_team(team, None if time_limit is None else started + time_limit)
+                return _train_team(team, None if time_limit is None else started + time_limit, fmt)
             chosen = recipes.choose(source, algo, use_recipe)
             algo, recipe = chosen.algo, chosen.recipe
             named = preset or (recipe and recipe.preset)
@@ -318,14 +319,17 @@ def _refuse_for_self_play(what: str, logger: str = "none", **given) -> None:
              "from nothing, to its end, and writes its own metrics and ratings; leave them out")
 
 
-def _train_team(run, deadline: float | None = None) -> None:
-    """Train a self-play run; Ctrl-C exits with 130 and leaves its last checkpoint; a run the deadline
-    (--time-limit) stopped exits with TIME_LIMIT_STATUS."""
+def _train_team(run, deadline: float | None = None, fmt: str | None = None) -> None:
+    """Train a self-play run, with a video of a match at every evaluation in `fmt` (None: no videos); Ctrl-C exits
+    with 130 and leaves its last checkpoint; a run the deadline (--time-limit) stopped exits with
+    TIME_LIMIT_STATUS."""
     from fieldgen.files import FolderError
     from fieldgen.run import record, selfplay
+    from fieldgen.run.videos import EpisodeRecorder
 
+    recorder = None if fmt is None else EpisodeRecorder(run.env, fmt=fmt)
     try:
-        complete = selfplay.train(run, lambda line: out.print(line, soft_wrap=True), deadline)
+        complete = selfplay.train(run, lambda line: out.print(line, soft_wrap=True), deadline, recorder)
     except KeyboardInterrupt:
         out.print(f"interrupted; continue with: fieldgen train --resume {run.folder}", soft_wrap=True)
         _exit_interrupted()
@@ -492,7 +496,7 @@ def evaluate(
     from fieldgen.run import selfplay
 
     if any(selfplay.is_team_run(folder) for folder in run_dirs):
-        return _evaluate_team(run_dirs, episodes, seed, actions, field, summary_file)
+        return _evaluate_team(run_dirs, episodes, seed, actions, field, summary_file, fmt, camera)
     evaluating = (str(run_dirs[0]) if len(run_dirs) == 1 else f"{len(run_dirs)} runs") + \
         (f" on {field}" if field is not None else "")
     summary_written = False  # what Ctrl-C leaves: the summary and the video are each written whole or not at all
@@ -561,10 +565,10 @@ def evaluate(
 
 
 def _evaluate_team(run_dirs: list[Path], episodes: int | None, seed: int, actions: str | None, field: str | None,
-                   summary_file: Path | None) -> None:
+                   summary_file: Path | None, fmt: str | None = None, camera: str = "follow") -> None:
     """`fieldgen eval` of a self-play run: its last snapshot's wins, draws and losses against a random policy and
     against the snapshot from a third of the way through, and the snapshots' Elo ratings; written to
-    RUN/selfplay_eval.json (or --summary)."""
+    RUN/selfplay_eval.json (or --summary); with `fmt`, RUN/eval.mp4 (or .gif) of one match of the two."""
     import json
 
     from fieldgen.agents.config import ConfigError
@@ -578,7 +582,7 @@ def _evaluate_team(run_dirs: list[Path], episodes: int | None, seed: int, action
         if run.state is None:
             fail(f"{run_dirs[0]} has no checkpoint: it has not trained yet; train it with "
                  f"fieldgen train --resume {run_dirs[0]}, then evaluate it")
-        result = selfplay.evaluate(run, episodes, seed, actions)
+        result, filmed = selfplay.evaluate(run, episodes, seed, actions, film=fmt is not None)
     except (ConfigError, record.RunError) as exc:
         fail(str(exc))
     except KeyboardInterrupt:
@@ -601,6 +605,18 @@ def _evaluate_team(run_dirs: list[Path], episodes: int | None, seed: int, action
     except WriteError as exc:
         fail(str(exc))
     out.print(f"summary: {path}")
+    if filmed is not None:  # the last snapshot at home, the earlier one away
+        from fieldgen.run.videos import EpisodeRecorder
+
+        recorder = EpisodeRecorder(run.env, camera, fmt)
+        name = run_dirs[0] / "eval"
+        try:
+            drawn = recorder.save(run_dirs[0], name, recorder.episode(filmed), err)
+        except WriteError as exc:
+            fail(str(exc))
+        if drawn is not None:
+            out.print(f"video: {name.with_suffix('.' + fmt)} ({drawn} frames, {camera} camera): snapshot "
+                      f"{result['eval']} at home against snapshot {earlier['snapshot']}")
 
 
 @app.command()

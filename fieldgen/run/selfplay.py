@@ -16,6 +16,7 @@ import dataclasses
 import json
 import time
 from pathlib import Path
+from types import SimpleNamespace
 
 import jax
 import jax.numpy as jnp
@@ -27,11 +28,13 @@ from fieldgen.agents.loop import EVAL_STREAM
 from fieldgen.agents.selfplay import RESULTS, SelfPlayConfig, fixed_opponents, make_selfplay
 from fieldgen.compile.artifact import ArtifactError, write_artifact
 from fieldgen.run import record
+from fieldgen.run.videos import video_name
 
 FIELD = "field"
 RATINGS_PLOT = "ratings.png"
 EVALUATION = "selfplay_eval.json"  # what `fieldgen eval` on a self-play run writes
 RANDOM = "random"
+FILMED = 1_000_003  # the stream of an evaluation's key that films its match, apart from the judged matches'
 
 
 @dataclasses.dataclass
@@ -63,13 +66,15 @@ _compiled: dict = {}  # (config but its seed, the field's spec) -> programs(...)
 
 
 def programs(config: SelfPlayConfig, env) -> tuple:
-    """(SelfPlay, jitted init, chunk, judge) for `config` on `env`'s field, made once in a process: a resume
-    or another seed of the same settings in the same process reuses them instead of compiling again."""
+    """(SelfPlay, jitted init, chunk, judge, film) for `config` on `env`'s field, made once in a process: a resume
+    or another seed of the same settings in the same process reuses them instead of compiling again. `film(state,
+    j, key)` films a match of the policy (home) against snapshot j (away)."""
     key = (config.model_copy(update={"seed": 0}), json.dumps(env.spec.model_dump(mode="json"), sort_keys=True))
     if key not in _compiled:
         sp = make_selfplay(config, env)
         _compiled[key] = (sp, jax.jit(sp.init), jax.jit(sp.chunk, donate_argnums=0),
-                          jax.jit(sp.judge, donate_argnums=0))
+                          jax.jit(sp.judge, donate_argnums=0),
+                          jax.jit(lambda ts, j, k: sp.film(sp.current(ts), sp.snapshot(ts, j), k)))
     return _compiled[key]
 
 
@@ -173,17 +178,19 @@ def league_row(index: int, results: dict, count: int) -> dict:
     return league
 
 
-def train(run: TeamRun, say=print, deadline: float | None = None) -> bool:
+def train(run: TeamRun, say=print, deadline: float | None = None, recorder=None) -> bool:
     """Train until the run's last evaluation, writing the row, the plot and the checkpoint of each; a resumed run
     goes on from its checkpoint exactly as if it had never stopped. With `deadline` (time.monotonic()), stop at
     the last evaluation whose next chunk, as long as the longest one yet with its evaluation, would not end by
-    then. Returns whether the run is complete."""
+    then. With `recorder` (a fieldgen.run.videos.EpisodeRecorder of the run's field), film at every evaluation
+    a match of the new snapshot against the one before (videos/eval_NNN), both sides in view. Returns whether
+    the run is complete."""
     c = run.config
     if run.finished and run.state is not None:
         say(f"{run.folder} is already complete ({run.rows[-1]['env_steps']:,} env steps)")
         return True
     took: list[float] = []  # seconds each chunk with its evaluation and checkpoint took in this command
-    _, init, chunk, judge = programs(c, run.env)
+    _, init, chunk, judge, film = programs(c, run.env)
     clock = time.perf_counter() - (run.rows[-1].get("wall_seconds", 0.0) if run.rows else 0.0)
     with files.locked(run.folder):
         files.remove_leftovers(run.folder)
@@ -224,6 +231,10 @@ def train(run: TeamRun, say=print, deadline: float | None = None) -> bool:
             plot_ratings(run.folder, run.rows, run.label)
             run.state = state
             files.write_atomic(run.folder / record.CHECKPOINT, checkpoint.pieces(jax.device_get(state)))
+            if recorder is not None:
+                filmed = film(state, max(index - 1, 0), jax.random.fold_in(eval_key(c.seed, index), FILMED))
+                recorder.save(run.folder, video_name(run.folder, index), recorder.episode(filmed),
+                              SimpleNamespace(print=say))
             say(progress_line(row, c))
             if index > 0:
                 took.append(time.perf_counter() - began)
@@ -277,9 +288,12 @@ def earlier_snapshot(run: TeamRun) -> int:
     return int(round(int(run.state.newest) / 3))
 
 
-def evaluate(run: TeamRun, episodes: int | None = None, seed: int = 0, actions: str | None = None) -> dict:
+def evaluate(run: TeamRun, episodes: int | None = None, seed: int = 0, actions: str | None = None,
+             film: bool = False) -> tuple[dict, object]:
     """The last snapshot (the policy as of the last evaluation) against the random policy and against the snapshot
-    from a third of the way through, `episodes` each (half on either side); with the run's ratings."""
+    from a third of the way through, `episodes` each (half on either side); with the run's ratings. With `film`,
+    also one more match of the two (the last snapshot at home) filmed for a video (EpisodeRecorder.episode's
+    input), else None."""
     config = run.config.model_copy(update={"eval_envs": episodes or run.config.eval_envs,
                                            "eval_actions": actions or run.config.eval_actions})
     from fieldgen.agents.config import ConfigError
@@ -299,6 +313,8 @@ def evaluate(run: TeamRun, episodes: int | None = None, seed: int = 0, actions: 
                 sp.match(me, sp.snapshot(state, earlier), jax.random.fold_in(key, 1)))
 
     vs_random, vs_earlier = jax.device_get(jax.jit(both)(state, key))
+    filmed = jax.jit(lambda state, key: sp.film(sp.snapshot(state, newest), sp.snapshot(state, earlier), key))(
+        state, jax.random.fold_in(key, FILMED)) if film else None
     last = run.rows[-1]
     return {"run": str(run.folder), "eval": newest, "env_steps": last["env_steps"], "episodes": config.eval_envs,
             "actions": config.eval_actions, "seed": seed,
@@ -306,4 +322,4 @@ def evaluate(run: TeamRun, episodes: int | None = None, seed: int = 0, actions: 
             "vs_snapshot": {"snapshot": earlier, "env_steps": next(r["env_steps"] for r in run.rows
                                                                    if r["eval"] == earlier),
                             **dict(zip(RESULTS, map(int, vs_earlier)))},
-            "elo": last["elo"], "ratings": last["ratings"]}
+            "elo": last["elo"], "ratings": last["ratings"]}, filmed

@@ -51,6 +51,8 @@ def test_self_play_writes_ratings_resumes_exactly_and_is_judged(tmp_path, interr
     assert (run / selfplay.RATINGS_PLOT).stat().st_size > 0
     assert json.loads((run / record.RUN).read_text())["config"]["pool_sampling"] == "recency"
     assert "league.random.win" in (run / record.CSV).read_text().splitlines()[0]
+    # a match filmed at every evaluation, the new snapshot at home against the one before
+    assert sorted(p.stem for p in (run / record.VIDEOS).iterdir()) == ["eval_000", "eval_001", "eval_002", "eval_003"]
 
     # stopped after evaluation 2's metrics, before its checkpoint: the resume trains evaluation 2 again
     interrupt_after_eval(2)
@@ -67,6 +69,8 @@ def test_self_play_writes_ratings_resumes_exactly_and_is_judged(tmp_path, interr
     assert result.exit_code == 0, result.output
     assert "random policy" in result.output and "snapshot 1 (800 env steps)" in result.output
     assert "Elo ratings" in result.output
+    assert "snapshot 3 at home against snapshot 1" in " ".join(result.output.split())
+    assert any(run.glob("eval.*"))  # the video of that match (or its kept episode where nothing renders)
     judged = json.loads((run / selfplay.EVALUATION).read_text())
     assert judged["vs_snapshot"]["snapshot"] == 1 and sum(judged["vs_random"].values()) == 8
     assert judged["ratings"] == last["ratings"]
