@@ -192,7 +192,8 @@ def _record_held(folder: Path) -> Iterator[None]:
     except OSError as exc:
         raise WriteError(exc.errno, exc.strerror, str(folder)) from None
     try:
-        fcntl.flock(fd, fcntl.LOCK_EX)
+        with contextlib.suppress(OSError):  # a file system without locks (some network ones): written unguarded
+            fcntl.flock(fd, fcntl.LOCK_EX)
         yield
     finally:
         os.close(fd)
@@ -202,26 +203,23 @@ def _record_held(folder: Path) -> Iterator[None]:
 
 def writer_of(path: Path) -> str | None:
     """The command that wrote the file at `path`, by its folder's record: the files the folder's own kind names
-    (a run's run.json, a sweep's summary.json), then the files the record lists; for a record kept before it
-    listed them, the names other commands give the files they write into such folders (eval's summary.json in a
-    run), or in a folder with no record the names of a kind whose own record file is there (a sweep's
-    sweep.json). None for a file fieldgen did not write."""
+    (a run's run.json, a sweep's summary.json), then the files the record lists. For a folder kept before records
+    listed files (its record names only its kind, or there is none and the kind is told by its own record file,
+    a run's run.json or a sweep's sweep.json): the names other commands give the files they write into folders of
+    that kind (eval's summary.json in a run). None for a file fieldgen did not write."""
     folder, name = path.parent, path.name
     record = _record(folder)
-    kind = _KINDS.get(record.get("written_by")) if record else None
+    if record is None:
+        kind = next((k for k in _KINDS.values() if k.record and (folder / k.record).is_file()), None)
+    else:
+        kind = _KINDS.get(record.get("written_by"))
     if kind is not None and kind.own(name):
         return kind.command
     files = _files(record) if record else None
-    if files is not None:
-        return files.get(name)
-    for other in _KINDS.values():
-        if not other.own(name):
-            continue
-        if kind is not None and kind.command in other.inside:
-            return other.command
-        if record is None and other.record and (folder / other.record).is_file():
-            return other.command
-    return None
+    if files is not None or kind is None:
+        return (files or {}).get(name)
+    return next((other.command for other in _KINDS.values() if kind.command in other.inside and other.own(name)),
+                None)
 
 
 def check_file(path: Path, output: Output, how: str | None = None) -> None:

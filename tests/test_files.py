@@ -161,8 +161,9 @@ def test_a_runs_own_files_and_a_sweeps_summary_are_no_other_commands(tmp_path):
 
 
 def test_files_written_before_records_listed_them_stay_fieldgens(tmp_path):
-    """A run folder whose record names no files (an earlier fieldgen) keeps eval's summary.json and render's
-    levels.png as theirs; a sweep folder with no record at all, its summary beside its sweep.json."""
+    """A run folder whose record names no files (an earlier fieldgen), or that has no record, keeps eval's
+    summary.json and render's levels.png as theirs; a sweep folder with no record, its summary beside its
+    sweep.json."""
     run, sweep = tmp_path / "run", tmp_path / "sweep"
     run.mkdir()
     sweep.mkdir()
@@ -178,6 +179,12 @@ def test_files_written_before_records_listed_them_stay_fieldgens(tmp_path):
     files.write_file(sweep / "summary.md", b"table", files.SWEEP)
     with pytest.raises(files.NotOurs, match="notes.png is not a file fieldgen wrote"):
         files.write_file(run / "notes.png", b"", files.RENDER)
+    oldest = tmp_path / "oldest"  # a run folder from before any record: its run.json tells its kind
+    oldest.mkdir()
+    for name in ("run.json", "summary.json", "notes.json"):
+        (oldest / name).write_text("earlier")
+    assert [files.writer_of(oldest / n) for n in ("run.json", "summary.json", "notes.json")] == \
+        ["fieldgen train", "fieldgen eval", None]
 
 
 def test_render_replaces_its_own_image_and_refuses_a_users(tmp_path, monkeypatch):
