@@ -158,10 +158,15 @@ def claim(folder: Path, output: Output) -> None:
 def mark(folder: Path, output: Output) -> None:
     """Record in `folder` that `output.command` wrote it (claim reads it back), keeping the files the record
     lists."""
-    with _record_held(folder):
-        before = _record(folder) or {}
-        record = {"written_by": output.command, "fieldgen_version": VERSION, "files": _files(before) or {}}
-        write_atomic(folder / OWNER, (json.dumps(record) + "\n").encode())
+    try:
+        with _record_held(folder):
+            before = _record(folder) or {}
+            record = {"written_by": output.command, "fieldgen_version": VERSION, "files": _files(before) or {}}
+            write_atomic(folder / OWNER, (json.dumps(record) + "\n").encode())
+    except WriteError:
+        raise
+    except OSError as exc:
+        raise WriteError(exc.errno, exc.strerror, str(folder)) from None
 
 
 MAX_RECORD = 4 * 2**20  # an ownership record lists file names: megabytes would be one edited or damaged
@@ -187,10 +192,7 @@ def _files(record: dict) -> dict[str, str] | None:
 def _record_held(folder: Path) -> Iterator[None]:
     """Hold `folder`'s record against other processes while it is read and written again (a lock on the folder
     itself, which leaves no file behind)."""
-    try:
-        fd = os.open(folder, os.O_RDONLY)
-    except OSError as exc:
-        raise WriteError(exc.errno, exc.strerror, str(folder)) from None
+    fd = os.open(folder, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
     try:
         with contextlib.suppress(OSError):  # a file system without locks (some network ones): written unguarded
             fcntl.flock(fd, fcntl.LOCK_EX)
@@ -253,17 +255,26 @@ def own(path: Path, output: Output) -> None:
     """Record in the folder of `path` that `output.command` writes it (before it is written: a file listed and
     never written is no one's, one written and never listed would be refused). A record kept before it listed
     files gains the files fieldgen wrote by the same rules `writer_of` reads it by."""
+    try:
+        _own(path, output)
+    except OSError as exc:  # the folder is missing, a file, or cannot be written: said of the file asked for
+        raise WriteError(exc.errno, exc.strerror, str(path)) from None
+
+
+def _own(path: Path, output: Output) -> None:
     folder = path.parent
     with _record_held(folder):
         record = _record(folder)
         files = _files(record) if record else None
         if files is None:
             files = {}
-            with contextlib.suppress(OSError):
-                for entry in folder.iterdir():
-                    writer = writer_of(entry) if entry.is_file() and not entry.is_symlink() else None
-                    if writer is not None and entry.name != OWNER:
-                        files[entry.name] = writer
+            earlier = record is not None or any(k.record and (folder / k.record).is_file() for k in _KINDS.values())
+            if earlier:  # a folder an earlier fieldgen wrote: the files it wrote there become listed
+                with contextlib.suppress(OSError):
+                    for entry in folder.iterdir():
+                        writer = writer_of(entry) if entry.is_file() and not entry.is_symlink() else None
+                        if writer is not None and entry.name != OWNER:
+                            files[entry.name] = writer
         kind = _KINDS.get(record.get("written_by")) if record else None
         if files.get(path.name) == output.command or (kind is not None and kind.own(path.name)
                                                      and kind.command == output.command):
