@@ -125,6 +125,24 @@ def test_process_0_meets_the_others_on_its_port_before_joining(monkeypatch):
         again.listen(1)
 
 
+def test_what_jax_raises_while_joining_is_one_line_naming_the_process_and_the_address(monkeypatch):
+    import jax
+
+    def refuse(*args, **kwargs):
+        raise RuntimeError("DEADLINE_EXCEEDED: Barrier timed out.\n  Additional GRPC error information: ...")
+
+    monkeypatch.setattr(distributed, "gather", lambda where, timeout: None)
+    monkeypatch.setattr(distributed, "reach", lambda where, timeout: None)
+    monkeypatch.setattr(jax.config, "update", lambda *args: None)
+    monkeypatch.setattr(jax.distributed, "initialize", refuse)
+    with pytest.raises(RunError) as refused:
+        distributed.join(distributed.Layout("127.0.0.1:1234", 2, 1), 3)
+    assert str(refused.value) == (
+        "process 1 could not join the run's processes at 127.0.0.1:1234 within 3 s (DEADLINE_EXCEEDED: Barrier timed "
+        "out. Additional GRPC error information: ...): check that every process was started with the same "
+        "--coordinator and --num-processes and its own --process-id, and that the port is open between the hosts")
+
+
 def process_0(tmp_path: Path, port: int, timeout: int = 2) -> subprocess.CompletedProcess:
     """`fieldgen train` as process 0 of 2 at 127.0.0.1:PORT, in its own process (JAX's runtime may end it)."""
     return subprocess.run([sys.executable, "-m", "fieldgen", "train", "point_nav", "--out", str(tmp_path / "runs"),
