@@ -493,11 +493,10 @@ def evaluate(
             fail(str(exc))
         out.print(f"summary: {path}")
         if video:  # the first run's first seed's first evaluation episode
-            name = video_name
-            drawn = EpisodeRecorder(runs[0].env, camera, fmt).save(run_dirs[0], name, evaluations[0].episode, err,
-                                                                    files.EVAL)
+            drawn = EpisodeRecorder(runs[0].env, camera, fmt).save(run_dirs[0], video_name, evaluations[0].episode,
+                                                                    err, files.EVAL)
             if drawn is not None:
-                out.print(f"video: {name.with_suffix('.' + fmt)} ({drawn} frames, {camera} camera)")
+                out.print(f"video: {video_name.with_suffix('.' + fmt)} ({drawn} frames, {camera} camera)")
     except KeyboardInterrupt:
         out.print(f"interrupted evaluating {evaluating}; " +
                   (f"{path} was written, the video was not" if summary_written else "nothing was written"),

@@ -12,7 +12,7 @@ import jax
 import numpy as np
 from rich.text import Text
 
-from fieldgen.files import VIDEOS as DRAWN, Output, write_atomic, write_file
+from fieldgen.files import VIDEOS as DRAWN, FolderError, Output, write_atomic, write_file
 from fieldgen.run.record import VIDEOS
 
 
@@ -58,6 +58,8 @@ class EpisodeRecorder:
                 data, frames = draw_episode(self.env.mj_model, episode, self.camera, self.fmt)
                 write(name.with_suffix(f".{self.fmt}"), data)
                 return frames
+            except FolderError:  # a file of the user's where the video goes: no renderer's failure
+                raise
             except Exception as exc:  # noqa: BLE001 - renderer back ends fail in many ways
                 self.broken = True
                 console.print(Text.assemble(("warning:", "yellow"), f" cannot render here ({exc}); keeping episodes as "
