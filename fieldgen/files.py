@@ -11,6 +11,11 @@ only where that record says it is one of its kind, or where the folder holds not
 kind is made of (one written before these records were kept); anything else is refused with `NotOurs`.
 Each such folder is also locked while it is written (`locked`): a second process is refused with `InUse`,
 saying which process holds it since when; the operating system drops the lock of a process that dies.
+
+A single file a command writes where files of the user's may be (a summary, a figure, a video, a rendered
+image) goes through `write_file`: the folder's record also lists each such file and the command that wrote
+it, and a file that is there already is replaced only where that record (or the kind of the folder, for the
+files a run or a sweep names) says the same command wrote it; anything else is refused with `NotOurs`.
 """
 
 from __future__ import annotations
@@ -73,6 +78,29 @@ class Output:
     made_of: tuple[str, ...]
     record: str
     option: str = "--out"
+    files: tuple[str, ...] = ()  # files it writes one by one into folders (patterns); by default what it is made of
+    inside: tuple[str, ...] = ()  # the commands whose folders it writes such files into (eval: a run's)
+
+    def __post_init__(self) -> None:
+        _KINDS.setdefault(self.command, self)
+
+    def own(self, name: str) -> bool:
+        """Whether `name` is one of the files this command writes into a folder (by name)."""
+        return _matches(name, self.files or self.made_of or (self.record,))
+
+
+_KINDS: dict[str, Output] = {}  # command -> what it writes (each Output made registers itself)
+
+# the commands that write single files where files of the user's may be (write_file), beside the folders of
+# builds, exports, curricula and runs (BUILD, POLICY, CURRICULUM, RUN_FOLDER in their own modules)
+EVAL = Output("fieldgen eval", (), "", "--summary", files=("summary.json", "summary_*.json", "eval.*", "eval_*.*"),
+              inside=("fieldgen train",))
+AGGREGATE = Output("fieldgen aggregate", (), "", "--summary")
+RENDER = Output("fieldgen render", (), "", "-o", files=("levels.png",), inside=("fieldgen train",))
+COMPARE = Output("fieldgen compare", (), "compare.json", "-o", files=("compare.json", "compare.png"))
+SWEEP = Output("fieldgen sweep", (), "sweep.json", "out: (or --out)",
+               files=("sweep.json", "summary.json", "summary.md", "summary-*.png"))
+VIDEOS = Output("fieldgen videos", (), "")
 
 
 def write_atomic(path: Path, data: bytes | Iterable[bytes]) -> None:
@@ -113,6 +141,8 @@ def claim(folder: Path, output: Output) -> None:
                       f"itself: move it aside or {where}")
     entries = sorted(p.name for p in folder.iterdir() if p.name != OWNER and not _is_leftover(p.name))
     record = _record(folder)
+    if record is not None and "written_by" not in record:
+        record = None  # a folder of the user's that fieldgen wrote files into, not one it wrote
     if record is None and entries and output.record not in entries:
         raise NotOurs(f"{folder} is not a folder {output.command} wrote (it holds {_some(entries)}); fieldgen "
                       f"replaces only what it wrote itself: move it aside or {where}")
@@ -126,17 +156,134 @@ def claim(folder: Path, output: Output) -> None:
 
 
 def mark(folder: Path, output: Output) -> None:
-    """Record in `folder` that `output.command` wrote it (claim reads it back)."""
-    record = {"written_by": output.command, "fieldgen_version": VERSION}
-    write_atomic(folder / OWNER, (json.dumps(record) + "\n").encode())
+    """Record in `folder` that `output.command` wrote it (claim reads it back), keeping the files the record
+    lists."""
+    try:
+        with _record_held(folder):
+            before = _record(folder) or {}
+            record = {"written_by": output.command, "fieldgen_version": VERSION, "files": _files(before) or {}}
+            write_atomic(folder / OWNER, (json.dumps(record) + "\n").encode())
+    except WriteError:
+        raise
+    except OSError as exc:
+        raise WriteError(exc.errno, exc.strerror, str(folder)) from None
+
+
+MAX_RECORD = 4 * 2**20  # an ownership record lists file names: megabytes would be one edited or damaged
 
 
 def _record(folder: Path) -> dict | None:
     try:
-        record = json.loads((folder / OWNER).read_bytes()[:4096])
+        record = json.loads((folder / OWNER).read_bytes()[:MAX_RECORD])
     except (OSError, ValueError):
         return None
     return record if isinstance(record, dict) else None
+
+
+def _files(record: dict) -> dict[str, str] | None:
+    """The files a record lists (name -> the command that wrote it); None in one kept before it listed them."""
+    files = record.get("files")
+    if not isinstance(files, dict):
+        return None
+    return {k: v for k, v in files.items() if isinstance(k, str) and isinstance(v, str)}
+
+
+@contextlib.contextmanager
+def _record_held(folder: Path) -> Iterator[None]:
+    """Hold `folder`'s record against other processes while it is read and written again (a lock on the folder
+    itself, which leaves no file behind)."""
+    fd = os.open(folder, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
+    try:
+        with contextlib.suppress(OSError):  # a file system without locks (some network ones): written unguarded
+            fcntl.flock(fd, fcntl.LOCK_EX)
+        yield
+    finally:
+        os.close(fd)
+
+
+# -- single files ---------------------------------------------------------------------------------
+
+def writer_of(path: Path) -> str | None:
+    """The command that wrote the file at `path`, by its folder's record: the files the folder's own kind names
+    (a run's run.json, a sweep's summary.json), then the files the record lists. For a folder kept before records
+    listed files (its record names only its kind, or there is none and the kind is told by its own record file,
+    a run's run.json or a sweep's sweep.json): the names other commands give the files they write into folders of
+    that kind (eval's summary.json in a run). None for a file fieldgen did not write."""
+    folder, name = path.parent, path.name
+    record = _record(folder)
+    if record is None:
+        kind = next((k for k in _KINDS.values() if k.record and (folder / k.record).is_file()), None)
+    else:
+        kind = _KINDS.get(record.get("written_by"))
+    if kind is not None and kind.own(name):
+        return kind.command
+    files = _files(record) if record else None
+    if files is not None or kind is None:
+        return (files or {}).get(name)
+    return next((other.command for other in _KINDS.values() if kind.command in other.inside and other.own(name)),
+                None)
+
+
+def check_file(path: Path, output: Output, how: str | None = None) -> None:
+    """Refuse (NotOurs) to write the file `path` for `output.command` where something is there that the same
+    command did not write (a file of the user's, another command's, a run's own record, a folder, a link).
+    `how` is how the user chooses another path (by default `output.option`)."""
+    if not path.exists() and not path.is_symlink():
+        return
+    where = f"move it aside or choose another {how or output.option}"
+    if path.is_symlink() or not path.is_file():
+        what = "a link" if path.is_symlink() else "a folder"
+        raise NotOurs(f"{path} is {what}, not a file {output.command} wrote; fieldgen replaces only what it wrote "
+                      f"itself: {where}")
+    writer = writer_of(path)
+    if writer is None:
+        raise NotOurs(f"{path} is not a file fieldgen wrote; fieldgen replaces only what it wrote itself: {where}")
+    if writer != output.command:
+        raise NotOurs(f"{path} was written by {writer}, not {output.command}; it replaces only its own files: "
+                      f"{where}")
+
+
+def write_file(path: Path, data: bytes | Iterable[bytes], output: Output, how: str | None = None) -> None:
+    """Write the file `path` as `output.command` (check_file first: refused where it would replace what that
+    command did not write), record in the folder that it wrote it, then write it whole (write_atomic)."""
+    check_file(path, output, how)
+    own(path, output)
+    write_atomic(path, data)
+
+
+def own(path: Path, output: Output) -> None:
+    """Record in the folder of `path` that `output.command` writes it (before it is written: a file listed and
+    never written is no one's, one written and never listed would be refused). A record kept before it listed
+    files gains the files fieldgen wrote by the same rules `writer_of` reads it by."""
+    try:
+        _own(path, output)
+    except OSError as exc:  # the folder is missing, a file, or cannot be written: said of the file asked for
+        raise WriteError(exc.errno, exc.strerror, str(path)) from None
+
+
+def _own(path: Path, output: Output) -> None:
+    folder = path.parent
+    with _record_held(folder):
+        record = _record(folder)
+        files = _files(record) if record else None
+        if files is None:
+            files = {}
+            earlier = record is not None or any(k.record and (folder / k.record).is_file() for k in _KINDS.values())
+            if earlier:  # a folder an earlier fieldgen wrote: the files it wrote there become listed
+                with contextlib.suppress(OSError):
+                    for entry in folder.iterdir():
+                        writer = writer_of(entry) if entry.is_file() and not entry.is_symlink() else None
+                        if writer is not None and entry.name != OWNER:
+                            files[entry.name] = writer
+        kind = _KINDS.get(record.get("written_by")) if record else None
+        if files.get(path.name) == output.command or (kind is not None and kind.own(path.name)
+                                                     and kind.command == output.command):
+            if record is not None and _files(record) is not None:
+                return
+        files[path.name] = output.command
+        record = {**(record or {}), "files": files}
+        record.setdefault("fieldgen_version", VERSION)
+        write_atomic(folder / OWNER, (json.dumps(record) + "\n").encode())
 
 
 def _matches(name: str, patterns: tuple[str, ...]) -> bool:

@@ -120,6 +120,140 @@ def test_train_into_a_users_folder_of_the_runs_name_is_refused(tmp_path, tiny_cr
     assert listing(tmp_path) == {"point_nav-crl-0/metrics.jsonl": b"my own numbers\n"}
 
 
+def test_a_single_file_is_replaced_only_where_the_same_command_wrote_it(tmp_path):
+    """Before: every command wrote its files over whatever was there (a user's image, another command's summary)."""
+    mine, ours = tmp_path / "mine.png", tmp_path / "ours.png"
+    mine.write_bytes(b"drawn by the user")
+    with pytest.raises(files.NotOurs, match=f"{mine} is not a file fieldgen wrote; fieldgen replaces only what it "
+                                            "wrote itself: move it aside or choose another -o"):
+        files.write_file(mine, b"render", files.RENDER)
+    files.write_file(ours, b"first", files.RENDER)
+    files.write_file(ours, b"second", files.RENDER)  # its own: replaced
+    assert ours.read_bytes() == b"second" and mine.read_bytes() == b"drawn by the user"
+    with pytest.raises(files.NotOurs, match=f"{ours} was written by fieldgen render, not fieldgen eval"):
+        files.write_file(ours, b"{}", files.EVAL)
+    (tmp_path / "folder.png").mkdir()
+    with pytest.raises(files.NotOurs, match="is a folder, not a file fieldgen render wrote"):
+        files.write_file(tmp_path / "folder.png", b"", files.RENDER)
+    files.mark(tmp_path, files.Output("fieldgen build", (), "field.json"))  # a folder marked keeps its files' record
+    files.write_file(ours, b"third", files.RENDER)
+    assert ours.read_bytes() == b"third" and list(tmp_path.glob(".*.tmp")) == []
+
+
+def test_a_runs_own_files_and_a_sweeps_summary_are_no_other_commands(tmp_path):
+    """Before: `fieldgen eval` wrote its summary over a sweep's summary.json beside the runs, or over a run's
+    run.json given as --summary."""
+    from fieldgen.run import record
+
+    run = tmp_path / "point_nav-crl-0"
+    run.mkdir()
+    files.mark(run, record.RUN_FOLDER)
+    (run / "run.json").write_text("{}")
+    (run / "metrics.jsonl").write_text("")
+    for name in ("run.json", "metrics.jsonl"):
+        with pytest.raises(files.NotOurs, match=f"{run / name} was written by fieldgen train, not fieldgen eval"):
+            files.check_file(run / name, files.EVAL)
+    files.write_file(run / "summary.json", b"{}", files.EVAL)
+    files.write_file(run / "summary.json", b"{}", files.EVAL)
+    files.write_file(tmp_path / "summary.json", b"{}", files.SWEEP)
+    with pytest.raises(files.NotOurs, match="summary.json was written by fieldgen sweep, not fieldgen eval"):
+        files.check_file(tmp_path / "summary.json", files.EVAL)
+
+
+def test_files_written_before_records_listed_them_stay_fieldgens(tmp_path):
+    """A run folder whose record names no files (an earlier fieldgen), or that has no record, keeps eval's
+    summary.json and render's levels.png as theirs; a sweep folder with no record, its summary beside its
+    sweep.json."""
+    run, sweep = tmp_path / "run", tmp_path / "sweep"
+    run.mkdir()
+    sweep.mkdir()
+    (run / files.OWNER).write_text('{"written_by": "fieldgen train", "fieldgen_version": "0.1.0"}\n')
+    for name in ("run.json", "summary.json", "levels.png", "notes.png"):
+        (run / name).write_text("earlier")
+    for name in ("sweep.json", "summary.json", "summary.md"):
+        (sweep / name).write_text("earlier")
+    assert [files.writer_of(run / n) for n in ("run.json", "summary.json", "levels.png", "notes.png")] == \
+        ["fieldgen train", "fieldgen eval", "fieldgen render", None]
+    files.write_file(run / "summary.json", b"{}", files.EVAL)
+    files.write_file(sweep / "sweep.json", b"{}", files.SWEEP)  # the record made now lists the summary too
+    files.write_file(sweep / "summary.md", b"table", files.SWEEP)
+    with pytest.raises(files.NotOurs, match="notes.png is not a file fieldgen wrote"):
+        files.write_file(run / "notes.png", b"", files.RENDER)
+    oldest = tmp_path / "oldest"  # a run folder from before any record: its run.json tells its kind
+    oldest.mkdir()
+    for name in ("run.json", "summary.json", "notes.json"):
+        (oldest / name).write_text("earlier")
+    assert [files.writer_of(oldest / n) for n in ("run.json", "summary.json", "notes.json")] == \
+        ["fieldgen train", "fieldgen eval", None]
+
+
+def test_render_replaces_its_own_image_and_refuses_a_users(tmp_path, monkeypatch):
+    """Before: `fieldgen render -o` and `render --levels` wrote over a user's image (levels.png in a run folder)."""
+    from fieldgen.run import record
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "mine.png").write_bytes(b"drawn by the user")
+    result = runner.invoke(app, ["render", "point_nav", "-o", "mine.png"])
+    assert result.exit_code == 1 and one_line(result.output) == ("error: mine.png is not a file fieldgen wrote; "
+                                                                 "fieldgen replaces only what it wrote itself: move it "
+                                                                 "aside or choose another -o"), result.output
+    assert (tmp_path / "mine.png").read_bytes() == b"drawn by the user"
+    for _ in range(2):
+        result = runner.invoke(app, ["render", "point_nav"])
+        assert result.exit_code == 0 and (tmp_path / "field.png").read_bytes()[:4] == b"\x89PNG", result.output
+    run = tmp_path / "point_nav-crl-0"
+    run.mkdir()
+    files.mark(run, record.RUN_FOLDER)
+    (run / "levels.png").write_bytes(b"the user's")
+    result = runner.invoke(app, ["render", str(run), "--levels"])
+    assert result.exit_code == 1 and f"error: {run / 'levels.png'} is not a file fieldgen wrote" in \
+        one_line(result.output), result.output
+    assert (run / "levels.png").read_bytes() == b"the user's"
+
+
+def test_a_sweep_whose_out_reaches_a_users_folder_is_refused_before_anything_trains(tmp_path):
+    """Before: the sweep trained its runs, then wrote its summary over the user's summary.md and summary.json."""
+    mine = tmp_path / "notes"
+    mine.mkdir()
+    (mine / "summary.md").write_text("my notes")
+    path = tmp_path / "sweep.yaml"
+    path.write_text(f"fields: [point_nav]\nalgorithms: [crl]\nseeds: 1\nsteps: 1900\nenvs: 8\nout: {mine}\n")
+    for status in ([], ["--status"]):
+        result = runner.invoke(app, ["sweep", str(path), *status])
+        assert result.exit_code == 1 and one_line(result.output) == (
+            f"error: {mine / 'summary.md'} is not a file fieldgen wrote; fieldgen replaces only what it wrote "
+            "itself: move it aside or choose another out: (or --out)"), result.output
+    assert listing(mine) == {"summary.md": b"my notes"}
+
+
+def test_eval_writes_no_summary_over_a_sweeps_or_a_runs_own_files(tmp_path, monkeypatch):
+    """Before: `fieldgen eval` of a sweep's runs wrote over the sweep's summary.json beside them, and --summary
+    RUN/run.json replaced the run's record."""
+    from types import SimpleNamespace
+
+    from fieldgen.run import evaluate, record
+
+    runs = [tmp_path / f"point_nav-crl-{seed}" for seed in (0, 1)]
+    for run in runs:
+        run.mkdir()
+        files.mark(run, record.RUN_FOLDER)
+        (run / "run.json").write_text("{}")
+    files.write_file(tmp_path / "summary.json", b"the sweep's", files.SWEEP)
+    opened = SimpleNamespace(config=SimpleNamespace(eval_envs=8, eval_actions="mean"),
+                             env=SimpleNamespace(spec=SimpleNamespace(name="point_nav")))
+    monkeypatch.setattr(evaluate, "open_runs", lambda folders, field: [opened] * len(folders))
+    monkeypatch.setattr(evaluate, "check_memory", lambda run, episodes: None)
+    monkeypatch.setattr(evaluate, "evaluate", lambda *a, **k: pytest.fail("evaluated before refusing"))
+    result = runner.invoke(app, ["eval", *map(str, runs), "--no-video"])
+    assert result.exit_code == 1 and one_line(result.output) == (
+        f"error: {tmp_path / 'summary.json'} was written by fieldgen sweep, not fieldgen eval; it replaces only its "
+        "own files: move it aside or choose another --summary"), result.output
+    result = runner.invoke(app, ["eval", str(runs[0]), "--no-video", "--summary", str(runs[0] / "run.json")])
+    assert result.exit_code == 1 and f"{runs[0] / 'run.json'} was written by fieldgen train, not fieldgen eval" in \
+        one_line(result.output), result.output
+    assert (tmp_path / "summary.json").read_bytes() == b"the sweep's" and (runs[0] / "run.json").read_text() == "{}"
+
+
 # -- 2. one writer at a time -------------------------------------------------------------------------------
 
 HOLDER = textwrap.dedent("""

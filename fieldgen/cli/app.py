@@ -30,6 +30,8 @@ class Command(ReadableCommand):
             if exc.filename is None:
                 raise
             fail(os_problem(exc))
+        except files.FolderError as exc:  # a file or folder of the user's where fieldgen would write
+            fail(str(exc))
 
 
 PATH_CHARACTERS = 300  # of a path echoed in a message: any real one, not one the system refuses as too long

@@ -161,7 +161,7 @@ def render(
     import numpy as np
 
     from fieldgen.compile.artifact import ArtifactError, compile_spec, load_artifact
-    from fieldgen.files import write_atomic
+    from fieldgen.files import RENDER, check_file, write_file
     from fieldgen.render import RenderError, legend, png_bytes, preview, render_pose
     from fieldgen import curriculum
 
@@ -173,9 +173,10 @@ def render(
         from fieldgen.run.record import RunError
 
         output = output or Path(spec) / "levels.png"
+        check_file(output, RENDER)  # before reading the run: a file of the user's there is one line now
         try:
             image_bytes, said, buffer = favoured_levels(Path(spec), "top" if camera == "both" else camera)
-            write_atomic(output, image_bytes)
+            write_file(output, image_bytes, RENDER)
         except (RunError, RenderError, OSError) as exc:
             fail(str(exc))
         out.print(f"wrote {output}: {said}")
@@ -183,13 +184,14 @@ def render(
             out.print(f"  {line}", soft_wrap=True)
         return
     output = output or Path("field.png")
+    check_file(output, RENDER)
     if curriculum.is_curriculum(Path(spec)):
         from fieldgen.curriculum.sheet import stage_sheet
 
         view = "top" if camera == "both" else camera
         try:
             c = curriculum.load(Path(spec))
-            write_atomic(output, stage_sheet(c, view))
+            write_file(output, stage_sheet(c, view), RENDER)
         except (curriculum.CurriculumError, RenderError, OSError) as exc:
             fail(str(exc))
         out.print(f"wrote {output}: {len(c.stages)} stages of {spec}, camera {view}")
@@ -203,7 +205,7 @@ def render(
 
         view = "top" if camera == "both" else camera
         try:
-            write_atomic(output, built_sheet(built, view, level_captions(Path(spec), len(built))))
+            write_file(output, built_sheet(built, view, level_captions(Path(spec), len(built))), RENDER)
         except (ArtifactError, RenderError, OSError) as exc:
             fail(str(exc))
         out.print(f"wrote {output}: {len(built)} built fields of {spec}, camera {view}")
@@ -220,7 +222,7 @@ def render(
         else:  # one view over the legend of its colours, as the preview has
             view = render_pose(model, camera=camera)
             image = np.concatenate([view, legend(model, view.shape[1])], axis=0)
-        write_atomic(output, png_bytes(image))
+        write_file(output, png_bytes(image), RENDER)
     except (RenderError, OSError) as exc:
         fail(str(exc))
     out.print(f"wrote {output} ({image.shape[1]}x{image.shape[0]}, camera {camera})")

@@ -54,6 +54,7 @@ def sweep(
         for line in launch.dry_run(planned):
             out.print(line, highlight=False, soft_wrap=True)
         return
+    standing.check_outputs(planned)  # a file of the user's where the plan or the summary goes: one line, now
     if status:
         raise typer.Exit(_report(planned, standing, command))
     try:

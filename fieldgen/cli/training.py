@@ -442,6 +442,9 @@ def _compare_trained(ctx: typer.Context, folders: list[Path], plot: Path | None)
         fail(f"-o {plot}: the plot is a PNG; name a file ending in .png, such as {plot.with_suffix('.png')}")
     if not plot.parent.is_dir():
         fail(f"-o {plot}: there is no folder {plot.parent} to write it in; make it, or choose another -o")
+    from fieldgen.files import COMPARE, check_file
+
+    check_file(plot, COMPARE)
     try:
         comparing.report_recorded([comparing.recorded(f) for f in folders], plot, out)
     except record.RunError as exc:
@@ -483,6 +486,7 @@ def evaluate(
     Example: fieldgen eval runs/point_nav-crl-0 runs/point_nav-crl-1 runs/point_nav-crl-2 --summary runs/crl.json
     """
     fmt = video_format(video_fmt) if video else None
+    from fieldgen import files
     from fieldgen.agents.config import ConfigError
     from fieldgen.files import WriteError
     from fieldgen.run import evaluate as judging
@@ -510,6 +514,10 @@ def evaluate(
         except (SpecError, ConfigError, record.RunError) as exc:
             fail(str(exc))
         path = summary_file or judging.summary_path(run_dirs, runs[0], field is not None)
+        video_name = judging.video_path(runs[0], run_dirs[0], field is not None)
+        files.check_file(path, files.EVAL)  # before evaluating: a file it may not replace is one line now
+        if video:
+            files.check_file(video_name.with_suffix(f".{fmt}"), files.EVAL, "--no-video")
         try:
             evaluations = [judging.evaluate(run, episodes, seed, video and k == 0, actions) for k, run in enumerate(runs)]
         except record.RunError as exc:  # the physics outgrew its capacities
@@ -547,16 +555,16 @@ def evaluate(
                   ("one seed: its value, and its interval the value alone" if len(result.seeds) == 1 else
                    f"the interquartile mean of the {len(result.seeds)} seeds [its 95% bootstrap interval]"))
         try:
-            summary.write(result, path)
+            summary.write(result, path, files.EVAL)
             summary_written = True
         except WriteError as exc:
             fail(str(exc))
         out.print(f"summary: {path}")
         if video:  # the first run's first seed's first evaluation episode
-            name = judging.video_path(runs[0], run_dirs[0], field is not None)
-            drawn = EpisodeRecorder(runs[0].env, camera, fmt).save(run_dirs[0], name, evaluations[0].episode, err)
+            drawn = EpisodeRecorder(runs[0].env, camera, fmt).save(run_dirs[0], video_name, evaluations[0].episode,
+                                                                    err, files.EVAL)
             if drawn is not None:
-                out.print(f"video: {name.with_suffix('.' + fmt)} ({drawn} frames, {camera} camera)")
+                out.print(f"video: {video_name.with_suffix('.' + fmt)} ({drawn} frames, {camera} camera)")
     except KeyboardInterrupt:
         out.print(f"interrupted evaluating {evaluating}; " +
                   (f"{path} was written, the video was not" if summary_written else "nothing was written"),
@@ -633,11 +641,13 @@ def aggregate(
 
     Example: fieldgen aggregate runs/s340/summary.json runs/s341/summary.json --summary runs/all.json
     """
-    from fieldgen.files import WriteError
+    from fieldgen.files import AGGREGATE, WriteError, check_file
     from fieldgen.run import summary
 
     if summary_file is not None and (summary_file.is_dir() or not summary_file.parent.is_dir()):
         fail(f"--summary {summary_file}: name a file in an existing folder, such as {Path(summary.SUMMARY)}")
+    if summary_file is not None:
+        check_file(summary_file, AGGREGATE)
     try:
         summaries = [(f, summary.read(f)) for f in files]
         result = summary.pooled(summaries, _command_line(ctx))
@@ -657,7 +667,7 @@ def aggregate(
               f"{result.time_at_goal.text(1)} steps")
     if summary_file is not None:
         try:
-            summary.write(result, summary_file)
+            summary.write(result, summary_file, AGGREGATE)
         except WriteError as exc:
             fail(str(exc))
         out.print(f"summary: {summary_file}")

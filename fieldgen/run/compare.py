@@ -24,7 +24,7 @@ from rich.table import Column, Table
 import fieldgen
 from fieldgen.agents import registry, sharding
 from fieldgen.compile.artifact import ArtifactError
-from fieldgen.files import write_atomic
+from fieldgen.files import COMPARE, Output, check_file, write_file
 from fieldgen.run import plots, record, session, summary
 
 PLOT, TABLE = "compare.png", "compare.json"
@@ -45,6 +45,8 @@ def runs(source: Path, algos: list[str], seeds: list[int], folder: Path | None, 
     except ArtifactError as exc:
         raise record.RunError(str(exc)) from None
     folder = folder or Path("runs") / f"compare-{env.spec.name}"
+    for name in (TABLE, PLOT):  # before anything trains: files of the user's where the table and plot go
+        check_file(folder / name, COMPARE)
     configs = {}
     for algo, entry in entries.items():
         others = tuple(a for a in registry.ALGORITHMS if a != algo)
@@ -140,7 +142,8 @@ def _finite(x: float) -> float | None:
     return None if np.isnan(x) else float(x)
 
 
-def plot(runs_: list[session.Run], path: Path, title: str, labels: list[str] | None = None, judge=None) -> None:
+def plot(runs_: list[session.Run], path: Path, title: str, labels: list[str] | None = None, judge=None,
+         output: Output = COMPARE) -> None:
     """success_any against env steps and against wall-clock seconds, time at goal, the closest approach to the
     goal and, where measured, how far the ball moved against env steps: the interquartile mean over seeds, with
     its 95% bootstrap interval shaded.
@@ -181,14 +184,14 @@ def plot(runs_: list[session.Run], path: Path, title: str, labels: list[str] | N
         axes[4].set(xlabel="env steps", ylabel=f"distance{over} (IQM)", title=plots.PANELS["farthest_from_start"][1])
     handles, names = axes[0].get_legend_handles_labels()  # one legend under the panels, none over the curves
     fig.legend(handles, names, loc="lower center", ncol=min(len(names), 3), fontsize=9, frameon=False)
-    plots.save_figure(fig, axes, title, path)
+    plots.save_figure(fig, axes, title, path, output)
 
 
 def report(runs_: list[session.Run], folder: Path, console: Console, command: str) -> None:
     """compare.png, compare.json and the table in the terminal."""
     field = runs_[0].env.spec.name
     rows, seeds = summary_rows(runs_, command), len(runs_[0].seeds)
-    write_atomic(folder / TABLE, (json.dumps(rows, indent=1) + "\n").encode())
+    write_file(folder / TABLE, (json.dumps(rows, indent=1) + "\n").encode(), COMPARE)
     each = f"{seeds} seeds each, IQM, 95% bootstrap interval shaded" if seeds > 1 else "one seed each"
     plot(runs_, folder / PLOT, f"{field}: {', '.join(r.algo for r in runs_)} ({each})")
     table = Table("algo", "env steps", "success_any (last)", "best", "time at goal", "closest", "steps/s", "wall s",

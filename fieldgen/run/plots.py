@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fieldgen.files import write_atomic
+from fieldgen.files import Output, write_atomic, write_file
 from fieldgen.run.record import PLOT
 
 
@@ -99,9 +99,10 @@ def _plot_weights(fig, ax, rows: list[dict], key: str = "weight", variant: str =
     ax.grid(False)
 
 
-def save_figure(fig, axes, title: str, path: Path) -> None:
+def save_figure(fig, axes, title: str, path: Path, output: Output | None = None) -> None:
     """Grids, a legend on each panel with labelled lines unless the figure has a legend of its own (then room for
-    it under the panels), the title; then the PNG, written atomically."""
+    it under the panels), the title; then the PNG, written atomically (as `output.command` where the figure goes
+    where files of the user's may be: write_file; a run's own success.png otherwise)."""
     import matplotlib.pyplot as plt
 
     from matplotlib.ticker import FuncFormatter, MaxNLocator
@@ -123,7 +124,10 @@ def save_figure(fig, axes, title: str, path: Path) -> None:
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=100)
     plt.close(fig)
-    write_atomic(path, buf.getvalue())
+    if output is None:
+        write_atomic(path, buf.getvalue())
+    else:
+        write_file(path, buf.getvalue(), output)
 
 
 def step_count(steps: float) -> str:

@@ -27,7 +27,8 @@ from fieldgen.schema.errors import shown_text, shown_value
 
 RUN, METRICS, CSV, CHECKPOINT, PLOT = "run.json", "metrics.jsonl", "metrics.csv", "checkpoint.msgpack", "success.png"
 LEARNER, INITIAL, VIDEOS = "learner.msgpack", "initial.msgpack", "videos"
-RUN_FOLDER = Output("fieldgen train", (), RUN)  # written into file by file, never replaced whole
+RUN_FOLDER = Output("fieldgen train", (), RUN,  # written into file by file, never replaced whole
+                    files=(RUN, METRICS, CSV, CHECKPOINT, LEARNER, INITIAL, PLOT, VIDEOS, "field", "stages"))
 # the metrics that time the run rather than say what it learned: the only ones in which the same run, trained
 # again or over other processes, may differ
 TIMINGS = ("wall_seconds", "steps_per_second", "peak_memory_mb", "write_wait_seconds")

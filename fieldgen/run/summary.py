@@ -20,7 +20,7 @@ import scipy.stats
 from pydantic import BaseModel, Field, ValidationError, model_validator
 
 from fieldgen.agents.registry import EVAL_ACTIONS
-from fieldgen.files import write_atomic
+from fieldgen.files import EVAL, Output, write_file
 from fieldgen.run.record import metric_problem
 from fieldgen.schema.errors import shown_text
 
@@ -227,5 +227,7 @@ def pooled(summaries: Sequence[tuple[Path, SeedSummary]], command: str) -> SeedS
                      first.field_digests)
 
 
-def write(summary: SeedSummary, path: Path) -> None:
-    write_atomic(path, (json.dumps(summary.model_dump(mode="json"), indent=1) + "\n").encode())
+def write(summary: SeedSummary, path: Path, output: Output = EVAL) -> None:
+    """summary.json as `output.command` (eval, aggregate) writes it: refused (files.NotOurs) over a file it did not
+    write, such as a run's run.json or a sweep's summary.json."""
+    write_file(path, (json.dumps(summary.model_dump(mode="json"), indent=1) + "\n").encode(), output)

@@ -12,7 +12,7 @@ import jax
 import numpy as np
 from rich.text import Text
 
-from fieldgen.files import write_atomic
+from fieldgen.files import VIDEOS as DRAWN, FolderError, Output, write_atomic, write_file
 from fieldgen.run.record import VIDEOS
 
 
@@ -45,14 +45,21 @@ class EpisodeRecorder:
         stride = max(1, end // 300)
         return {"qpos": qpos[:end:stride], "mocap_pos": mocap[:end:stride], "fps": 1 / (self.env.dt * stride)}
 
-    def save(self, run_dir: Path, name: Path, episode: dict, console) -> int | None:
+    def save(self, run_dir: Path, name: Path, episode: dict, console, output: Output | None = None) -> int | None:
         """name.mp4 or name.gif, and its frame count. A machine that cannot render keeps the episode instead
-        (name.npz, drawn later by `fieldgen videos` where a renderer works), with one warning, and returns None."""
+        (name.npz, drawn later by `fieldgen videos` where a renderer works), with one warning, and returns None.
+        `output`: the command writing it where files of the user's may be (eval's, beside a run's files; write_file),
+        None for a run's own videos/."""
+        def write(path: Path, data: bytes) -> None:
+            write_atomic(path, data) if output is None else write_file(path, data, output, "--no-video")
+
         if not self.broken:
             try:
                 data, frames = draw_episode(self.env.mj_model, episode, self.camera, self.fmt)
-                write_atomic(name.with_suffix(f".{self.fmt}"), data)
+                write(name.with_suffix(f".{self.fmt}"), data)
                 return frames
+            except FolderError:  # a file of the user's where the video goes: no renderer's failure
+                raise
             except Exception as exc:  # noqa: BLE001 - renderer back ends fail in many ways
                 self.broken = True
                 console.print(Text.assemble(("warning:", "yellow"), f" cannot render here ({exc}); keeping episodes as "
@@ -60,7 +67,7 @@ class EpisodeRecorder:
                               "on a machine that renders"))
         buf = io.BytesIO()
         np.savez(buf, field=self.env.spec.name, camera=self.camera, **episode)
-        write_atomic(name.with_suffix(".npz"), buf.getvalue())
+        write(name.with_suffix(".npz"), buf.getvalue())
         return None
 
 
@@ -148,5 +155,5 @@ def draw_kept(path: Path, models: dict, fmt: str) -> tuple[str, int | None]:
     if video.exists():
         return played, None
     data, frames = draw_episode(models[played], episode, camera, fmt)
-    write_atomic(video, data)
+    write_file(video, data, DRAWN)
     return played, frames

@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import Callable
 
 from fieldgen.command import TIME_LIMIT_STATUS, fieldgen_command
-from fieldgen.files import write_atomic
+from fieldgen.files import SWEEP, write_atomic, write_file
 from fieldgen.sweep.plan import PLAN, PlannedRun, PlanRecord, Sweep, check_plan, read_plan, shell
 
 LOGS = "logs"
@@ -105,9 +105,10 @@ def record_plan(sweep: Sweep, jobs: dict[str, str] | None = None) -> None:
     sweep.folder.mkdir(parents=True, exist_ok=True)
     path = sweep.folder / PLAN
     before = read_plan(sweep.folder) or PlanRecord(file="", backend="")
-    _write_json(path, {"file": str(sweep.path.absolute()), "backend": sweep.spec.backend,
-                       "runs": {**before.runs, **{r.id: list(r.start) for r in sweep.runs}},
-                       "jobs": {**before.jobs, **{k: str(v) for k, v in (jobs or {}).items()}}})
+    write_file(path, (json.dumps({"file": str(sweep.path.absolute()), "backend": sweep.spec.backend,
+                                  "runs": {**before.runs, **{r.id: list(r.start) for r in sweep.runs}},
+                                  "jobs": {**before.jobs, **{k: str(v) for k, v in (jobs or {}).items()}}})
+                      + "\n").encode(), SWEEP)
 
 
 def gpus(setting) -> list[str]:

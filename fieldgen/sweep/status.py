@@ -13,7 +13,7 @@ import socket
 from pathlib import Path
 
 from fieldgen.command import TIME_LIMIT_STATUS
-from fieldgen.files import write_atomic
+from fieldgen.files import SWEEP, write_file
 from fieldgen.run import record
 from fieldgen.sweep.launch import finished, log_path
 from fieldgen.sweep.plan import PlannedRun, Sweep, read_plan
@@ -157,16 +157,27 @@ def summarize(sweep: Sweep, command: str) -> tuple[list[dict], Path]:
                 low, high = summary.interval(*tasks)
                 entry[metric] = {"iqm": summary.iqm(*tasks), "low": low, "high": high}
             over_fields.append(entry)
-    write_atomic(sweep.folder / SUMMARY, (json.dumps({"command": command, "groups": table,
-                                                      "over_fields": over_fields}, indent=1) + "\n").encode())
-    write_atomic(sweep.folder / TABLE, markdown(table, over_fields).encode())
+    write_file(sweep.folder / SUMMARY, (json.dumps({"command": command, "groups": table,
+                                                    "over_fields": over_fields}, indent=1) + "\n").encode(), SWEEP)
+    write_file(sweep.folder / TABLE, markdown(table, over_fields).encode(), SWEEP)
     for field in dict.fromkeys(g.field for g in found):
         chosen = [g for g in found if g.field == field]
         seeds = len(chosen[0].seeds)
         each = f"{seeds} seeds each, IQM, 95% bootstrap interval shaded" if seeds > 1 else "one seed each"
         compare.plot(chosen, sweep.folder / f"summary-{field}.png", f"{field}: sweep {sweep.path.stem} ({each})",
-                     labels=[g.label for g in chosen])
+                     labels=[g.label for g in chosen], output=SWEEP)
     return table, sweep.folder
+
+
+def check_outputs(sweep: Sweep) -> None:
+    """Before anything trains: refuse (files.NotOurs) a sweep whose folder holds, where its plan and summary go,
+    files the sweep did not write (a folder of the user's that `out:` reaches)."""
+    from fieldgen.files import check_file
+    from fieldgen.sweep.plan import PLAN
+
+    names = [PLAN, SUMMARY, TABLE, *(f"summary-{field}.png" for field in dict.fromkeys(r.field for r in sweep.runs))]
+    for name in names:
+        check_file(sweep.folder / name, SWEEP)
 
 
 def one_field(group: Group) -> str:

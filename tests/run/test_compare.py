@@ -79,7 +79,8 @@ def test_compare_plots_the_iqm_over_seeds_with_its_interval_shaded(tmp_path, mon
     from fieldgen.run import compare, plots
 
     drawn = {}
-    monkeypatch.setattr(plots, "save_figure", lambda fig, axes, title, path: drawn.update(axes=axes, title=title))
+    monkeypatch.setattr(plots, "save_figure",
+                        lambda fig, axes, title, path, output=None: drawn.update(axes=axes, title=title))
     runs = [hand_made_run(tmp_path, "crl", FIVE_SEEDS), hand_made_run(tmp_path, "td3", [[0.5], [0.25], [0.75]])]
     compare.plot(runs, tmp_path / "compare.png", "title")
     success = drawn["axes"][0]
@@ -102,7 +103,7 @@ def test_compare_draws_how_far_the_ball_moved_where_a_run_measured_it(tmp_path, 
     from fieldgen.run import compare, plots
 
     drawn = {}
-    monkeypatch.setattr(plots, "save_figure", lambda fig, axes, title, path: drawn.update(axes=axes))
+    monkeypatch.setattr(plots, "save_figure", lambda fig, axes, title, path, output=None: drawn.update(axes=axes))
     plain = hand_made_run(tmp_path, "crl", FIVE_SEEDS)
     compare.plot([plain], tmp_path / "compare.png", "title")
     assert len(drawn["axes"]) == 4

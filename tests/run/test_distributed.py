@@ -7,8 +7,10 @@ from __future__ import annotations
 
 import json
 import os
+import socket
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -45,27 +47,133 @@ def test_the_settings_come_from_environment_variables_too(tmp_path):
 
 
 def test_a_launcher_of_several_tasks_is_joined_and_one_process_alone_is_not(monkeypatch):
-    for variable in distributed.LAUNCHERS:
+    for variable in [*distributed.LAUNCHERS, *distributed.LAUNCHED["srun"], *distributed.LAUNCHED["mpirun"]]:
         monkeypatch.delenv(variable, raising=False)
     assert distributed.layout(None, None, None) is None
     monkeypatch.setenv("SLURM_STEP_NUM_TASKS", "1")  # a sweep's SLURM task: one process
     assert distributed.layout(None, None, None) is None
     monkeypatch.setenv("SLURM_STEP_NUM_TASKS", "4")  # srun started four
+    for variable, value in zip(distributed.LAUNCHED["srun"], ["77", "node[01-04]", "4", "2", "0"]):
+        monkeypatch.setenv(variable, value)
     assert distributed.layout(None, None, None) == distributed.Layout(None, None, None)
     assert distributed.layout("h:1", 2, 1) == distributed.Layout("h:1", 2, 1)
 
 
-def test_a_coordinator_that_never_answers_is_one_line_after_the_timeout(tmp_path):
+def test_a_launchers_task_count_left_in_the_shell_is_one_line(tmp_path, monkeypatch):
+    """Before: SLURM_STEP_NUM_TASKS=2 without srun's other variables went on to JAX, which ended in a traceback."""
+    for variable in [*distributed.LAUNCHERS, *distributed.LAUNCHED["srun"], *distributed.LAUNCHED["mpirun"]]:
+        monkeypatch.delenv(variable, raising=False)
+    monkeypatch.setenv("SLURM_STEP_NUM_TASKS", "2")
+    monkeypatch.setenv("SLURM_PROCID", "0")
+    result = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path)])
+    assert result.exit_code == 1 and " ".join(result.output.split()) == (
+        "error: SLURM_STEP_NUM_TASKS=2 says srun started 2 processes, but SLURM_JOB_ID, SLURM_STEP_NODELIST, "
+        "SLURM_NTASKS, SLURM_LOCALID are not set, so srun did not start this one: start it with srun, give "
+        "--coordinator HOST:PORT --num-processes N --process-id I, or unset SLURM_STEP_NUM_TASKS (left from another "
+        "shell) to train in this process alone"), result.output
+    assert not any(tmp_path.iterdir())
+
+
+class Clock:
+    """Time that passes only when the code under test sleeps or waits for a connection."""
+
+    def __init__(self):
+        self.now, self.tries = 0.0, 0
+
+    def sleep(self, seconds: float) -> None:
+        self.now += seconds
+
+    def refuse(self, address, timeout=None):
+        self.tries += 1
+        self.now += 0.01
+        raise ConnectionRefusedError(111, "Connection refused")
+
+
+def test_a_coordinator_that_never_answers_is_one_line_after_the_timeout(tmp_path, monkeypatch):
     port = distributed.free_port()  # nobody listens on it
-    began = time.monotonic()
-    with pytest.raises(RunError, match=rf"no coordinator answered at 127.0.0.1:{port} within 2 s"):
-        distributed._wait_for(f"127.0.0.1:{port}", 2)
-    assert 2 <= time.monotonic() - began < 10
+    clock = Clock()
+    with monkeypatch.context() as m:
+        m.setattr(distributed.time, "monotonic", lambda: clock.now)
+        m.setattr(distributed.time, "sleep", clock.sleep)
+        m.setattr(distributed.socket, "create_connection", clock.refuse)
+        with pytest.raises(RunError, match=rf"no coordinator answered at 127.0.0.1:{port} within 2 s"):
+            distributed._wait_for(f"127.0.0.1:{port}", 2)
+    assert clock.now > 2 and clock.tries > 1  # asked again until the timeout had passed, then gave up
     result = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path), "--coordinator", f"127.0.0.1:{port}",
                                  "--num-processes", "2", "--process-id", "1", "--coordinator-timeout", "1"])
     assert result.exit_code == 1 and result.output.startswith(f"error: no coordinator answered at 127.0.0.1:{port}")
     assert "start process 0" in result.output and len(result.output.strip().splitlines()) == 1
     assert not any(tmp_path.iterdir())
+
+
+def test_process_0_meets_the_others_on_its_port_before_joining(monkeypatch):
+    """Process 0 waits on the coordinator's port until each other process has said its id there; a connection
+    that says nothing of the kind (a port scanner) is no process."""
+    port = distributed.free_port()
+    where = distributed.Layout(f"127.0.0.1:{port}", 3, 0)
+    gathered = threading.Thread(target=distributed.gather, args=(where, 600))
+    gathered.start()
+    distributed._wait_for(where.coordinator, 600)  # answered, says nothing
+    distributed._wait_for(where.coordinator, 600, 2)
+    assert gathered.is_alive()  # process 1 has not come yet
+    distributed._wait_for(where.coordinator, 600, 1)
+    gathered.join(600)
+    assert not gathered.is_alive()
+    with socket.socket() as again:  # the port is free again for JAX's coordination service (which reuses addresses)
+        again.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        again.bind(("127.0.0.1", port))
+        again.listen(1)
+
+
+def test_what_jax_raises_while_joining_is_one_line_naming_the_process_and_the_address(monkeypatch):
+    import jax
+
+    def refuse(*args, **kwargs):
+        raise RuntimeError("DEADLINE_EXCEEDED: Barrier timed out.\n  Additional GRPC error information: ...")
+
+    monkeypatch.setattr(distributed, "gather", lambda where, timeout: None)
+    monkeypatch.setattr(distributed, "reach", lambda where, timeout: None)
+    monkeypatch.setattr(jax.config, "update", lambda *args: None)
+    monkeypatch.setattr(jax.distributed, "initialize", refuse)
+    with pytest.raises(RunError) as refused:
+        distributed.join(distributed.Layout("127.0.0.1:1234", 2, 1), 3)
+    assert str(refused.value) == (
+        "process 1 could not join the run's processes at 127.0.0.1:1234 within 3 s (DEADLINE_EXCEEDED: Barrier timed "
+        "out. Additional GRPC error information: ...): check that every process was started with the same "
+        "--coordinator and --num-processes and its own --process-id, and that the port is open between the hosts")
+
+
+def process_0(tmp_path: Path, port: int, timeout: int = 2) -> subprocess.CompletedProcess:
+    """`fieldgen train` as process 0 of 2 at 127.0.0.1:PORT, in its own process (JAX's runtime may end it)."""
+    return subprocess.run([sys.executable, "-m", "fieldgen", "train", "point_nav", "--out", str(tmp_path / "runs"),
+                           "--coordinator", f"127.0.0.1:{port}", "--num-processes", "2", "--process-id", "0",
+                           "--coordinator-timeout", str(timeout)], capture_output=True, text=True, timeout=600,
+                          env={**os.environ, **distributed.only_devices("cpu", [0])})
+
+
+def test_process_0_alone_ends_in_one_line_naming_the_one_missing(tmp_path):
+    """Before: process 0 whose other process never started died of SIGABRT with JAX's fatal-error text."""
+    port = distributed.free_port()
+    done = process_0(tmp_path, port)
+    assert done.returncode == 1 and " ".join(done.stderr.split()) == (
+        f"error: process 0 of 2 waited 2 s at 127.0.0.1:{port} for process 1, which never came: start it with "
+        f"--coordinator 127.0.0.1:{port} --num-processes 2 --process-id 1, and check that the address and the port "
+        "are reachable from their hosts (or raise --coordinator-timeout)"), done.stdout + done.stderr
+    assert not (tmp_path / "runs").exists()
+
+
+def test_a_coordinator_port_another_program_holds_is_one_line(tmp_path):
+    """Before: process 0 crashed (SIGSEGV) where its coordinator's port was taken."""
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen(1)
+        port = taken.getsockname()[1]
+        done = process_0(tmp_path, port)
+    assert done.returncode == 1 and " ".join(done.stderr.split()) == (
+        f"error: process 0 cannot start the run's coordinator at 127.0.0.1:{port}: port {port} of this host is taken "
+        "(another program listens on it): choose a free port in --coordinator, the same for every process"), \
+        done.stdout + done.stderr
+    assert not (tmp_path / "runs").exists()
 
 
 class Coordinator:
@@ -190,9 +298,7 @@ def test_a_process_killed_stops_the_other_with_one_line_and_resume_finishes_the_
         assert time.monotonic() < deadline and processes[0].poll() is None, (tmp_path / "process0.log").read_text()
         time.sleep(0.05)
     processes[1].kill()
-    began = time.monotonic()
     assert processes[0].wait(distributed.HEARTBEAT_SECONDS + 60) == 1  # no hang: the heartbeat names it
-    assert time.monotonic() - began < distributed.HEARTBEAT_SECONDS + 30
     errors = [line for line in (tmp_path / "process0.log").read_text().splitlines() if line.startswith("error")]
     assert errors == [f"error: process 1 of 2 stopped, so this one (process 0) stops too. Start every process "
                       f"again with --resume {run} to continue from its last checkpoint"]
