@@ -93,7 +93,9 @@ _KINDS: dict[str, Output] = {}  # command -> what it writes (each Output made re
 
 # the commands that write single files where files of the user's may be (write_file), beside the folders of
 # builds, exports, curricula and runs (BUILD, POLICY, CURRICULUM, RUN_FOLDER in their own modules)
-EVAL = Output("fieldgen eval", (), "", "--summary", files=("summary.json", "summary_*.json", "eval.*", "eval_*.*"),
+EVAL = Output("fieldgen eval", (), "", "--summary", files=("summary.json", "summary_*.json", "selfplay_eval.json",
+                                                          *(f"eval{kept}.{suffix}" for kept in ("", "_*")
+                                                            for suffix in ("mp4", "gif", "npz"))),
               inside=("fieldgen train",))
 AGGREGATE = Output("fieldgen aggregate", (), "", "--summary")
 RENDER = Output("fieldgen render", (), "", "-o", files=("levels.png",), inside=("fieldgen train",))

@@ -579,19 +579,24 @@ def _evaluate_team(run_dirs: list[Path], episodes: int | None, seed: int, action
     RUN/selfplay_eval.json (or --summary); with `fmt`, RUN/eval.mp4 (or .gif) of one match of the two."""
     import json
 
+    from fieldgen import files
     from fieldgen.agents.config import ConfigError
-    from fieldgen.files import WriteError, write_atomic
+    from fieldgen.files import WriteError
     from fieldgen.run import record, selfplay
 
     if len(run_dirs) != 1 or field is not None:
         fail("a self-play run is evaluated alone, on its own field: name one run folder, without --field")
+    path, video_name = summary_file or run_dirs[0] / selfplay.EVALUATION, run_dirs[0] / "eval"
     try:
+        files.check_file(path, files.EVAL)  # before evaluating: a file it may not replace is one line now
+        if fmt is not None:
+            files.check_file(video_name.with_suffix(f".{fmt}"), files.EVAL, "--no-video")
         run = selfplay.open_run(run_dirs[0])
         if run.state is None:
             fail(f"{run_dirs[0]} has no checkpoint: it has not trained yet; train it with "
                  f"fieldgen train --resume {run_dirs[0]}, then evaluate it")
         result, filmed = selfplay.evaluate(run, episodes, seed, actions, film=fmt is not None)
-    except (ConfigError, record.RunError) as exc:
+    except (ConfigError, record.RunError, files.FolderError) as exc:
         fail(str(exc))
     except KeyboardInterrupt:
         out.print(f"interrupted evaluating {run_dirs[0]}; nothing was written")
@@ -607,9 +612,8 @@ def _evaluate_team(run_dirs: list[Path], episodes: int | None, seed: int, action
     ranked = sorted(result["ratings"].items(), key=lambda item: -item[1])
     out.print("Elo ratings (snapshot by evaluation): " + ", ".join(f"{name} {value:.0f}" for name, value in ranked),
               soft_wrap=True)
-    path = summary_file or run_dirs[0] / selfplay.EVALUATION
     try:
-        write_atomic(path, (json.dumps(result, indent=1) + "\n").encode())
+        files.write_file(path, (json.dumps(result, indent=1) + "\n").encode(), files.EVAL)
     except WriteError as exc:
         fail(str(exc))
     out.print(f"summary: {path}")
@@ -617,13 +621,12 @@ def _evaluate_team(run_dirs: list[Path], episodes: int | None, seed: int, action
         from fieldgen.run.videos import EpisodeRecorder
 
         recorder = EpisodeRecorder(run.env, camera, fmt)
-        name = run_dirs[0] / "eval"
         try:
-            drawn = recorder.save(run_dirs[0], name, recorder.episode(filmed), err)
+            drawn = recorder.save(run_dirs[0], video_name, recorder.episode(filmed), err, files.EVAL)
         except WriteError as exc:
             fail(str(exc))
         if drawn is not None:
-            out.print(f"video: {name.with_suffix('.' + fmt)} ({drawn} frames, {camera} camera): snapshot "
+            out.print(f"video: {video_name.with_suffix('.' + fmt)} ({drawn} frames, {camera} camera): snapshot "
                       f"{result['eval']} at home against snapshot {earlier['snapshot']}")
 
 

@@ -71,6 +71,13 @@ def test_self_play_writes_ratings_resumes_exactly_and_is_judged(tmp_path, interr
     assert "Elo ratings" in result.output
     assert "snapshot 3 at home against snapshot 1" in " ".join(result.output.split())
     assert any(run.glob("eval.*"))  # the video of that match (or its kept episode where nothing renders)
+    mine = tmp_path / "mine.json"
+    mine.write_text("a user's notes\n")
+    for target, said in ((run / record.RUN, "was written by fieldgen train, not fieldgen eval"),
+                         (mine, "is not a file fieldgen wrote")):
+        result = runner.invoke(app, ["eval", str(run), "--summary", str(target), "--no-video"])
+        assert result.exit_code == 1 and said in " ".join(result.output.split()), result.output
+    assert mine.read_text() == "a user's notes\n" and json.loads((run / record.RUN).read_text())["selfplay"]
     judged = json.loads((run / selfplay.EVALUATION).read_text())
     assert judged["vs_snapshot"]["snapshot"] == 1 and sum(judged["vs_random"].values()) == 8
     assert judged["ratings"] == last["ratings"]
