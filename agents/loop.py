@@ -274,10 +274,11 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
     (else as the state's environments draw, their counts tallied since the last re-weighing); a state that is
     only what it learned (`Trainer.learned`) goes on with fresh episodes and a buffer filled anew, drawn as
     `sampling` says where given, the rows of its first evaluation holding `refilled_from` (the env steps it had
-    learned from: where its episodes and buffer began anew). An evaluation is handed to `progress` and `on_eval` once the next chunk has started, on a thread of
-    its own (its call may hold that thread until the chunk ends), so that the device trains while the host
-    writes; in a run over several processes, once the chunk's call has returned, so that every process runs the
-    chunk's collectives and then the gathering of the evaluation's state in one order. Before each chunk
+    learned from: where its episodes and buffer began anew). An evaluation is handed to `progress` and `on_eval`
+    once the next chunk has started, on a thread of its own (its call may hold that thread until the chunk
+    ends), so that the device trains while the host writes; in a run over several processes, once the chunk's
+    call has returned, so that every process runs the chunk's collectives and then the gathering of the
+    evaluation's state in one order. Before each chunk
     `stop(longest)` is asked, with the time a chunk and its evaluation take in this call (`longest_chunk`; None
     before the first): True ends the run there, its last evaluation handed on as at the end (a time limit: the
     run goes on later from it). With `clock` (a time.perf_counter() value) every row holds `wall_seconds`, from
@@ -305,7 +306,7 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
         return metrics, None if frames is None else (k, seed_slice(frames, 0))
 
     history: list[dict] = []
-    reported = None  # the last evaluation's (index, rows, state, stage, episode), not yet handed on
+    reported = None  # the last evaluation's (index, rows, state, stage, episode, sampling), not yet handed on
 
     def report(index, rows, state, stage, episode, sampling):
         progress(index, rows)

@@ -11,6 +11,6 @@ from fieldgen.curriculum.generate import (KINDS, Asked, explicit, grid, interpol
                                           start_states, variants)
 from fieldgen.curriculum.plans import Plan, PlanError, plan
 
-__all__ = ["INDEX", "KINDS", "Asked", "Curriculum", "CurriculumError", "Plan", "PlanError", "Promotion", "Stage", "explicit", "grid",
-           "interpolate", "is_curriculum", "load", "parse_assignments", "parse_axis", "plan", "start_states", "variants",
-           "write"]
+__all__ = ["INDEX", "KINDS", "Asked", "Curriculum", "CurriculumError", "Plan", "PlanError", "Promotion", "Stage",
+           "explicit", "grid", "interpolate", "is_curriculum", "load", "parse_assignments", "parse_axis", "plan",
+           "start_states", "variants", "write"]

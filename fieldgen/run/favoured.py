@@ -74,7 +74,7 @@ def favoured_levels(folder: Path, camera: str, top: int = 6) -> tuple[bytes, str
     share = np.mean([r["variants"]["weight"] for r in last], axis=0)  # in [0, 1]: record.read_metrics checks
     measured = np.array([r["variants"]["success_any"] for r in last], dtype=float)  # NaN: a level no episode played
     success = [np.nanmean(column) if np.isfinite(column).any() else None for column in measured.T]
-    coordinates = record.read_run(folder).levels
+    coordinates = run.plan.levels
     order = [int(k) for k in np.argsort(-share, kind="stable")[:top]]
     kind = run.plan.variant_name
     images, titles = [], []

@@ -89,6 +89,7 @@ def test_a_plan_of_a_field_or_a_curriculum_folder():
     assert plan.environments(envs) == envs
     folder = ROOT / "curricula" / "point_nav_to_far"
     plan, envs = curriculum.plan(folder)
-    assert plan.kind == "staged" and plan.name == "point_nav_to_far" and plan.promotion == curriculum.load(folder).promotion
+    assert plan.kind == "staged" and plan.name == "point_nav_to_far"
+    assert plan.promotion == curriculum.load(folder).promotion
     assert len(envs) == len(curriculum.load(folder).stages) and plan.environments(envs) == envs
     assert plan.on_one_field() == dataclasses.replace(plan, kind="staged")
