@@ -19,7 +19,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..curriculum.contract import OneStage, Schedule, adapt, with_episode_sampling
+from ..curriculum.contract import OneStage, Schedule, adapt, start_sampling, with_episode_sampling
 from ..env.contract import OVERFLOW, Environment, merged_overflow
 from .config import RunConfig
 from .programs import Programs, computed
@@ -203,12 +203,14 @@ def evaluate(trainer: Trainer, state, key: jax.Array, film: Callable | None = No
                            sampled)
 
 
-def adapted(trainer: Trainer, state, variants: VariantResults, schedule: Schedule) -> tuple[object, VariantResults]:
-    """The state with its environments drawing their next episodes as `schedule` says after an evaluation
-    (fieldgen.curriculum.contract.adapt), and the evaluation's results with each variant's weight recorded (and,
-    with kick-off points, the weights' share by kick-off)."""
-    env_state, weight, share = adapt(schedule, trainer.env, state.env_state, variants.success_any, state.key)
-    return state.replace(env_state=env_state), variants.replace(weight=weight, kickoff_share=share)
+def adapted(trainer: Trainer, state, sampling: dict, variants: VariantResults,
+            schedule: Schedule) -> tuple[object, dict, VariantResults]:
+    """The state with its environments drawing their next episodes as `schedule` says after an evaluation, and
+    the sampling carried beside it moved on (fieldgen.curriculum.contract.adapt), and the evaluation's results
+    with each variant's weight recorded (and, with kick-off points, the weights' share by kick-off)."""
+    env_state, sampling, weight, share = adapt(schedule, trainer.env, state.env_state, sampling,
+                                               variants.success_any, state.key)
+    return state.replace(env_state=env_state), sampling, variants.replace(weight=weight, kickoff_share=share)
 
 
 def eval_key(seed_key: jax.Array, index) -> jax.Array:
@@ -219,14 +221,18 @@ def pure_train(trainer: Trainer, num_evals: int, schedule: Schedule = OneStage()
     """train(key) -> (final state, metrics stacked over the num_evals evaluations); jit- and vmap-able."""
 
     def train(key):
-        def interval(state, index):
+        def interval(carried, index):
+            state, sampling = carried
             state, metrics = trainer.chunk(state)
             metrics.update(evaluate(trainer, state, eval_key(key, index))[0])
             if "variants" in metrics:
-                state, metrics["variants"] = adapted(trainer, state, metrics["variants"], schedule)
-            return state, metrics
+                state, sampling, metrics["variants"] = adapted(trainer, state, sampling, metrics["variants"], schedule)
+            return (state, sampling), metrics
 
-        return jax.lax.scan(interval, trainer.start(key), jnp.arange(1, num_evals + 1))
+        state = trainer.start(key)
+        (state, _), metrics = jax.lax.scan(interval, (state, start_sampling(state.env_state)),
+                                           jnp.arange(1, num_evals + 1))
+        return state, metrics
 
     return train
 
@@ -246,7 +252,7 @@ def run(trainer: Trainer, seeds: Sequence[int], num_evals: int,
     """
     staged_resume = None if resume is None else (*resume, 0)
     return run_staged([trainer], seeds, num_evals, OneStage(), progress,
-                      lambda state, index, stage, episode: on_eval(state, index), staged_resume)
+                      lambda state, index, stage, episode, sampling: on_eval(state, index), staged_resume)
 
 
 def drawing_as(state, sampling: dict, placement):
@@ -257,7 +263,7 @@ def drawing_as(state, sampling: dict, placement):
 
 def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int, schedule: Schedule,
                progress: Callable[[int, list[dict]], None] = lambda index, rows: None,
-               on_eval: Callable = lambda state, index, stage, episode: None, resume: tuple | None = None,
+               on_eval: Callable = lambda state, index, stage, episode, sampling: None, resume: tuple | None = None,
                film: Callable | None = None, sampling: dict | None = None,
                stop: Callable[[float | None], bool] = lambda longest: False, clock: float | None = None):
     """`run` through a sequence of trainers (a curriculum's stages) whose environments share one observation
@@ -268,16 +274,20 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
     normalizer) and starting fresh episodes of the next stage; an environment of several variants is
     re-weighted as the schedule says (`adapted`). With several stages every row also holds `stage` and
     `last_stage_success_any` (the same policy evaluated on the last stage), and a promoting row `promoted_to`.
-    `on_eval(state, index, stage, episode)` gets the stage the next chunk trains on and, with `film`, the first
-    seed's episode filmed by the evaluation just done (`evaluate_policy`) with the stage it was filmed on,
-    `(stage, film)`, else None; `resume=(state, index, stage)` continues from there; a state that is only what
-    it learned (`Trainer.learned`) goes on with fresh episodes and a buffer filled anew, drawn as `sampling`
-    says (fieldgen.curriculum.contract.episode_sampling, seeds stacked) where given, the rows of its first
-    evaluation holding `refilled_from` (the env steps it had learned from: where its episodes and buffer began
-    anew). An evaluation is handed to `progress` and `on_eval` once the next chunk has started, on a thread of
-    its own (its call may hold that thread until the chunk ends), so that the device trains while the host
-    writes; in a run over several processes, once the chunk's call has returned, so that every process runs the
-    chunk's collectives and then the gathering of the evaluation's state in one order. Before each chunk
+    Beside the training state the loop carries its environments' sampling (fieldgen.curriculum.contract.
+    start_sampling: the weights and level counts a curriculum draws episodes by), which each re-weighing moves on.
+    `on_eval(state, index, stage, episode, sampling)` gets the stage the next chunk trains on, with `film` the
+    first seed's episode filmed by the evaluation just done (`evaluate_policy`) with the stage it was filmed on,
+    `(stage, film)`, else None, and the sampling (seeds stacked) that goes on with the state;
+    `resume=(state, index, stage)` continues from there, its environments drawing as `sampling` says where given
+    (else as the state's environments draw, their counts tallied since the last re-weighing); a state that is
+    only what it learned (`Trainer.learned`) goes on with fresh episodes and a buffer filled anew, drawn as
+    `sampling` says where given, the rows of its first evaluation holding `refilled_from` (the env steps it had
+    learned from: where its episodes and buffer began anew). An evaluation is handed to `progress` and `on_eval`
+    once the next chunk has started, on a thread of its own (its call may hold that thread until the chunk
+    ends), so that the device trains while the host writes; in a run over several processes, once the chunk's
+    call has returned, so that every process runs the chunk's collectives and then the gathering of the
+    evaluation's state in one order. Before each chunk
     `stop(longest)` is asked, with the time a chunk and its evaluation take in this call (`longest_chunk`; None
     before the first): True ends the run there, its last evaluation handed on as at the end (a time limit: the
     run goes on later from it). With `clock` (a time.perf_counter() value) every row holds `wall_seconds`, from
@@ -305,17 +315,17 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
         return metrics, None if frames is None else (k, seed_slice(frames, 0))
 
     history: list[dict] = []
-    reported = None  # the last evaluation's (index, rows, state, stage, episode), not yet handed on
+    reported = None  # the last evaluation's (index, rows, state, stage, episode, sampling), not yet handed on
 
-    def report(index, rows, state, stage, episode):
+    def report(index, rows, state, stage, episode, sampling):
         progress(index, rows)
-        on_eval(state, index, stage, episode)
+        on_eval(state, index, stage, episode, sampling)
 
     stage = 0 if resume is None else resume[2]
     refilling = resume is not None and not trainers[stage].holds_environments(resume[0])
     # every program the first evaluations need compiles at once, in the order they run
-    programs(stage).prepare(*(("start",) if resume is None else ("refill",) if refilling else ()), "evaluate", "chunk",
-                            *(("adapt",) if trainers[stage].env.variant_count > 1 else ()))
+    programs(stage).prepare(*(("start",) if resume is None else ("refill",) if refilling else ()), "sampling",
+                            "evaluate", "chunk", *(("adapt",) if trainers[stage].env.variant_count > 1 else ()))
     if staged and stage != last:
         programs(last).prepare("evaluate")
     if jax.process_count() > 1:  # no process calls a program before every process has compiled them (`meet`)
@@ -324,6 +334,7 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
         computed(None, lambda _: meet(f"fieldgen/compiled/{next(_meetings)}"))
     if resume is None:
         state, first, previous = programs(0).start(keys), 1, 0
+        sampling = programs(0).sampling(state)
     else:
         state, index, _ = resume
         if refilling:  # where its rows mark the refill
@@ -331,6 +342,8 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
         state = programs(stage).refill(state) if refilling else from_host(state, programs(stage).placement)
         if refilling and sampling:
             state = drawing_as(state, sampling, programs(stage).placement)
+        if sampling is None:  # as its environments draw now
+            sampling = programs(stage).sampling(state)
         first, previous = index + 1, int(to_host(state.env_steps)[0])
     took: list[float] = []  # seconds each chunk and its evaluation took
     for index in range(0 if resume is None else first, num_evals + 1):
@@ -351,7 +364,7 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
         judged, episode = judge(stage, state, index)
         metrics.update(judged)
         if trainers[stage].env.variant_count > 1:  # a mixed run: judged on its last variant, and re-weighted
-            state, variants = programs(stage).adapt(state, metrics["variants"])
+            state, sampling, variants = programs(stage).adapt(state, sampling, metrics["variants"])
             metrics["variants"] = to_host(variants)
             metrics["last_stage_success_any"] = metrics["variants"].success_any[:, -1]
         if staged and stage != last:
@@ -379,9 +392,10 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
         if following != stage:
             stage = following
             state = jax.device_put(_with_env(trainers[stage], state, index), programs(stage).placement)
+            sampling = programs(stage).sampling(state)
             for row in rows:
                 row["promoted_to"] = stage
-        reported = (index, rows, state, stage, episode)
+        reported = (index, rows, state, stage, episode, sampling)
         if index > 0:
             took.append(time.perf_counter() - began)
     if reported is not None:

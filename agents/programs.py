@@ -21,6 +21,7 @@ from typing import Callable
 
 import jax
 
+from ..curriculum.contract import start_sampling
 from . import sharding
 
 SIDE_BY_SIDE: bool | None = None  # compile on worker threads; None: on every backend but the CPU
@@ -111,10 +112,15 @@ def started(trainer, keys: jax.Array) -> tuple[Callable, object]:
     return trainer.compiled[kept]
 
 
+def sampling_of(state):
+    """The sampling a (seeds stacked) training state's environments draw by now (curriculum.contract.start_sampling)."""
+    return start_sampling(state.env_state)
+
+
 class Programs:
-    """start(keys), refill(learned), chunk_started(state), evaluate(learned, eval_keys) and
-    adapt(state, variants) of one trainer, vmapped over seeds and placed over the devices
-    (agents.sharding). Each compiles once asked for, by `prepare` or by its first call."""
+    """start(keys), refill(learned), chunk_started(state), evaluate(learned, eval_keys),
+    adapt(state, sampling, variants) and sampling(state) of one trainer, vmapped over seeds and placed over
+    the devices (agents.sharding). Each compiles once asked for, by `prepare` or by its first call."""
 
     def __init__(self, trainer, keys: jax.Array, film: Callable | None, evaluate: Callable, adapt: Callable):
         start, shapes = started(trainer, keys)  # one function for both: JAX reuses the shapes' trace to compile it
@@ -131,8 +137,10 @@ class Programs:
             "evaluate": lambda: Compiling(jax.jit(jax.vmap(functools.partial(evaluate, trainer, film=film))),
                                           self._learned(self._state), keys),
             "adapt": lambda: Compiling(jax.jit(jax.vmap(functools.partial(adapt, trainer)),
-                                               in_shardings=(self.placement, None), out_shardings=(self.placement, None)),
-                                       self._state, self._variants),
+                                               in_shardings=(self.placement, None, None),
+                                               out_shardings=(self.placement, None, None)),
+                                       self._state, jax.eval_shape(sampling_of, self._state), self._variants),
+            "sampling": lambda: Compiling(jax.jit(sampling_of), self._state),
         }
         self._compiling: dict[str, Compiling] = {}
 
@@ -171,5 +179,9 @@ class Programs:
         other bodies and geoms, is judged here too (a curriculum's last stage while it trains an earlier one)."""
         return self._program("evaluate")(self._learned(state), eval_keys)
 
-    def adapt(self, state, variants):
-        return self._program("adapt")(state, variants)
+    def adapt(self, state, sampling, variants):
+        return self._program("adapt")(state, sampling, variants)
+
+    def sampling(self, state):
+        """The sampling the state's environments draw by now: where a run starts, or moves to another stage."""
+        return self._program("sampling")(state)

@@ -54,7 +54,7 @@ def main() -> None:
         times.append({"eval": index, "env_steps": row["env_steps"], "chunk": chunk,
                       "evaluation": now - mark["t"] - chunk})
 
-    def on_eval(state, index, stage, filmed):
+    def on_eval(state, index, stage, filmed, sampling):
         timing = times[-1]
 
         def timed(name, work):

@@ -52,7 +52,7 @@ Compiling.__init__ = lowered_only
 import functools
 began = time.perf_counter()
 made = loop.Programs(run.trainers[0], loop.seed_keys(run.seeds), None, loop.evaluate,
-                     functools.partial(loop.adapted, schedule=run.schedule))
+                     functools.partial(loop.adapted, schedule=run.plan.schedule))
 shapes = time.perf_counter() - began
 print(json.dumps({"shapes": shapes, **{name: (made.prepare(name), seconds[len(seconds) - 1])[1] for name in programs}}))
 """

@@ -331,3 +331,43 @@ class Auto(Mixed):
         starts = np.array([[row[1:] if row else [np.nan] * 6 for row in level] for level in kickoffs], np.float32)
         return [environment([e.artifact for e in envs], kickoffs=starts,
                             kickoff_coordinates=kickoff_coordinates(kickoffs))]
+
+
+@dataclasses.dataclass(frozen=True)
+class HeldLevel:
+    """What a level buffer holds of one level: its points, where they start the ball, their share of new
+    episodes, the episodes counted on them (older ones count for less) and the success the sampler estimates."""
+
+    level: int  # from 0; the last is the field itself
+    points: int
+    kickoff: tuple[float, float]  # the lowest and highest of its points, 0 the easy end's, 1 the field's
+    share: float
+    episodes: float
+    success: tuple[float, float]  # the lowest and highest estimate over its points
+
+
+def buffer_shapes(seeds: int, kickoffs: list) -> dict:
+    """The shapes of `seeds` seeds' level sampling (weights and counts) of a run with these kick-off points
+    (`kickoff_tables`, as run.json keeps them): how the sampling a run keeps is read back."""
+    from fieldgen.curriculum.contract import level_sampling_shapes
+
+    return level_sampling_shapes(seeds, *kickoff_coordinates(kickoffs).shape)
+
+
+def held_levels(kickoffs: list, sampling: dict, sampler: Sampler | None = None) -> list[HeldLevel]:
+    """Level by level, what one seed's level buffer holds (`HeldLevel`), from its `sampling` (the level weights
+    and counts of curriculum.contract.start_sampling, one seed's) and its run's `sampler` (None: the
+    defaults), for a run with these kick-off points (`kickoff_tables`)."""
+    coordinates = kickoff_coordinates(kickoffs)
+    weights, counts = np.asarray(sampling["level_weights"]), np.asarray(sampling["level_counts"])
+    success = np.asarray(estimated_success(counts, (sampler or Sampler()).prior))
+    out = []
+    for level in range(coordinates.shape[0]):
+        held = weights[level] > 0
+        if not held.any():
+            continue
+        where, p = coordinates[level][held], success[level][held]
+        out.append(HeldLevel(level, int(held.sum()), (float(where.min()), float(where.max())),
+                             float(weights[level].sum()), float(counts[0, level][held].sum()),
+                             (float(p.min()), float(p.max()))))
+    return out

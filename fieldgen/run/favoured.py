@@ -12,21 +12,15 @@ from pathlib import Path
 
 import numpy as np
 
+from fieldgen.curriculum.auto import HeldLevel
 from fieldgen.run import record, session
 
 
 @dataclasses.dataclass(frozen=True)
-class BufferLevel:
-    """What one seed's level buffer holds of one level: its points, where they start the ball, their share
-    of new episodes, the episodes counted on them (older ones count for less) and the success estimated."""
+class BufferLevel(HeldLevel):
+    """What one seed's level buffer holds of one level (curriculum.auto.HeldLevel), and the seed's line of it."""
 
     seed: int
-    level: int  # from 0; the last is the field itself
-    points: int
-    kickoff: tuple[float, float]  # the lowest and highest of its points, 0 the easy end's, 1 the field's
-    share: float
-    episodes: float
-    success: tuple[float, float]  # the lowest and highest estimate over its points
 
     def text(self, levels: int) -> str:
         name = "the field itself" if self.level == levels - 1 else f"level {self.level + 1}"
@@ -48,33 +42,19 @@ def level_buffer(run) -> list[BufferLevel]:
     """Each seed's level buffer after the run's last evaluation, level by level (`BufferLevel`); none for a
     run without kick-off points or without `learner.msgpack` yet. RunError where that file cannot be read."""
     from fieldgen.agents import checkpoint
-    from fieldgen.curriculum.auto import Sampler, estimated_success, kickoff_coordinates
-    from fieldgen.curriculum.contract import level_sampling_shapes
+    from fieldgen.curriculum.auto import buffer_shapes, held_levels
 
-    learner = run.folder / record.LEARNER
-    if not run.kickoffs or not learner.is_file():
+    learner, plan = run.folder / record.LEARNER, run.plan
+    if not plan.kickoffs or not learner.is_file():
         return []
-    coordinates = kickoff_coordinates(run.kickoffs)
     try:
-        sampling = checkpoint.load_tail(learner, level_sampling_shapes(len(run.seeds), *coordinates.shape))
+        sampling = checkpoint.load_tail(learner, buffer_shapes(len(run.seeds), plan.kickoffs))
     except checkpoint.CheckpointError as exc:
         raise record.RunError(str(exc)) from None
     if sampling is None:
         return []
-    prior = (run.sampler or Sampler()).prior
-    out = []
-    for k, seed in enumerate(run.seeds):
-        weights, counts = np.asarray(sampling["level_weights"][k]), np.asarray(sampling["level_counts"][k])
-        success = np.asarray(estimated_success(counts, prior))
-        for level in range(coordinates.shape[0]):
-            held = weights[level] > 0
-            if not held.any():
-                continue
-            where, p = coordinates[level][held], success[level][held]
-            out.append(BufferLevel(seed, level, int(held.sum()), (float(where.min()), float(where.max())),
-                                   float(weights[level].sum()), float(counts[0, level][held].sum()),
-                                   (float(p.min()), float(p.max()))))
-    return out
+    return [BufferLevel(**dataclasses.asdict(held), seed=seed) for k, seed in enumerate(run.seeds)
+            for held in held_levels(plan.kickoffs, {name: kept[k] for name, kept in sampling.items()}, plan.sampler)]
 
 
 def favoured_levels(folder: Path, camera: str, top: int = 6) -> tuple[bytes, str, list[str]]:
@@ -84,7 +64,7 @@ def favoured_levels(folder: Path, camera: str, top: int = 6) -> tuple[bytes, str
     from fieldgen.render import contact_sheet, render_pose
 
     run = session.open_run(folder, load_state=False)
-    if not run.mixed:
+    if not run.plan.mixed:
         raise record.RunError(f"{folder} trains one stage at a time; --levels draws the levels a mixed or automatic "
                               "curriculum weighs (fieldgen train SPEC --curriculum auto)")
     if not run.rows:
@@ -94,9 +74,9 @@ def favoured_levels(folder: Path, camera: str, top: int = 6) -> tuple[bytes, str
     share = np.mean([r["variants"]["weight"] for r in last], axis=0)  # in [0, 1]: record.read_metrics checks
     measured = np.array([r["variants"]["success_any"] for r in last], dtype=float)  # NaN: a level no episode played
     success = [np.nanmean(column) if np.isfinite(column).any() else None for column in measured.T]
-    coordinates = record.read_run(folder).levels
+    coordinates = run.plan.levels
     order = [int(k) for k in np.argsort(-share, kind="stable")[:top]]
-    kind = run.variant_name
+    kind = run.plan.variant_name
     images, titles = [], []
     for k in order:
         images.append(render_pose(run.envs[k].artifact.model(), camera=camera, height=240))

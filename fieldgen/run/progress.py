@@ -143,7 +143,7 @@ def summary(run: Run, console: Console) -> None:
         if "promoted_to" in row and row["seed"] == run.seeds[0]:
             name = run.envs[row["promoted_to"]].spec.name
             console.print(f"promoted to stage {row['promoted_to'] + 1} ({name}) at {row['env_steps']:,} env steps")
-    if run.mixed:
+    if run.plan.mixed:
         last = run.rows[-1]
         variants = last["variants"]
         console.print("success_any per stage at the end: " + ", ".join(

@@ -19,12 +19,8 @@ from fieldgen import curriculum, files
 from fieldgen.agents import checkpoint, loop, memory, programs, registry, sharding
 from fieldgen.agents.config import ConfigError
 from fieldgen.compile.artifact import ArtifactError, load_artifact, write_artifact
-from fieldgen.compile.variants import VariantError
 from fieldgen.env.team_contract import refuse_team
-from fieldgen.curriculum.contract import episode_sampling
-from fieldgen.curriculum.promotion import Promotion
-from fieldgen.curriculum.kinds import schedule
-from fieldgen.curriculum.schedule import Mixed, Staged
+from fieldgen.curriculum.contract import start_sampling
 from fieldgen.run import record
 from fieldgen.schema import FieldSpec, load_spec
 
@@ -39,15 +35,12 @@ class Run:
     config: object
     seeds: list[int]
     rows: list[dict]
-    promotion: Promotion = Promotion()
+    plan: curriculum.Plan = curriculum.Plan()  # how it goes through its stages (a plain run has one), as run.json says
     state: object = None  # the checkpointed training state of a resumed run
     stage: int = 0  # the stage the next chunk trains on
-    schedule_kind: str = "staged"  # curriculum.kinds.SCHEDULES: mixed and auto train every stage at once
     init_from: dict | None = None  # record.InitFrom of a run started from another run's networks
-    curriculum: str = ""  # the name of the curriculum it trains through (its folder's; -mixed, -auto), "" for a field
-    kickoffs: list = dataclasses.field(default_factory=list)  # an automatic curriculum's kick-off points (run.json)
-    sampler: object = None  # an automatic curriculum's curriculum.auto.Sampler (run.json); None: its defaults
-    sampling: dict | None = None  # how a state of what was learned alone drew its episodes (episode_sampling)
+    sampling: dict | None = None  # how the state's environments draw their episodes (curriculum.contract.
+    # start_sampling, as its checkpoint or learner keeps it); None: as the state's own environments draw
 
     @property
     def finished(self) -> bool:
@@ -62,7 +55,7 @@ class Run:
     def label(self) -> str:
         """What the run trains on, as its progress and plot name it: its field, or its curriculum rather than
         the curriculum's last stage."""
-        return self.curriculum or self.env.spec.name
+        return self.plan.name or self.env.spec.name
 
     @property
     def env(self):
@@ -70,34 +63,17 @@ class Run:
         return self.envs[-1]
 
     @property
-    def mixed(self) -> bool:
-        """Whether every environment carries its own stage, all trained at once (a mixed or automatic curriculum)."""
-        return self.schedule_kind != "staged"
-
-    @property
     def learned_before(self) -> int:
         """Env steps its networks had trained, from nothing, before this run began (0 for a run from nothing):
         its own env steps plus these count a chain of --init-from runs whole."""
         return record.InitFrom.model_validate(self.init_from).learned if self.init_from else 0
 
-    @property
-    def variant_name(self) -> str:
-        """What the run's figures call a variant: an automatic curriculum's are levels, others' stages."""
-        return "level" if self.schedule_kind == "auto" else "stage"
-
-    @property
-    def schedule(self) -> Staged | Mixed:
-        """How the run moves through its stages (the curriculum's; a plain run has one stage)."""
-        return schedule(self.schedule_kind, self.promotion, self.sampler)
-
     @functools.cached_property
     def trainers(self) -> list[loop.Trainer]:
-        """What trains: the trainers of the environments the schedule trains on (a trainer per stage, or
-        for a mixed run one on every stage batched together)."""
+        """What trains: the trainers of the environments the plan trains on (a trainer per stage, or for a
+        mixed run one on every stage batched together)."""
         make_train = registry.trainer(self.algo).make_train
-        envs = self.schedule.environments(self.envs, self.kickoffs) if self.kickoffs else \
-            self.schedule.environments(self.envs)
-        return [make_train(self.config, env) for env in envs]
+        return [make_train(self.config, env) for env in self.plan.environments(self.envs)]
 
     @property
     def judged_trainer(self) -> loop.Trainer:
@@ -132,49 +108,26 @@ def new_run(source: Path, algo: str, seeds: Sequence[int], config, out: Path, mi
     each, and written by the first alone. Nothing is written before every setting is known good, the memory
     the run needs included where it `trains_here` (a run prepared to train elsewhere is checked where it
     resumes); `seeds` may be a range."""
-    promotion, name, kind, coordinates, kickoffs = Promotion(), None, "mixed" if mixed else "staged", [], []
-    if sampler is not None and not auto:
-        raise record.RunError("--sampler sets how --curriculum auto draws its levels; add --curriculum auto")
-    if auto:
-        if mixed or curriculum.is_curriculum(source):
-            raise record.RunError(f"--curriculum auto makes its own levels from one field and trains them all at "
-                                  f"once; give it a field (YAML or build folder), without --mixed{'' if mixed else f', not the curriculum folder {source}'}")
-        envs, coordinates, kickoffs = auto_environments(source, levels)
-        from fieldgen.curriculum.auto import run_label
-
-        kind, name = "auto", run_label(envs[-1].spec.name)
-    elif curriculum.is_curriculum(source):
-        try:
-            c = curriculum.load(source)
-            envs = schedule(kind, c.promotion).stage_environments(c.specs())
-        except (curriculum.CurriculumError, VariantError, ValueError) as exc:
-            raise record.RunError(str(exc)) from None
-        promotion, name = c.promotion, source.name + ("-mixed" if mixed else "")
-        layouts = {json.dumps(e.layout.to_json()) for e in envs}
-        if len(layouts) > 1:
-            raise record.RunError(f"{source}: the stages' observation layouts differ; a policy cannot move between them")
-    else:
-        if mixed:
-            raise record.RunError(f"{source} is a single field; --mixed trains the stages of a curriculum folder "
-                                  "(or let fieldgen make the stages: --curriculum auto)")
-        envs = [fieldgen.make(source)]
+    if auto and mixed:
+        raise record.RunError("--curriculum auto makes its own levels from one field and trains them all at once; "
+                              "give it a field (YAML or build folder), without --mixed")
+    try:
+        plan, envs = curriculum.plan(source, "auto" if auto else "mixed" if mixed else "staged", levels, sampler)
+    except curriculum.PlanError as exc:
+        raise record.RunError(str(exc)) from None
+    if plan.kind == "staged" and not plan.name:
         try:
             refuse_team(envs[0], f"fieldgen train's {algo}")
         except ValueError as exc:
             raise record.RunError(str(exc)) from None
-    folder = out / record.run_name(name or envs[0].spec.name, algo, seeds)
+    folder = out / record.run_name(plan.name or envs[0].spec.name, algo, seeds)
     if record.has_trained(folder):
         raise record.RunError(f"{folder} already holds a run; continue it with --resume {folder}, "
                                 "or pick another --seed or --out")
     for env in envs:
         config.validate_env(env, sharding.device_count(), len(seeds))
     dirs = [FIELD] if len(envs) == 1 else [f"{STAGES}/{k + 1:02d}" for k in range(len(envs))]
-    if auto:
-        from fieldgen.curriculum.auto import Sampler
-
-        sampler = sampler or Sampler()
-    run = Run(folder, algo, envs, config, seeds, [], promotion, schedule_kind=kind, curriculum=name or "",
-              kickoffs=kickoffs, sampler=sampler)
+    run = Run(folder, algo, envs, config, seeds, [], plan)
     if trains_here:
         check_memory(run)
     run.seeds = seeds = list(seeds)
@@ -197,10 +150,7 @@ def new_run(source: Path, algo: str, seeds: Sequence[int], config, out: Path, mi
         if run.state is not None:
             files.write_atomic(folder / record.INITIAL, checkpoint.pieces(jax.device_get(run.state)))
         record.write_run(folder, envs[-1].spec.model_dump(mode="json"), algo, config, envs[0].layout.to_json(),
-                         seeds, {"fields": dirs, "promotion": dataclasses.asdict(promotion), "mixed": run.mixed,
-                                 "schedule": kind, **({"curriculum": name} if name else {}),
-                                 **({"levels": coordinates, "kickoffs": kickoffs} if coordinates else {}),
-                                 **({"sampler": sampler.model_dump()} if auto else {}),
+                         seeds, {"fields": dirs, **plan.record(),
                                  **({"init_from": run.init_from} if run.init_from else {}),
                                  **({"recipe": recipe} if recipe else {}),
                                  **({"processes": processes} if processes else {})})
@@ -223,34 +173,18 @@ def check_memory(run: Run) -> None:
                      f"training {seeds:,} seed{'s' * (seeds > 1)} of {algo} with {run.config.num_envs:,} envs", lower)
 
 
-def auto_environments(source: Path, count: int | None) -> tuple[list, list[dict], list]:
-    """The environments of `count` levels from `source`'s easy end to the field itself (curriculum.auto),
-    built to one structure, each level's coordinates by axis name and its kick-off points, for run.json."""
-    from fieldgen.curriculum.auto import LEVELS, kickoff_tables, levels as auto_levels
-    from fieldgen.curriculum.levels import LevelError, LevelSpace
-
-    try:
-        spec = load_artifact(source).spec if source.is_dir() else load_spec(source)
-        wanted = LEVELS if count is None else count
-        chosen = auto_levels(spec, wanted)
-        if len(chosen) < 2:  # every level but the field refused: no curriculum is left to train through
-            raise LevelError(f"--levels {wanted} on {spec.name}: the schema refuses the {wanted - 1} easier "
-                             f"level{'s' * (wanted > 2)} of its path (a start the ball cannot leave, say), which "
-                             "leaves the field alone; ask for more levels (--levels N) or train the field without "
-                             "--curriculum auto")
-        envs = schedule("auto").stage_environments([level.spec for level in chosen])
-        kickoffs = kickoff_tables(spec, chosen)
-    except (LevelError, VariantError, ArtifactError, ValueError) as exc:
-        raise record.RunError(str(exc)) from None
-    names = [axis.name for axis in LevelSpace.of(spec).axes]
-    return envs, [dict(zip(names, level.coordinates)) for level in chosen], kickoffs
-
-
-def learner_contents(trainer: loop.Trainer, state) -> tuple:
+def learner_contents(trainer: loop.Trainer, state, sampling: dict) -> tuple:
     """What `learner.msgpack` holds of `state`, in this order: what it learned (Trainer.learned), then how its
-    environments draw their episodes (curriculum.contract.episode_sampling: a curriculum's weights and level
-    counts)."""
-    return trainer.learned(state), episode_sampling(state.env_state)
+    environments draw their episodes (`sampling`, curriculum.contract.start_sampling: a curriculum's weights and
+    level counts, carried beside the state)."""
+    return trainer.learned(state), sampling
+
+
+def checkpoint_contents(state, sampling: dict) -> tuple:
+    """What `checkpoint.msgpack` holds, in this order: the whole training state, then how its environments draw
+    their episodes (`sampling`). A checkpoint written before the sampling was kept beside the state holds the
+    state alone; its environments' own weights and counts then say how they draw (`open_run`)."""
+    return state, sampling
 
 
 def _learned_to_the_end(run: Run) -> tuple | None:
@@ -268,8 +202,13 @@ def _learned_to_the_end(run: Run) -> tuple | None:
 def learner_template(run: Run) -> tuple:
     """The shapes of what `learner.msgpack` holds for the run's trainer (`learner_contents`)."""
     trainer = run.trainers[run.stage]
-    _, shapes = programs.started(trainer, loop.seed_keys(run.seeds))
-    return jax.eval_shape(functools.partial(learner_contents, trainer), shapes)
+    return jax.eval_shape(functools.partial(learner_contents, trainer), *checkpoint_template(run))
+
+
+def checkpoint_template(run: Run) -> tuple:
+    """The shapes of what `checkpoint.msgpack` holds for the run's trainer (`checkpoint_contents`)."""
+    _, shapes = programs.started(run.trainers[run.stage], loop.seed_keys(run.seeds))
+    return shapes, jax.eval_shape(lambda state: start_sampling(state.env_state), shapes)
 
 
 def started_from(run: Run, source: Path) -> tuple[object, dict]:
@@ -346,26 +285,12 @@ def open_run(folder: Path, load_state: bool = True, to_train: bool = False, lear
                               "or written by another version of fieldgen") from None
     seeds = saved.seeds or [config.seed]
     rows = record.read_metrics(folder)
-    kind = saved.schedule or ("mixed" if saved.mixed else "staged")
-    points = {len(level) for level in saved.kickoffs}
-    if saved.kickoffs and (len(saved.kickoffs) != len(envs) or len(points) > 1 or min(points) < 2
-                           or any(level[-1] is None for level in saved.kickoffs)):
-        raise record.RunError(f"{folder / record.RUN} holds kick-off points that do not fit its {len(envs)} levels "
-                              "(as many points for each, at least 2, the last its own); it was edited or damaged: "
-                              "start the run again in a new folder")
-    _check_levels_results(folder, rows, kind, len(envs))
-    sampler = None
-    if saved.sampler:
-        from fieldgen.curriculum.auto import Sampler
-        from fieldgen.curriculum.levels import LevelError
-
-        try:
-            sampler = Sampler.checked(saved.sampler, f"{folder / record.RUN}: sampler")
-        except LevelError as exc:
-            raise record.RunError(f"{exc}; it was edited or damaged: restore it, or start the run again in a new "
-                                  "folder") from None
-    run = Run(folder, saved.algo, envs, config, seeds, rows, saved.promotion, schedule_kind=kind,
-              curriculum=saved.curriculum, kickoffs=saved.kickoffs, sampler=sampler,
+    try:
+        plan = curriculum.Plan.recorded(saved, len(envs), folder / record.RUN)
+    except curriculum.PlanError as exc:
+        raise record.RunError(str(exc)) from None
+    _check_levels_results(folder, rows, plan.kind, len(envs))
+    run = Run(folder, saved.algo, envs, config, seeds, rows, plan,
               init_from=saved.init_from.model_dump() if saved.init_from else None)
     if not load_state:
         return run  # only reported on
@@ -375,7 +300,7 @@ def open_run(folder: Path, load_state: bool = True, to_train: bool = False, lear
         if not rows:  # the checkpoint's own evaluation is always written before it
             raise record.RunError(f"{folder / record.METRICS} holds no evaluation, yet the run has a checkpoint; "
                                   f"{damaged}")
-        if not run.mixed:
+        if not plan.mixed:
             run.stage = rows[-1].get("promoted_to", rows[-1].get("stage", 0))
             if run.stage >= len(envs):
                 raise record.RunError(f"{folder / record.METRICS}'s last row puts the run at stage {run.stage + 1}, "
@@ -404,9 +329,8 @@ def open_run(folder: Path, load_state: bool = True, to_train: bool = False, lear
             # from there, its buffer filled anew, its episodes drawn as they were)
             path = folder / record.LEARNER
             run.state, run.sampling = checkpoint.load(path, *learner_template(run))
-        else:
-            trainer = run.trainers[run.stage]
-            run.state = checkpoint.load(path, programs.started(trainer, loop.seed_keys(seeds))[1])
+        else:  # one written before its sampling was kept holds none: its environments' own counts say it
+            run.state, run.sampling = checkpoint.load(path, *checkpoint_template(run))
     except checkpoint.CheckpointError as exc:
         raise record.RunError(str(exc)) from None
     done = int(jax.device_get(run.state.env_steps)[0])
@@ -448,7 +372,7 @@ def on_field(run: Run, source: Path) -> Run:
     if differ := interface_difference(env, run.env):
         raise record.RunError(f"{source} observes or acts differently from {run.env.spec.name}, which {run.folder} "
                               f"was trained on ({differ}); a policy moves only between fields of one layout")
-    return dataclasses.replace(run, envs=[env], schedule_kind="staged", stage=0)
+    return dataclasses.replace(run, envs=[env], plan=run.plan.on_one_field(), stage=0)
 
 
 def interface_difference(env, other) -> str:

@@ -104,15 +104,15 @@ def _train(run: Run, console: Console, videos: bool, logger: str, video_format: 
         waited = []  # seconds the last on_eval held the training thread: they fall in the next chunk's time
         skipped = [False]  # whether the last evaluation's whole checkpoint was left out
 
-        def on_eval(state, index, stage, filmed):
+        def on_eval(state, index, stage, filmed, sampling):
             began = time.perf_counter()
             skipped[0] = skip_checkpoint(writer.busy, skipped[0], index == config.num_evals or deadline.reached)
             if skipped[0]:  # what it learned alone, megabytes: the write under way is not waited for
-                learned = sharding.to_host(session.learner_contents(trainers[0], state))
+                learned = sharding.to_host(session.learner_contents(trainers[0], state, sampling))
             else:
                 writer.wait()  # one snapshot at a time in host memory; a failed write stops training here
-                snapshot = sharding.to_host(state)  # every process takes part in gathering it
-                learned = session.learner_contents(trainers[0], snapshot)
+                snapshot = sharding.to_host(session.checkpoint_contents(state, sampling))  # every process gathers it
+                learned = session.learner_contents(trainers[0], *snapshot)
             waited[:] = [time.perf_counter() - began]
             deadline.handing.append(waited[0])
             if not writes:
@@ -123,7 +123,7 @@ def _train(run: Run, console: Console, videos: bool, logger: str, video_format: 
             if filmed is not None:  # the episode just evaluated (a mixed run films its last stage)
                 filmed_stage, frames = filmed
                 if filmed_stage not in recorders:
-                    recorders[filmed_stage] = EpisodeRecorder(run.envs[-1 if run.mixed else filmed_stage],
+                    recorders[filmed_stage] = EpisodeRecorder(run.envs[-1 if run.plan.mixed else filmed_stage],
                                                               fmt=video_format)
                 recorder = recorders[filmed_stage]
                 writer.submit(film, recorder, video_name(run.folder, index), recorder.episode(frames),
@@ -147,7 +147,7 @@ def _train(run: Run, console: Console, videos: bool, logger: str, video_format: 
                 return
             record.write_metrics(run.folder, run.rows)
             plot_success(run.folder, run.rows, f"{run.label}: {run.algo}{judged_on(config.eval_actions)}",
-                         run.variant_name)
+                         run.plan.variant_name)
             log.rows(rows)
             bar.update(task, completed=rows[0]["env_steps"], rate=rate(run.rows, config.total_steps),
                        stats=stats(rows, len(run.envs)))
@@ -155,7 +155,7 @@ def _train(run: Run, console: Console, videos: bool, logger: str, video_format: 
         # a run started from another's networks (--init-from) goes on from "evaluation -1": it evaluates them first
         resume = (run.state, run.rows[-1]["eval"] if run.rows else -1, run.stage) if run.state is not None else None
         try:
-            loop.run_staged(trainers, run.seeds, config.num_evals, run.schedule, progress, on_eval, resume,
+            loop.run_staged(trainers, run.seeds, config.num_evals, run.plan.schedule, progress, on_eval, resume,
                             film=EpisodeRecorder.film if videos else None, sampling=run.sampling,
                             stop=deadline.stop, clock=started)
             if not deadline.reached:

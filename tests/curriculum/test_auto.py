@@ -15,7 +15,7 @@ from typer.testing import CliRunner
 from fieldgen.cli import app
 from fieldgen.curriculum.auto import (HARDER, Auto, Sampler, initial_buffer, kickoff_tables, level_weights, levels,
                                      next_levels, path)
-from fieldgen.curriculum.contract import KICKOFF_BINS, episode_sampling
+from fieldgen.curriculum.contract import KICKOFF_BINS, start_sampling
 from fieldgen.curriculum.levels import LevelError, LevelSpace
 from fieldgen.env import FieldEnv
 from fieldgen.curriculum.schedule import sampling_weights
@@ -232,9 +232,14 @@ def test_a_run_whose_schedule_or_levels_results_were_edited_is_refused_where_it_
 
 @pytest.mark.slow
 def test_an_auto_run_killed_and_resumed_continues_its_levels_exactly(tmp_path, interrupt_after_eval, monkeypatch):
-    """The level buffer lives in the training state (each environment's weights and counts), so a run stopped
-    after an evaluation and resumed weighs, counts and mutates its levels exactly as the run never stopped."""
-    from fieldgen.agents import programs
+    """The level buffer's sampling (its weights and counts) is checkpointed beside the training state, so a run
+    stopped after an evaluation and resumed weighs, counts and mutates its levels exactly as the run never
+    stopped; so does one whose checkpoint was written before, when the counts lay in its environments' state."""
+    import shutil
+
+    from fieldgen.agents import checkpoint, programs
+    from fieldgen.files import write_atomic
+    from fieldgen.run import session
 
     running = programs.under_way
 
@@ -256,14 +261,25 @@ def test_an_auto_run_killed_and_resumed_continues_its_levels_exactly(tmp_path, i
     assert runner.invoke(app, [*args, "--out", str(tmp_path / "cut")]).exit_code == 130
     interrupt_after_eval(None)
     cut = tmp_path / "cut" / "point_soccer-auto-crl-0"
-    resumed = runner.invoke(app, ["train", "--resume", str(cut)])
-    assert resumed.exit_code == 0, resumed.output
+    older = tmp_path / "older" / cut.name
+    shutil.copytree(cut, older)
+    opened = session.open_run(older)
+    info = opened.state.env_state.info  # as checkpoints were: the counts in the first environment's state
+    counts = np.array(info["level_counts"])
+    assert not counts.any()  # each environment's tally starts again at every re-weighing
+    counts[:, 0] = opened.sampling["level_counts"]
+    state = opened.state.replace(env_state=opened.state.env_state.replace(info=dict(info, level_counts=counts)))
+    write_atomic(older / record.CHECKPOINT, checkpoint.pieces(state))
+    assert session.open_run(older).sampling is None
+    for folder in (cut, older):
+        resumed = runner.invoke(app, ["train", "--resume", str(folder)])
+        assert resumed.exit_code == 0, resumed.output
 
     def rows(folder):
         return [{k: v for k, v in json.loads(line).items() if k not in record.TIMINGS}
                 for line in (folder / "metrics.jsonl").read_text().splitlines()]
 
-    assert rows(cut) == rows(tmp_path / "whole" / "point_soccer-auto-crl-0")
+    assert rows(cut) == rows(tmp_path / "whole" / "point_soccer-auto-crl-0") == rows(older)
     shares = [row["variants"]["kickoff_share"] for row in rows(cut)]
     assert shares[-1] != shares[1]  # the buffer moved after the cut
 
@@ -317,8 +333,10 @@ def test_an_auto_run_copied_without_its_checkpoint_draws_its_levels_as_it_did(tm
     interrupt_after_eval(None)
     run = tmp_path / "point_soccer-auto-crl-0to1"
     whole = session.open_run(run)
-    drawn = episode_sampling(whole.state.env_state)
+    drawn = whole.sampling  # kept beside the whole state in its checkpoint
     assert set(drawn) == {"level_weights", "level_counts"} and float(np.sum(drawn["level_counts"])) > 0
+    for name, kept in start_sampling(whole.state.env_state).items():  # its environments draw as it says
+        np.testing.assert_array_equal(kept, drawn[name] if name == "level_weights" else 0 * drawn[name])
     (run / record.CHECKPOINT).unlink()
     moved = session.open_run(run)
     assert moved.refills and set(moved.sampling) == set(drawn)
@@ -335,8 +353,7 @@ def test_an_auto_run_copied_without_its_checkpoint_draws_its_levels_as_it_did(tm
     assert resumed.exit_code == 0, resumed.output
     assert "its episodes drawn as they were" in " ".join(resumed.output.split())
     assert len(put) == 1
-    for name, kept in episode_sampling(put[0].env_state).items():
-        np.testing.assert_allclose(kept, drawn[name], rtol=1e-6)
+    np.testing.assert_allclose(start_sampling(put[0].env_state)["level_weights"], drawn["level_weights"], rtol=1e-6)
     assert json.loads((run / "metrics.jsonl").read_text().splitlines()[-1])["eval"] == 3
     _, sampling = checkpoint.load(run / record.LEARNER, *session.learner_template(moved))
     assert set(sampling) == set(drawn)  # the resumed run's learner keeps it too
@@ -500,14 +517,14 @@ def test_a_runs_sampler_is_kept_in_run_json_and_resumed_with(tmp_path):
     saved = json.loads((run / "run.json").read_text())
     assert saved["sampler"] == {**DEFAULT.model_dump(), "replaced": 8, "prior": 4.0}
     opened = session.open_run(run, load_state=False)
-    assert opened.sampler == Sampler(replaced=8, prior=4.0) and opened.schedule.sampler == opened.sampler
+    assert opened.plan.sampler == Sampler(replaced=8, prior=4.0) and opened.plan.schedule.sampler == opened.plan.sampler
     again = runner.invoke(app, ["train", "--resume", str(run), "--sampler", "replaced=2"])
     assert again.exit_code != 0 and "--sampler cannot change" in " ".join(again.output.split())
     (run / "run.json").write_text(json.dumps({**saved, "sampler": {**saved["sampler"], "kept": 3}}))
     with pytest.raises(record.RunError, match="run.json: sampler kept=3: .* it was edited or damaged"):
         session.open_run(run, load_state=False)
     (run / "run.json").write_text(json.dumps({k: v for k, v in saved.items() if k != "sampler"}))
-    assert session.open_run(run, load_state=False).schedule.sampler == DEFAULT
+    assert session.open_run(run, load_state=False).plan.schedule.sampler == DEFAULT
 
 
 def test_a_buffer_whose_levels_are_solved_moves_towards_the_spec():
@@ -614,11 +631,11 @@ def test_a_field_starts_from_a_kickoff_point_and_counts_its_levels(env_cache):
 
 def test_levels_the_schema_refuses_down_to_the_field_alone_are_refused_not_a_run_of_one_level(monkeypatch):
     """Before: `--levels 2` on a field whose easy end the schema refuses set up a run of the field alone."""
+    from fieldgen import curriculum
     from fieldgen.curriculum import auto
-    from fieldgen.run import record, session
 
     every = auto.levels
     monkeypatch.setattr(auto, "levels", lambda spec, count: every(spec, count)[-1:])  # only the field is playable
-    with pytest.raises(record.RunError, match=r"--levels 2 on point_soccer: the schema refuses the 1 easier level "
-                                              r"of its path .* leaves the field alone; ask for more levels"):
-        session.auto_environments(bundled_fields()["point_soccer"], 2)
+    with pytest.raises(curriculum.PlanError, match=r"--levels 2 on point_soccer: the schema refuses the 1 easier "
+                                                   r"level of its path .* leaves the field alone; ask for more levels"):
+        curriculum.plan(bundled_fields()["point_soccer"], "auto", 2)

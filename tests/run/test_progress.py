@@ -7,6 +7,7 @@ from types import SimpleNamespace
 
 from rich.console import Console
 
+from fieldgen import curriculum
 from fieldgen.run import progress
 
 
@@ -15,7 +16,7 @@ def test_the_summary_table_keeps_every_header_whole_at_80_columns():
              "closest_distance": 9.69 - 8.66 * e, "episode_return": 208.2 * e, "steps_per_second": 20_342.0}
             for e in (0, 1) for s in (500, 501)]
     run = SimpleNamespace(rows=rows, seeds=[500, 501], folder=Path("runs/ant_nav-crl-500to502"), algo="crl",
-                          envs=[None], mixed=False)
+                          envs=[None], plan=curriculum.Plan())
     console = Console(width=80, record=True)
     progress.summary(run, console)
     shown = console.export_text()

@@ -290,9 +290,9 @@ def test_a_diverged_run_stops_before_writing_its_evaluation(tmp_path, monkeypatc
     def diverging(algos, seeds, num_evals, promotion, progress, on_eval, *args, **kwargs):
         row = {"eval": 0, "seed": 0, "env_steps": 0, "success_any": 0.0, "time_at_goal": 0.0, "episode_return": 0.0}
         progress(0, [row])
-        on_eval(Snapshot("sound", EPISODES, "buffer"), 0, 0, None)
+        on_eval(Snapshot("sound", EPISODES, "buffer"), 0, 0, None, {})
         progress(1, [dict(row, eval=1, env_steps=992, critic_loss=float("nan"), actor_loss=float("inf"))])
-        on_eval(Snapshot("NaN", EPISODES, "buffer"), 1, 0, None)
+        on_eval(Snapshot("NaN", EPISODES, "buffer"), 1, 0, None, {})
 
     written = []
     monkeypatch.setattr(loop, "run_staged", diverging)
@@ -302,7 +302,8 @@ def test_a_diverged_run_stops_before_writing_its_evaluation(tmp_path, monkeypatc
     assert unwrapped(f"training diverged: after 992 env steps (evaluation 1) seed 0's actor_loss, critic_loss are "
                      f"not finite. Nothing of that evaluation was written; {run} keeps evaluation 0's checkpoint") \
         in unwrapped(result.output)
-    assert written == [Snapshot("sound", EPISODES, "buffer"), (Snapshot("sound", None, None), {})]  # whole, learned
+    # whole, learned: each with how its episodes are drawn
+    assert written == [(Snapshot("sound", EPISODES, "buffer"), {}), (Snapshot("sound", None, None), {})]
     assert [json.loads(line)["eval"] for line in (run / "metrics.jsonl").read_text().splitlines()] == [0]
 
 
