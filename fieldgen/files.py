@@ -42,6 +42,7 @@ from pathlib import Path
 from typing import Callable
 
 from fieldgen.version import VERSION
+from fieldgen.video import FORMATS as VIDEO_FORMATS  # eval's videos; npz: an episode kept unrendered
 
 TMP_SUFFIX = ".tmp"
 OWNER = ".fieldgen"  # the ownership record in each folder fieldgen wrote
@@ -95,7 +96,7 @@ _KINDS: dict[str, Output] = {}  # command -> what it writes (each Output made re
 # builds, exports, curricula and runs (BUILD, POLICY, CURRICULUM, RUN_FOLDER in their own modules)
 EVAL = Output("fieldgen eval", (), "", "--summary", files=("summary.json", "summary_*.json", "selfplay_eval.json",
                                                           *(f"eval{kept}.{suffix}" for kept in ("", "_*")
-                                                            for suffix in ("mp4", "gif", "npz"))),
+                                                            for suffix in (*VIDEO_FORMATS, "npz"))),
               inside=("fieldgen train",))
 AGGREGATE = Output("fieldgen aggregate", (), "", "--summary")
 RENDER = Output("fieldgen render", (), "", "-o", files=("levels.png",), inside=("fieldgen train",))
