@@ -138,10 +138,7 @@ def claim(folder: Path, output: Output) -> None:
     if not folder.exists() and not folder.is_symlink():
         return
     where = f"choose another {output.option}"
-    if folder.is_symlink() or not folder.is_dir():
-        what = "a link" if folder.is_symlink() else "a file"
-        raise NotOurs(f"{folder} is {what}, not a folder {output.command} wrote; fieldgen replaces only what it wrote "
-                      f"itself: move it aside or {where}")
+    _refuse_unlike(folder, "folder", output, f"move it aside or {where}")
     entries = sorted(p.name for p in folder.iterdir() if p.name != OWNER and not _is_leftover(p.name))
     record = _record(folder)
     if record is not None and "written_by" not in record:
@@ -227,6 +224,15 @@ def writer_of(path: Path) -> str | None:
                 None)
 
 
+def _refuse_unlike(path: Path, kind: str, output: Output, where: str) -> None:
+    """Refuse (NotOurs) a link, or an entry of the other kind, where `output` would write a `kind` (file, folder)."""
+    is_kind = path.is_file() if kind == "file" else path.is_dir()
+    if path.is_symlink() or not is_kind:
+        what = "a link" if path.is_symlink() else "a folder" if kind == "file" else "a file"
+        raise NotOurs(f"{path} is {what}, not a {kind} {output.command} wrote; fieldgen replaces only what it wrote "
+                      f"itself: {where}")
+
+
 def check_file(path: Path, output: Output, how: str | None = None) -> None:
     """Refuse (NotOurs) to write the file `path` for `output.command` where something is there that the same
     command did not write (a file of the user's, another command's, a run's own record, a folder, a link).
@@ -234,10 +240,7 @@ def check_file(path: Path, output: Output, how: str | None = None) -> None:
     if not path.exists() and not path.is_symlink():
         return
     where = f"move it aside or choose another {how or output.option}"
-    if path.is_symlink() or not path.is_file():
-        what = "a link" if path.is_symlink() else "a folder"
-        raise NotOurs(f"{path} is {what}, not a file {output.command} wrote; fieldgen replaces only what it wrote "
-                      f"itself: {where}")
+    _refuse_unlike(path, "file", output, where)
     writer = writer_of(path)
     if writer is None:
         raise NotOurs(f"{path} is not a file fieldgen wrote; fieldgen replaces only what it wrote itself: {where}")
