@@ -26,8 +26,8 @@ def test_a_field_of_ones_own_takes_the_recipe_of_the_field_it_extends_and_says_s
     assert chosen.algo == "ppo" and chosen.recipe.field == "v2_wide_goalie_dense"
     assert chosen.line([]) == (
         "recipe v2_wide_goalie_dense for my_wide, which extends v2_wide_goalie_dense: ppo, 250M env steps, 4,096 "
-        "envs, --set ppo.num_evals=25 ppo.spread=global; not measured on my_wide yet (v2_wide_goalie_dense: 0.81 "
-        "success in-run at 250M env steps, 128 episodes, one seed (0))")
+        "envs, --set ppo.num_evals=25 ppo.spread=global; not measured on my_wide yet (v2_wide_goalie_dense: "
+        f"{chosen.recipe.measured.figure}, {chosen.recipe.measured.seeds})")
     own = recipe.choose(bundled_fields()["soccer_v2_dense"], None)
     assert own.line(["--steps"]) == (
         "recipe soccer_v2_dense: ppo, 250M env steps, 4,096 envs, --set ppo.num_evals=25 ppo.spread=global; "
