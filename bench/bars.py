@@ -49,7 +49,7 @@ def draw(bars: list[tuple[str, str, float]], out: Path, title: str, xlabel: str,
     ax.set_yticks(list(ys), [f"{g}: {n}" if g else n for g, n, _ in bars])
     top = max(v for _, _, v in bars)
     for y, (_, _, value) in zip(ys, bars):
-        text = f"{value:,.3g}" if value < 1000 else f"{value:,.0f}"
+        text = f"{value:,.4g}" if value < 1000 else f"{value:,.0f}"
         if base:
             text += f"  ({value / base:.2f}x)"
         ax.text(value + top * 0.01, y, text, va="center", fontsize=9)

@@ -156,7 +156,7 @@ def main() -> None:
               + f"; IQM {summary.iqm(values):.3f} [{low:.3f}, {high:.3f}] over {len(values)} seeds")
         if args.threshold is not None:
             print(f"{label}: {reaching_text(run.every_row, args.threshold, judge)}")
-    compare.plot(runs, args.out, args.title, labels=labels, judge=judge)
+    compare.plot(runs, args.out, args.title, labels=labels, judge=judge, output=None)  # a results folder's own plot
     print(f"plot: {args.out}")
 
 

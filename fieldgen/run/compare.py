@@ -143,12 +143,13 @@ def _finite(x: float) -> float | None:
 
 
 def plot(runs_: list[session.Run], path: Path, title: str, labels: list[str] | None = None, judge=None,
-         output: Output = COMPARE) -> None:
+         output: Output | None = COMPARE) -> None:
     """success_any against env steps and against wall-clock seconds, time at goal, the closest approach to the
     goal and, where measured, how far the ball moved against env steps: the interquartile mean over seeds, with
     its 95% bootstrap interval shaded.
     Each run (anything with the `rows` and `seeds` of one) is a line named by its algorithm, or by `labels`;
-    each row judged by `judge` (default `on_field`)."""
+    each row judged by `judge` (default `on_field`); `output=None` writes the plot where it is, keeping no
+    ownership record (a results folder's own plot, drawn again by its page's command)."""
     import matplotlib
 
     matplotlib.use("Agg")
