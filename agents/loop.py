@@ -20,7 +20,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..curriculum.contract import OneStage, Schedule, adapt, start_sampling, with_episode_sampling
-from ..env.contract import OVERFLOW, Environment, merged_overflow
+from ..env.contract import DIVERGED, OVERFLOW, Environment, merged_overflow
 from .config import RunConfig
 from .programs import Programs, computed
 from .sharding import from_host, meet, to_host
@@ -147,6 +147,16 @@ def reserve_worlds(trainer: Trainer, seeds: int) -> None:
     """Size the trainer's environment for every environment one of its programs steps at once (over seeds and
     environments, training's or evaluation's), before the programs are traced (Environment.reserve_worlds)."""
     trainer.env.reserve_worlds(seeds * max(trainer.config.num_envs, trainer.config.eval_envs))
+
+
+def diverged_episodes(counted, seeds: int) -> dict:
+    """{"diverged_episodes": [seeds]}: each seed's training episodes that its environments ended because the
+    simulation blew up (`counted`, State.info[DIVERGED] of every environment, on the host) since they started
+    (a run's start or resume from its checkpoint keeps them; a new stage starts them anew); {} where the
+    environment does not count them."""
+    if counted is None:
+        return {}
+    return {"diverged_episodes": np.asarray(counted).reshape(seeds, -1).sum(1)}
 
 
 def stop_on_overflow(env, overflow) -> None:
@@ -360,6 +370,7 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
             state, metrics = called.result()
             metrics = computed(metrics, to_host)  # waits for the chunk
             stop_on_overflow(trainers[stage].env, to_host(state.env_state.info.get(OVERFLOW)))
+            metrics.update(diverged_episodes(to_host(state.env_state.info.get(DIVERGED)), len(seeds)))
         seconds = time.perf_counter() - began
         judged, episode = judge(stage, state, index)
         metrics.update(judged)

@@ -44,7 +44,9 @@ class Normalizer:
 
     @property
     def std(self) -> jax.Array:
-        return jnp.sqrt(self.m2 / jnp.maximum(self.count, 1.0) + 1e-6)
+        """The running standard deviation; 1 before any observation is counted, so the first rollout's
+        observations pass unscaled instead of divided by the floor and clipped (saturating every action)."""
+        return jnp.where(self.count > 0, jnp.sqrt(self.m2 / jnp.maximum(self.count, 1.0) + 1e-6), 1.0)
 
     def __call__(self, obs: jax.Array, enabled: bool) -> jax.Array:
         if not enabled:

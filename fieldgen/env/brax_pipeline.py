@@ -44,6 +44,11 @@ class BraxData:
     def qvel(self) -> jax.Array:
         return self.pipeline.qd
 
+    @property
+    def xpos(self) -> jax.Array:
+        """The bodies' world positions, as mjx.Data names them (the divergence guard reads them)."""
+        return self.pipeline.x.pos
+
 
 def load_system(xml: str, model: mujoco.MjModel):
     """brax's System of a scene, its jointless bodies fused into their parents."""

@@ -23,6 +23,7 @@ import jax.numpy as jnp
 import numpy as np
 
 OVERFLOW = "physics_overflow"  # State.info entry: the physics' overflow flags (int32 bits), where it has capacities
+DIVERGED = "diverged_episodes"  # State.info entry: episodes ended since reset because the simulation blew up (int32)
 
 
 def merged_overflow(flags: jax.Array) -> jax.Array:

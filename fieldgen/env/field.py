@@ -27,9 +27,11 @@ from fieldgen.compile.artifact import Artifact
 from fieldgen.compile.layout import observation_layout
 from fieldgen.env import mjx_physics
 from fieldgen.env.batch import batched_model, check_compatible
+from fieldgen.env.contract import DIVERGED
 from fieldgen.env.task import Transition
 from fieldgen.env.rules import EpisodeRules
 from fieldgen.schema import geometry
+from fieldgen.schema.models import MAX_EXTENT
 
 
 # mjx.Data fields that carry state from step to step; everything else is recomputed by the next
@@ -37,10 +39,17 @@ from fieldgen.schema import geometry
 _STATE_FIELDS = ("time", "qpos", "qvel", "act", "ctrl", "mocap_pos", "mocap_quat", "qacc_warmstart")
 
 
+MAX_SPEED = 1e3  # m/s or rad/s of any degree of freedom: nothing on a field moves this fast but a blown-up simulation
+MAX_DISTANCE = 2 * MAX_EXTENT  # metres from the origin of any body: beyond every field a spec may describe
+
+
 def diverged(data: mjx.Data) -> jax.Array:
-    """Whether the simulation has blown up: a position or velocity that is not finite or beyond
-    mujoco's own bound (mjMAXVAL), where mujoco (not MJX) would warn and reset the data."""
-    return ~(jnp.all(jnp.abs(data.qpos) < mujoco.mjMAXVAL) & jnp.all(jnp.abs(data.qvel) < mujoco.mjMAXVAL))
+    """Whether the simulation has blown up: a position that is not finite or beyond mujoco's own bound
+    (mjMAXVAL), a velocity beyond MAX_SPEED or a body beyond MAX_DISTANCE. A blow-up grows for several steps
+    before it reaches mjMAXVAL; a learner that saw those steps (an observation normaliser's running variance,
+    a value target) stays poisoned for the rest of its run, so it is cut off where no field's motion reaches."""
+    return ~(jnp.all(jnp.abs(data.qpos) < mujoco.mjMAXVAL) & jnp.all(jnp.abs(data.qvel) < MAX_SPEED)
+             & jnp.all(jnp.abs(data.xpos) < MAX_DISTANCE))
 
 
 def advance(sys, data: mjx.Data, ctrl: jax.Array, substeps: int, impl: str) -> tuple[mjx.Data, jax.Array | None]:
@@ -227,7 +236,7 @@ class FieldEnv:
         info = {"rng": rng, "goal": goal, "episode_step": jnp.zeros((), jnp.int32),
                 "down_steps": jnp.zeros((), jnp.int32),
                 "truncation": zero,
-                "episode": jnp.zeros((), jnp.int32)}
+                "episode": jnp.zeros((), jnp.int32), DIVERGED: jnp.zeros((), jnp.int32)}
         if self.kickoff_count:
             levels = (self.variant_count, self.kickoff_count)
             info.update(variant=variant, kickoff=kickoff, succeeded=zero,
@@ -270,6 +279,7 @@ class FieldEnv:
         fell = fell | broken
         done = truncated | fell
         info = dict(state.info, episode_step=steps, down_steps=down, truncation=(truncated & ~fell).astype(jnp.float32))
+        info[DIVERGED] = state.info[DIVERGED] + broken.astype(jnp.int32)  # kept over episodes, as OVERFLOW
         if overflow is not None:  # kept over episodes: the trainer reads it after each chunk
             info[mjx_physics.OVERFLOW] = state.info[mjx_physics.OVERFLOW] | overflow
         kickoff = state.info.get("kickoff")

@@ -20,6 +20,7 @@ from fieldgen.compile.artifact import Artifact
 from fieldgen.compile.layout import team_layout
 from fieldgen.env import mjx_physics
 from fieldgen.env.batch import own_device
+from fieldgen.env.contract import DIVERGED
 from fieldgen.env.field import advance, diverged, restart
 from fieldgen.env.rules import ball_in_region
 from fieldgen.env.task import IMPLEMENTATIONS, Transition, ball_in_goal_fn
@@ -113,7 +114,7 @@ class TeamFieldEnv:
         data = self._fresh(key)
         zero = jnp.zeros(())
         info = {"rng": rng, "episode_step": jnp.zeros((), jnp.int32), "truncation": zero,
-                "episode": jnp.zeros((), jnp.int32)}
+                "episode": jnp.zeros((), jnp.int32), DIVERGED: jnp.zeros((), jnp.int32)}
         if self.impl == "warp":
             info[mjx_physics.OVERFLOW] = jnp.zeros((), jnp.int32)
         metrics = {name: jnp.zeros(2) for name in self.metric_names}
@@ -150,6 +151,7 @@ class TeamFieldEnv:
         goal = scored & ~broken
         done = truncated | goal | broken
         info = dict(state.info, episode_step=steps, truncation=(truncated & ~goal & ~broken).astype(jnp.float32))
+        info[DIVERGED] = state.info[DIVERGED] + broken.astype(jnp.int32)  # kept over episodes, as OVERFLOW
         if overflow is not None:
             info[mjx_physics.OVERFLOW] = state.info[mjx_physics.OVERFLOW] | overflow
         obs = self.observe(data)

@@ -29,10 +29,17 @@ def test_vmapped_seeds_match_seeds_run_alone(env_cache, seed_one, tiny_crl):
     for a, b in zip(jax.tree.leaves(loop.seed_slice(both.nets, 1)), jax.tree.leaves(loop.seed_slice(alone.nets, 0))):
         np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-4, atol=1e-5)
     assert {r["seed"] for r in rows} == {0, 1} and len(rows) == 6
+    assert [r["diverged_episodes"] for r in rows if r["eval"]] == [0.0] * 4  # a sound field blows up nowhere
     ours = [r for r in rows if r["seed"] == 1]
     for a, b in zip(ours, alone_rows):
         assert a["critic_loss" if a["eval"] else "success_any"] == pytest.approx(
             b["critic_loss" if b["eval"] else "success_any"], rel=1e-4)
+
+
+def test_each_seeds_blown_up_episodes_are_summed_over_its_environments():
+    counted = np.asarray([[0, 2, 1], [0, 0, 0]], np.int32)  # [seeds, envs], as State.info holds them
+    assert loop.diverged_episodes(counted, 2)["diverged_episodes"].tolist() == [3, 0]
+    assert loop.diverged_episodes(None, 2) == {}  # an environment that does not count them
 
 
 @pytest.mark.slow

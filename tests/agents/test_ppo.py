@@ -27,6 +27,14 @@ def test_normalizer_matches_numpy():
     np.testing.assert_allclose(n.m2 / n.count, both.var(0), rtol=1e-4)
 
 
+def test_a_normalizer_that_has_counted_nothing_passes_observations_unscaled():
+    obs = jnp.asarray([[0.5, -3.0, 40.0]])
+    fresh = Normalizer(jnp.zeros(()), jnp.zeros(3), jnp.zeros(3))
+    np.testing.assert_allclose(fresh(obs, True), [[0.5, -3.0, 10.0]])  # only the clip, no division by the floor
+    counted = fresh.update(jnp.asarray([[1.0, 1.0, 1.0], [3.0, 1.0, 5.0]]))
+    np.testing.assert_allclose(counted.std, [1.0, 1e-3, 2.0], rtol=1e-3)
+
+
 @pytest.mark.parametrize("spread", SPREADS)
 @pytest.mark.slow
 def test_resume_reproduces_the_uninterrupted_run(env_cache, spread):

@@ -60,16 +60,36 @@ def test_a_diverged_simulation_ends_its_episode_as_a_fall(write_spec):
     env = fieldgen.make(write_spec("extends: point_nav\nname: point_nav_dense\ntask:\n  reward:\n"
                                    "    - {term: success}\n    - {term: agent_progress, weight: 0.1}\n"))
     step = jax.jit(env.step)
-    for bad in (jnp.nan, jnp.inf, 2e10):
+    # not finite, beyond mujoco's own bound, and the growth before it: faster than any field moves
+    for bad in (jnp.nan, jnp.inf, 2e10, 2e3):
         state = env.reset(jax.random.PRNGKey(0))
         state = state.replace(pipeline_state=state.pipeline_state.replace(qvel=jnp.full(2, bad)))
         nxt = step(state, jnp.zeros(2))
         assert float(nxt.done) == 1.0 and float(nxt.info["truncation"]) == 0.0
         assert float(nxt.reward) == 0.0 and all(float(v) == 0.0 for v in nxt.metrics.values())
         assert np.all(np.isfinite(np.asarray(nxt.obs))) and np.all(np.abs(np.asarray(nxt.pipeline_state.qvel)) < 1e3)
-        assert int(nxt.info["episode"]) == 1
+        assert int(nxt.info["episode"]) == 1 and int(nxt.info["diverged_episodes"]) == 1
+        again = step(nxt.replace(pipeline_state=nxt.pipeline_state.replace(qvel=jnp.full(2, bad))), jnp.zeros(2))
+        assert int(again.info["diverged_episodes"]) == 2  # counted over episodes, for the trainer to report
     sound = step(env.reset(jax.random.PRNGKey(0)), jnp.ones(2))
     assert float(sound.done) == 0.0 and np.isfinite(float(sound.reward))
+    assert int(sound.info["diverged_episodes"]) == 0
+
+
+def test_the_guard_spares_every_speed_and_place_a_field_reaches_and_stops_a_body_beyond_them():
+    """The bound sits above what any field's motion reaches (a kicked ball, a spinning small ball, the
+    farthest corner of the largest field) and below what a blow-up passes through on its way to mjMAXVAL."""
+    from types import SimpleNamespace
+
+    from fieldgen.env.field import MAX_DISTANCE, MAX_SPEED, diverged
+    from fieldgen.schema.models import MAX_EXTENT
+
+    def data(qvel=0.0, far=0.0):
+        return SimpleNamespace(qpos=jnp.zeros(9), qvel=jnp.full(8, qvel), xpos=jnp.full((4, 3), far))
+
+    assert not bool(diverged(data(qvel=300.0, far=MAX_EXTENT)))  # a 0.1 m ball rolling at 30 m/s; a corner
+    assert bool(diverged(data(qvel=MAX_SPEED))) and bool(diverged(data(qvel=-MAX_SPEED)))
+    assert bool(diverged(data(far=MAX_DISTANCE))) and bool(diverged(data(far=jnp.nan)))
 
 
 def test_mjx_matches_mujoco_c_on_point_soccer(env_cache):
