@@ -35,6 +35,7 @@ import optax
 from pydantic import Field
 
 from .config import ConfigError, Count, Float, Rate, Share, Unknown
+from .loop import batched_with
 from .networks import MLP
 from .ppo.config import PPOConfig
 from .ppo.train import Normalizer, advantages, gaussian, squashed_entropy
@@ -59,8 +60,6 @@ class SelfPlayConfig(PPOConfig):
 
     def validate_env(self, env, devices: int = 1, seeds: int = 1) -> None:
         super().validate_env(env, devices, seeds)
-        if seeds != 1:
-            raise ConfigError(f"--seeds {seeds}: self-play trains one seed a run; start a run per seed (--seed)")
         if self.eval_envs % 2:
             raise ConfigError(f"ppo.eval_envs {self.eval_envs} is odd: a snapshot plays half its evaluation "
                               "episodes on each side; give an even number")
@@ -118,7 +117,8 @@ def draw_opponents(config: SelfPlayConfig, key, count: int, newest, taken, wins,
 
 @dataclasses.dataclass(frozen=True)
 class SelfPlay:
-    """Self-play as pure functions of a SelfPlayState (jit them; fieldgen/run/selfplay.py runs them)."""
+    """Self-play as pure functions of a SelfPlayState (jit them, vmapped over seeds where several train at once;
+    fieldgen/run/selfplay.py runs them)."""
 
     config: SelfPlayConfig
     env: object
@@ -312,7 +312,7 @@ def make_selfplay(config: SelfPlayConfig, env) -> SelfPlay:
             outcome = outcome + alive * result
             return (nxt, alive * (1 - nxt.done.astype(jnp.int32)), outcome), None
 
-        start = (env_state, jnp.ones(n, jnp.int32), jnp.zeros(n, jnp.int32))
+        start = batched_with(key, (env_state, jnp.ones(n, jnp.int32), jnp.zeros(n, jnp.int32)))
         (_, _, outcome), _ = jax.lax.scan(step, start, jax.random.split(k_play, env.episode_length))
         wins, losses = jnp.sum(outcome > 0), jnp.sum(outcome < 0)
         return jnp.stack([wins, n - wins - losses, losses])

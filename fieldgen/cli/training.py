@@ -295,19 +295,18 @@ def train(
 
 def _team_run(source: Path, field, algo: str | None, seeds: int, config: Path | None, sets: list[str] | None,
               preset: str | None, steps: int | None, envs: int | None, seed: int, runs: Path):
-    """A new self-play run on a team field: PPO's settings (`ppo.` keys, with self-play's own: docs/teams.md)
-    layered as any run's, without a recipe (recipes name single-agent trainers)."""
+    """A new self-play run on a team field, `seeds` seeds from `seed` trained at once: PPO's settings (`ppo.` keys,
+    with self-play's own: docs/teams.md) layered as any run's, without a recipe (recipes name single-agent
+    trainers)."""
     from fieldgen.agents.selfplay import SelfPlayConfig
     from fieldgen.run import selfplay
 
     if algo not in (None, SelfPlayConfig.algo):
         fail(f"{field.name} is a team field: it trains by self-play, whose learner is {SelfPlayConfig.algo}; "
              f"give --algo {SelfPlayConfig.algo} or leave --algo out")
-    if seeds != 1:
-        fail(f"--seeds {seeds}: self-play trains one seed a run; start a run per seed with --seed")
     settings = SelfPlayConfig.layered(config, sets or [], agent=field.agent.kind, preset=preset,
                                       total_steps=steps, num_envs=envs, seed=seed)
-    return selfplay.new_run(source, settings, runs)
+    return selfplay.new_run(source, settings, runs, list(range(seed, seed + seeds)))
 
 
 def _refuse_for_self_play(what: str, logger: str = "none", **given) -> None:
@@ -574,15 +573,17 @@ def evaluate(
 
 def _evaluate_team(run_dirs: list[Path], episodes: int | None, seed: int, actions: str | None, field: str | None,
                    summary_file: Path | None, fmt: str | None = None, camera: str = "follow") -> None:
-    """`fieldgen eval` of a self-play run: its last snapshot's wins, draws and losses against a random policy and
-    against the snapshot from a third of the way through, and the snapshots' Elo ratings; written to
-    RUN/selfplay_eval.json (or --summary); with `fmt`, RUN/eval.mp4 (or .gif) of one match of the two."""
+    """`fieldgen eval` of a self-play run: each seed's last snapshot's wins, draws and losses against a random
+    policy and against its snapshot from a third of the way through, and its snapshots' Elo ratings; over several
+    seeds, the interquartile mean of the shares won with its 95% bootstrap interval; written to
+    RUN/selfplay_eval.json (or --summary); with `fmt`, RUN/eval.mp4 (or .gif) of one match of the first seed's
+    two."""
     import json
 
     from fieldgen import files
     from fieldgen.agents.config import ConfigError
     from fieldgen.files import WriteError
-    from fieldgen.run import record, selfplay
+    from fieldgen.run import record, selfplay, summary
 
     if len(run_dirs) != 1 or field is not None:
         fail("a self-play run is evaluated alone, on its own field: name one run folder, without --field")
@@ -601,17 +602,26 @@ def _evaluate_team(run_dirs: list[Path], episodes: int | None, seed: int, action
     except KeyboardInterrupt:
         out.print(f"interrupted evaluating {run_dirs[0]}; nothing was written")
         _exit_interrupted()
-    earlier = result["vs_snapshot"]
-    table = Table("opponent", "win", "draw", "loss",
+    several = len(run.seeds) > 1
+    earlier = result["per_seed"][run.seeds[0]]["vs_snapshot"]
+    against = {"vs_random": "random policy",
+               "vs_snapshot": f"snapshot {earlier['snapshot']} ({earlier['env_steps']:,} env steps)"}
+    table = Table(*["seed"] * several, "opponent", "win", "draw", "loss",
                   title=f"{run_dirs[0]} (snapshot {result['eval']}, {result['env_steps']:,} env steps), "
                         f"{result['episodes']} episodes each, half on either side" + judged_on(result["actions"]))
-    table.add_row("random policy", *(str(result["vs_random"][r]) for r in selfplay.RESULTS))
-    table.add_row(f"snapshot {earlier['snapshot']} ({earlier['env_steps']:,} env steps)",
-                  *(str(earlier[r]) for r in selfplay.RESULTS))
+    for s, judged in result["per_seed"].items():
+        for opponent, name in against.items():
+            table.add_row(*[str(s)] * several, name, *(str(judged[opponent][r]) for r in selfplay.RESULTS))
     out.print(table)
-    ranked = sorted(result["ratings"].items(), key=lambda item: -item[1])
-    out.print("Elo ratings (snapshot by evaluation): " + ", ".join(f"{name} {value:.0f}" for name, value in ranked),
-              soft_wrap=True)
+    for opponent, name in against.items():
+        if f"win_{opponent}" in result:
+            won = summary.MetricSummary.model_validate(result[f"win_{opponent}"])
+            out.print(f"won against the {name}: {won.text(3)}, the interquartile mean of the {len(run.seeds)} "
+                      "seeds' shares [its 95% bootstrap interval]", soft_wrap=True)
+    for s, judged in result["per_seed"].items():
+        ranked = sorted(judged["ratings"].items(), key=lambda item: -item[1])
+        out.print(f"Elo ratings{f' of seed {s}' if several else ''} (snapshot by evaluation): "
+                  + ", ".join(f"{name} {value:.0f}" for name, value in ranked), soft_wrap=True)
     try:
         files.write_file(path, (json.dumps(result, indent=1) + "\n").encode(), files.EVAL)
     except WriteError as exc:
@@ -627,7 +637,8 @@ def _evaluate_team(run_dirs: list[Path], episodes: int | None, seed: int, action
             fail(str(exc))
         if drawn is not None:
             out.print(f"video: {video_name.with_suffix('.' + fmt)} ({drawn} frames, {camera} camera): snapshot "
-                      f"{result['eval']} at home against snapshot {earlier['snapshot']}")
+                      f"{result['eval']}{f' of seed {run.seeds[0]}' if several else ''} at home against snapshot "
+                      f"{earlier['snapshot']}")
 
 
 @app.command()

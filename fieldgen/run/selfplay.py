@@ -1,13 +1,15 @@
 """A self-play run on a team field (agents/selfplay.py) in its folder: set up, trained one evaluation at a
-time with a checkpoint after each (resumed exactly from it), rated, plotted and judged.
+time with a checkpoint after each (resumed exactly from it), rated, plotted and judged. Its seeds train at once,
+vmapped in one program as a single-agent run's do (agents/loop.py), each seed's state stacked on a leading axis
+and starting as a run of that seed alone would; each seed is a league of its own.
 
-The folder is a training run's (fieldgen/run/record.py): run.json (its `selfplay` entry marks it), the field's
-own copy in field/, metrics.jsonl and metrics.csv (a row per evaluation), checkpoint.msgpack (the whole
-training state, every snapshot with it), and ratings.png. A row holds, beside the training losses, the new
-snapshot's games against the random policy (`win_vs_random`, `draw_vs_random`, `loss_vs_random`, as shares;
-`success_any` is the share won, as other runs' figures read it), `league` (its win, draw and loss counts against
-`random` and each earlier snapshot it played, by index), `elo` (its rating once those games are counted) and
-`ratings` (every player's).
+The folder is a training run's (fieldgen/run/record.py): run.json (its `selfplay` entry marks it, `seeds` lists
+its seeds), the field's own copy in field/, metrics.jsonl and metrics.csv (a row per evaluation and seed, each
+with its `seed`), checkpoint.msgpack (the whole training state of every seed, every snapshot with it), and
+ratings.png. A row holds, beside the training losses, the new snapshot's games against the random policy
+(`win_vs_random`, `draw_vs_random`, `loss_vs_random`, as shares; `success_any` is the share won, as other runs'
+figures read it), `league` (its win, draw and loss counts against `random` and each earlier snapshot it played, by
+index), `elo` (its rating once those games are counted) and `ratings` (every player's in that seed's league).
 """
 
 from __future__ import annotations
@@ -23,8 +25,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from fieldgen import files
-from fieldgen.agents import checkpoint, elo
-from fieldgen.agents.loop import EVAL_STREAM
+from fieldgen.agents import checkpoint, elo, loop
 from fieldgen.agents.selfplay import RESULTS, SelfPlayConfig, fixed_opponents, make_selfplay
 from fieldgen.compile.artifact import ArtifactError, write_artifact
 from fieldgen.run import record
@@ -42,12 +43,9 @@ class TeamRun:
     folder: Path
     config: SelfPlayConfig
     env: object
-    rows: list[dict]
-    state: object = None  # the checkpointed training state, where it has one
-
-    @property
-    def seed(self) -> int:
-        return self.config.seed
+    seeds: list[int]
+    rows: list[dict]  # a row per evaluation and seed
+    state: object = None  # the checkpointed training state, where it has one: every seed's, stacked
 
     @property
     def finished(self) -> bool:
@@ -67,13 +65,15 @@ _compiled: dict = {}  # (config but its seed, the field's spec) -> programs(...)
 
 def programs(config: SelfPlayConfig, env) -> tuple:
     """(SelfPlay, jitted init, chunk, judge, film) for `config` on `env`'s field, made once in a process: a resume
-    or another seed of the same settings in the same process reuses them instead of compiling again. `film(state,
-    j, key)` films a match of the policy (home) against snapshot j (away)."""
+    or other seeds of the same settings in the same process reuse them instead of compiling again. init, chunk
+    and judge run every seed at once, vmapped over the state's leading seed axis (init over seed keys, judge over
+    the state and each seed's evaluation key; the snapshot's index and opponents are every seed's). `film(state,
+    j, key)` films a match of one seed's policy (home) against its snapshot j (away)."""
     key = (config.model_copy(update={"seed": 0}), json.dumps(env.spec.model_dump(mode="json"), sort_keys=True))
     if key not in _compiled:
         sp = make_selfplay(config, env)
-        _compiled[key] = (sp, jax.jit(sp.init), jax.jit(sp.chunk, donate_argnums=0),
-                          jax.jit(sp.judge, donate_argnums=0),
+        _compiled[key] = (sp, jax.jit(jax.vmap(sp.init)), jax.jit(jax.vmap(sp.chunk), donate_argnums=0),
+                          jax.jit(jax.vmap(sp.judge, in_axes=(0, None, None, 0)), donate_argnums=0),
                           jax.jit(lambda ts, j, k: sp.film(sp.current(ts), sp.snapshot(ts, j), k)))
     return _compiled[key]
 
@@ -95,16 +95,17 @@ def _team_env(source):
     return env
 
 
-def new_run(source: Path, config: SelfPlayConfig, out: Path) -> TeamRun:
-    """A run folder for the team field `source`, written once its settings are known good."""
+def new_run(source: Path, config: SelfPlayConfig, out: Path, seeds: list[int]) -> TeamRun:
+    """A run folder for the team field `source` training `seeds` at once (the first is the config's seed),
+    written once its settings are known good."""
     from fieldgen.agents.config import ConfigError
 
     env = _team_env(source)
     try:
-        config.validate_env(env)
+        config.validate_env(env, seeds=len(seeds))
     except ConfigError as exc:
         raise record.RunError(str(exc)) from None
-    folder = out / record.run_name(env.spec.name, config.algo, [config.seed])
+    folder = out / record.run_name(env.spec.name, config.algo, seeds)
     if record.has_trained(folder):
         raise record.RunError(f"{folder} already holds a run; continue it with --resume {folder}, "
                               "or pick another --seed or --out")
@@ -117,16 +118,17 @@ def new_run(source: Path, config: SelfPlayConfig, out: Path) -> TeamRun:
             (folder / stale).unlink(missing_ok=True)
         write_artifact(env.artifact, folder / FIELD)
         record.write_run(folder, env.spec.model_dump(mode="json"), config.algo, config, env.layout.to_json(),
-                         [config.seed], {"fields": [FIELD], "selfplay": True})
+                         seeds, {"fields": [FIELD], "selfplay": True})
     except OSError as exc:
         raise record.RunError(f"cannot set up the run folder {folder}: {exc.strerror}; free some space, fix the "
                               "folder's permissions or choose another --out") from None
-    return TeamRun(folder, config, env, [])
+    return TeamRun(folder, config, env, seeds, [])
 
 
 def open_run(folder: Path, load_state: bool = True) -> TeamRun:
     """A self-play run folder with its field and (with load_state) its last checkpoint; its rows are those up to
-    the checkpoint's evaluation (later ones, of a chunk whose checkpoint a kill cut short, train again)."""
+    the checkpoint's evaluation (later ones, of a chunk whose checkpoint a kill cut short, train again), every
+    seed's."""
     from fieldgen.agents.config import ConfigError
 
     saved = record.read_run(folder)
@@ -138,16 +140,16 @@ def open_run(folder: Path, load_state: bool = True) -> TeamRun:
         config = SelfPlayConfig.layered(**saved.config)
     except ConfigError as exc:
         raise record.RunError(f"{folder / record.RUN} holds no usable self-play config ({exc})") from None
-    run = TeamRun(folder, config, env, record.read_metrics(folder))
+    run = TeamRun(folder, config, env, saved.seeds or [config.seed], record.read_metrics(folder))
     if load_state and (folder / record.CHECKPOINT).exists():
-        template = jax.eval_shape(run.algorithm.init, jax.random.PRNGKey(0))
+        template = jax.eval_shape(jax.vmap(run.algorithm.init), loop.seed_keys(run.seeds))
         try:
             run.state = checkpoint.load(folder / record.CHECKPOINT, template)
         except checkpoint.CheckpointError as exc:
             raise record.RunError(str(exc)) from None
-        last = int(run.state.newest)
+        last = int(run.state.newest[0])
         run.rows = [row for row in run.rows if row["eval"] <= last]
-        if not run.rows or run.rows[-1]["eval"] != last:
+        if {row["seed"] for row in run.rows if row["eval"] == last} != set(run.seeds):
             raise record.RunError(f"{folder / record.METRICS} lacks evaluation {last}, which its checkpoint "
                                   "holds; restore the run from a copy, or start it again in a new folder")
     return run
@@ -159,13 +161,9 @@ def opponents_of(index: int, count: int) -> jax.Array:
     return jnp.asarray(chosen + [-1] * (count - len(chosen)), jnp.int32)
 
 
-def eval_key(seed: int, index: int) -> jax.Array:
-    return jax.random.fold_in(jax.random.fold_in(jax.random.PRNGKey(seed), EVAL_STREAM), index)
-
-
 def ratings(rows: list[dict], k: float) -> dict[str, float]:
-    """Every player's Elo rating after the leagues of `rows` in order (agents/elo.py): each snapshot's games
-    against the random policy, then against its earlier snapshots."""
+    """Every player's Elo rating after the leagues of `rows` (one seed's) in order (agents/elo.py): each
+    snapshot's games against the random policy, then against its earlier snapshots."""
     return elo.league_ratings(((str(row["eval"]), opponent, games) for row in rows
                                for opponent, games in row["league"].items()), k)
 
@@ -177,26 +175,32 @@ def league_row(index: int, results: dict, count: int) -> dict:
         league[str(j)] = dict(zip(RESULTS, map(int, counts)))
     return league
 
+def of_seed(rows: list[dict], seed: int) -> list[dict]:
+    """One seed's rows of a run's, in order."""
+    return [row for row in rows if row["seed"] == seed]
+
 
 def train(run: TeamRun, say=print, deadline: float | None = None, recorder=None) -> bool:
-    """Train until the run's last evaluation, writing the row, the plot and the checkpoint of each; a resumed run
-    goes on from its checkpoint exactly as if it had never stopped. With `deadline` (time.monotonic()), stop at
-    the last evaluation whose next chunk, as long as the longest one yet with its evaluation, would not end by
-    then. With `recorder` (a fieldgen.run.videos.EpisodeRecorder of the run's field), film at every evaluation
-    a match of the new snapshot against the one before (videos/eval_NNN), both sides in view. Returns whether
-    the run is complete."""
+    """Train every seed until the run's last evaluation, writing the rows (one per seed), the plot and the
+    checkpoint of each; a resumed run goes on from its checkpoint exactly as if it had never stopped. With
+    `deadline` (time.monotonic()), stop at the last evaluation whose next chunk, as long as the longest one yet
+    with its evaluation, would not end by then. With `recorder` (a fieldgen.run.videos.EpisodeRecorder of the
+    run's field), film at every evaluation a match of the first seed's new snapshot against its one before
+    (videos/eval_NNN: one video an evaluation, of the first seed, as a single-agent run films), both sides in
+    view. Returns whether the run is complete."""
     c = run.config
     if run.finished and run.state is not None:
         say(f"{run.folder} is already complete ({run.rows[-1]['env_steps']:,} env steps)")
         return True
     took: list[float] = []  # seconds each chunk with its evaluation and checkpoint took in this command
     _, init, chunk, judge, film = programs(c, run.env)
+    keys = loop.seed_keys(run.seeds)
     clock = time.perf_counter() - (run.rows[-1].get("wall_seconds", 0.0) if run.rows else 0.0)
     with files.locked(run.folder):
         files.remove_leftovers(run.folder)
         if run.state is None:
             run.rows = []
-            state, first = init(jax.random.PRNGKey(c.seed)), 0
+            state, first = init(keys), 0
         else:
             state, first = run.state, run.rows[-1]["eval"] + 1
         for index in range(first, c.num_evals + 1):
@@ -211,49 +215,63 @@ def train(run: TeamRun, say=print, deadline: float | None = None, recorder=None)
             metrics = {}
             if index > 0:
                 state, metrics = chunk(state)
-            state, results = judge(state, index, opponents_of(index, c.league_opponents), eval_key(c.seed, index))
+            state, results = judge(state, index, opponents_of(index, c.league_opponents),
+                                   jax.vmap(loop.eval_key, in_axes=(0, None))(keys, index))
             metrics, results, steps = jax.device_get((metrics, results, state.env_steps))
-            row = {"eval": index, "seed": c.seed, "env_steps": int(steps)}
-            row.update({k: float(v) for k, v in metrics.items()})
-            league = league_row(index, results, c.league_opponents)
-            games = sum(league[RANDOM].values())
-            row.update({f"{r}_vs_random": league[RANDOM][r] / games for r in RESULTS})
-            row["success_any"] = row["win_vs_random"]
-            row["league"] = league
-            rated = ratings(run.rows + [row], c.elo_k)
-            row["elo"], row["ratings"] = rated[str(index)], rated
-            if index > 0:
-                row["steps_per_second"] = (int(steps) - run.rows[-1]["env_steps"]) / (time.perf_counter() - began)
-            row["wall_seconds"] = time.perf_counter() - clock
-            stop_if_diverged(run, row)
-            run.rows.append(row)
+            steps, seconds = int(steps[0]), time.perf_counter() - began
+            rows = [seed_row(run, index, seed, {k: v[i] for k, v in metrics.items()}, loop.seed_slice(results, i),
+                             steps) for i, seed in enumerate(run.seeds)]
+            for row in rows:
+                if index > 0:
+                    row["steps_per_second"] = (steps - run.rows[-1]["env_steps"]) / seconds
+                row["wall_seconds"] = time.perf_counter() - clock
+                stop_if_diverged(run, row)
+            run.rows.extend(rows)
             record.write_metrics(run.folder, run.rows)
             plot_ratings(run.folder, run.rows, run.label)
             run.state = state
             files.write_atomic(run.folder / record.CHECKPOINT, checkpoint.pieces(jax.device_get(state)))
             if recorder is not None:
-                filmed = film(state, max(index - 1, 0), jax.random.fold_in(eval_key(c.seed, index), FILMED))
+                filmed = film(loop.seed_slice(state, 0), max(index - 1, 0),
+                              jax.random.fold_in(loop.eval_key(keys[0], index), FILMED))
                 recorder.save(run.folder, video_name(run.folder, index), recorder.episode(filmed),
                               SimpleNamespace(print=say))
-            say(progress_line(row, c))
+            for row in rows:
+                say(progress_line(row, c, len(run.seeds) > 1))
             if index > 0:
                 took.append(time.perf_counter() - began)
     return True
+
+
+def seed_row(run: TeamRun, index: int, seed: int, metrics: dict, results: dict, steps: int) -> dict:
+    """Seed `seed`'s row of evaluation `index`: its training `metrics` and its snapshot's games (`results`, as
+    SelfPlay.judge gives them), rated in its own league (its rows before this one)."""
+    row = {"eval": index, "seed": seed, "env_steps": steps, **{k: float(v) for k, v in metrics.items()}}
+    league = league_row(index, results, run.config.league_opponents)
+    games = sum(league[RANDOM].values())
+    row.update({f"{r}_vs_random": league[RANDOM][r] / games for r in RESULTS})
+    row["success_any"] = row["win_vs_random"]
+    row["league"] = league
+    rated = ratings(of_seed(run.rows, seed) + [row], run.config.elo_k)
+    row["elo"], row["ratings"] = rated[str(index)], rated
+    return row
 
 
 def stop_if_diverged(run: TeamRun, row: dict) -> None:
     bad = sorted(k for k, v in row.items() if isinstance(v, float) and not np.isfinite(v))
     if bad:
         raise record.RunError(f"training diverged: after {row['env_steps']:,} env steps (evaluation {row['eval']}) "
-                              f"{', '.join(bad)} {'is' if len(bad) == 1 else 'are'} not finite; {run.folder} keeps "
-                              "the evaluation before. Train again with a smaller ppo.learning_rate (--set) or "
-                              "another --seed")
+                              f"seed {row['seed']}'s {', '.join(bad)} {'is' if len(bad) == 1 else 'are'} not "
+                              f"finite; {run.folder} keeps the evaluation before. Train again with a smaller "
+                              "ppo.learning_rate (--set) or another --seed")
 
 
-def progress_line(row: dict, config: SelfPlayConfig) -> str:
+def progress_line(row: dict, config: SelfPlayConfig, named: bool = False) -> str:
+    """One seed's evaluation in a line; `named`: with its seed, where a run trains several."""
     earlier = [f"vs {j}: {g['win']}/{g['draw']}/{g['loss']}" for j, g in row["league"].items() if j != RANDOM]
     r = row["league"][RANDOM]
-    return (f"eval {row['eval']}/{config.num_evals} at {row['env_steps']:,} env steps: vs random "
+    return (f"eval {row['eval']}/{config.num_evals} at {row['env_steps']:,} env steps"
+            + (f", seed {row['seed']}" if named else "") + f": vs random "
             f"{r['win']}/{r['draw']}/{r['loss']} (win/draw/loss)" + (f", {', '.join(earlier)}" if earlier else "")
             + f"; Elo {row['elo']:.0f}")
 
@@ -261,7 +279,7 @@ def progress_line(row: dict, config: SelfPlayConfig) -> str:
 def plot_ratings(run_dir: Path, rows: list[dict], title: str) -> None:
     """ratings.png: each snapshot's Elo rating as of the last evaluation (and as it stood when it joined) against
     the env steps it was taken at, the random policy's as a line; the shares of games won, drawn and lost against
-    the random policy at each evaluation."""
+    the random policy at each evaluation. With several seeds, each seed's lines in a colour of its own."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -271,40 +289,50 @@ def plot_ratings(run_dir: Path, rows: list[dict], title: str) -> None:
 
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.6), sharex=True, squeeze=False)
     axes = list(axes.flat)
-    steps = [row["env_steps"] for row in rows]
-    final = rows[-1]["ratings"]
-    axes[0].plot(steps, [final[str(row["eval"])] for row in rows], marker="o", label="now")
-    axes[0].plot(steps, [row["elo"] for row in rows], ls="--", marker=".", label="when taken")
-    axes[0].axhline(final[RANDOM], color="grey", ls=":", label="random policy")
+    seeds = list(dict.fromkeys(row["seed"] for row in rows))
+    several = len(seeds) > 1
+    for k, seed in enumerate(seeds):
+        mine = of_seed(rows, seed)
+        colour, named = (f"C{k}", f"seed {seed} ") if several else (None, "")
+        steps = [row["env_steps"] for row in mine]
+        final = mine[-1]["ratings"]
+        axes[0].plot(steps, [final[str(row["eval"])] for row in mine], marker="o", color=colour, label=f"{named}now")
+        axes[0].plot(steps, [row["elo"] for row in mine], ls="--", marker=".", color=colour,
+                     label=f"{named}when taken")
+        axes[0].axhline(final[RANDOM], color=colour or "grey", ls=":", label=f"{named}random policy")
+        for result, style in zip(RESULTS, ("-", "--", ":") if several else ("-",) * len(RESULTS)):
+            axes[1].plot(steps, [row[f"{result}_vs_random"] for row in mine], ls=style, marker="o", color=colour,
+                         label=f"{named}{result}")
     axes[0].set(xlabel="env steps", ylabel="Elo", title="snapshots' ratings")
-    for result in RESULTS:
-        axes[1].plot(steps, [row[f"{result}_vs_random"] for row in rows], marker="o", label=result)
     axes[1].set(xlabel="env steps", ylabel="share of games", title="against a random policy", ylim=(-0.02, 1.02))
     save_figure(fig, axes, title, run_dir / RATINGS_PLOT)
 
 
 def earlier_snapshot(run: TeamRun) -> int:
     """The snapshot `fieldgen eval` sets the policy against: the one from a third of the way through."""
-    return int(round(int(run.state.newest) / 3))
+    return int(round(int(run.state.newest[0]) / 3))
 
 
 def evaluate(run: TeamRun, episodes: int | None = None, seed: int = 0, actions: str | None = None,
              film: bool = False) -> tuple[dict, object]:
-    """The last snapshot (the policy as of the last evaluation) against the random policy and against the snapshot
-    from a third of the way through, `episodes` each (half on either side); with the run's ratings. With `film`,
-    also one more match of the two (the last snapshot at home) filmed for a video (EpisodeRecorder.episode's
-    input), else None."""
+    """Each seed's last snapshot (its policy as of the last evaluation) against the random policy and against its
+    snapshot from a third of the way through, `episodes` each (half on either side, every seed on the same
+    kick-offs), with its ratings; over several seeds, also the interquartile mean of the seeds' shares won
+    against each with its 95% bootstrap interval (fieldgen.run.summary). With `film`, also one more match of the
+    first seed's two (the last snapshot at home) filmed for a video (EpisodeRecorder.episode's input), else
+    None."""
     config = run.config.model_copy(update={"eval_envs": episodes or run.config.eval_envs,
                                            "eval_actions": actions or run.config.eval_actions})
     from fieldgen.agents.config import ConfigError
+    from fieldgen.run.summary import MetricSummary
 
     try:
-        config.validate_env(run.env)
+        config.validate_env(run.env, seeds=len(run.seeds))
     except ConfigError as exc:
         raise record.RunError(str(exc)) from None
     sp = make_selfplay(config, run.env)
     state, earlier = run.state, earlier_snapshot(run)
-    newest = int(state.newest)
+    newest = int(state.newest[0])
     key = jax.random.PRNGKey(seed)
 
     def both(state, key):
@@ -312,14 +340,22 @@ def evaluate(run: TeamRun, episodes: int | None = None, seed: int = 0, actions: 
         return (sp.match(me, None, jax.random.fold_in(key, 0)),
                 sp.match(me, sp.snapshot(state, earlier), jax.random.fold_in(key, 1)))
 
-    vs_random, vs_earlier = jax.device_get(jax.jit(both)(state, key))
+    keys = jnp.broadcast_to(key, (len(run.seeds),) + key.shape)  # one key a seed, so that the matches batch at once
+    vs_random, vs_earlier = jax.device_get(jax.jit(jax.vmap(both))(state, keys))
     filmed = jax.jit(lambda state, key: sp.film(sp.snapshot(state, newest), sp.snapshot(state, earlier), key))(
-        state, jax.random.fold_in(key, FILMED)) if film else None
-    last = run.rows[-1]
-    return {"run": str(run.folder), "eval": newest, "env_steps": last["env_steps"], "episodes": config.eval_envs,
-            "actions": config.eval_actions, "seed": seed,
-            "vs_random": dict(zip(RESULTS, map(int, vs_random))),
-            "vs_snapshot": {"snapshot": earlier, "env_steps": next(r["env_steps"] for r in run.rows
-                                                                   if r["eval"] == earlier),
-                            **dict(zip(RESULTS, map(int, vs_earlier)))},
-            "elo": last["elo"], "ratings": last["ratings"]}, filmed
+        loop.seed_slice(state, 0), jax.random.fold_in(key, FILMED)) if film else None
+    at = {"snapshot": earlier, "env_steps": next(r["env_steps"] for r in run.rows if r["eval"] == earlier)}
+    per_seed = {}
+    for i, s in enumerate(run.seeds):
+        last = of_seed(run.rows, s)[-1]
+        per_seed[s] = {"vs_random": dict(zip(RESULTS, map(int, vs_random[i]))),
+                       "vs_snapshot": {**at, **dict(zip(RESULTS, map(int, vs_earlier[i])))},
+                       "elo": last["elo"], "ratings": last["ratings"]}
+    result = {"run": str(run.folder), "eval": newest, "env_steps": run.rows[-1]["env_steps"],
+              "episodes": config.eval_envs, "actions": config.eval_actions, "seed": seed, "seeds": run.seeds,
+              "per_seed": per_seed}
+    if len(run.seeds) > 1:
+        for opponent in ("vs_random", "vs_snapshot"):
+            won = MetricSummary.of({s: one[opponent]["win"] / config.eval_envs for s, one in per_seed.items()})
+            result[f"win_{opponent}"] = won.model_dump(mode="json")
+    return result, filmed

@@ -4,9 +4,13 @@ from __future__ import annotations
 
 import json
 
+import jax
+import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from fieldgen.agents import loop
+from fieldgen.agents.selfplay import SelfPlayConfig
 from fieldgen.cli import app
 from fieldgen.command import TIME_LIMIT_STATUS
 from fieldgen.run import record, selfplay
@@ -21,13 +25,48 @@ TINY = ["--steps", "2400", "--envs", "8", "--set", "ppo.unroll_length=10", "--se
 def test_a_team_field_trains_by_self_play_with_ppo_alone(tmp_path):
     result = runner.invoke(app, ["train", "soccer_1v1", "--algo", "crl", "--out", str(tmp_path)])
     assert result.exit_code == 1 and "soccer_1v1 is a team field: it trains by self-play" in result.output
-    result = runner.invoke(app, ["train", "soccer_1v1", "--seeds", "2", "--out", str(tmp_path)])
-    assert result.exit_code == 1 and "self-play trains one seed a run" in result.output
     result = runner.invoke(app, ["train", "soccer_1v1", "--set", "ppo.pool_sampling=oldest", "--out", str(tmp_path)])
     assert result.exit_code == 1 and "unknown ppo.pool_sampling 'oldest'" in result.output
     result = runner.invoke(app, ["train", "soccer_1v1", "--curriculum", "auto", "--out", str(tmp_path)])
     assert result.exit_code == 1 and "self-play, which takes no --curriculum" in result.output
     assert not list(tmp_path.iterdir())
+
+
+def test_a_team_field_takes_several_seeds_in_one_run(tmp_path):
+    result = runner.invoke(app, ["train", "soccer_1v1", "--seed", "3", "--seeds", "2", "--prepare",
+                                 "--out", str(tmp_path), *TINY])
+    assert result.exit_code == 0, result.output
+    folder = tmp_path / "soccer_1v1-ppo-3to4"
+    saved = json.loads((folder / record.RUN).read_text())
+    assert saved["seeds"] == [3, 4] and saved["selfplay"] and saved["config"]["seed"] == 3
+    run = selfplay.open_run(folder)
+    assert run.seeds == [3, 4] and run.state is None and run.rows == []
+
+
+def test_each_seed_is_rated_in_a_league_of_its_own(tmp_path):
+    """Seed 0's snapshots beat everything, seed 1's lose to everything: each seed's ratings count its own games
+    alone, as a run of that seed alone would rate them."""
+    config = SelfPlayConfig(league_opponents=2, eval_envs=8)
+    both = selfplay.TeamRun(tmp_path, config, None, [0, 1], [])
+    alone = selfplay.TeamRun(tmp_path, config, None, [1], [])
+    scores = {0: [6, 2, 0], 1: [0, 2, 6]}  # wins, draws, losses against every opponent
+    for index in range(4):
+        for run in (both, alone):
+            rows = []
+            for seed in run.seeds:
+                results = {"random": np.asarray(scores[seed]),
+                           "earlier": np.asarray([scores[seed]] * config.league_opponents)}
+                rows.append(selfplay.seed_row(run, index, seed, {}, results, 100 * index))
+            run.rows.extend(rows)
+    last = {seed: selfplay.of_seed(both.rows, seed)[-1] for seed in (0, 1)}
+    assert set(last[0]["ratings"]) == set(last[1]["ratings"]) == {"random", "0", "1", "2", "3"}
+    assert last[0]["ratings"]["3"] > last[0]["ratings"]["random"] and last[0]["elo"] == last[0]["ratings"]["3"]
+    assert last[1]["ratings"]["3"] < last[1]["ratings"]["random"]
+    assert selfplay.of_seed(both.rows, 1) == alone.rows
+    for seed in (0, 1):
+        assert last[seed]["ratings"] == selfplay.ratings(selfplay.of_seed(both.rows, seed), config.elo_k)
+    selfplay.plot_ratings(tmp_path, both.rows, "two seeds")
+    assert (tmp_path / selfplay.RATINGS_PLOT).stat().st_size > 0
 
 
 def without_timings(rows: list[dict]) -> list[dict]:
@@ -79,8 +118,10 @@ def test_self_play_writes_ratings_resumes_exactly_and_is_judged(tmp_path, interr
         assert result.exit_code == 1 and said in " ".join(result.output.split()), result.output
     assert mine.read_text() == "a user's notes\n" and json.loads((run / record.RUN).read_text())["selfplay"]
     judged = json.loads((run / selfplay.EVALUATION).read_text())
-    assert judged["vs_snapshot"]["snapshot"] == 1 and sum(judged["vs_random"].values()) == 8
-    assert judged["ratings"] == last["ratings"]
+    assert judged["seeds"] == [0] and list(judged["per_seed"]) == ["0"] and "win_vs_random" not in judged
+    mine = judged["per_seed"]["0"]
+    assert mine["vs_snapshot"]["snapshot"] == 1 and sum(mine["vs_random"].values()) == 8
+    assert mine["ratings"] == last["ratings"]
 
     # a time limit shorter than the first chunk (which compiles) stops after it; the resume ends as the whole run
     limited = tmp_path / "limited"
@@ -90,3 +131,75 @@ def test_self_play_writes_ratings_resumes_exactly_and_is_judged(tmp_path, interr
     result = runner.invoke(app, ["train", "--resume", str(limited / "soccer_1v1-ppo-0")])
     assert result.exit_code == 0, result.output
     assert without_timings(record.read_metrics(limited / "soccer_1v1-ppo-0")) == without_timings(rows)
+
+
+@pytest.mark.slow
+def test_several_seeds_train_in_one_program_as_each_would_alone(tmp_path, interrupt_after_eval):
+    """Seeds 0 and 1 in one run: seed 1 starts exactly as a run of seed 1 alone; its rows match that run's
+    (the untrained evaluation to the bit, the first chunk's to float rounding: vmapped matrix products may add
+    in another order, which training later amplifies); each seed rated on its own; an exact resume; a time
+    limit; and fieldgen eval judging each seed and the seeds together."""
+    result = runner.invoke(app, ["train", "soccer_1v1", "--seed", "1", "--no-videos", "--out", str(tmp_path / "alone"),
+                                 *TINY])
+    assert result.exit_code == 0, result.output
+    alone = record.read_metrics(tmp_path / "alone" / "soccer_1v1-ppo-1")
+    result = runner.invoke(app, ["train", "soccer_1v1", "--seeds", "2", "--out", str(tmp_path / "both"), *TINY])
+    assert result.exit_code == 0, result.output
+    run = tmp_path / "both" / "soccer_1v1-ppo-0to1"
+    assert json.loads((run / record.RUN).read_text())["seeds"] == [0, 1]
+    assert "eval 3/3 at 2,400 env steps, seed 1: vs random" in result.output
+    rows = record.read_metrics(run)
+    assert [(r["eval"], r["seed"]) for r in rows] == [(i, s) for i in range(4) for s in (0, 1)]
+    # one video an evaluation, of the first seed
+    assert sorted(p.stem for p in (run / record.VIDEOS).iterdir()) == ["eval_000", "eval_001", "eval_002", "eval_003"]
+
+    opened = selfplay.open_run(run)
+    init = selfplay.programs(opened.config, opened.env)[1]
+    together, single = init(loop.seed_keys([0, 1])), init(loop.seed_keys([1]))
+    for a, b in zip(jax.tree.leaves(loop.seed_slice(together, 1)), jax.tree.leaves(loop.seed_slice(single, 0))):
+        np.testing.assert_array_equal(a, b)
+    mine = without_timings(selfplay.of_seed(rows, 1))
+    alone = without_timings(alone)
+    assert mine[0] == alone[0]
+    assert mine[1]["league"] == alone[1]["league"] and mine[1].keys() == alone[1].keys()
+    figures = [k for k, v in alone[1].items() if isinstance(v, float)]
+    np.testing.assert_allclose([mine[1][k] for k in figures], [alone[1][k] for k in figures], rtol=1e-5, atol=1e-7)
+
+    for seed in (0, 1):
+        own = selfplay.of_seed(rows, seed)
+        assert own[-1]["ratings"] == selfplay.ratings(own, opened.config.elo_k)
+        assert set(own[-1]["ratings"]) == {"random", "0", "1", "2", "3"}
+
+    interrupt_after_eval(2)
+    result = runner.invoke(app, ["train", "soccer_1v1", "--seeds", "2", "--no-videos", "--out", str(tmp_path / "cut"),
+                                 *TINY])
+    assert result.exit_code == 130, result.output
+    interrupt_after_eval(None)
+    resumed = tmp_path / "cut" / "soccer_1v1-ppo-0to1"
+    result = runner.invoke(app, ["train", "--resume", str(resumed), "--no-videos"])
+    assert result.exit_code == 0, result.output
+    assert without_timings(record.read_metrics(resumed)) == without_timings(rows)
+    assert (resumed / record.CHECKPOINT).read_bytes() == (run / record.CHECKPOINT).read_bytes()
+
+    limited = tmp_path / "limited"
+    result = runner.invoke(app, ["train", "soccer_1v1", "--seeds", "2", "--no-videos", "--out", str(limited),
+                                 "--time-limit", "1", *TINY])
+    assert result.exit_code == TIME_LIMIT_STATUS, result.output
+    assert "stopped at the time limit after evaluation 1 of 3" in result.output
+    result = runner.invoke(app, ["train", "--resume", str(limited / "soccer_1v1-ppo-0to1"), "--no-videos"])
+    assert result.exit_code == 0, result.output
+    assert without_timings(record.read_metrics(limited / "soccer_1v1-ppo-0to1")) == without_timings(rows)
+
+    result = runner.invoke(app, ["eval", str(run), "--no-video"])
+    assert result.exit_code == 0, result.output
+    said = " ".join(result.output.split())
+    assert "Elo ratings of seed 1" in said and "interquartile mean of the 2 seeds" in said
+    judged = json.loads((run / selfplay.EVALUATION).read_text())
+    assert judged["seeds"] == [0, 1] and sorted(judged["per_seed"]) == ["0", "1"]
+    for seed, one in judged["per_seed"].items():
+        assert sum(one["vs_random"].values()) == sum(one["vs_snapshot"][r] for r in selfplay.RESULTS) == 8
+        assert one["vs_snapshot"]["snapshot"] == 1 and one["ratings"] == rows[-2 + int(seed)]["ratings"]
+    for opponent in ("vs_random", "vs_snapshot"):
+        won = judged[f"win_{opponent}"]
+        assert won["per_seed"] == {s: one[opponent]["win"] / 8 for s, one in judged["per_seed"].items()}
+        assert won["low"] <= won["iqm"] <= won["high"]
