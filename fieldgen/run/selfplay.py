@@ -28,6 +28,7 @@ from fieldgen import files
 from fieldgen.agents import checkpoint, elo, loop
 from fieldgen.agents.selfplay import RESULTS, SelfPlayConfig, fixed_opponents, make_selfplay
 from fieldgen.compile.artifact import ArtifactError, write_artifact
+from fieldgen.env.contract import DIVERGED
 from fieldgen.run import record
 from fieldgen.run.videos import video_name
 
@@ -215,6 +216,7 @@ def train(run: TeamRun, say=print, deadline: float | None = None, recorder=None)
             metrics = {}
             if index > 0:
                 state, metrics = chunk(state)
+                metrics.update(loop.diverged_episodes(jax.device_get(state.env_state.info[DIVERGED]), len(run.seeds)))
             state, results = judge(state, index, opponents_of(index, c.league_opponents),
                                    jax.vmap(loop.eval_key, in_axes=(0, None))(keys, index))
             metrics, results, steps = jax.device_get((metrics, results, state.env_steps))

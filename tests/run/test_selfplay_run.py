@@ -150,6 +150,7 @@ def test_several_seeds_train_in_one_program_as_each_would_alone(tmp_path, interr
     assert "eval 3/3 at 2,400 env steps, seed 1: vs random" in result.output
     rows = record.read_metrics(run)
     assert [(r["eval"], r["seed"]) for r in rows] == [(i, s) for i in range(4) for s in (0, 1)]
+    assert [r["diverged_episodes"] for r in rows if r["eval"]] == [0.0] * 6  # each seed's blown-up episodes
     # one video an evaluation, of the first seed
     assert sorted(p.stem for p in (run / record.VIDEOS).iterdir()) == ["eval_000", "eval_001", "eval_002", "eval_003"]
 
