@@ -49,14 +49,14 @@ def test_counts_past_what_the_device_counts_are_refused(tmp_path, args, phrase):
 
 @pytest.mark.parametrize("args,phrase", [
     (["--envs", "100000", "--steps", "1G"], "training 1 seed of crl with 100,000 envs needs about 28.8 GB (replay "
-     "buffer 28 GB, update batch 560 MB, episodes 196 MB, networks and optimizers 3.03 MB) of memory, more than the "
+     "buffer 28 GB, update batch 560 MB, episodes 197 MB, networks and optimizers 3.03 MB) of memory, more than the "
      "16 GB of this machine; lower --envs or crl.max_replay_rows"),
     (["--envs", "8", "--set", "crl.hidden=[100000,100000]"], "networks and optimizers 360 GB, replay buffer 2.24 MB, "
      "update batch 44.8 kB, episodes 15.7 kB) of memory, more than the 16 GB of this machine; lower crl.hidden"),
     (["--envs", "8", "--set", "crl.max_replay_rows=100000000"], "needs about 22.4 GB (replay buffer 22.4 GB"),
     (["--envs", "1024", "--seeds", "1000"], "training 1,000 seeds of crl with 1,024 envs needs about 297 GB"),
     (["--envs", "10000", "--steps", "1G", "--set", "crl.windows_per_env=1000"], "(update batch 56 GB, replay buffer "
-     "2.8 GB, episodes 19.6 MB, networks and optimizers 3.03 MB) of memory, more than the 16 GB of this machine; lower "
+     "2.8 GB, episodes 19.7 MB, networks and optimizers 3.03 MB) of memory, more than the 16 GB of this machine; lower "
      "crl.windows_per_env or --envs"),
     (["--algo", "ppo", "--envs", "10000000", "--steps", "1.9G", "--set", "ppo.num_evals=5"],
      "training 1 seed of ppo with 10,000,000 envs needs about"),
@@ -102,7 +102,7 @@ def test_the_estimate_of_a_training_state_is_what_it_allocates(env_cache, tiny_c
 
 
 @pytest.mark.parametrize("args,phrase", [
-    (["--envs", "1e11"], "benchmarking 100,000,000,000 envs needs about 196 TB (episodes 196 TB) of memory, more "
+    (["--envs", "1e11"], "benchmarking 100,000,000,000 envs needs about 197 TB (episodes 197 TB) of memory, more "
      "than the 16 GB of this machine; lower --envs"),
     (["--envs", "0"], "'0' is not a positive whole count"),
     (["--envs", "-3"], "'-3' is not a positive whole count"),
