@@ -39,7 +39,7 @@ from fieldgen.schema.models import MAX_EXTENT
 _STATE_FIELDS = ("time", "qpos", "qvel", "act", "ctrl", "mocap_pos", "mocap_quat", "qacc_warmstart")
 
 
-MAX_SPEED = 1e3  # m/s or rad/s of any degree of freedom: nothing on a field moves this fast but a blown-up simulation
+MAX_SPEED = 1e4  # m/s or rad/s of any degree of freedom: past a 1 cm ball rolling at 100 m/s; only a blow-up gets here
 MAX_DISTANCE = 2 * MAX_EXTENT  # metres from the origin of any body: beyond every field a spec may describe
 
 
