@@ -119,6 +119,20 @@ def stats(rows: list[dict], stages: int = 1) -> str:
     return text
 
 
+def blown_up_line(rows: list[dict], seeds) -> str:
+    """One line naming each seed whose training episodes were ended by a blown-up simulation (its last row's
+    `diverged_episodes`), or '' where none was: the learner never saw those steps, but a field or setting that
+    blows up often is worth a look."""
+    counts = {}
+    for row in rows:
+        if row.get("diverged_episodes"):
+            counts[row["seed"]] = int(row["diverged_episodes"])
+    if not counts:
+        return ""
+    said = ", ".join(f"seed {seed} {counts[seed]:,}" for seed in seeds if seed in counts)
+    return f"training episodes ended because the simulation blew up (fieldgen.env.diverged; none learned from): {said}"
+
+
 def summary(run: Run, console: Console) -> None:
     """The last evaluation of every seed against the untrained one, and where the files are."""
     table = Table("seed", "env steps", "success_any", "time at goal", "closest", "return", "steps/s",
@@ -153,6 +167,9 @@ def summary(run: Run, console: Console) -> None:
         last = run.rows[-1]
         console.print(f"reached stage {last.get('promoted_to', last['stage']) + 1} of {len(run.envs)}; success_any on "
                       f"the last stage ({run.env.spec.name}): {last['last_stage_success_any']:.2f}")
+    blown = blown_up_line(run.rows, run.seeds)
+    if blown:
+        console.print(blown)
     memory = run.rows[-1].get("peak_memory_mb")
     if memory is not None:
         console.print(f"peak device memory: {memory:,.0f} MiB")

@@ -24,3 +24,13 @@ def test_the_summary_table_keeps_every_header_whole_at_80_columns():
     assert "…" not in shown
     assert all(name in header for name in ("seed", "env steps", "success_any", "time at", "goal", "closest",
                                            "return", "steps/s")), shown
+
+
+def test_seeds_whose_simulations_blew_up_are_named_once_with_their_last_count():
+    rows = [{"seed": 0, "eval": 0}, {"seed": 1, "eval": 0},
+            {"seed": 0, "eval": 1, "diverged_episodes": 0.0}, {"seed": 1, "eval": 1, "diverged_episodes": 2.0},
+            {"seed": 0, "eval": 2, "diverged_episodes": 0.0}, {"seed": 1, "eval": 2, "diverged_episodes": 1234.0}]
+    assert progress.blown_up_line(rows, [0, 1]) == (
+        "training episodes ended because the simulation blew up (fieldgen.env.diverged; none learned from): "
+        "seed 1 1,234")
+    assert progress.blown_up_line(rows[:3], [0, 1]) == ""  # no count, or none above zero: nothing said
