@@ -1,7 +1,8 @@
 """Env-steps per second of a batched environment: a `lax.scan` of steps under jit.
 
 Timed after two warm-up calls, because the first call compiles and the first
-call fed its own output can compile again.
+call fed its own output can compile again. A team field's env step is one step of
+one match, every agent acting in it.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ import jax.numpy as jnp
 
 from fieldgen.command import fieldgen_command
 from fieldgen.env.mjx_physics import OVERFLOW
+from fieldgen.env.team_contract import TeamEnvironment
 
 
 @dataclass(frozen=True)
@@ -24,10 +26,25 @@ class Throughput:
     n_envs: int
     steps: int
     seconds: float
+    agents: int = 1  # agents acting in one env
 
     @property
     def steps_per_second(self) -> float:
         return self.n_envs * self.steps / self.seconds
+
+    @property
+    def agent_steps_per_second(self) -> float:
+        return self.steps_per_second * self.agents
+
+
+def action_shape(env) -> tuple[int, ...]:
+    """One env's action: [agents, action_size] for a match (team_contract), [action_size] otherwise."""
+    return (len(env.agent_names), env.action_size) if isinstance(env, TeamEnvironment) else (env.action_size,)
+
+
+def agents_per_env(env) -> int:
+    """Agents that act in one env step: a match's every agent, or the one agent of any other field."""
+    return len(env.agent_names) if isinstance(env, TeamEnvironment) else 1
 
 
 def rollout_fn(env, n_envs: int, steps: int):
@@ -35,7 +52,7 @@ def rollout_fn(env, n_envs: int, steps: int):
 
     def run(state, key):
         def body(carry, k):
-            action = jax.random.uniform(k, (n_envs, env.action_size), minval=-1.0, maxval=1.0)
+            action = jax.random.uniform(k, (n_envs, *action_shape(env)), minval=-1.0, maxval=1.0)
             return jax.vmap(env.step)(carry, action), None
 
         state, _ = jax.lax.scan(body, state, jax.random.split(key, steps))
@@ -64,7 +81,7 @@ def measure(env, n_envs: int, steps: int = 200, repeats: int = 3, seed: int = 0)
         raise FloatingPointError("the rollout produced non-finite observations")
     if OVERFLOW in state.info:
         env.check_physics(state.info[OVERFLOW])
-    return Throughput(n_envs, steps, best)
+    return Throughput(n_envs, steps, best, agents_per_env(env))
 
 
 def append_jsonl(path: Path | None, row: dict) -> None:
