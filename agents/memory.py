@@ -90,7 +90,7 @@ def _bytes(tree) -> int:
 def _batch_bytes(trainer, state) -> int:
     """One seed's update besides its state: windows sampled from a replay buffer, each step with its stored row
     and as much again for its hindsight goal and next state; without a buffer, a rollout of every environment
-    (observation, action and the few numbers kept per step)."""
+    (observation, action and the few numbers kept per step, for every agent of a match)."""
     config, env = trainer.config, trainer.env
     buffer = getattr(state, "buffer", None)
     if buffer is not None:
@@ -98,4 +98,5 @@ def _batch_bytes(trainer, state) -> int:
         row = sum(_bytes(x) // (x.shape[0] * x.shape[1] * x.shape[2]) for x in data)  # [seeds, rows, envs, ...]
         windows, _ = gradient_steps(config, env.episode_length)
         return 2 * windows * env.episode_length * row
-    return config.num_envs * config.unroll_length * 4 * (env.observation_size + 2 * env.action_size + 6)
+    agents = len(getattr(env, "agent_names", ())) or 1  # a match's every agent steps and is learned from
+    return config.num_envs * config.unroll_length * agents * 4 * (env.observation_size + 2 * env.action_size + 6)

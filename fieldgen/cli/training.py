@@ -227,8 +227,8 @@ def train(
                      "was set up to start from): drop --init-from, or train into another --out")
             if selfplay.is_team_run(resume):
                 _refuse_for_self_play(str(resume), init_from=init_from, logger=logger)
-                return _train_team(selfplay.open_run(resume), None if time_limit is None else started + time_limit,
-                                   fmt)
+                deadline = None if time_limit is None else started + time_limit
+                return _train_team(selfplay.open_run(resume, to_train=True), deadline, fmt)
             run = session.open_run(resume, to_train=True)
             if run.refills and run.rows and not run.finished:
                 drawn = "; its episodes drawn as they were (its levels and their counts)" if run.sampling else ""
@@ -243,10 +243,14 @@ def train(
             if field.teams is not None:  # a match: one network plays both sides (self-play PPO)
                 _refuse_for_self_play(field.name, mixed=mixed, curriculum=curriculum_kind, levels=levels,
                                       sampler=samplers, init_from=init_from, logger=logger)
-                team = _team_run(source, field, algo, seeds, config, sets, preset, steps, envs, seed, runs)
+                team = _team_run(source, field, algo, seeds, config, sets, preset, steps, envs, seed, runs, prepare)
                 if prepare:
                     out.print(f"prepared {team.folder}; start it with: fieldgen train --resume {team.folder}",
                               soft_wrap=True)
+                    try:
+                        selfplay.fits_memory(team.config, team.env, len(team.seeds))
+                    except ConfigError as exc:
+                        out.print(Text(f"note: {exc}; resume it on a machine that holds it", style="yellow"))
                     return
                 return _train_team(team, None if time_limit is None else started + time_limit, fmt)
             chosen = recipes.choose(source, algo, use_recipe)
@@ -294,7 +298,7 @@ def train(
 
 
 def _team_run(source: Path, field, algo: str | None, seeds: int, config: Path | None, sets: list[str] | None,
-              preset: str | None, steps: int | None, envs: int | None, seed: int, runs: Path):
+              preset: str | None, steps: int | None, envs: int | None, seed: int, runs: Path, prepare: bool = False):
     """A new self-play run on a team field, `seeds` seeds from `seed` trained at once: PPO's settings (`ppo.` keys,
     with self-play's own: docs/teams.md) layered as any run's, without a recipe (recipes name single-agent
     trainers)."""
@@ -306,7 +310,7 @@ def _team_run(source: Path, field, algo: str | None, seeds: int, config: Path | 
              f"give --algo {SelfPlayConfig.algo} or leave --algo out")
     settings = SelfPlayConfig.layered(config, sets or [], agent=field.agent.kind, preset=preset,
                                       total_steps=steps, num_envs=envs, seed=seed)
-    return selfplay.new_run(source, settings, runs, list(range(seed, seed + seeds)))
+    return selfplay.new_run(source, settings, runs, list(range(seed, seed + seeds)), check_memory=not prepare)
 
 
 def _refuse_for_self_play(what: str, logger: str = "none", **given) -> None:

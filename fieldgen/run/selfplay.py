@@ -25,7 +25,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from fieldgen import files
-from fieldgen.agents import checkpoint, elo, loop
+from fieldgen.agents import checkpoint, elo, loop, memory
 from fieldgen.agents.selfplay import RESULTS, SelfPlayConfig, fixed_opponents, make_selfplay
 from fieldgen.compile.artifact import ArtifactError, write_artifact
 from fieldgen.env.contract import DIVERGED
@@ -96,14 +96,16 @@ def _team_env(source):
     return env
 
 
-def new_run(source: Path, config: SelfPlayConfig, out: Path, seeds: list[int]) -> TeamRun:
+def new_run(source: Path, config: SelfPlayConfig, out: Path, seeds: list[int], check_memory: bool = True) -> TeamRun:
     """A run folder for the team field `source` training `seeds` at once (the first is the config's seed),
-    written once its settings are known good."""
+    written once its settings are known good (and, with `check_memory`, once this machine can hold it)."""
     from fieldgen.agents.config import ConfigError
 
     env = _team_env(source)
     try:
         config.validate_env(env, seeds=len(seeds))
+        if check_memory:
+            fits_memory(config, env, len(seeds))
     except ConfigError as exc:
         raise record.RunError(str(exc)) from None
     folder = out / record.run_name(env.spec.name, config.algo, seeds)
@@ -126,10 +128,22 @@ def new_run(source: Path, config: SelfPlayConfig, out: Path, seeds: list[int]) -
     return TeamRun(folder, config, env, seeds, [])
 
 
-def open_run(folder: Path, load_state: bool = True) -> TeamRun:
+def fits_memory(config: SelfPlayConfig, env, seeds: int) -> None:
+    """Refuse (ConfigError) a self-play run whose matches, snapshots and rollouts need more memory than the
+    machine has, before anything is allocated (agents.memory, as a single-agent run is checked)."""
+    more = " or --seeds" if seeds > 1 else ""
+    lower = {memory.EPISODES: f"--envs{more}", memory.BATCH: f"--envs or ppo.unroll_length{more}",
+             memory.NETWORKS: f"ppo.hidden or ppo.num_evals (a snapshot is kept at every evaluation){more}",
+             memory.BUFFER: f"--envs{more}"}
+    memory.check(memory.training(make_selfplay(config, env), seeds),
+                 f"training {seeds:,} seed{'s' * (seeds > 1)} of self-play {config.algo} with {config.num_envs:,} "
+                 "matches", lower)
+
+
+def open_run(folder: Path, load_state: bool = True, to_train: bool = False) -> TeamRun:
     """A self-play run folder with its field and (with load_state) its last checkpoint; its rows are those up to
     the checkpoint's evaluation (later ones, of a chunk whose checkpoint a kill cut short, train again), every
-    seed's."""
+    seed's. A run opened `to_train` that is not complete is checked against this machine's memory first."""
     from fieldgen.agents.config import ConfigError
 
     saved = record.read_run(folder)
@@ -142,6 +156,11 @@ def open_run(folder: Path, load_state: bool = True) -> TeamRun:
     except ConfigError as exc:
         raise record.RunError(f"{folder / record.RUN} holds no usable self-play config ({exc})") from None
     run = TeamRun(folder, config, env, saved.seeds or [config.seed], record.read_metrics(folder))
+    if to_train and not run.finished:
+        try:
+            fits_memory(config, env, len(run.seeds))
+        except ConfigError as exc:
+            raise record.RunError(str(exc)) from None
     if load_state and (folder / record.CHECKPOINT).exists():
         template = jax.eval_shape(jax.vmap(run.algorithm.init), loop.seed_keys(run.seeds))
         try:

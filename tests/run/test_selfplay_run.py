@@ -43,6 +43,28 @@ def test_a_team_field_takes_several_seeds_in_one_run(tmp_path):
     assert run.seeds == [3, 4] and run.state is None and run.rows == []
 
 
+def test_a_match_batch_the_machine_cannot_hold_is_refused_before_any_folder_and_noted_when_prepared(tmp_path,
+                                                                                                   monkeypatch):
+    """Before: thousands of seeds or matches died in the allocator (std::bad_alloc, no Python at all), a run
+    folder left behind."""
+    from fieldgen.agents import memory
+
+    monkeypatch.setattr(memory, "available", lambda: (16 * 10**9, "this machine"))
+    big = ["--seeds", "50", "--envs", "100000", "--no-videos"]
+    result = runner.invoke(app, ["train", "soccer_1v1", "--out", str(tmp_path / "runs"), *big])
+    said = " ".join(result.output.split())
+    assert result.exit_code == 1 and "Traceback" not in result.output, result.output
+    assert said.startswith("error: training 50 seeds of self-play ppo with 100,000 matches needs about") and \
+        said.endswith("of memory, more than the 16 GB of this machine; lower --envs or --seeds")
+    assert not (tmp_path / "runs").exists()
+    prepared = runner.invoke(app, ["train", "soccer_1v1", "--out", str(tmp_path / "runs"), "--prepare", *big])
+    assert prepared.exit_code == 0 and "resume it on a machine that holds it" in " ".join(prepared.output.split())
+    folder = tmp_path / "runs" / "soccer_1v1-ppo-0to49"
+    resumed = runner.invoke(app, ["train", "--resume", str(folder), "--no-videos"])
+    assert resumed.exit_code == 1 and "lower --envs or --seeds" in " ".join(resumed.output.split())
+    assert not (folder / record.CHECKPOINT).exists() and not (folder / record.METRICS).exists()
+
+
 def test_each_seed_is_rated_in_a_league_of_its_own(tmp_path):
     """Seed 0's snapshots beat everything, seed 1's lose to everything: each seed's ratings count its own games
     alone, as a run of that seed alone would rate them."""
