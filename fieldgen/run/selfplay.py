@@ -135,7 +135,7 @@ def fits_memory(config: SelfPlayConfig, env, seeds: int) -> None:
     lower = {memory.EPISODES: f"--envs{more}", memory.BATCH: f"--envs or ppo.unroll_length{more}",
              memory.NETWORKS: f"ppo.hidden or ppo.num_evals (a snapshot is kept at every evaluation){more}",
              memory.BUFFER: f"--envs{more}"}
-    memory.check(memory.training(make_selfplay(config, env), seeds),
+    memory.check(memory.training(programs(config, env)[0], seeds),  # the SelfPlay training will use
                  f"training {seeds:,} seed{'s' * (seeds > 1)} of self-play {config.algo} with {config.num_envs:,} "
                  "matches", lower)
 
