@@ -20,6 +20,7 @@ import jax
 import jax.numpy as jnp
 import optax
 
+from ...env.contract import DIVERGED
 from .config import PPOConfig
 from ..loop import Trainer
 from ..networks import MLP, tanh_log_slope
@@ -32,13 +33,19 @@ class Normalizer:
     mean: jax.Array
     m2: jax.Array
 
-    def update(self, batch: jax.Array) -> "Normalizer":
-        """Chan's parallel update of the running mean and variance."""
-        n = batch.shape[0]
-        mean, var = jnp.mean(batch, 0), jnp.var(batch, 0)
+    def update(self, batch: jax.Array, weight: jax.Array | None = None) -> "Normalizer":
+        """Chan's parallel update of the running mean and variance over the rows of `batch` whose `weight` is 1
+        (all by default); a row weighing 0 is left out however large its values."""
+        weight = jnp.ones(batch.shape[0]) if weight is None else weight
+        kept = weight[:, None] > 0
+        batch = jnp.where(kept, batch, 0.0)
+        n = jnp.sum(weight)
+        mean = jnp.sum(weight[:, None] * batch, 0) / jnp.maximum(n, 1.0)
+        var = jnp.sum(weight[:, None] * jnp.where(kept, batch - mean, 0.0) ** 2, 0) / jnp.maximum(n, 1.0)
         total = self.count + n
+        share = n / jnp.maximum(total, 1.0)
         delta = mean - self.mean
-        return Normalizer(total, self.mean + delta * n / total, self.m2 + var * n + delta**2 * self.count * n / total)
+        return Normalizer(total, self.mean + delta * share, self.m2 + var * n + delta**2 * self.count * share)
 
     CLIP = 10.0  # normalised observations are clipped to +-CLIP
 
@@ -85,6 +92,20 @@ def advantages(data, last_value, discount: float, gae_lambda: float):
 
     _, adv = jax.lax.scan(back, (jnp.zeros_like(last_value), last_value), data, reverse=True)
     return adv, adv + data["value"]
+
+
+def blown_up(done: jax.Array, diverged: jax.Array) -> jax.Array:
+    """[steps, ...] 1.0 on every step of a rollout's episodes that ended because their simulation blew up, from
+    the episode's first step in the rollout to its last: speeds grow for several steps before the guard ends
+    such an episode, and one of those steps in the observation normaliser's running variance or in a value
+    target spoils the rest of a run."""
+    def back(spoiled_after, t):
+        ended, broke = t
+        spoiled = broke | (spoiled_after & ~ended)
+        return spoiled, spoiled
+
+    _, spoiled = jax.lax.scan(back, jnp.zeros_like(done, bool)[0], (done > 0, diverged > 0), reverse=True)
+    return spoiled.astype(jnp.float32)
 
 
 def squashed_entropy(mean, log_std, noise):
@@ -143,8 +164,11 @@ def make_train(config: PPOConfig, env) -> Trainer:
             nxt = jax.vmap(env.step)(env_state, jnp.tanh(raw))
             reward = nxt.reward if c.reward == "dense" else nxt.metrics["success"]
             value = value_net.apply(ts.params["value"], obs)[:, 0]
+            broke = (nxt.info[DIVERGED] > env_state.info[DIVERGED] if DIVERGED in nxt.info
+                     else jnp.zeros_like(nxt.done, bool))
             return nxt, {"obs": env_state.obs, "raw": raw, "log_prob": log_prob(mean, log_std, noise),
-                         "value": value, "reward": reward, "done": nxt.done, "success": nxt.metrics["success"]}
+                         "value": value, "reward": reward, "done": nxt.done, "success": nxt.metrics["success"],
+                         "diverged": broke}
 
         key, k = jax.random.split(ts.key)
         env_state, data = jax.lax.scan(step, ts.env_state, jax.random.split(k, c.unroll_length))
@@ -152,14 +176,22 @@ def make_train(config: PPOConfig, env) -> Trainer:
         return ts.replace(env_state=env_state, key=key), data, last
 
     def loss(params, normalizer, mb):
+        """PPO's loss over the steps that `weight` keeps (a blown-up episode's weigh nothing)."""
+        w = mb["weight"]
+        total = jnp.maximum(w.sum(), 1.0)
+
+        def average(x):
+            return jnp.sum(w * jnp.where(w > 0, x, 0.0)) / total
+
         obs = normalizer(mb["obs"], c.normalize_observations)
         mean, log_std = distribution(params, obs)
         noise = (mb["raw"] - mean) / jnp.exp(log_std)
         ratio = jnp.exp(log_prob(mean, log_std, noise) - mb["log_prob"])
-        adv = (mb["adv"] - mb["adv"].mean()) / (mb["adv"].std() + 1e-8)
-        surrogate = -jnp.mean(jnp.minimum(ratio * adv, jnp.clip(ratio, 1 - c.clip, 1 + c.clip) * adv))
-        value_loss = jnp.mean((value_net.apply(params["value"], obs)[:, 0] - mb["target"]) ** 2)
-        entropy = jnp.mean(squashed_entropy(mean, log_std, noise))
+        centre = average(mb["adv"])
+        adv = (mb["adv"] - centre) / (jnp.sqrt(average((mb["adv"] - centre) ** 2)) + 1e-8)
+        surrogate = -average(jnp.minimum(ratio * adv, jnp.clip(ratio, 1 - c.clip, 1 + c.clip) * adv))
+        value_loss = average((value_net.apply(params["value"], obs)[:, 0] - mb["target"]) ** 2)
+        entropy = average(squashed_entropy(mean, log_std, noise))
         total = surrogate + c.value_coef * value_loss - c.entropy_coef * entropy
         return total, {"policy_loss": surrogate, "value_loss": value_loss, "entropy": entropy}
 
@@ -168,8 +200,9 @@ def make_train(config: PPOConfig, env) -> Trainer:
         adv, target = advantages(data, last, c.discount, c.gae_lambda)
         flat = jax.tree.map(lambda x: x.reshape((batch,) + x.shape[2:]),
                             {"obs": data["obs"], "raw": data["raw"], "log_prob": data["log_prob"],
-                             "adv": adv, "target": target})
-        normalizer = ts.normalizer.update(flat["obs"])
+                             "adv": adv, "target": target,
+                             "weight": 1.0 - blown_up(data["done"], data["diverged"])})
+        normalizer = ts.normalizer.update(flat["obs"], flat["weight"])
 
         def epoch(carry, key):
             params, opt = carry

@@ -64,3 +64,60 @@ def test_ppo_learns_point_nav_with_a_dense_reward(write_spec):
     _, history = loop.run(ppo.make_train(config, fieldgen.make(spec)), [0], config.num_evals)
     assert history[0]["success_any"] <= 0.3
     assert history[-1]["success_any"] >= 0.8
+
+
+def test_every_step_of_an_episode_that_blew_up_is_marked_and_no_other():
+    from fieldgen.agents.ppo.train import blown_up
+
+    done = jnp.asarray([[0, 0, 0], [1, 0, 0], [0, 0, 1], [0, 1, 0], [0, 0, 0], [1, 0, 0]], jnp.float32)
+    broke = jnp.zeros_like(done).at[1, 0].set(1).at[3, 1].set(1)  # env 0's first episode, env 1's only one
+    expected = [[1, 1, 0], [1, 1, 0], [0, 1, 0], [0, 1, 0], [0, 0, 0], [0, 0, 0]]
+    np.testing.assert_array_equal(blown_up(done, broke), expected)
+
+
+def test_a_normalizer_leaves_out_the_rows_that_weigh_nothing():
+    rng = np.random.default_rng(1)
+    kept = rng.normal(2, 3, (40, 3))
+    rows = np.concatenate([kept, np.full((5, 3), 1e9)])
+    weight = jnp.concatenate([jnp.ones(40), jnp.zeros(5)])
+    fresh = Normalizer(jnp.zeros(()), jnp.zeros(3), jnp.zeros(3))
+    n = fresh.update(jnp.asarray(kept)).update(jnp.asarray(rows), weight)
+    both = np.concatenate([kept, kept])
+    np.testing.assert_allclose(n.mean, both.mean(0), rtol=1e-5)
+    np.testing.assert_allclose(n.m2 / n.count, both.var(0), rtol=1e-4)
+    unchanged = n.update(jnp.asarray(rows[-5:]), jnp.zeros(5))
+    np.testing.assert_allclose(unchanged.std, n.std)
+
+
+class Blowing:
+    """point_nav whose simulation 'blows up' every fifth step: the observation before it is 1e6, then the
+    episode ends as a divergence (`flagged`) or, for the control, merely looks that way to the normaliser."""
+
+    def __init__(self, env, flagged: bool):
+        self.env, self.flagged = env, flagged
+
+    def __getattr__(self, name):
+        return getattr(self.env, name)
+
+    def step(self, state, action):
+        from fieldgen.env.contract import DIVERGED
+
+        nxt = self.env.step(state, action)
+        count = state.info["blow_clock"] + 1
+        grow, blow = count % 5 == 4, count % 5 == 0
+        info = dict(nxt.info, blow_clock=count)
+        if self.flagged:
+            info[DIVERGED] = nxt.info[DIVERGED] + blow.astype(jnp.int32)
+        return nxt.replace(obs=jnp.where(grow, 1e6, nxt.obs), done=jnp.where(blow, 1.0, nxt.done), info=info)
+
+    def reset(self, key):
+        state = self.env.reset(key)
+        return state.replace(info=dict(state.info, blow_clock=jnp.zeros((), jnp.int32)))
+
+
+@pytest.mark.parametrize("flagged", [True, False])
+def test_a_blown_up_episodes_observations_stay_out_of_the_normaliser(env_cache, flagged):
+    algo = ppo.make_train(tiny(num_evals=1), Blowing(env_cache("point_nav"), flagged))
+    state, _ = loop.run(algo, [0], 1)
+    largest = float(jnp.max(state.normalizer.std))
+    assert (largest < 100) if flagged else (largest > 1e5)
