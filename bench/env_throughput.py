@@ -124,9 +124,16 @@ def measure_dm_control(env, steps: int, repeats: int = 3, seed: int = 0) -> Thro
     return Throughput(1, steps, best, len(specs))
 
 
+def ratio_to_reference(steps_per_second: float, reference: float | None) -> float | None:
+    """Steps/s over brax ant's at the same batch size; None (null in JSON, "-" printed) where brax ant was not
+    measured."""
+    return None if reference is None else steps_per_second / reference
+
+
 def report(label: str, row: dict) -> None:
-    ratio = row.get("ratio_to_brax_ant", float("nan"))
-    print(f"{label:30s} {row['envs']:>7d} envs {row['steps_per_second']:>12,.0f} steps/s   {ratio:.2f}x brax ant   "
+    ratio = row.get("ratio_to_brax_ant")
+    ratio_text = "-" if ratio is None else f"{ratio:.2f}x brax ant"
+    print(f"{label:30s} {row['envs']:>7d} envs {row['steps_per_second']:>12,.0f} steps/s   {ratio_text:14s}   "
           f"{row['agent_steps_per_second']:>12,.0f} agent steps/s ({row['agents']} agents)   "
           f"{row['simulated_seconds_per_second']:>10,.0f} simulated s/s")
 
@@ -175,7 +182,7 @@ def main() -> None:
             for n in sizes:
                 result = measure(env, n, args.steps)
                 row = throughput_row(name, result, env.dt, backend=env.spec.sim.backend,
-                                     ratio_to_brax_ant=result.steps_per_second / reference.get(n, float("nan")),
+                                     ratio_to_brax_ant=ratio_to_reference(result.steps_per_second, reference.get(n)),
                                      contacts=contacts, physics_steps=env.n_substeps, compile_seconds=compile_s)
                 report(label, row)
                 append_jsonl(args.json, row)
@@ -186,7 +193,7 @@ def main() -> None:
         result = measure_dm_control(env, args.steps)
         row = throughput_row(f"dm_control_soccer_{team_size}v{team_size}", result, control_dt,
                              backend="dm_control (mujoco, CPU)",
-                             ratio_to_brax_ant=result.steps_per_second / reference.get(1, float("nan")),
+                             ratio_to_brax_ant=ratio_to_reference(result.steps_per_second, reference.get(1)),
                              physics_steps=round(control_dt / env.physics.timestep()))
         report(f"dm_control soccer {team_size}v{team_size} (ants)", row)
         append_jsonl(args.json, row)

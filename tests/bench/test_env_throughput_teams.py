@@ -1,9 +1,11 @@
 """bench/env_throughput.py on team fields and dm_control's soccer: a row counts agent steps as match steps times
-the agents of a match, a match acts with [agents, action_size], and dm_control's soccer gives a row of its team
-size. Nothing here is timed against a bound."""
+the agents of a match, a match acts with [agents, action_size], dm_control's soccer gives a row of its team
+size, and a row measured without brax's ant prints no ratio and writes it as null. Nothing here is timed against
+a bound."""
 
 from __future__ import annotations
 
+import json
 import sys
 from pathlib import Path
 
@@ -27,6 +29,28 @@ def test_a_team_row_counts_agent_steps_as_match_steps_times_agents():
     assert row["agent_steps_per_second"] == row["steps_per_second"] * 4
     assert row["simulated_seconds_per_second"] == pytest.approx(row["steps_per_second"] * 0.05)
     assert row["backend"] == "mjx"
+
+
+def test_a_row_without_the_reference_prints_no_ratio_and_writes_null(capsys, tmp_path):
+    result = Throughput(n_envs=8192, steps=200, seconds=1.0, agents=2)
+    ratio = env_throughput.ratio_to_reference(result.steps_per_second, None)
+    row = env_throughput.throughput_row("soccer_1v1", result, 0.05, backend="mjx", ratio_to_brax_ant=ratio)
+    env_throughput.report("soccer_1v1 (mjx)", row)
+    printed = capsys.readouterr().out
+    assert "brax ant" not in printed and "nan" not in printed.lower()
+    assert "1,638,400 steps/s   -" in printed
+    env_throughput.append_jsonl(tmp_path / "rows.jsonl", row)
+    line = (tmp_path / "rows.jsonl").read_text()
+    assert '"ratio_to_brax_ant": null' in line
+    assert json.loads(line)["ratio_to_brax_ant"] is None
+
+
+def test_a_row_with_the_reference_prints_its_ratio(capsys):
+    row = env_throughput.throughput_row("soccer_1v1", Throughput(n_envs=16, steps=100, seconds=1.0, agents=2), 0.05,
+                                        ratio_to_brax_ant=env_throughput.ratio_to_reference(1600.0, 800.0))
+    env_throughput.report("soccer_1v1 (mjx)", row)
+    assert row["ratio_to_brax_ant"] == 2.0
+    assert "2.00x brax ant" in capsys.readouterr().out
 
 
 def test_a_single_agent_row_has_one_agent():
