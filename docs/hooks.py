@@ -178,8 +178,10 @@ def dsl_reference() -> str:
                   [(f"`{term}`", _cell(spec.description), "yes" if spec.zero_sum else "-")
                    for term, spec in MATCH_TERMS.items()])
     out += _table("Dense rewards", "`task: {reward: dense}` stands for the terms generated for the task's success kind, "
-                  "from `DENSE_REWARDS` in `fieldgen/schema/terms.py` (terms that need a torso only for the ant); a "
-                  "success kind not listed has none, and the spec lists its terms itself.",
+                  "from `DENSE_REWARDS` in `fieldgen/schema/terms.py` (terms that need a torso only for the ant); on a "
+                  "field with a solid obstacle, `ball_path_progress` stands in for `ball_progress`, so that a ball "
+                  "pushed round a goalie progresses and one pushed into it does not. A success kind not listed has "
+                  "none, and the spec lists its terms itself.",
                   ("success kind", "terms"),
                   [(f"`{kind}`", _cell(", ".join(_dense_term(t) for t in terms)))
                    for kind, terms in DENSE_REWARDS.items()])

@@ -15,6 +15,7 @@ from typing import Callable
 import jax
 import jax.numpy as jnp
 
+from fieldgen.env.paths import way_to_target
 from fieldgen.schema import geometry
 from fieldgen.schema.models import FieldSpec, RewardTerm
 from fieldgen.schema.terms import TERMS
@@ -82,6 +83,14 @@ def _ball_progress(t: Transition, cfg: RewardTerm) -> jax.Array:
 def _scaled_ball_progress(t: Transition, cfg: RewardTerm) -> jax.Array:
     """ball_progress / ||ball - target||: progress counts more near the target."""
     return _ball_progress(t, cfg) / jnp.maximum(_dist(t.ball, t.target), MIN_SCALE_DISTANCE)
+
+
+@builds("ball_path_progress")
+def _ball_path_progress(spec: FieldSpec, cfg: RewardTerm) -> TermFn:
+    """Decrease of the ball's shortest way to the target around the solid obstacles, per second: a ball
+    pushed round a goalie's end progresses, one pushed against the goalie does not."""
+    way = way_to_target(spec)
+    return lambda t: (way(t.ball_before, t.target) - way(t.ball, t.target)) / t.dt
 
 
 @term("agent_approaches_ball")

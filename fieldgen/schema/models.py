@@ -454,7 +454,10 @@ class FieldSpec(Section):
             AgentSection.model_fields["kind"].default
         if kind not in DENSE_REWARDS:
             return data  # TaskSection says which kinds have terms
-        return {**data, "task": {**task, "reward": dense_reward(kind, torso=agent_kind == "ant")}}
+        obstacles = data.get("obstacles")
+        solid = isinstance(obstacles, dict) and any(not (isinstance(o, dict) and o.get("solid") is False)
+                                                    for o in obstacles.values())
+        return {**data, "task": {**task, "reward": dense_reward(kind, torso=agent_kind == "ant", obstacles=solid)}}
 
     @model_validator(mode="after")
     def _backend_defaults(self):

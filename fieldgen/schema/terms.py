@@ -23,6 +23,9 @@ TERMS: dict[str, Term] = {
     "success": Term("1 while the success predicate holds (the sparse reward)", sparse=True),
     "ball_progress": Term("decrease of the ball's distance to the target, per second", ball=True),
     "scaled_ball_progress": Term("ball_progress / max(distance, 0.1)", ball=True),
+    "ball_path_progress": Term("decrease of the ball's distance to the target along its shortest way around the "
+                               "field's solid obstacles, per second (ball_progress where none stands between)",
+                               ball=True),
     "agent_approaches_ball": Term("decrease of the agent's distance to the ball, per second", ball=True),
     "agent_progress": Term("decrease of the agent's distance to the target, per second"),
     "upright": Term("1 while the torso height is inside band (default [0.2, 1.0])", torso=True),
@@ -33,7 +36,9 @@ TERMS: dict[str, Term] = {
 # `task: {reward: dense}`: the terms generated for a task, by what its success judges (task.success.kind), as the
 # bundled _dense fields use them: for the ball, the ball's progress to the target, the agent's approach to the
 # ball, a bonus while the success holds; for the agent, its own progress; for both, staying upright (only for an
-# agent with a torso) and a control cost.
+# agent with a torso) and a control cost. Where a solid obstacle stands, the ball's progress is measured along its
+# way round them (AROUND_OBSTACLES): straight progress pays a push into a goalie in the ball's way as well as one
+# past it, and PPO's ant learned to push the ball into v2_wide_goalie's goalie and stop there.
 DENSE_REWARDS: dict[str, tuple[dict, ...]] = {
     "ball_near_target": ({"term": "ball_progress", "weight": 10.0}, {"term": "agent_approaches_ball", "weight": 1.0},
                          {"term": "success", "weight": 10.0}, {"term": "upright", "band": (0.2, 1.0)},
@@ -41,6 +46,7 @@ DENSE_REWARDS: dict[str, tuple[dict, ...]] = {
     "agent_near_target": ({"term": "agent_progress"}, {"term": "upright", "band": (0.2, 1.0)},
                           {"term": "control_cost", "weight": 0.5}),
 }
+AROUND_OBSTACLES = {"ball_progress": "ball_path_progress"}  # the generated term -> its stand-in where obstacles stand
 
 
 @dataclass(frozen=True)
@@ -64,8 +70,12 @@ MATCH_TERMS: dict[str, MatchTerm] = {
 assert all(name in TERMS for name, t in MATCH_TERMS.items() if t.per_agent)
 
 
-def dense_reward(success_kind: str, torso: bool) -> list[dict]:
+def dense_reward(success_kind: str, torso: bool, obstacles: bool = False) -> list[dict]:
     """The reward terms `reward: dense` stands for on a task of this success kind, for an agent with or
-    without a torso (the terms that need one are left out)."""
-    return [dict(t) for t in DENSE_REWARDS[success_kind] if torso or not TERMS[t["term"]].torso]
+    without a torso (the terms that need one are left out), on a field with or without solid obstacles."""
+    terms = [dict(t) for t in DENSE_REWARDS[success_kind] if torso or not TERMS[t["term"]].torso]
+    if obstacles:
+        for t in terms:
+            t["term"] = AROUND_OBSTACLES.get(t["term"], t["term"])
+    return terms
 

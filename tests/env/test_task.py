@@ -182,3 +182,47 @@ def test_the_study_ball_dense_reward():
     v = {name: float(fn(t)) for name, fn in fns.terms.items()}
     assert v == pytest.approx({"ball_progress": 0.05 / DT, "upright": 1.0, "control_cost": -8 * 0.25}, rel=1e-4)
     assert float(fns.reward(v)) == pytest.approx(10 * 0.05 / DT + 1.0 - 0.5 * 2.0, rel=1e-4)
+
+
+def test_path_progress_is_ball_progress_where_no_obstacle_stands(write_spec):
+    terms = "    - {term: ball_progress}\n    - {term: ball_path_progress}\n"
+    t = transition(ball_before=(1, 3, 0.5), ball=(1.2, 3.4, 0.5), target=(0, 10))
+    v, _ = values(write_spec, terms, t)
+    assert v["ball_path_progress"] == pytest.approx(v["ball_progress"], rel=1e-5)
+
+
+GOALIE = "obstacles:\n  goalie: {x: 0, y: 7, width: 3, depth: 0.6, height: 1}\n"  # x in [-1.5, 1.5], y in [6.7, 7.3]
+# (soccer_v1's ball has a radius of 0.5: its centre stays 0.5 from the goalie's faces)
+
+
+def test_path_goes_round_the_goalie_by_its_nearer_corners(write_spec):
+    from fieldgen.env.paths import CORNER_RADII, way_to_target
+
+    spec = spec_with(write_spec, "    - {term: ball_path_progress}\n", GOALIE)
+    out = 1.5 + CORNER_RADII * spec.ball.radius
+    below, above = 6.7 - CORNER_RADII * spec.ball.radius, 7.3 + CORNER_RADII * spec.ball.radius
+    ball, target = np.asarray([0.3, 5.0]), np.asarray([0.0, 10.0])
+    by_hand = (np.hypot(out - 0.3, below - 5.0) + (above - below) + np.hypot(out, 10.0 - above))
+    way = way_to_target(spec)
+    assert float(way(jnp.asarray(ball), jnp.asarray(target))) == pytest.approx(by_hand, rel=1e-5)
+    clear = jnp.asarray([5.0, 9.0])  # beyond the goalie: the straight line
+    assert float(way(clear, jnp.asarray(target))) == pytest.approx(np.hypot(5.0, 1.0), rel=1e-5)
+
+
+def test_a_ball_pushed_round_the_goalie_progresses_where_straight_progress_says_it_loses(write_spec):
+    terms = "    - {term: ball_progress}\n    - {term: ball_path_progress}\n"
+    sideways = transition(ball_before=(0.2, 6.2, 0.5), ball=(0.6, 6.2, 0.5), target=(0, 10))  # against its face
+    v, _ = values(write_spec, terms, sideways, GOALIE)
+    assert v["ball_progress"] < 0 < v["ball_path_progress"]
+    into = transition(ball_before=(0.2, 6.0, 0.5), ball=(0.2, 6.1, 0.5), target=(0, 10))  # straight at the goalie
+    v, _ = values(write_spec, terms, into, GOALIE)
+    assert v["ball_progress"] > 0 and v["ball_path_progress"] == pytest.approx(0.0, abs=0.5)
+
+
+def test_a_ball_pressed_against_the_goalie_still_has_a_way(write_spec):
+    from fieldgen.env.paths import way_to_target
+
+    spec = spec_with(write_spec, "    - {term: ball_path_progress}\n", GOALIE)
+    touching = jnp.asarray([0.0, 6.7 - 0.95 * spec.ball.radius])  # a little inside its radius, as in contact
+    length = float(way_to_target(spec)(touching, jnp.asarray([0.0, 10.0])))
+    assert np.isfinite(length) and length > 10.0 - float(touching[1]) + 2.0  # round an end, not through

@@ -31,7 +31,8 @@ def test_a_field_of_ones_own_takes_the_recipe_of_the_field_it_extends_and_says_s
     own = recipe.choose(bundled_fields()["soccer_v2_dense"], None)
     assert own.line(["--steps"]) == (
         "recipe soccer_v2_dense: ppo, 250M env steps, 4,096 envs, --set ppo.num_evals=25 ppo.spread=global; "
-        "measured: 0.919 success of 1,024 episodes after 250M env steps, one seed (0); --steps overrides it")
+        "measured: 0.919 success of 1,024 episodes after 250M env steps, its ball progress then straight, "
+        "one seed (0); --steps overrides it")
     assert recipe.choose(spec, None, use=False).recipe is None
     other = recipe.choose(spec, "crl")
     assert other.recipe is None and other.algo == "crl" and "not taken: --algo crl" in other.line([])
@@ -84,7 +85,8 @@ def test_list_shows_each_bundled_fields_recipe_and_measured_figure_with_its_seed
     rows = {name: (recipe_text, measured) for name, recipe_text, measured in recipe.listing()}
     assert set(rows) == set(bundled_fields())
     assert rows["soccer_v2_dense"] == ("ppo, 250M env steps, 4,096 envs, --set ppo.num_evals=25 ppo.spread=global",
-                                       "measured: 0.919 success of 1,024 episodes after 250M env steps, one seed (0)")
+                                       "measured: 0.919 success of 1,024 episodes after 250M env steps, its ball "
+                                       "progress then straight, one seed (0)")
     assert rows["ant_nav"][1] == ("measured: IQM 0.923 [0.899, 0.947] success at 14M env steps, 1,024 episodes a "
                                   "seed; five seeds in one program in 414 s on one H200, five fresh seeds (600-604)")
     assert rows["v2_wide_goalie"][1].startswith("not measured yet; the measured route is its dense twin "

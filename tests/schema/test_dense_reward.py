@@ -15,12 +15,13 @@ BALL_TERMS = """  reward:
     - {term: upright, band: [0.2, 1.0]}
     - {term: control_cost, weight: 0.5}
 """
+PATH_TERMS = BALL_TERMS.replace("term: ball_progress", "term: ball_path_progress")  # with a goalie in the way
 AGENT_TERMS = """  reward:
     - {term: agent_progress}
     - {term: upright, band: [0.2, 1.0]}
     - {term: control_cost, weight: 0.5}
 """
-WRITTEN_OUT = {"soccer_v1_dense": ("soccer_v1", BALL_TERMS), "soccer_v2_dense": ("soccer_v2", BALL_TERMS),
+WRITTEN_OUT = {"soccer_v1_dense": ("soccer_v1", BALL_TERMS), "soccer_v2_dense": ("soccer_v2", PATH_TERMS),
                "ant_nav_dense": ("ant_nav", AGENT_TERMS)}
 
 
@@ -52,7 +53,7 @@ def test_a_dense_field_builds_to_the_same_field_json_byte_for_byte(tmp_path):
 def test_fields_that_extend_a_dense_field_inherit_its_generated_terms():
     wide = load_spec(bundled_fields()["v2_wide_goalie_dense"]).task.reward
     assert wide == load_spec(bundled_fields()["soccer_v2_dense"]).task.reward
-    assert [(t.term, t.weight) for t in wide] == [("ball_progress", 10.0), ("agent_approaches_ball", 1.0),
+    assert [(t.term, t.weight) for t in wide] == [("ball_path_progress", 10.0), ("agent_approaches_ball", 1.0),
                                                  ("success", 10.0), ("upright", 1.0), ("control_cost", 0.5)]
 
 
@@ -61,6 +62,16 @@ def test_the_terms_follow_the_task_and_leave_out_what_the_agent_lacks(write_spec
     assert [t.term for t in ball] == ["ball_progress", "agent_approaches_ball", "success", "upright", "control_cost"]
     point = load_spec(write_spec("extends: point_nav\nname: p\ntask: {reward: dense}\n")).task.reward
     assert [(t.term, t.weight) for t in point] == [("agent_progress", 1.0), ("control_cost", 0.5)]  # no torso
+
+
+def test_a_solid_obstacle_measures_the_balls_progress_along_its_way_round(write_spec):
+    def terms(extra: str) -> list[str]:
+        return [t.term for t in load_spec(write_spec(f"extends: ant_ball\nname: b\ntask: {{reward: dense}}\n{extra}")
+                                          ).task.reward]
+
+    assert terms("obstacles:\n  wall: {x: 1, y: 2}\n")[0] == "ball_path_progress"
+    assert terms("obstacles:\n  shadow: {x: 1, y: 2, solid: false}\n")[0] == "ball_progress"  # decorative
+    assert load_spec(bundled_fields()["soccer_v1_dense"]).task.reward[0].term == "ball_progress"  # no goalie
 
 
 def test_a_task_kind_without_generated_terms_is_one_line_naming_the_kinds_with_them(write_spec):
