@@ -17,6 +17,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..env.team_contract import agents_per_env
 from .buffer import gradient_steps
 from .config import ConfigError
 
@@ -98,5 +99,5 @@ def _batch_bytes(trainer, state) -> int:
         row = sum(_bytes(x) // (x.shape[0] * x.shape[1] * x.shape[2]) for x in data)  # [seeds, rows, envs, ...]
         windows, _ = gradient_steps(config, env.episode_length)
         return 2 * windows * env.episode_length * row
-    agents = len(getattr(env, "agent_names", ())) or 1  # a match's every agent steps and is learned from
+    agents = agents_per_env(env)  # a match's every agent steps and is learned from
     return config.num_envs * config.unroll_length * agents * 4 * (env.observation_size + 2 * env.action_size + 6)

@@ -6,8 +6,9 @@ along the shortest way around the obstacles instead, every step round the goalie
 
 The way is the shortest path through a visibility graph: the ball, the target and the four corners of
 each solid obstacle grown by the ball's radius (the ball's centre cannot come nearer its faces), joined
-where the straight segment between two of them crosses no grown obstacle. The graph is small (four
-nodes an obstacle), so every step relaxes it whole, K times for K corners (Bellman and Ford).
+where the straight segment between two of them crosses no grown obstacle. The corners' edges among
+themselves are fixed and found once; every step finds the ball's and the target's, then relaxes the
+corners' ways to the target K times for K corners (Bellman and Ford).
 """
 
 from __future__ import annotations
@@ -53,6 +54,12 @@ def blocked(a: jax.Array, b: jax.Array, boxes: jax.Array) -> jax.Array:
     return jnp.any((leave - enter) * length > TOUCH, -1)
 
 
+def edges(a: jax.Array, b: jax.Array, boxes: jax.Array) -> jax.Array:
+    """The length of each segment a-b (broadcast together, [..., 2]), or infinity where it is blocked."""
+    a, b = jnp.broadcast_arrays(a, b)
+    return jnp.where(blocked(a, b, boxes), jnp.inf, jnp.linalg.norm(a - b, axis=-1))
+
+
 def way_to_target(spec: FieldSpec) -> Way:
     """The length of the ball's shortest way to a target around the spec's solid obstacles; the straight
     distance where the field has none (or where no way around exists, which a sound field never has)."""
@@ -63,20 +70,18 @@ def way_to_target(spec: FieldSpec) -> Way:
     r = spec.ball.radius
     grown = lambda box, by: (box[0] - by, box[1] + by, box[2] - by, box[3] + by)  # noqa: E731
     blocking = jnp.asarray([grown(b, BLOCKING_RADII * r) for b in boxes], jnp.float32)
-    corners = np.asarray([(x, y) for b in boxes for x in grown(b, CORNER_RADII * r)[:2]
-                          for y in grown(b, CORNER_RADII * r)[2:]], np.float32)
-    corners = jnp.asarray(corners)
+    corners = jnp.asarray(np.asarray([(x, y) for b in boxes for x in grown(b, CORNER_RADII * r)[:2]
+                                      for y in grown(b, CORNER_RADII * r)[2:]], np.float32))
+    between_corners = edges(corners[:, None], corners[None, :], blocking)  # [K, K]: the same on every step
     relaxations = len(corners)
 
     def way(ball: jax.Array, target: jax.Array) -> jax.Array:
-        nodes = jnp.concatenate([ball[None, :2], corners, target[None, :2]])  # ball, corners, target
-        a, b = nodes[:, None, :], nodes[None, :, :]
-        edge = jnp.where(blocked(jnp.broadcast_to(a, (len(nodes),) * 2 + (2,)),
-                                 jnp.broadcast_to(b, (len(nodes),) * 2 + (2,)), blocking),
-                         jnp.inf, jnp.linalg.norm(a - b, axis=-1))
-        to_target = edge[:, -1]
-        to_target = jax.lax.fori_loop(0, relaxations,
-                                      lambda _, d: jnp.minimum(d, jnp.min(edge + d[None, :], -1)), to_target)
-        return jnp.where(jnp.isfinite(to_target[0]), to_target[0], straight(ball, target))
+        ends = jnp.stack([ball[:2], target[:2]])  # the graph's two moving nodes
+        to_corners = edges(ends[:, None], corners[None, :], blocking)  # [2, K]: from the ball, from the target
+        corner_way = jax.lax.fori_loop(  # each corner's shortest way on to the target
+            0, relaxations, lambda _, d: jnp.minimum(d, jnp.min(between_corners + d[None, :], -1)), to_corners[1])
+        direct = edges(ends[0], ends[1], blocking)
+        length = jnp.minimum(direct, jnp.min(to_corners[0] + corner_way))
+        return jnp.where(jnp.isfinite(length), length, straight(ball, target))
 
     return way

@@ -18,7 +18,7 @@ import jax.numpy as jnp
 
 from fieldgen.command import fieldgen_command
 from fieldgen.env.mjx_physics import OVERFLOW
-from fieldgen.env.team_contract import TeamEnvironment
+from fieldgen.env.team_contract import TeamEnvironment, agents_per_env
 
 
 @dataclass(frozen=True)
@@ -39,12 +39,7 @@ class Throughput:
 
 def action_shape(env) -> tuple[int, ...]:
     """One env's action: [agents, action_size] for a match (team_contract), [action_size] otherwise."""
-    return (len(env.agent_names), env.action_size) if isinstance(env, TeamEnvironment) else (env.action_size,)
-
-
-def agents_per_env(env) -> int:
-    """Agents that act in one env step: a match's every agent, or the one agent of any other field."""
-    return len(env.agent_names) if isinstance(env, TeamEnvironment) else 1
+    return (agents_per_env(env), env.action_size) if isinstance(env, TeamEnvironment) else (env.action_size,)
 
 
 def rollout_fn(env, n_envs: int, steps: int):

@@ -18,7 +18,8 @@ import env_throughput  # noqa: E402
 sys.path.remove(str(ROOT / "bench"))
 
 import fieldgen  # noqa: E402
-from fieldgen.env.throughput import Throughput, action_shape, agents_per_env  # noqa: E402
+from fieldgen.env.team_contract import agents_per_env  # noqa: E402
+from fieldgen.env.throughput import Throughput, action_shape  # noqa: E402
 
 
 def test_a_team_row_counts_agent_steps_as_match_steps_times_agents():
