@@ -17,7 +17,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..env.team_contract import agents_per_env
+from ..env.contract import agents_per_env
 from .buffer import gradient_steps
 from .config import ConfigError
 

@@ -162,3 +162,9 @@ class Environment(Protocol):
         """`state` (a batch) drawing the levels of its next episodes from `weights` [variant_count, kickoff
         points], which sum to 1 and are 0 where a point is not played, and its `level_counts` multiplied by
         `keep` (same shape: 1 keeps a level's counts, 0 forgets them)."""
+
+
+def agents_per_env(env) -> int:
+    """Agents that act in one env step: a match's every agent (a team environment names them, team_contract),
+    or the one agent of any other field."""
+    return len(getattr(env, "agent_names", ())) or 1

@@ -93,11 +93,6 @@ class TeamEnvironment(Protocol):
         """The reward terms whose values for the two sides sum to zero on every step."""
 
 
-def agents_per_env(env: Any) -> int:
-    """Agents that act in one env step: a match's every agent, or the one agent of any other field."""
-    return len(env.agent_names) if isinstance(env, TeamEnvironment) else 1
-
-
 def refuse_team(env: Any, what: str) -> None:
     """Raise ValueError, one line, where `env` is a match: `what` (a single-agent trainer, say) plays one agent."""
     if isinstance(env, TeamEnvironment):

@@ -18,7 +18,8 @@ import jax.numpy as jnp
 
 from fieldgen.command import fieldgen_command
 from fieldgen.env.mjx_physics import OVERFLOW
-from fieldgen.env.team_contract import TeamEnvironment, agents_per_env
+from fieldgen.env.contract import agents_per_env
+from fieldgen.env.team_contract import TeamEnvironment
 
 
 @dataclass(frozen=True)

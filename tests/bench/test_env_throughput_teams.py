@@ -18,7 +18,7 @@ import env_throughput  # noqa: E402
 sys.path.remove(str(ROOT / "bench"))
 
 import fieldgen  # noqa: E402
-from fieldgen.env.team_contract import agents_per_env  # noqa: E402
+from fieldgen.env.contract import agents_per_env  # noqa: E402
 from fieldgen.env.throughput import Throughput, action_shape  # noqa: E402
 
 
