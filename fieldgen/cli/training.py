@@ -468,6 +468,9 @@ def evaluate(
     video: Annotated[bool, typer.Option(help="write eval.mp4 of one episode of the first run's first seed")] = True,
     video_fmt: VideoFormat = None,
     camera: Annotated[str, typer.Option(help="video camera", **choice("camera", CAMERAS))] = "follow",
+    film_seed: Annotated[Optional[int], typer.Option(
+        parser=bounded("--film-seed", limits.SEED), metavar="SEED",
+        help="film an episode of this training seed instead, as eval_seed<SEED>.mp4")] = None,
     seed: Annotated[int, typer.Option(parser=bounded("--seed", limits.SEED), metavar="SEED",
                                       help="evaluation seed")] = 0,
     actions: Annotated[Optional[str], typer.Option(
@@ -503,7 +506,7 @@ def evaluate(
     from fieldgen.run import selfplay
 
     if any(selfplay.is_team_run(folder) for folder in run_dirs):
-        return _evaluate_team(run_dirs, episodes, seed, actions, field, summary_file, fmt, camera)
+        return _evaluate_team(run_dirs, episodes, seed, actions, field, summary_file, fmt, camera, film_seed)
     evaluating = (str(run_dirs[0]) if len(run_dirs) == 1 else f"{len(run_dirs)} runs") + \
         (f" on {field}" if field is not None else "")
     summary_written = False  # what Ctrl-C leaves: the summary and the video are each written whole or not at all
@@ -514,15 +517,18 @@ def evaluate(
             actions = actions or runs[0].config.eval_actions  # the figures training drew are the ones judged again
             for run in runs:
                 judging.check_memory(run, episodes)
+            filmed_run, filmed_place = judging.filmed(runs, film_seed)
         except (SpecError, ConfigError, record.RunError) as exc:
             fail(str(exc))
         path = summary_file or judging.summary_path(run_dirs, runs[0], field is not None)
-        video_name = judging.video_path(runs[0], run_dirs[0], field is not None)
+        video_name = judging.video_path(run_dirs[filmed_run], None if field is None else runs[0].env.spec.name,
+                                        film_seed)
         files.check_file(path, files.EVAL)  # before evaluating: a file it may not replace is one line now
         if video:
             files.check_file(video_name.with_suffix(f".{fmt}"), files.EVAL, "--no-video")
         try:
-            evaluations = [judging.evaluate(run, episodes, seed, video and k == 0, actions) for k, run in enumerate(runs)]
+            evaluations = [judging.evaluate(run, episodes, seed, filmed_place if video and k == filmed_run else None,
+                                            actions) for k, run in enumerate(runs)]
         except record.RunError as exc:  # the physics outgrew its capacities
             fail(str(exc))
         try:
@@ -563,9 +569,9 @@ def evaluate(
         except WriteError as exc:
             fail(str(exc))
         out.print(f"summary: {path}")
-        if video:  # the first run's first seed's first evaluation episode
-            drawn = EpisodeRecorder(runs[0].env, camera, fmt).save(run_dirs[0], video_name, evaluations[0].episode,
-                                                                    err, files.EVAL)
+        if video:  # the filmed seed's first evaluation episode
+            drawn = EpisodeRecorder(runs[filmed_run].env, camera, fmt).save(
+                run_dirs[filmed_run], video_name, evaluations[filmed_run].episode, err, files.EVAL)
             if drawn is not None:
                 out.print(f"video: {video_name.with_suffix('.' + fmt)} ({drawn} frames, {camera} camera)")
     except KeyboardInterrupt:
@@ -576,12 +582,13 @@ def evaluate(
 
 
 def _evaluate_team(run_dirs: list[Path], episodes: int | None, seed: int, actions: str | None, field: str | None,
-                   summary_file: Path | None, fmt: str | None = None, camera: str = "follow") -> None:
+                   summary_file: Path | None, fmt: str | None = None, camera: str = "follow",
+                   film_seed: int | None = None) -> None:
     """`fieldgen eval` of a self-play run: each seed's last snapshot's wins, draws and losses against a random
     policy and against its snapshot from a third of the way through, and its snapshots' Elo ratings; over several
     seeds, the interquartile mean of the shares won with its 95% bootstrap interval; written to
     RUN/selfplay_eval.json (or --summary); with `fmt`, RUN/eval.mp4 (or .gif) of one match of the first seed's
-    two."""
+    two (of `film_seed`'s: eval_seed<S>)."""
     import json
 
     from fieldgen import files
@@ -591,7 +598,10 @@ def _evaluate_team(run_dirs: list[Path], episodes: int | None, seed: int, action
 
     if len(run_dirs) != 1 or field is not None:
         fail("a self-play run is evaluated alone, on its own field: name one run folder, without --field")
-    path, video_name = summary_file or run_dirs[0] / selfplay.EVALUATION, run_dirs[0] / "eval"
+    from fieldgen.run import evaluate as judging
+
+    path = summary_file or run_dirs[0] / selfplay.EVALUATION
+    video_name = judging.video_path(run_dirs[0], None, film_seed)
     try:
         files.check_file(path, files.EVAL)  # before evaluating: a file it may not replace is one line now
         if fmt is not None:
@@ -600,7 +610,8 @@ def _evaluate_team(run_dirs: list[Path], episodes: int | None, seed: int, action
         if run.state is None:
             fail(f"{run_dirs[0]} has no checkpoint: it has not trained yet; train it with "
                  f"fieldgen train --resume {run_dirs[0]}, then evaluate it")
-        result, filmed = selfplay.evaluate(run, episodes, seed, actions, film=fmt is not None)
+        _, place = judging.filmed([run], film_seed)
+        result, filmed = selfplay.evaluate(run, episodes, seed, actions, film=place if fmt is not None else None)
     except (ConfigError, record.RunError, files.FolderError) as exc:
         fail(str(exc))
     except KeyboardInterrupt:
@@ -641,7 +652,7 @@ def _evaluate_team(run_dirs: list[Path], episodes: int | None, seed: int, action
             fail(str(exc))
         if drawn is not None:
             out.print(f"video: {video_name.with_suffix('.' + fmt)} ({drawn} frames, {camera} camera): snapshot "
-                      f"{result['eval']}{f' of seed {run.seeds[0]}' if several else ''} at home against snapshot "
+                      f"{result['eval']}{f' of seed {run.seeds[place]}' if several else ''} at home against snapshot "
                       f"{earlier['snapshot']}")
 
 

@@ -22,18 +22,19 @@ from fieldgen.run.videos import EpisodeRecorder
 class Evaluation:
     metrics: dict  # metric -> one value per seed
     env_steps: int
-    episode: dict | None  # the first seed's first episode, as EpisodeRecorder.episode gives it
+    episode: dict | None  # the filmed seed's first episode, as EpisodeRecorder.episode gives it
 
 
-def evaluate(run: Run, episodes: int, seed: int = 0, film: bool = True, actions: str | None = None) -> Evaluation:
+def evaluate(run: Run, episodes: int, seed: int = 0, film: int | None = 0, actions: str | None = None) -> Evaluation:
     """`episodes` evaluation episodes per seed of the run's policy, on `run.env`, on its mean actions or (`actions`
     "sampled") on actions drawn as in training; None: as the run's own evaluations acted (its `eval_actions`).
+    `film`: the place in `run.seeds` of the seed whose first episode is filmed, None for none.
     It compiles and runs as training's programs do (agents.programs), so that Ctrl-C reaches the caller at once,
     mid-compile too."""
     judging = {"eval_envs": episodes, "eval_actions": actions or run.config.eval_actions}
     trainer = dataclasses.replace(run, config=run.config.model_copy(update=judging)).judged_trainer
     loop.reserve_worlds(trainer, len(run.seeds))
-    filming = EpisodeRecorder.film if film else None
+    filming = EpisodeRecorder.film if film is not None else None
     judged = jax.vmap(functools.partial(loop.evaluate, trainer, film=filming),
                       in_axes=(0, None))
     key = jax.random.PRNGKey(seed)
@@ -43,7 +44,7 @@ def evaluate(run: Run, episodes: int, seed: int = 0, film: bool = True, actions:
     except PhysicsOverflow as exc:
         raise record.RunError(f"evaluation stopped: {exc}") from None
     steps = int(jax.device_get(run.state.env_steps)[0])
-    episode = EpisodeRecorder(run.env).episode(loop.seed_slice(frames, 0)) if film else None
+    episode = EpisodeRecorder(run.env).episode(loop.seed_slice(frames, film)) if film is not None else None
     return Evaluation(metrics, steps, episode)
 
 
@@ -55,9 +56,24 @@ def check_memory(run: Run, episodes: int) -> None:
                  {memory.EPISODES: "--episodes"})
 
 
-def video_path(run: Run, run_dir: Path, other_field: bool) -> Path:
-    """Where an evaluation's video goes, without its suffix: eval, or eval_<field> on another field."""
-    return run_dir / ("eval" if not other_field else f"eval_{run.env.spec.name}")
+def video_path(run_dir: Path, other_field: str | None = None, seed: int | None = None) -> Path:
+    """Where an evaluation's video goes, without its suffix: eval, or eval_<field> on another field, and
+    _seed<S> after it where a seed to film was named."""
+    name = "eval" if other_field is None else f"eval_{other_field}"
+    return run_dir / (name if seed is None else f"{name}_seed{seed}")
+
+
+def filmed(runs: list[Run], seed: int | None) -> tuple[int, int]:
+    """Which run, and which place in its seeds, holds the training seed `seed` (None: the first run's first);
+    RunError naming the seeds there are when no run trained it."""
+    if seed is None:
+        return 0, 0
+    for k, run in enumerate(runs):
+        if seed in run.seeds:
+            return k, list(run.seeds).index(seed)
+    there = sorted(s for run in runs for s in run.seeds)
+    raise record.RunError(f"--film-seed {seed}: no run evaluated here trained seed {seed}; its seeds are "
+                          f"{', '.join(map(str, there))}")
 
 
 def _trained_on(run: Run) -> str:

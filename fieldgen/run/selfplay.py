@@ -335,13 +335,13 @@ def earlier_snapshot(run: TeamRun) -> int:
 
 
 def evaluate(run: TeamRun, episodes: int | None = None, seed: int = 0, actions: str | None = None,
-             film: bool = False) -> tuple[dict, object]:
+             film: int | None = None) -> tuple[dict, object]:
     """Each seed's last snapshot (its policy as of the last evaluation) against the random policy and against its
     snapshot from a third of the way through, `episodes` each (half on either side, every seed on the same
     kick-offs), with its ratings; over several seeds, also the interquartile mean of the seeds' shares won
-    against each with its 95% bootstrap interval (fieldgen.run.summary). With `film`, also one more match of the
-    first seed's two (the last snapshot at home) filmed for a video (EpisodeRecorder.episode's input), else
-    None."""
+    against each with its 95% bootstrap interval (fieldgen.run.summary). With `film` (a place in `run.seeds`),
+    also one more match of that seed's two (the last snapshot at home) filmed for a video
+    (EpisodeRecorder.episode's input), else None."""
     config = run.config.model_copy(update={"eval_envs": episodes or run.config.eval_envs,
                                            "eval_actions": actions or run.config.eval_actions})
     from fieldgen.agents.config import ConfigError
@@ -364,7 +364,7 @@ def evaluate(run: TeamRun, episodes: int | None = None, seed: int = 0, actions: 
     keys = jnp.broadcast_to(key, (len(run.seeds),) + key.shape)  # one key a seed, so that the matches batch at once
     vs_random, vs_earlier = jax.device_get(jax.jit(jax.vmap(both))(state, keys))
     filmed = jax.jit(lambda state, key: sp.film(sp.snapshot(state, newest), sp.snapshot(state, earlier), key))(
-        loop.seed_slice(state, 0), jax.random.fold_in(key, FILMED)) if film else None
+        loop.seed_slice(state, film), jax.random.fold_in(key, FILMED)) if film is not None else None
     at = {"snapshot": earlier, "env_steps": next(r["env_steps"] for r in run.rows if r["eval"] == earlier)}
     per_seed = {}
     for i, s in enumerate(run.seeds):

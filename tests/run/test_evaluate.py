@@ -150,6 +150,37 @@ def test_eval_plays_as_many_episodes_as_the_runs_evaluations_did_unless_told(tmp
         assert asked.pop() == told
 
 
+def test_film_seed_films_the_run_and_place_that_trained_it(tmp_path, monkeypatch):
+    """--film-seed S films seed S's episode, whichever run of several trained it, as eval_seed<S>; a seed no
+    run trained is one line naming the seeds there are."""
+    from fieldgen.run import evaluate as judging
+
+    first = looks_trained(prepared(tmp_path / "a", "point_nav", "--seed", "1", "--seeds", "2"))
+    second = looks_trained(prepared(tmp_path / "b", "point_nav", "--seed", "5"))
+    asked = []
+
+    def evaluate(run, episodes, seed, film, actions):
+        asked.append((run.seeds, film))
+        if len(asked) == 2:
+            raise KeyboardInterrupt  # both runs were asked
+        return None
+
+    monkeypatch.setattr(judging, "open_runs", lambda folders, field: [session.open_run(f, load_state=False)
+                                                                     for f in folders])
+    monkeypatch.setattr(judging, "evaluate", evaluate)
+    for film_seed, told in (("2", [([1, 2], 1), ([5], None)]), ("5", [([1, 2], None), ([5], 0)])):
+        runner.invoke(app, ["eval", str(first), str(second), "--film-seed", film_seed])
+        assert [(list(seeds), film) for seeds, film in asked] == told
+        asked.clear()
+    assert judging.video_path(second, None, 5) == second / "eval_seed5"
+    assert judging.video_path(second, "point_soccer", 5) == second / "eval_point_soccer_seed5"
+    result = runner.invoke(app, ["eval", str(first), str(second), "--film-seed", "3"])
+    message = " ".join(result.output.split())
+    assert result.exit_code == 1 and message.startswith("error: --film-seed 3: no run evaluated here trained seed "
+                                                        "3; its seeds are 1, 2, 5"), result.output
+    assert not asked
+
+
 def test_bad_evaluations_are_one_line_and_write_nothing(tmp_path):
     untrained = prepared(tmp_path / "a", "point_nav")
     nav = looks_trained(prepared(tmp_path / "b", "point_nav", "--seed", "1"))

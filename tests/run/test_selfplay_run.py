@@ -132,6 +132,10 @@ def test_self_play_writes_ratings_resumes_exactly_and_is_judged(tmp_path, interr
     assert "Elo ratings" in result.output
     assert "snapshot 3 at home against snapshot 1" in " ".join(result.output.split())
     assert any(run.glob("eval.*"))  # the video of that match (or its kept episode where nothing renders)
+    result = runner.invoke(app, ["eval", str(run), "--film-seed", "0", "--summary", str(tmp_path / "s0.json")])
+    assert result.exit_code == 0 and any(run.glob("eval_seed0.*")), result.output
+    result = runner.invoke(app, ["eval", str(run), "--film-seed", "7", "--summary", str(tmp_path / "s7.json")])
+    assert result.exit_code == 1 and "its seeds are 0" in result.output, result.output
     mine = tmp_path / "mine.json"
     mine.write_text("a user's notes\n")
     for target, said in ((run / record.RUN, "was written by fieldgen train, not fieldgen eval"),
