@@ -20,7 +20,8 @@ class MLP(nn.Module):
     then all be the first layer's.
 
     Weights start uniform with variance init_scale / fan_in: 1/3 is the CRL reference's
-    choice (PyTorch's default), 1 is LeCun's. With `matmul` "bfloat16" each layer's product
+    choice (PyTorch's default), 1 is LeCun's; the output layer's with out_scale / fan_in where
+    given (a policy's small first outputs keep its squashed actions off their bounds at the start). With `matmul` "bfloat16" each layer's product
     reads its input and weights rounded to bfloat16 and sums in float32 (MATMULS): the weights,
     the layer norms and everything between layers stay float32."""
 
@@ -28,6 +29,7 @@ class MLP(nn.Module):
     out: int
     layer_norm: bool = False
     init_scale: float = 1 / 3
+    out_scale: float | None = None
     skip_every: int = 0
     matmul: str = "float32"
 
@@ -36,7 +38,7 @@ class MLP(nn.Module):
         init = nn.initializers.variance_scaling(self.init_scale, "fan_in", "uniform")
         product = MATMULS[self.matmul]
 
-        def dense(x, width):
+        def dense(x, width, init=init):
             return nn.Dense(width, kernel_init=init, dot_general=product)(x)
 
         def layer(x, width):
@@ -54,7 +56,9 @@ class MLP(nn.Module):
                 for width in block:
                     y = layer(y, width)
                 x = x + y
-        return dense(x, self.out)
+        last = init if self.out_scale is None else nn.initializers.variance_scaling(self.out_scale, "fan_in",
+                                                                                   "uniform")
+        return dense(x, self.out, last)
 
 
 def _bfloat16_product(lhs, rhs, dimension_numbers, precision=None, preferred_element_type=None, **kw):

@@ -36,9 +36,8 @@ from pydantic import Field
 
 from .config import ConfigError, Count, Float, Rate, Share, Unknown
 from .loop import batched_with
-from .networks import MLP
 from .ppo.config import PPOConfig
-from .ppo.train import Normalizer, advantages, gaussian, squashed_entropy
+from .ppo.train import Normalizer, advantages, gaussian, networks, squashed_entropy
 
 POOL_SAMPLINGS = ("recency", "win_rate")
 PoolSampling = Annotated[Literal[POOL_SAMPLINGS], Unknown(
@@ -141,8 +140,7 @@ def make_selfplay(config: SelfPlayConfig, env) -> SelfPlay:
     agents, n_obs, n_act = len(env.agent_names), env.observation_size, env.action_size
     sides = jnp.asarray(env.agent_sides, jnp.int32)
     snapshots = c.num_evals + 1
-    policy_net = MLP(c.hidden, n_act * (2 if c.spread == "state" else 1), init_scale=1.0)
-    value_net = MLP(c.hidden, 1, init_scale=1.0)
+    policy_net, value_net = networks(c, n_act)
     tx = optax.chain(optax.clip_by_global_norm(c.max_grad_norm), optax.adam(c.learning_rate))
     batch = c.num_envs * c.unroll_length * agents
     minibatch = batch // c.num_minibatches

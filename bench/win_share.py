@@ -7,6 +7,8 @@ beside the target, drawn from the metrics file kept in bench/results.
 
     python bench/win_share.py bench/results/selfplay_soccer_1v1/h200_tuning_800to802.metrics.jsonl --target 0.9 \\
         -o bench/results/selfplay_soccer_1v1/win_share.png --title "PPO self-play on soccer_1v1, one H200"
+
+Several settings (LABEL=FILE) are drawn as panels side by side, on one scale of env steps and share.
 """
 
 from __future__ import annotations
@@ -27,7 +29,8 @@ def win_shares(rows: list[dict]) -> dict[int, tuple[list[int], list[float]]]:
     return out
 
 
-def draw(rows: list[dict], out: Path, title: str, target: float | None) -> None:
+def draw(settings: dict[str, list[dict]], out: Path, title: str, target: float | None) -> None:
+    """One panel per setting (label -> a run's rows), its seeds' lines and the target's."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -35,24 +38,31 @@ def draw(rows: list[dict], out: Path, title: str, target: float | None) -> None:
 
     from fieldgen.run.plots import save_figure
 
-    fig, ax = plt.subplots(figsize=(7, 4))
-    for seed, (steps, shares) in win_shares(rows).items():
-        ax.plot(steps, shares, marker="o", ms=3, label=f"seed {seed}")
-    if target is not None:
-        ax.axhline(target, color="grey", ls="--", label=f"target {target:g}")
-    ax.set(xlabel="env steps", ylabel="share of matches won", title="against a random policy", ylim=(-0.02, 1.02))
-    save_figure(fig, [ax], title, out)
+    fig, axes = plt.subplots(1, len(settings), figsize=(7 * len(settings), 4), sharex=True, sharey=True,
+                             squeeze=False)
+    for ax, (label, rows) in zip(axes[0], settings.items()):
+        for seed, (steps, shares) in win_shares(rows).items():
+            ax.plot(steps, shares, marker="o", ms=3, label=f"seed {seed}")
+        if target is not None:
+            ax.axhline(target, color="grey", ls="--", label=f"target {target:g}")
+        ax.set(xlabel="env steps", ylabel="share of matches won", ylim=(-0.02, 1.02),
+               title=f"{label}: against a random policy" if label else "against a random policy")
+    save_figure(fig, list(axes[0]), title, out)
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("metrics", type=Path, help="a self-play run's metrics.jsonl")
+    parser.add_argument("metrics", nargs="+", metavar="[LABEL=]FILE",
+                        help="a self-play run's metrics.jsonl, labelled for a panel of its own")
     parser.add_argument("-o", "--out", type=Path, required=True, help="the plot (PNG)")
     parser.add_argument("--title", default="")
     parser.add_argument("--target", type=float, help="a share to draw as a dashed line")
     args = parser.parse_args()
-    rows = [json.loads(line) for line in args.metrics.read_text().splitlines() if line.strip()]
-    draw(rows, args.out, args.title, args.target)
+    settings = {}
+    for given in args.metrics:
+        label, _, name = given.rpartition("=")
+        settings[label] = [json.loads(line) for line in Path(name).read_text().splitlines() if line.strip()]
+    draw(settings, args.out, args.title, args.target)
     print(f"plot: {args.out}")
 
 

@@ -31,6 +31,9 @@ class PPOConfig(RunConfig):
     value_coef: Rate = 0.5
     max_grad_norm: Rate = 1.0
     hidden: Hidden = (256, 256)
+    # the variance scale of the policy's output layer's first weights (its hidden layers': 1): small, so that
+    # the first actions sit mid-range rather than on the bounds tanh squashes them to
+    policy_out_scale: Annotated[Float, Field(gt=0)] = 1e-2
     # state: the policy network's softplus head (brax's); global: one learned log-std per action
     spread: Spread = "state"
     reward: Reward = "dense"  # dense: the field's weighted terms; sparse: its success metric

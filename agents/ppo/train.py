@@ -116,13 +116,20 @@ def squashed_entropy(mean, log_std, noise):
     return jnp.sum(gaussian + tanh_log_slope(fresh), -1)
 
 
+def networks(c: PPOConfig, action_size: int) -> tuple[MLP, MLP]:
+    """The policy network (the pre-tanh mean, and per state its spread) and the value network, LeCun-initialised;
+    the policy's output layer at `c.policy_out_scale`."""
+    policy = MLP(c.hidden, action_size * (2 if c.spread == "state" else 1), init_scale=1.0,
+                 out_scale=c.policy_out_scale)
+    return policy, MLP(c.hidden, 1, init_scale=1.0)
+
+
 def make_train(config: PPOConfig, env) -> Trainer:
     c = config
     iters_per_eval = c.total_steps // (c.num_envs * c.unroll_length) // c.num_evals
     if iters_per_eval < 1:
         raise ValueError(f"total_steps {c.total_steps:,} leaves no iteration between evaluations")
-    policy_net = MLP(c.hidden, env.action_size * (2 if c.spread == "state" else 1), init_scale=1.0)
-    value_net = MLP(c.hidden, 1, init_scale=1.0)
+    policy_net, value_net = networks(c, env.action_size)
     tx = optax.chain(optax.clip_by_global_norm(c.max_grad_norm), optax.adam(c.learning_rate))
     batch = c.num_envs * c.unroll_length
     minibatch = batch // c.num_minibatches

@@ -36,6 +36,36 @@ def test_a_normalizer_that_has_counted_nothing_passes_observations_unscaled():
 
 
 @pytest.mark.parametrize("spread", SPREADS)
+def test_a_small_policy_output_scale_starts_the_actions_near_the_middle_of_their_range(spread):
+    """The policy's output layer alone is scaled: its first pre-tanh means shrink with policy_out_scale, the
+    hidden layers and the value network are drawn as before, and its gradients still flow."""
+    from fieldgen.agents.ppo.train import gaussian, networks
+
+    obs = jax.random.normal(jax.random.PRNGKey(1), (512, 12)) * 3.0
+    means, params = {}, {}
+    for scale in (1.0, 1e-4):
+        policy, value = networks(tiny(spread=spread, policy_out_scale=scale), 4)
+        params[scale] = {"policy": policy.init(jax.random.PRNGKey(0), obs[:1])}
+        if spread == "global":
+            params[scale]["log_std"] = jnp.zeros(4)
+        means[scale], _ = gaussian(policy, spread, params[scale], obs)
+        value_params = value.init(jax.random.PRNGKey(0), obs[:1])
+    assert float(jnp.abs(means[1.0]).mean()) > 0.3
+    shrunk = float(jnp.abs(means[1e-4]).mean() / jnp.abs(means[1.0]).mean())
+    assert 0.005 < shrunk < 0.02  # the output weights' spread: the square root of the variance's 1e-4
+    hidden = [k for k in params[1.0]["policy"]["params"] if k != max(params[1.0]["policy"]["params"])]
+    for k in hidden:  # the same draws for every layer below the output
+        np.testing.assert_array_equal(params[1.0]["policy"]["params"][k]["kernel"],
+                                      params[1e-4]["policy"]["params"][k]["kernel"])
+    policy, _ = networks(tiny(spread=spread, policy_out_scale=1e-4), 4)
+    grads = jax.grad(lambda p: jnp.sum(gaussian(policy, spread, p, obs)[0]))(params[1e-4])
+    assert all(float(jnp.abs(g).max()) > 0 for g in jax.tree.leaves(grads["policy"]))
+    assert value_params["params"]  # the value network is built beside it
+    with pytest.raises(ValueError, match="policy_out_scale"):
+        tiny(policy_out_scale=0)
+
+
+@pytest.mark.parametrize("spread", SPREADS)
 @pytest.mark.slow
 def test_resume_reproduces_the_uninterrupted_run(env_cache, spread):
     algo = ppo.make_train(tiny(spread=spread), env_cache("point_nav"))

@@ -25,7 +25,7 @@ def test_the_measured_recipes_are_the_commands_their_figures_came_from():
     table = recipes.read()
     dense = table["soccer_v2_dense"]
     assert (dense.algo, dense.steps, dense.envs, dense.sets) == (
-        "ppo", 250_000_000, 4096, ("ppo.num_evals=25", "ppo.spread=global"))
+        "ppo", 250_000_000, 4096, ("ppo.num_evals=25", "ppo.spread=global", "ppo.policy_out_scale=1.0"))
     assert "0.919" in dense.measured.figure and dense.measured.seeds == "one seed (0)"
     ant = table["ant_nav"]
     assert (ant.algo, ant.steps, ant.sets) == ("crl", 14_000_000, ("crl.num_evals=7",))

@@ -29,6 +29,11 @@ def test_each_seed_gets_its_share_won_in_env_step_order():
     assert win_share.win_shares([row(0, 5, 3, 1, 0)])[0][1] == [pytest.approx(0.75)]  # counts as well as shares
 
 
-def test_the_plot_is_written(tmp_path):
-    win_share.draw([row(0, 0, 0.0, 1.0, 0.0), row(0, 10, 0.9, 0.1, 0.0)], tmp_path / "w.png", "title", 0.9)
+def test_the_plot_is_written_with_a_panel_per_setting(tmp_path):
+    rows = [row(0, 0, 0.0, 1.0, 0.0), row(0, 10, 0.9, 0.1, 0.0)]
+    win_share.draw({"": rows}, tmp_path / "w.png", "title", 0.9)
     assert (tmp_path / "w.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    from PIL import Image
+
+    win_share.draw({"a": rows, "b": rows}, tmp_path / "two.png", "title", None)
+    assert Image.open(tmp_path / "two.png").width > 1.5 * Image.open(tmp_path / "w.png").width
