@@ -491,6 +491,8 @@ def evaluate(
     Example: fieldgen eval runs/point_nav-crl-0to4 --episodes 256
     Example: fieldgen eval runs/point_nav-crl-0 runs/point_nav-crl-1 runs/point_nav-crl-2 --summary runs/crl.json
     """
+    if film_seed is not None and not video:
+        fail(f"--film-seed {film_seed} names the seed to film, and --no-video films none; drop one of them")
     fmt = video_format(video_fmt) if video else None
     from fieldgen import files
     from fieldgen.agents.config import ConfigError

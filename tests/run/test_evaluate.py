@@ -179,6 +179,9 @@ def test_film_seed_films_the_run_and_place_that_trained_it(tmp_path, monkeypatch
     assert result.exit_code == 1 and message.startswith("error: --film-seed 3: no run evaluated here trained seed "
                                                         "3; its seeds are 1, 2, 5"), result.output
     assert not asked
+    result = runner.invoke(app, ["eval", str(first), "--film-seed", "1", "--no-video"])
+    message = " ".join(result.output.split())
+    assert result.exit_code == 1 and "--no-video films none; drop one of them" in message and not asked
 
 
 def test_bad_evaluations_are_one_line_and_write_nothing(tmp_path):
