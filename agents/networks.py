@@ -21,9 +21,10 @@ class MLP(nn.Module):
 
     Weights start uniform with variance init_scale / fan_in: 1/3 is the CRL reference's
     choice (PyTorch's default), 1 is LeCun's; the output layer's with out_scale / fan_in where
-    given (a policy's small first outputs keep its squashed actions off their bounds at the start). With `matmul` "bfloat16" each layer's product
-    reads its input and weights rounded to bfloat16 and sums in float32 (MATMULS): the weights,
-    the layer norms and everything between layers stay float32."""
+    given (a policy's small first outputs keep its squashed actions off their bounds at the
+    start). With `matmul` "bfloat16" each layer's product reads its input and weights rounded
+    to bfloat16 and sums in float32 (MATMULS): the weights, the layer norms and everything
+    between layers stay float32."""
 
     hidden: Sequence[int]
     out: int
@@ -56,9 +57,9 @@ class MLP(nn.Module):
                 for width in block:
                     y = layer(y, width)
                 x = x + y
-        last = init if self.out_scale is None else nn.initializers.variance_scaling(self.out_scale, "fan_in",
-                                                                                   "uniform")
-        return dense(x, self.out, last)
+        if self.out_scale is None:
+            return dense(x, self.out)
+        return dense(x, self.out, nn.initializers.variance_scaling(self.out_scale, "fan_in", "uniform"))
 
 
 def _bfloat16_product(lhs, rhs, dimension_numbers, precision=None, preferred_element_type=None, **kw):
