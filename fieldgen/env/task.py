@@ -99,6 +99,24 @@ def _agent_approaches_ball(t: Transition, cfg: RewardTerm) -> jax.Array:
     return (_dist(t.agent_before, t.ball_before) - _dist(t.agent, t.ball)) / t.dt
 
 
+@builds("agent_behind_ball")
+def _agent_behind_ball(spec: FieldSpec, cfg: RewardTerm) -> TermFn:
+    """Approach to the point behind the ball on its way to the target, so that the agent's pushes send the
+    ball along that way: the way's slope at the ball points back along it (away from the next corner of the
+    way round a goalie, or from the target where nothing stands between)."""
+    way = way_to_target(spec)
+    slope = jax.grad(way)
+    body = geometry.ANT_TORSO_RADIUS if spec.agent.kind == "ant" else geometry.POINT_RADIUS
+    behind = spec.ball.radius + body
+
+    def push_point(ball: jax.Array, target: jax.Array) -> jax.Array:
+        back = jnp.nan_to_num(slope(ball[:2], target[:2]))  # no slope where the ball sits on the target
+        return ball[:2] + behind * back / jnp.maximum(jnp.linalg.norm(back), 1e-6)
+
+    return lambda t: (_dist(t.agent_before, push_point(t.ball_before, t.target))
+                      - _dist(t.agent, push_point(t.ball, t.target))) / t.dt
+
+
 @term("agent_progress")
 def _agent_progress(t: Transition, cfg: RewardTerm) -> jax.Array:
     """Decrease of the agent's distance to the target, per second."""

@@ -27,6 +27,10 @@ TERMS: dict[str, Term] = {
                                "field's solid obstacles, per second (ball_progress where none stands between)",
                                ball=True),
     "agent_approaches_ball": Term("decrease of the agent's distance to the ball, per second", ball=True),
+    "agent_behind_ball": Term("decrease of the agent's distance to the point behind the ball from which a push "
+                              "sends it along its shortest way to the target (round the solid obstacles), one "
+                              "ball radius plus the agent's body radius from the ball's centre, per second",
+                              ball=True),
     "agent_progress": Term("decrease of the agent's distance to the target, per second"),
     "upright": Term("1 while the torso height is inside band (default [0.2, 1.0])", torso=True),
     "control_cost": Term("-sum(action^2): give it a positive weight"),

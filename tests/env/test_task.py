@@ -226,3 +226,45 @@ def test_a_ball_pressed_against_the_goalie_still_has_a_way(write_spec):
     touching = jnp.asarray([0.0, 6.7 - 0.95 * spec.ball.radius])  # a little inside its radius, as in contact
     length = float(way_to_target(spec)(touching, jnp.asarray([0.0, 10.0])))
     assert np.isfinite(length) and length > 10.0 - float(touching[1]) + 2.0  # round an end, not through
+
+
+BEHIND = 0.5 + 0.25  # soccer_v1's ball radius plus the ant's torso radius
+
+
+def test_behind_ball_pays_the_approach_to_the_point_behind_the_ball_from_the_target(write_spec):
+    terms = "    - {term: agent_behind_ball}\n"
+    ball = (0.0, 5.0, 0.5)  # the target straight ahead at (0, 10): the point behind the ball is (0, 5 - BEHIND)
+    to_it = transition(ball_before=ball, ball=ball, agent_before=(1.0, 3.0, 0.55), agent=(0.0, 3.0, 0.55))
+    v, _ = values(write_spec, terms, to_it)
+    by_hand = (np.hypot(1.0, 5.0 - BEHIND - 3.0) - (5.0 - BEHIND - 3.0)) / DT
+    assert v["agent_behind_ball"] == pytest.approx(by_hand, rel=1e-4)
+    in_front = transition(ball_before=ball, ball=ball, agent_before=(0.0, 6.0, 0.55), agent=(0.0, 6.1, 0.55))
+    v, _ = values(write_spec, terms, in_front)
+    assert v["agent_behind_ball"] < 0  # walking away on the far side of the ball
+
+
+def test_an_agent_following_the_ball_it_pushes_keeps_its_distance_to_the_point(write_spec):
+    terms = "    - {term: agent_behind_ball}\n"
+    pushed = transition(ball_before=(0, 5, 0.5), ball=(0, 5.1, 0.5), agent_before=(0, 5 - BEHIND, 0.55),
+                        agent=(0, 5.1 - BEHIND, 0.55))
+    v, _ = values(write_spec, terms, pushed)
+    assert v["agent_behind_ball"] == pytest.approx(0.0, abs=1e-3)
+
+
+def test_behind_ball_points_the_push_round_the_goalie(write_spec):
+    # the ball against the goalie's face, right of its centre: its way runs round the right end, so the point
+    # behind it lies to its left, and an agent stepping left (not straight up behind it) approaches it
+    terms = "    - {term: agent_behind_ball}\n"
+    ball = (0.6, 6.2, 0.5)
+    left = transition(ball_before=ball, ball=ball, agent_before=(0.6, 5.0, 0.55), agent=(0.4, 5.0, 0.55))
+    right = transition(ball_before=ball, ball=ball, agent_before=(0.6, 5.0, 0.55), agent=(0.8, 5.0, 0.55))
+    v_left, _ = values(write_spec, terms, left, GOALIE)
+    v_right, _ = values(write_spec, terms, right, GOALIE)
+    assert v_left["agent_behind_ball"] > 0 > v_right["agent_behind_ball"]
+
+
+def test_behind_ball_is_finite_with_the_ball_on_the_target(write_spec):
+    terms = "    - {term: agent_behind_ball}\n"
+    on = transition(ball_before=(0, 10, 0.5), ball=(0, 10, 0.5), agent_before=(1, 8, 0.55), agent=(0.9, 8, 0.55))
+    v, _ = values(write_spec, terms, on)
+    assert np.isfinite(v["agent_behind_ball"])
