@@ -64,7 +64,7 @@ class Recipe:
         parts = [self.algo]
         parts += [f"{short_count(self.steps)} env steps"] if self.steps else []
         parts += [f"{self.envs:,} envs"] if self.envs else []
-        parts += [f"--set {' '.join(self.sets)}"] if self.sets else []
+        parts += [" ".join(f"--set {item}" for item in self.sets)] if self.sets else []
         parts += [f"--preset {self.preset}"] if self.preset else []
         parts += [f"--curriculum {self.curriculum}"] if self.curriculum else []
         return ", ".join(parts) if len(parts) > 1 else f"{self.algo} with its defaults"

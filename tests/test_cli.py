@@ -61,6 +61,14 @@ def test_unknown_field_name_is_a_clear_error():
     assert "did you mean 'soccer_v2'?" in result.output and "ant_ball" not in result.output  # not all 24 names
 
 
+def test_settings_after_one_set_are_answered_with_a_set_each():
+    result = runner.invoke(app, ["train", "point_nav", "--set", "ppo.num_evals=2", "ppo.discount=0.99"])
+    assert result.exit_code == 2
+    assert "give each setting its own --set: --set ppo.discount=0.99" in re.sub(r"[\s│]+", " ", result.output)
+    plain = runner.invoke(app, ["train", "point_nav", "extra"])
+    assert plain.exit_code == 2 and "--set" not in plain.output
+
+
 def test_a_mistyped_path_or_a_curriculum_index_is_answered_with_what_was_meant(tmp_path, monkeypatch):
     """A path to a file that is not there gets the nearest file of its folder; a curriculum's curriculum.yaml,
     which reads as a field with five unknown keys, gets its folder."""

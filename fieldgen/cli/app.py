@@ -18,10 +18,28 @@ from fieldgen.schema.errors import shown_text
 from fieldgen.suggest import did_you_mean
 from fieldgen.version import VERSION
 
+try:
+    from typer._click.exceptions import UsageError  # the click that typer carries inside it
+except ImportError:  # a typer that uses the click package
+    from click import UsageError
+
 
 class Command(ReadableCommand):
     """A command that fails on a path the system refuses (a name too long for it, a loop of links, no
     permission, a full disk) says so in one line naming the path, as any other bad input, not in a traceback."""
+
+    def parse_args(self, ctx, args):
+        """Words left over that read KEY=VALUE were meant as settings: say that each takes its own --set."""
+        try:
+            return super().parse_args(ctx, args)
+        except UsageError as exc:
+            left = re.fullmatch(r"Got unexpected extra argument(?:s|\(s\))? \((.*)\)", exc.message)
+            takes_sets = any("--set" in getattr(param, "opts", ()) for param in self.params)
+            settings = [word for word in left.group(1).split() if "=" in word] if left and takes_sets else []
+            if settings:
+                exc.message += ("; give each setting its own --set: "
+                                + " ".join(f"--set {word}" for word in settings))
+            raise
 
     def invoke(self, ctx):
         try:
