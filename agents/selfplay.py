@@ -37,7 +37,7 @@ from pydantic import Field
 from .config import ConfigError, Count, Float, Rate, Share, Unknown
 from .loop import batched_with
 from .ppo.config import PPOConfig
-from .ppo.train import Normalizer, advantages, gaussian, networks, squashed_entropy
+from .ppo.train import Normalizer, advantages, gaussian, networks, optimizer, squashed_entropy
 
 POOL_SAMPLINGS = ("recency", "win_rate")
 PoolSampling = Annotated[Literal[POOL_SAMPLINGS], Unknown(
@@ -141,7 +141,7 @@ def make_selfplay(config: SelfPlayConfig, env) -> SelfPlay:
     sides = jnp.asarray(env.agent_sides, jnp.int32)
     snapshots = c.num_evals + 1
     policy_net, value_net = networks(c, n_act)
-    tx = optax.chain(optax.clip_by_global_norm(c.max_grad_norm), optax.adam(c.learning_rate))
+    tx = optimizer(c)
     batch = c.num_envs * c.unroll_length * agents
     minibatch = batch // c.num_minibatches
     sampled_eval = c.eval_actions == "sampled"

@@ -14,6 +14,11 @@ Spread = Annotated[Literal[SPREADS], Unknown(
     "unknown ppo.spread '{}'; choose global (one learned log-std per action) "
     "or state (the policy network's own spread for each state)")]
 
+GRAD_CLIPS = ("together", "apart")
+GradClip = Annotated[Literal[GRAD_CLIPS], Unknown(
+    "unknown ppo.grad_clip '{}'; choose together (one norm over the policy's and the value's gradients) "
+    "or apart (each network's own)")]
+
 
 class PPOConfig(RunConfig):
     algo: ClassVar[str] = "ppo"
@@ -30,6 +35,9 @@ class PPOConfig(RunConfig):
     entropy_coef: Annotated[Float, Field(ge=0)] = 1e-2
     value_coef: Rate = 0.5
     max_grad_norm: Rate = 1.0
+    # together: one norm over the policy's and the value's gradients, whose value part (a regression on returns
+    # of hundreds) sets how far both move; apart: each network's gradients clipped to max_grad_norm on its own
+    grad_clip: GradClip = "together"
     hidden: Hidden = (256, 256)
     # the variance scale of the policy's output layer's first weights (its hidden layers': 1): small, so that
     # the first actions sit mid-range rather than on the bounds tanh squashes them to

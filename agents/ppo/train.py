@@ -124,13 +124,23 @@ def networks(c: PPOConfig, action_size: int) -> tuple[MLP, MLP]:
     return policy, MLP(c.hidden, 1, init_scale=1.0)
 
 
+def optimizer(c: PPOConfig) -> optax.GradientTransformation:
+    """Adam after clipping the gradients' norm, over both networks together or over each apart (the policy's
+    global spread, `log_std`, goes with the policy)."""
+    step = lambda: optax.chain(optax.clip_by_global_norm(c.max_grad_norm), optax.adam(c.learning_rate))  # noqa: E731
+    if c.grad_clip == "together":
+        return step()
+    network = lambda params: {key: "value" if key == "value" else "policy" for key in params}  # noqa: E731
+    return optax.multi_transform({"policy": step(), "value": step()}, network)
+
+
 def make_train(config: PPOConfig, env) -> Trainer:
     c = config
     iters_per_eval = c.total_steps // (c.num_envs * c.unroll_length) // c.num_evals
     if iters_per_eval < 1:
         raise ValueError(f"total_steps {c.total_steps:,} leaves no iteration between evaluations")
     policy_net, value_net = networks(c, env.action_size)
-    tx = optax.chain(optax.clip_by_global_norm(c.max_grad_norm), optax.adam(c.learning_rate))
+    tx = optimizer(c)
     batch = c.num_envs * c.unroll_length
     minibatch = batch // c.num_minibatches
 

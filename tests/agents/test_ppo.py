@@ -65,6 +65,37 @@ def test_a_small_policy_output_scale_starts_the_actions_near_the_middle_of_their
         tiny(policy_out_scale=0)
 
 
+def test_gradients_clipped_apart_move_the_policy_as_if_the_value_network_were_not_there():
+    """Apart, the policy's steps are those of its gradients alone, whatever the value's gradients' size from
+    step to step; together, a large value gradient shrinks the policy's share of the one norm."""
+    import optax
+
+    from fieldgen.agents.ppo.train import optimizer
+
+    policy = {"w": jnp.asarray([0.3, -0.2])}
+    params = {"policy": policy, "log_std": jnp.zeros(2), "value": {"w": jnp.zeros(3)}}
+    policy_grads = [{"w": jnp.asarray([0.4, 0.1])}, {"w": jnp.asarray([-0.2, 0.3])}, {"w": jnp.asarray([0.1, 0.1])}]
+    value_sizes = [100.0, 1.0, 30.0]
+
+    def steps(c, with_value: bool):
+        tx = optimizer(c)
+        p = params if with_value else {"policy": policy, "log_std": params["log_std"]}
+        state = tx.init(p)
+        for g, size in zip(policy_grads, value_sizes):
+            grads = {"policy": g, "log_std": jnp.full(2, 0.05)}
+            if with_value:
+                grads["value"] = {"w": jnp.full(3, size)}
+            updates, state = tx.update(grads, state, p)
+            p = optax.apply_updates(p, updates)
+        return p["policy"]["w"]
+
+    alone = steps(tiny(grad_clip="apart"), with_value=False)
+    np.testing.assert_allclose(steps(tiny(grad_clip="apart"), with_value=True), alone, rtol=1e-6)
+    assert not np.allclose(steps(tiny(grad_clip="together"), with_value=True), alone, rtol=1e-3)
+    with pytest.raises(ValueError, match="grad_clip"):
+        tiny(grad_clip="each")
+
+
 @pytest.mark.parametrize("spread", SPREADS)
 @pytest.mark.slow
 def test_resume_reproduces_the_uninterrupted_run(env_cache, spread):
