@@ -87,8 +87,8 @@ def test_train_prints_the_recipe_its_overrides_and_the_warning_once_and_run_json
 def test_list_shows_each_bundled_fields_recipe_and_measured_figure_with_its_seeds():
     rows = {name: (recipe_text, measured) for name, recipe_text, measured in recipe.listing()}
     assert set(rows) == set(bundled_fields())
-    assert rows["soccer_v2_dense"] == ("ppo, 250M env steps, 4,096 envs, --set ppo.num_evals=25 --set ppo.spread=global "
-                                       "--set ppo.policy_out_scale=1.0",
+    assert rows["soccer_v2_dense"] == ("ppo, 250M env steps, 4,096 envs, --set ppo.num_evals=25 "
+                                       "--set ppo.spread=global --set ppo.policy_out_scale=1.0",
                                        "measured: 0.919 success of 1,024 episodes after 250M env steps, its ball "
                                        "progress then straight, one seed (0)")
     assert rows["ant_nav"][1] == ("measured: IQM 0.923 [0.899, 0.947] success at 14M env steps, 1,024 episodes a "
