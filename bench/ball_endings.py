@@ -1,0 +1,88 @@
+"""Where an exported policy leaves the ball: episode by episode, the ball's closest approach to the target and
+where it ends, so that a success rate of 0.4 can be read as "scores in 4 of 10 kick-offs and brings the ball
+near the target without scoring in 5" or "pins it against an obstacle in 6". Episodes are played on the CPU
+(or whatever JAX finds) with the policy's mean actions, as `fieldgen eval` plays them.
+
+    fieldgen export RUN --seed 730 -o policies/730
+    python bench/ball_endings.py policies/730 --field RUN/field --episodes 32 --out endings.jsonl
+
+Prints how many episodes scored (the ball's centre within the success radius of the target at some step),
+came near without scoring (closest within --near metres), and ended elsewhere (and how many of those the
+agent left where it started), with the 1 m cells where
+the ball most often ends; --out keeps one row per episode.
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import json
+from pathlib import Path
+
+import numpy as np
+
+
+def endings(policy: Path, field: str, episodes: int, seed: int) -> list[dict]:
+    """One row per episode: the ball's closest distance to the target, its final position, whether it scored."""
+    import jax
+
+    import fieldgen
+
+    names = json.loads((policy / "policy.json").read_text())["observation_names"]
+    if "ball.x" not in names:
+        raise SystemExit(f"{policy}: its policy observes no ball (a field without one): nothing to follow")
+    env = fieldgen.make(field)
+    act = jax.vmap(fieldgen.load_policy(policy))
+    ball = [names.index("ball.x"), names.index("ball.y")]
+    goal = [names.index("goal.x"), names.index("goal.y")]
+
+    def step(state, _):
+        state = jax.vmap(env.step)(state, act(state.obs))
+        return state, (state.obs[:, ball], state.obs[:, goal], state.metrics["success"])
+
+    @jax.jit
+    def play(key):
+        state = jax.vmap(env.reset)(jax.random.split(key, episodes))
+        # one step short of the episode's length: the last step would start the next episode (auto-reset)
+        _, trace = jax.lax.scan(step, state, None, length=env.episode_length - 1)
+        return trace
+
+    ball_xy, goal_xy, success = (np.asarray(x) for x in play(jax.random.PRNGKey(seed)))
+    distance = np.linalg.norm(ball_xy - goal_xy, axis=-1)
+    return [{"episode": i, "scored": bool(success[:, i].max() > 0), "closest": float(distance[:, i].min()),
+             "start": [round(float(v), 3) for v in ball_xy[0, i]],
+             "final": [round(float(v), 3) for v in ball_xy[-1, i]]} for i in range(episodes)]
+
+
+def report(rows: list[dict], near: float) -> str:
+    scored = sum(r["scored"] for r in rows)
+    close = sum(not r["scored"] and r["closest"] <= near for r in rows)
+    still = sum(not r["scored"] and r["closest"] > near and np.hypot(*np.subtract(r["final"], r["start"])) < 0.5
+                for r in rows)
+    cells = collections.Counter((round(r["final"][0]), round(r["final"][1])) for r in rows if not r["scored"])
+    common = ", ".join(f"({x}, {y}) x{n}" for (x, y), n in cells.most_common(5))
+    return (f"{len(rows)} episodes: {scored} scored, {close} came within {near} m of the target without scoring, "
+            f"{len(rows) - scored - close} ended farther ({still} of them within 0.5 m of where the ball started); where the ball ends in episodes without a score "
+            f"(1 m cells): {common or '-'}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("policies", nargs="+", type=Path, help="folders written by `fieldgen export`")
+    parser.add_argument("--field", required=True, help="the field they play: a run's field/ folder, YAML or name")
+    parser.add_argument("--episodes", type=int, default=32)
+    parser.add_argument("--seed", type=int, default=0, help="the seed of the episodes' kick-offs")
+    parser.add_argument("--near", type=float, default=1.5, help="metres from the target that count as near")
+    parser.add_argument("--out", type=Path, help="a .jsonl of the episodes, one row each")
+    args = parser.parse_args()
+    lines = []
+    for policy in args.policies:
+        rows = endings(policy, args.field, args.episodes, args.seed)
+        print(f"{policy}: {report(rows, args.near)}")
+        lines += [json.dumps({"policy": str(policy), **row}) for row in rows]
+    if args.out:
+        args.out.write_text("\n".join(lines) + "\n")
+
+
+if __name__ == "__main__":
+    main()
