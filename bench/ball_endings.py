@@ -62,8 +62,8 @@ def report(rows: list[dict], near: float) -> str:
     cells = collections.Counter((round(r["final"][0]), round(r["final"][1])) for r in rows if not r["scored"])
     common = ", ".join(f"({x}, {y}) x{n}" for (x, y), n in cells.most_common(5))
     return (f"{len(rows)} episodes: {scored} scored, {close} came within {near} m of the target without scoring, "
-            f"{len(rows) - scored - close} ended farther ({still} of them within 0.5 m of where the ball started); where the ball ends in episodes without a score "
-            f"(1 m cells): {common or '-'}")
+            f"{len(rows) - scored - close} ended farther ({still} of them within 0.5 m of where the ball started); "
+            f"where the ball ends in episodes without a score (1 m cells): {common or '-'}")
 
 
 def main() -> None:

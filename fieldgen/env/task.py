@@ -20,7 +20,7 @@ from fieldgen.schema import geometry
 from fieldgen.schema.models import FieldSpec, RewardTerm
 from fieldgen.schema.terms import TERMS
 
-MIN_SCALE_DISTANCE = 0.1  # scaled_ball_progress divides by max(distance, this)
+MIN_SCALE_DISTANCE = 0.1  # scaled_ball_progress and scaled_ball_path_progress divide by max(distance, this)
 
 
 @dataclass(frozen=True)
@@ -91,6 +91,20 @@ def _ball_path_progress(spec: FieldSpec, cfg: RewardTerm) -> TermFn:
     pushed round a goalie's end progresses, one pushed against the goalie does not."""
     way = way_to_target(spec)
     return lambda t: (way(t.ball_before, t.target) - way(t.ball, t.target)) / t.dt
+
+
+@builds("scaled_ball_path_progress")
+def _scaled_ball_path_progress(spec: FieldSpec, cfg: RewardTerm) -> TermFn:
+    """ball_path_progress / the ball's way to the target: as scaled_ball_progress pays a decrease of the log of
+    the straight distance, this pays one of the way round the obstacles, so that the last metre to the target
+    counts as much as the ten before it and pushing the ball on past the target costs as much."""
+    way = way_to_target(spec)
+
+    def scaled(t: Transition) -> jax.Array:
+        left = way(t.ball, t.target)
+        return (way(t.ball_before, t.target) - left) / t.dt / jnp.maximum(left, MIN_SCALE_DISTANCE)
+
+    return scaled
 
 
 @term("agent_approaches_ball")

@@ -26,6 +26,7 @@ TERMS: dict[str, Term] = {
     "ball_path_progress": Term("decrease of the ball's distance to the target along its shortest way around the "
                                "field's solid obstacles, per second (ball_progress where none stands between)",
                                ball=True),
+    "scaled_ball_path_progress": Term("ball_path_progress / max(the ball's way to the target, 0.1)", ball=True),
     "agent_approaches_ball": Term("decrease of the agent's distance to the ball, per second", ball=True),
     "agent_behind_ball": Term("decrease of the agent's distance to the point behind the ball from which a push "
                               "sends it along its shortest way to the target (round the solid obstacles), one "

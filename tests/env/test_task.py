@@ -228,6 +228,30 @@ def test_a_ball_pressed_against_the_goalie_still_has_a_way(write_spec):
     assert np.isfinite(length) and length > 10.0 - float(touching[1]) + 2.0  # round an end, not through
 
 
+def test_scaled_path_progress_is_scaled_progress_where_no_obstacle_stands(write_spec):
+    terms = "    - {term: scaled_ball_progress}\n    - {term: scaled_ball_path_progress}\n"
+    onto = transition(ball_before=(0, 9.9, 0.5), ball=(0, 10, 0.5))  # onto the target: the bound
+    short = transition(ball_before=(0.3, 9.0, 0.5), ball=(0.2, 9.3, 0.5))  # under a metre short of it
+    for t in (onto, short):
+        v, _ = values(write_spec, terms, t)
+        assert v["scaled_ball_path_progress"] == pytest.approx(v["scaled_ball_progress"], rel=1e-4)
+
+
+def test_scaled_path_progress_divides_path_progress_by_the_way_left(write_spec):
+    from fieldgen.env.paths import way_to_target
+
+    terms = "    - {term: ball_path_progress}\n    - {term: scaled_ball_path_progress}\n"
+    t = transition(ball_before=(0.2, 6.2, 0.5), ball=(0.6, 6.2, 0.5), target=(0, 10))  # round the goalie's end
+    v, _ = values(write_spec, terms, t, GOALIE)
+    way = way_to_target(spec_with(write_spec, terms, GOALIE))
+    left = float(way(jnp.asarray([0.6, 6.2]), jnp.asarray([0.0, 10.0])))
+    assert left > 3.8 and v["ball_path_progress"] > 0
+    assert v["scaled_ball_path_progress"] == pytest.approx(v["ball_path_progress"] / left, rel=1e-4)
+    past = transition(ball_before=(0, 10.2, 0.5), ball=(0, 10.4, 0.5), target=(0, 10))  # pushed on past the target
+    v, _ = values(write_spec, terms, past, GOALIE)
+    assert v["scaled_ball_path_progress"] == pytest.approx(-0.2 / DT / 0.4, rel=1e-4)
+
+
 BEHIND = 0.5 + 0.25  # soccer_v1's ball radius plus the ant's torso radius
 
 
