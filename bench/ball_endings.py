@@ -8,8 +8,7 @@ near the target without scoring in 5" or "pins it against an obstacle in 6". Epi
 
 Prints how many episodes scored (the ball's centre within the success radius of the target at some step),
 came near without scoring (closest within --near metres), and ended elsewhere (and how many of those the
-agent left where it started), with the 1 m cells where
-the ball most often ends; --out keeps one row per episode.
+agent left where it started), with the 1 m cells where the ball most often ends; --out keeps one row per episode.
 """
 
 from __future__ import annotations
