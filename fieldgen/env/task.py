@@ -95,16 +95,11 @@ def _ball_path_progress(spec: FieldSpec, cfg: RewardTerm) -> TermFn:
 
 @builds("scaled_ball_path_progress")
 def _scaled_ball_path_progress(spec: FieldSpec, cfg: RewardTerm) -> TermFn:
-    """ball_path_progress / the ball's way to the target: as scaled_ball_progress pays a decrease of the log of
-    the straight distance, this pays one of the way round the obstacles, so that the last metre to the target
-    counts as much as the ten before it and pushing the ball on past the target costs as much."""
-    way = way_to_target(spec)
-
-    def scaled(t: Transition) -> jax.Array:
-        left = way(t.ball, t.target)
-        return (way(t.ball_before, t.target) - left) / t.dt / jnp.maximum(left, MIN_SCALE_DISTANCE)
-
-    return scaled
+    """ball_path_progress / the ball's way to the target, as scaled_ball_progress is to ball_progress: the last
+    metre to the target counts as much as the ten before it, and pushing the ball on past the target costs as
+    much."""
+    path_progress, way = _ball_path_progress(spec, cfg), way_to_target(spec)
+    return lambda t: path_progress(t) / jnp.maximum(way(t.ball, t.target), MIN_SCALE_DISTANCE)
 
 
 @term("agent_approaches_ball")
