@@ -68,7 +68,12 @@ MATCH_TERMS: dict[str, MatchTerm] = {
     "goal": MatchTerm("+1 on the step the side scores, -1 on the step it concedes", zero_sum=True),
     "ball_progress": MatchTerm("the ball's speed towards the opponent's goal line, along the field (m/s)",
                                zero_sum=True),
+    "ball_goal_progress": MatchTerm("the decrease of the ball's distance to the goal point the side attacks, less "
+                                    "that to the goal point it defends, halved (m/s): ball_progress on the centre "
+                                    "line, and towards the goal's mouth from beside it", zero_sum=True),
     "agent_approaches_ball": MatchTerm("agent_approaches_ball of each of the side's agents, averaged", per_agent=True),
+    "agent_behind_ball": MatchTerm("agent_behind_ball of each of the side's agents towards the goal it attacks, averaged",
+                                   per_agent=True),
     "upright": MatchTerm("upright of each of the side's agents, averaged", per_agent=True, torso=True),
     "control_cost": MatchTerm("control_cost of each of the side's agents, averaged", per_agent=True),
 }

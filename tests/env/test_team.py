@@ -198,3 +198,39 @@ def test_every_match_term_has_a_value_per_side(write_spec):
     metrics, reward, _ = env.score(before, with_ball(env, before, 0.3, 1.0), jnp.ones((2, 2)))
     assert set(metrics) == {"success", *names} and all(m.shape == (2,) for m in metrics.values())
     assert np.isfinite(np.asarray(reward)).all()
+
+
+def test_each_sides_own_terms_read_a_turned_match_as_the_other_side_reads_the_match(write_spec):
+    """agent_behind_ball draws each agent behind the ball on the ball's way to the goal it attacks: in the match
+    turned half a turn with the sides swapped, the away side's value is the home side's of the match."""
+    reward = "    - {term: agent_approaches_ball}\n    - {term: agent_behind_ball}\n"
+    env = fieldgen.make(load_spec(write_spec(f"extends: soccer_1v1\nname: own\ntask:\n  reward:\n{reward}")))
+    start = env.reset(jax.random.PRNGKey(0)).pipeline_state
+    rng = np.random.default_rng(2)
+    at = env.layout.agent_qpos.ravel()
+    before = with_ball(env, start.replace(qpos=start.qpos.at[at].add(rng.uniform(-1, 1, at.size))), 0.4, -0.7)
+    after = with_ball(env, before.replace(qpos=before.qpos.at[at].add(rng.uniform(-0.1, 0.1, at.size))), 0.5, -0.6)
+    (before, turned_before), (after, turned_after) = (turned_world(env, d, rng) for d in (before, after))
+    seen = env.score(before, after, jnp.zeros((2, 2)))[0]
+    seen_turned = env.score(turned_before, turned_after, jnp.zeros((2, 2)))[0]
+    for term in ("agent_approaches_ball", "agent_behind_ball"):
+        np.testing.assert_allclose(np.asarray(seen_turned[term]), np.asarray(seen[term])[::-1], atol=1e-5)
+        assert abs(float(seen[term][0] - seen[term][1])) > 1e-3, term  # the sides' values differ here
+
+
+def test_ball_goal_progress_is_zero_sum_is_ball_progress_on_the_centre_line_and_pays_the_way_to_the_mouth(write_spec):
+    reward = "    - {term: ball_progress}\n    - {term: ball_goal_progress}\n"
+    env = fieldgen.make(load_spec(write_spec(f"extends: soccer_1v1\nname: mouth\ntask:\n  reward:\n{reward}")))
+    assert env.zero_sum_terms == ("ball_progress", "ball_goal_progress")
+    start = env.reset(jax.random.PRNGKey(0)).pipeline_state
+
+    def seen(a, b):
+        return env.score(with_ball(env, start, *a), with_ball(env, start, *b), jnp.zeros((2, 2)))[0]
+
+    along = seen((0.0, 1.0), (0.0, 1.5))  # on the centre line, towards the away goal (+y)
+    np.testing.assert_allclose(np.asarray(along["ball_goal_progress"]), np.asarray(along["ball_progress"]), atol=1e-4)
+    beside = seen((2.5, 4.6), (2.0, 4.6))  # along the end wall from the corner towards the goal home attacks
+    assert float(beside["ball_progress"][0]) == pytest.approx(0.0, abs=1e-6)
+    assert float(beside["ball_goal_progress"][0]) > 0.5
+    for m in (along, beside, seen((-1.0, -3.0), (-0.4, -4.2))):
+        assert float(m["ball_goal_progress"].sum()) == pytest.approx(0.0, abs=1e-5)
