@@ -69,14 +69,15 @@ def _dist(a: jax.Array, b: jax.Array) -> jax.Array:
     return jnp.linalg.norm(a[:2] - b[:2])
 
 
-def _progress(before, after, goal, dt) -> jax.Array:
+def progress(before, after, goal, dt) -> jax.Array:
+    """Decrease of the distance from a point to `goal` on the field's plane, per second."""
     return (_dist(before, goal) - _dist(after, goal)) / dt
 
 
 @term("ball_progress")
 def _ball_progress(t: Transition, cfg: RewardTerm) -> jax.Array:
     """Decrease of the ball's distance to the target, per second."""
-    return _progress(t.ball_before, t.ball, t.target, t.dt)
+    return progress(t.ball_before, t.ball, t.target, t.dt)
 
 
 @term("scaled_ball_progress")
@@ -129,7 +130,7 @@ def _agent_behind_ball(spec: FieldSpec, cfg: RewardTerm) -> TermFn:
 @term("agent_progress")
 def _agent_progress(t: Transition, cfg: RewardTerm) -> jax.Array:
     """Decrease of the agent's distance to the target, per second."""
-    return _progress(t.agent_before, t.agent, t.target, t.dt)
+    return progress(t.agent_before, t.agent, t.target, t.dt)
 
 
 @term("upright")

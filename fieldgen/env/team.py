@@ -23,7 +23,7 @@ from fieldgen.env.batch import own_device
 from fieldgen.env.contract import DIVERGED
 from fieldgen.env.field import advance, diverged, restart
 from fieldgen.env.rules import ball_in_region
-from fieldgen.env.task import IMPLEMENTATIONS, Transition, ball_in_goal_fn
+from fieldgen.env.task import IMPLEMENTATIONS, Transition, ball_in_goal_fn, progress
 from fieldgen.schema import geometry
 from fieldgen.schema.backends import mjx_impl
 from fieldgen.schema.terms import MATCH_TERMS
@@ -37,7 +37,8 @@ TURNED_QPOS = {"point": ((0, 1), (-1, -1)),
 TURNED_QVEL = {"point": ((0, 1), (-1, -1)),
                "ant": (tuple(range(14)), (-1, -1, *[1] * 12))}
 TURNED_ACTION = {"point": (-1, -1), "ant": (1,) * 8}  # a point's motors push along the field's axes; an ant's turn with it
-MATCH_OWN = ("goal", "ball_progress", "ball_goal_progress")  # the match terms `score` computes; the others are task.py's, for each agent
+# the match terms `score` computes; the others are task.py's, for each agent
+MATCH_OWN = ("goal", "ball_progress", "ball_goal_progress")
 if set(MATCH_OWN) != {name for name, t in MATCH_TERMS.items() if not t.per_agent}:
     raise ImportError(f"the match terms of fieldgen/schema/terms.py that are not per agent must be computed in "
                       f"{__name__}.TeamFieldEnv.score, which computes {', '.join(MATCH_OWN)}")
@@ -175,9 +176,8 @@ class TeamFieldEnv:
         values = {"goal": success - success[::-1],
                   "ball_progress": jnp.stack([1.0, -1.0]) * (ball[1] - ball_before[1]) / self.dt}
         if "ball_goal_progress" in self.terms:
-            closer = [(jnp.linalg.norm(ball_before[:2] - g) - jnp.linalg.norm(ball[:2] - g)) / self.dt
-                      for g in self._goal_point]  # to the goal home attacks, then to the one away attacks
-            values["ball_goal_progress"] = jnp.stack([0.5, -0.5]) * (closer[0] - closer[1])
+            to_attacked, to_defended = (progress(ball_before, ball, g, self.dt) for g in self._goal_point)
+            values["ball_goal_progress"] = jnp.stack([0.5, -0.5]) * (to_attacked - to_defended)  # home's view
         for name, fn in self._per_agent.items():
             per_agent = jax.vmap(lambda b, a, act, side: fn(Transition(ball_before, ball, b, a, self._goal_point[side],
                                                                        act, self.dt)))(
