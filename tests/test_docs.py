@@ -135,7 +135,7 @@ def test_the_dsl_reference_lists_the_terms_reward_dense_stands_for():
     section = hooks().dsl_reference().split("## Dense rewards", 1)[1]
     rows = dict(re.findall(r"^\| `(\w+)` \| (.+?) \|$", section, re.MULTILINE))
     assert list(rows) == list(DENSE_REWARDS)
-    assert rows["ball_near_target"].startswith("`{term: ball_progress, weight: 10}`, `{term: agent_approaches_ball")
+    assert rows["ball_near_target"].startswith("`{term: ball_progress, weight: 10}`, `{term: agent_behind_ball")
     assert rows["agent_near_target"] == ("`{term: agent_progress}`, `{term: upright, band: [0.2, 1.0]}`, "
                                          "`{term: control_cost, weight: 0.5}`")
 

@@ -40,12 +40,14 @@ TERMS: dict[str, Term] = {
 
 # `task: {reward: dense}`: the terms generated for a task, by what its success judges (task.success.kind), as the
 # bundled _dense fields use them: for the ball, the ball's progress to the target, the agent's approach to the
-# ball, a bonus while the success holds; for the agent, its own progress; for both, staying upright (only for an
-# agent with a torso) and a control cost. Where a solid obstacle stands, the ball's progress is measured along its
-# way round them (AROUND_OBSTACLES): straight progress pays a push into a goalie in the ball's way as well as one
-# past it, and PPO's ant learned to push the ball into v2_wide_goalie's goalie and stop there.
+# point behind the ball from which a push sends it on its way (agent_behind_ball: drawn to the ball itself, seeds
+# pinned the ball against an obstacle's face or pushed it from the side), a bonus while the success holds; for the
+# agent, its own progress; for both, staying upright (only for an agent with a torso) and a control cost. Where a
+# solid obstacle stands, the ball's progress is measured along its way round them (AROUND_OBSTACLES): straight
+# progress pays a push into a goalie in the ball's way as well as one past it, and PPO's ant learned to push the
+# ball into v2_wide_goalie's goalie and stop there.
 DENSE_REWARDS: dict[str, tuple[dict, ...]] = {
-    "ball_near_target": ({"term": "ball_progress", "weight": 10.0}, {"term": "agent_approaches_ball", "weight": 1.0},
+    "ball_near_target": ({"term": "ball_progress", "weight": 10.0}, {"term": "agent_behind_ball", "weight": 1.0},
                          {"term": "success", "weight": 10.0}, {"term": "upright", "band": (0.2, 1.0)},
                          {"term": "control_cost", "weight": 0.5}),
     "agent_near_target": ({"term": "agent_progress"}, {"term": "upright", "band": (0.2, 1.0)},

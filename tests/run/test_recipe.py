@@ -26,16 +26,15 @@ def test_a_field_of_ones_own_takes_the_recipe_of_the_field_it_extends_and_says_s
     assert chosen.algo == "ppo" and chosen.recipe.field == "v2_wide_goalie_dense"
     assert chosen.line([]) == (
         "recipe v2_wide_goalie_dense for my_wide, which extends v2_wide_goalie_dense: ppo, 250M env steps, 4,096 "
-        "envs, --set ppo.num_evals=25 --set ppo.spread=global --set ppo.policy_out_scale=1.0; not measured on "
+        "envs, --set ppo.num_evals=25 --set ppo.spread=global; not measured on "
         "my_wide yet "
         "(v2_wide_goalie_dense: "
         f"{chosen.recipe.measured.figure}, {chosen.recipe.measured.seeds})")
-    own = recipe.choose(bundled_fields()["soccer_v2_dense"], None)
+    own = recipe.choose(bundled_fields()["v2_wide_goalie_dense"], None)
     assert own.line(["--steps"]) == (
-        "recipe soccer_v2_dense: ppo, 250M env steps, 4,096 envs, "
-        "--set ppo.num_evals=25 --set ppo.spread=global --set ppo.policy_out_scale=1.0; "
-        "measured: 0.919 success of 1,024 episodes after 250M env steps, its ball progress then straight, "
-        "one seed (0); --steps overrides it")
+        "recipe v2_wide_goalie_dense: ppo, 250M env steps, 4,096 envs, "
+        "--set ppo.num_evals=25 --set ppo.spread=global; "
+        f"measured: {own.recipe.measured.figure}, three fresh seeds (760-762); --steps overrides it")
     assert recipe.choose(spec, None, use=False).recipe is None
     other = recipe.choose(spec, "crl")
     assert other.recipe is None and other.algo == "crl" and "not taken: --algo crl" in other.line([])
@@ -87,21 +86,23 @@ def test_train_prints_the_recipe_its_overrides_and_the_warning_once_and_run_json
 def test_list_shows_each_bundled_fields_recipe_and_measured_figure_with_its_seeds():
     rows = {name: (recipe_text, measured) for name, recipe_text, measured in recipe.listing()}
     assert set(rows) == set(bundled_fields())
-    assert rows["soccer_v2_dense"] == ("ppo, 250M env steps, 4,096 envs, --set ppo.num_evals=25 "
-                                       "--set ppo.spread=global --set ppo.policy_out_scale=1.0",
-                                       "measured: 0.919 success of 1,024 episodes after 250M env steps, its ball "
-                                       "progress then straight, one seed (0)")
+    assert rows["v2_wide_goalie_dense"] == ("ppo, 250M env steps, 4,096 envs, --set ppo.num_evals=25 "
+                                            "--set ppo.spread=global",
+                                            "measured: IQM 0.346 [0.197, 0.427] success at 250M env steps, 1,024 "
+                                            "episodes a seed (0.414, 0.427, 0.197), every seed scoring; three seeds "
+                                            "in one program in 858 s on one H200, three fresh seeds (760-762)")
+    assert rows["soccer_v2_dense"][1] == "not measured yet"
     assert rows["ant_nav"][1] == ("measured: IQM 0.923 [0.899, 0.947] success at 14M env steps, 1,024 episodes a "
                                   "seed; five seeds in one program in 414 s on one H200, five fresh seeds (600-604)")
     assert rows["v2_wide_goalie"][1].startswith("not measured yet; the measured route is its dense twin "
                                                 "v2_wide_goalie_dense (ppo, 250M env steps")
     assert rows["soccer_v2_dense_near"][0].endswith("(the recipe of soccer_v2_dense)")
-    assert rows["soccer_v2_dense_near"][1].startswith("not measured on soccer_v2_dense_near yet (soccer_v2_dense: 0.919")
+    assert rows["soccer_v2_dense_near"][1] == "not measured on soccer_v2_dense_near yet"  # nor is its parent
     assert rows["point_soccer"] == ("crl, --preset cpu", "not measured yet")
     assert rows["point_nav"] == ("none: crl with its defaults", "-")
     shown = runner.invoke(app, ["list", "--recipes"])
     assert shown.exit_code == 0 and all(name in shown.output for name in rows), shown.output
-    assert "0.919" in shown.output and "one seed (0)" in " ".join(shown.output.split())
+    assert "0.346" in shown.output and "three fresh seeds (760-762)" in " ".join(shown.output.split())
 
 
 def test_a_broken_recipes_file_is_one_line_from_train_and_list(tmp_path, monkeypatch):

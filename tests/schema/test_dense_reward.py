@@ -1,5 +1,5 @@
 """`task: {reward: dense}`: the terms generated for a task's success kind, which the bundled _dense fields use and
-build to the very field.json their written-out terms built to."""
+build to the very field.json the same terms written out build to."""
 
 from __future__ import annotations
 
@@ -7,10 +7,10 @@ import pytest
 
 from fieldgen.schema import SpecError, bundled_fields, load_spec
 
-# the terms the bundled dense fields listed before they asked for the generated ones
+# the terms the bundled dense fields stand for, written out
 BALL_TERMS = """  reward:
     - {term: ball_progress, weight: 10}
-    - {term: agent_approaches_ball, weight: 1}
+    - {term: agent_behind_ball, weight: 1}
     - {term: success, weight: 10}
     - {term: upright, band: [0.2, 1.0]}
     - {term: control_cost, weight: 0.5}
@@ -26,7 +26,7 @@ WRITTEN_OUT = {"soccer_v1_dense": ("soccer_v1", BALL_TERMS), "soccer_v2_dense": 
 
 
 def written_out(tmp_path, name: str):
-    """The bundled dense field as it was written before, its terms listed: its name, description and parent."""
+    """The bundled dense field with its terms listed: its name, description and parent."""
     bundled = load_spec(bundled_fields()[name])
     parent, terms = WRITTEN_OUT[name]
     path = tmp_path / f"{name}.yaml"
@@ -53,13 +53,26 @@ def test_a_dense_field_builds_to_the_same_field_json_byte_for_byte(tmp_path):
 def test_fields_that_extend_a_dense_field_inherit_its_generated_terms():
     wide = load_spec(bundled_fields()["v2_wide_goalie_dense"]).task.reward
     assert wide == load_spec(bundled_fields()["soccer_v2_dense"]).task.reward
-    assert [(t.term, t.weight) for t in wide] == [("ball_path_progress", 10.0), ("agent_approaches_ball", 1.0),
+    assert [(t.term, t.weight) for t in wide] == [("ball_path_progress", 10.0), ("agent_behind_ball", 1.0),
                                                  ("success", 10.0), ("upright", 1.0), ("control_cost", 0.5)]
+
+
+@pytest.mark.parametrize("name", ["v2_wide_goalie_dense", "soccer_v1_dense"])
+def test_the_bench_fields_the_recipes_were_measured_on_carry_the_generated_terms(name):
+    """The recipes' figures were measured on bench/fields/<name>_behind.yaml, written before `reward: dense` made
+    the same terms: the two must stay one reward for the figure to be the bundled field's."""
+    from pathlib import Path
+
+    measured = load_spec(Path(__file__).parents[2] / "bench" / "fields" / f"{name}_behind.yaml")
+    bundled = load_spec(bundled_fields()[name])
+    assert measured.task.reward == bundled.task.reward
+    assert measured.model_dump(exclude={"name", "description", "extends", "task"}) == bundled.model_dump(
+        exclude={"name", "description", "extends", "task"})
 
 
 def test_the_terms_follow_the_task_and_leave_out_what_the_agent_lacks(write_spec):
     ball = load_spec(write_spec("extends: ant_ball\nname: b\ntask: {reward: dense}\n")).task.reward
-    assert [t.term for t in ball] == ["ball_progress", "agent_approaches_ball", "success", "upright", "control_cost"]
+    assert [t.term for t in ball] == ["ball_progress", "agent_behind_ball", "success", "upright", "control_cost"]
     point = load_spec(write_spec("extends: point_nav\nname: p\ntask: {reward: dense}\n")).task.reward
     assert [(t.term, t.weight) for t in point] == [("agent_progress", 1.0), ("control_cost", 0.5)]  # no torso
 
