@@ -324,6 +324,9 @@ class TaskSection(Section):
         """`dense` left as written: the task's success kind has no generated terms (FieldSpec expands the rest)."""
         if reward == DENSE:
             kind = getattr(info.data.get("success"), "kind", "this success kind")
+            if kind in DENSE_REWARDS:  # left as written by FieldSpec only on a field with teams
+                raise ValueError(f"dense names the terms generated for one agent's task; a field with teams lists "
+                                 f"its match terms instead: {', '.join(MATCH_TERMS)}")
             kinds = ", ".join(DENSE_REWARDS)
             raise ValueError(f"dense names the terms generated for a task, and success kind '{kind}' has none; "
                              f"the kinds with them: {kinds}; list this task's terms instead")
@@ -448,12 +451,12 @@ class FieldSpec(Section):
         task = data.get("task") if isinstance(data, dict) else None
         if not isinstance(task, dict) or task.get("reward") != DENSE:
             return data
-        success, agent = task.get("success"), data.get("agent")
+        success, agent = task.get("success", {}), data.get("agent")
         kind = success.get("kind", Success.model_fields["kind"].default) if isinstance(success, dict) else None
         agent_kind = agent.get("kind", AgentSection.model_fields["kind"].default) if isinstance(agent, dict) else \
             AgentSection.model_fields["kind"].default
-        if kind not in DENSE_REWARDS:
-            return data  # TaskSection says which kinds have terms
+        if kind not in DENSE_REWARDS or data.get("teams") is not None:
+            return data  # TaskSection says which kinds have terms, and that a match has none
         obstacles = data.get("obstacles")
         solid = isinstance(obstacles, dict) and any(not (isinstance(o, dict) and o.get("solid") is False)
                                                     for o in obstacles.values())
