@@ -87,14 +87,19 @@ def test_a_solid_obstacle_measures_the_balls_progress_along_its_way_round(write_
     assert load_spec(bundled_fields()["soccer_v1_dense"]).task.reward[0].term == "ball_progress"  # no goalie
 
 
-def test_a_task_kind_without_generated_terms_is_one_line_naming_the_kinds_with_them(write_spec):
-    path = write_spec("extends: point_soccer\nname: s\ntask:\n  reward: dense\n")
+def only_problem(path) -> str:
+    """The one problem loading the spec at `path` reports, as the user reads it."""
     with pytest.raises(SpecError) as caught:
         load_spec(path)
     (problem,) = caught.value.problems
-    assert str(problem) == (f"{path}:4:3: task.reward: dense names the terms generated for a task, and success kind "
-                            "'ball_in_goal' has none; the kinds with them: ball_near_target, agent_near_target; list "
-                            "this task's terms instead (got 'dense')")
+    return str(problem)
+
+
+def test_a_task_kind_without_generated_terms_is_one_line_naming_the_kinds_with_them(write_spec):
+    path = write_spec("extends: point_soccer\nname: s\ntask:\n  reward: dense\n")
+    assert only_problem(path) == (f"{path}:4:3: task.reward: dense names the terms generated for a task, and "
+                                  "success kind 'ball_in_goal' has none; the kinds with them: ball_near_target, "
+                                  "agent_near_target; list this task's terms instead (got 'dense')")
 
 
 def test_a_field_that_leaves_its_success_to_the_default_gets_the_terms_of_that_kind(write_spec):
@@ -106,9 +111,7 @@ def test_a_field_that_leaves_its_success_to_the_default_gets_the_terms_of_that_k
 
 def test_a_field_with_teams_asking_for_dense_is_told_to_list_match_terms(write_spec):
     path = write_spec("extends: soccer_1v1\nname: t\ntask:\n  reward: dense\n")
-    with pytest.raises(SpecError) as caught:
-        load_spec(path)
-    (problem,) = caught.value.problems
-    assert str(problem) == (f"{path}:4:3: task.reward: dense names the terms generated for one agent's task; a field "
-                            "with teams lists its match terms instead: goal, ball_progress, ball_goal_progress, "
-                            "agent_approaches_ball, agent_behind_ball, upright, control_cost (got 'dense')")
+    assert only_problem(path) == (f"{path}:4:3: task.reward: dense names the terms generated for one agent's task; "
+                                  "a field with teams lists its match terms instead: goal, ball_progress, "
+                                  "ball_goal_progress, agent_approaches_ball, agent_behind_ball, upright, "
+                                  "control_cost (got 'dense')")
