@@ -57,6 +57,9 @@ def _problem(source: Source, parts: tuple, errs: list[dict], model: type[BaseMod
                                      f"item{'s' * (bound != 1)} here (got {err['ctx']['actual_length']:,})")
     if kind in ("union_tag_invalid", "union_tag_not_found"):
         return _tag_problem(source, parts, err, model)
+    if kind == "literal_error" and err["loc"][-2:] == ("reward", "generated"):  # a word where terms are listed
+        return source.problem(parts, f"expected a list of reward terms, or 'dense' for the terms generated for the "
+                                     f"task (got {_shown(value)}{did_you_mean(str(value), ['dense'])})")
     if kind == "literal_error" and isinstance(value, str):
         expected = re.findall(r"'([^']*)'", err["ctx"]["expected"])
         return source.problem(parts, f"{err['msg']} (got {_shown(value)}{did_you_mean(value, expected)})")

@@ -115,3 +115,9 @@ def test_a_field_with_teams_asking_for_dense_is_told_to_list_match_terms(write_s
                                   "a field with teams lists its match terms instead: goal, ball_progress, "
                                   "ball_goal_progress, agent_approaches_ball, agent_behind_ball, upright, "
                                   "control_cost (got 'dense')")
+
+
+def test_a_word_other_than_dense_is_told_what_reward_takes(write_spec):
+    path = write_spec("extends: soccer_v1\nname: h\ntask:\n  reward: Dense\n")
+    assert only_problem(path) == (f"{path}:4:3: task.reward: expected a list of reward terms, or 'dense' for the "
+                                  "terms generated for the task (got 'Dense'; did you mean 'dense'?)")
