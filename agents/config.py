@@ -138,6 +138,10 @@ class RunConfig(BaseModel):
             section, dot, key = name.partition(".")
             if section in others:
                 continue
+            if sep and dot and section in ALGORITHMS and section != cls.algo:
+                raise ConfigError(f"{source}{item!r}: {section}.* sets {section}'s settings, and this run trains "
+                                  f"{cls.algo}; write {cls.algo}.KEY=VALUE (e.g. {cls.example()}), or train {section} "
+                                  f"with --algo {section}")
             if not sep or not dot or section != cls.algo:
                 raise ConfigError(f"{source}{item!r}: write {cls.algo}.KEY=VALUE, e.g. {cls.example()}")
             try:

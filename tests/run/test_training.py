@@ -408,6 +408,8 @@ def test_bundled_config_files_hold_only_known_keys(path):
     (["--algo", "crll"], "unknown algorithm 'crll'; did you mean 'crl'?"),
     (["--set", "crl.repr_dimm=3"], "unknown config key 'repr_dimm'; did you mean 'repr_dim'?"),
     (["--set", "repr_dim=3"], "write crl.KEY=VALUE"),
+    (["--set", "ppo.num_evals=2"], "ppo.* sets ppo's settings, and this run trains crl; write crl.KEY=VALUE (e.g. "
+                                   "crl.batch_size=256), or train ppo with --algo ppo"),
     (["--set", "crl.layer_norm=maybe"], "crl.layer_norm must be true or false, not 'maybe'"),
     (["--set", "crl.batch_size=true"], "crl.batch_size must be a whole number, not True"),
     (["--set", "crl.batch_size=0"], "crl.batch_size must be greater than 0, not 0"),
