@@ -183,6 +183,8 @@ def read(path: Path) -> SeedSummary:
 def _first_problem(exc: ValidationError) -> str:
     error = exc.errors()[0]
     where = ".".join(str(p) for p in error["loc"])
+    if error["type"] == "missing":
+        return f"it has no key '{where}' (fieldgen eval --summary writes one)"
     said = error["msg"].removeprefix("Value error, ")
     return f"{where}: {said}" if where else said
 

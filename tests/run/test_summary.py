@@ -168,7 +168,8 @@ def test_aggregate_prints_and_writes_the_pooled_seeds_and_says_what_is_wrong_in_
     assert read(out).seeds == [0, 1, 2, 3, 4] and "fieldgen aggregate" in read(out).command
     (tmp_path / "bad.json").write_text("{}")
     for args, phrase in (([str(tmp_path / "none.json")], "none.json is missing"),
-                       ([str(tmp_path / "bad.json")], "bad.json is not a summary of fieldgen eval"),
+                       ([str(tmp_path / "bad.json")], "bad.json is not a summary of fieldgen eval: it has no key "
+                                                       "'fields' (fieldgen eval --summary writes one)"),
                        ([str(tmp_path)], "is a folder"),
                        ([str(paths[0]), "--summary", str(tmp_path / "no" / "x.json")], "name a file in an existing")):
         result = runner.invoke(app, ["aggregate", *args])
