@@ -323,7 +323,9 @@ class TaskSection(Section):
     def _dense_known(cls, reward, info):
         """`dense` left as written: the task's success kind has no generated terms (FieldSpec expands the rest)."""
         if reward == DENSE:
-            kind = getattr(info.data.get("success"), "kind", "this success kind")
+            if "success" not in info.data:
+                return reward  # the success is wrong itself, and says so: which terms it has is not known
+            kind = info.data["success"].kind
             if kind in DENSE_REWARDS:  # left as written by FieldSpec only on a field with teams
                 raise ValueError(f"dense names the terms generated for one agent's task; a field with teams lists "
                                  f"its match terms instead: {', '.join(MATCH_TERMS)}")

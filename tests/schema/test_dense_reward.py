@@ -121,3 +121,8 @@ def test_a_word_other_than_dense_is_told_what_reward_takes(write_spec):
     path = write_spec("extends: soccer_v1\nname: h\ntask:\n  reward: Dense\n")
     assert only_problem(path) == (f"{path}:4:3: task.reward: expected a list of reward terms, or 'dense' for the "
                                   "terms generated for the task (got 'Dense'; did you mean 'dense'?)")
+
+
+def test_a_wrong_success_is_the_one_problem_dense_reports(write_spec):
+    path = write_spec("name: m\nagent: {kind: ant}\ntask:\n  success: 3\n  reward: dense\n")
+    assert only_problem(path) == f"{path}:4:3: task.success: expected a mapping (got 3)"
