@@ -107,8 +107,8 @@ def test_evaluation_reports_each_reward_terms_mean(write_spec):
     env = fieldgen.make(spec)
     policy, key = (lambda obs: obs[:, -2:] - obs[:, :2]), jax.random.PRNGKey(0)
     metrics, nothing = jax.device_get(loop.evaluate_policy(env, policy, key, 8))
-    assert set(metrics) == {"success_any", "time_at_goal", "closest_distance", "episode_length", "episode_return",
-                            "term_agent_progress"}
+    assert set(metrics) == {"success_any", "time_at_goal", "closest_distance", "farthest_from_start",
+                            "episode_length", "episode_return", "term_agent_progress"}
     assert metrics["term_agent_progress"] > 0  # the policy heads for the target
     assert metrics["episode_length"] == env.episode_length
     expected = metrics["time_at_goal"] + 0.1 * env.episode_length * metrics["term_agent_progress"]
