@@ -243,7 +243,8 @@ def train(
             if field.teams is not None:  # a match: one network plays both sides (self-play PPO)
                 _refuse_for_self_play(field.name, mixed=mixed, curriculum=curriculum_kind, levels=levels,
                                       sampler=samplers, init_from=init_from, logger=logger)
-                team = _team_run(source, field, algo, seeds, config, sets, preset, steps, envs, seed, runs, prepare)
+                team = _team_run(source, field, algo, seeds, config, sets, preset, steps, envs, seed, runs, prepare,
+                                 use_recipe)
                 if prepare:
                     out.print(f"prepared {team.folder}; start it with: fieldgen train --resume {team.folder}",
                               soft_wrap=True)
@@ -298,19 +299,27 @@ def train(
 
 
 def _team_run(source: Path, field, algo: str | None, seeds: int, config: Path | None, sets: list[str] | None,
-              preset: str | None, steps: int | None, envs: int | None, seed: int, runs: Path, prepare: bool = False):
+              preset: str | None, steps: int | None, envs: int | None, seed: int, runs: Path, prepare: bool = False,
+              use_recipe: bool = True):
     """A new self-play run on a team field, `seeds` seeds from `seed` trained at once: PPO's settings (`ppo.` keys,
-    with self-play's own: docs/teams.md) layered as any run's, without a recipe (recipes name single-agent
-    trainers)."""
+    with self-play's own: docs/teams.md) layered as any run's, the field's recipe among them as for any field."""
     from fieldgen.agents.selfplay import SelfPlayConfig
+    from fieldgen.run import recipe as recipes
     from fieldgen.run import selfplay
 
     if algo not in (None, SelfPlayConfig.algo):
         fail(f"{field.name} is a team field: it trains by self-play, whose learner is {SelfPlayConfig.algo}; "
              f"give --algo {SelfPlayConfig.algo} or leave --algo out")
+    chosen = recipes.choose(source, SelfPlayConfig.algo, use_recipe)
     settings = SelfPlayConfig.layered(config, sets or [], agent=field.agent.kind, preset=preset,
-                                      total_steps=steps, num_envs=envs, seed=seed)
-    return selfplay.new_run(source, settings, runs, list(range(seed, seed + seeds)), check_memory=not prepare)
+                                      recipe=chosen.recipe, total_steps=steps, num_envs=envs, seed=seed)
+    overriding = [flag for flag, given in (("--steps", steps), ("--envs", envs), ("--set", sets),
+                                           ("--config", config), ("--preset", preset)) if given]
+    said = chosen.line(overriding)
+    if said:
+        out.print(said, soft_wrap=True)
+    return selfplay.new_run(source, settings, runs, list(range(seed, seed + seeds)), check_memory=not prepare,
+                            recipe=chosen.record(overriding))
 
 
 def _refuse_for_self_play(what: str, logger: str = "none", **given) -> None:

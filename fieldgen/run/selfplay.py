@@ -96,9 +96,11 @@ def _team_env(source):
     return env
 
 
-def new_run(source: Path, config: SelfPlayConfig, out: Path, seeds: list[int], check_memory: bool = True) -> TeamRun:
+def new_run(source: Path, config: SelfPlayConfig, out: Path, seeds: list[int], check_memory: bool = True,
+            recipe: dict | None = None) -> TeamRun:
     """A run folder for the team field `source` training `seeds` at once (the first is the config's seed),
-    written once its settings are known good (and, with `check_memory`, once this machine can hold it)."""
+    written once its settings are known good (and, with `check_memory`, once this machine can hold it); with
+    `recipe`, the recipe it was set up from, as run.json keeps it."""
     from fieldgen.agents.config import ConfigError
 
     env = _team_env(source)
@@ -121,7 +123,7 @@ def new_run(source: Path, config: SelfPlayConfig, out: Path, seeds: list[int], c
             (folder / stale).unlink(missing_ok=True)
         write_artifact(env.artifact, folder / FIELD)
         record.write_run(folder, env.spec.model_dump(mode="json"), config.algo, config, env.layout.to_json(),
-                         seeds, {"fields": [FIELD], "selfplay": True})
+                         seeds, {"fields": [FIELD], "selfplay": True, **({"recipe": recipe} if recipe else {})})
     except OSError as exc:
         raise record.RunError(f"cannot set up the run folder {folder}: {exc.strerror}; free some space, fix the "
                               "folder's permissions or choose another --out") from None

@@ -130,3 +130,24 @@ def test_train_point_soccer_end_to_end_with_its_cpu_recipe(tmp_path, tiny_crl_ar
     rows = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
     assert [row["eval"] for row in rows] == list(range(saved["config"]["num_evals"] + 1))[-len(rows):]
     assert (run / "learner.msgpack").is_file() and rows[-1]["env_steps"] > rows[0]["env_steps"]
+
+
+def test_a_team_field_takes_its_recipe_as_any_field_and_flags_override_it(tmp_path):
+    result = runner.invoke(app, ["train", "soccer_2v2", "--prepare", "--out", str(tmp_path / "runs")])
+    assert result.exit_code == 0, result.output
+    assert len(lines_with(result.output, "recipe soccer_2v2: ppo, 1M env steps, 512 envs")) == 1
+    saved = json.loads((tmp_path / "runs" / "soccer_2v2-ppo-0" / "run.json").read_text())
+    assert saved["selfplay"] and saved["recipe"]["field"] == "soccer_2v2"
+    config = saved["config"]
+    assert (config["total_steps"], config["num_envs"], config["num_evals"], config["self_play_share"]) == (
+        1_000_000, 512, 4, 0.2)
+    over = runner.invoke(app, ["train", "soccer_2v2", "--set", "ppo.self_play_share=0.3", "--seed", "1",
+                               "--prepare", "--out", str(tmp_path / "runs")])
+    assert over.exit_code == 0 and lines_with(over.output, "--set overrides it"), over.output
+    config = json.loads((tmp_path / "runs" / "soccer_2v2-ppo-1" / "run.json").read_text())["config"]
+    assert (config["self_play_share"], config["num_envs"]) == (0.3, 512)
+    plain = runner.invoke(app, ["train", "soccer_2v2", "--no-recipe", "--seed", "2", "--prepare",
+                                "--out", str(tmp_path / "runs")])
+    assert plain.exit_code == 0 and not lines_with(plain.output, "recipe soccer_2v2"), plain.output
+    saved = json.loads((tmp_path / "runs" / "soccer_2v2-ppo-2" / "run.json").read_text())
+    assert "recipe" not in saved and saved["config"]["self_play_share"] == 0.5
