@@ -11,14 +11,19 @@ from fieldgen.agents.crl import CRLConfig
 from fieldgen.agents.ppo import PPOConfig
 from fieldgen.agents.recipes import RecipeError
 from fieldgen.agents.registry import trainer
+from fieldgen.agents.selfplay import SelfPlayConfig
+from fieldgen.schema import bundled_fields, load_spec
 
 
 def test_every_bundled_recipe_names_settings_its_trainer_takes():
     table = recipes.read()
     assert {"soccer_v2_dense", "v2_wide_goalie_dense", "v2_wide_goalie", "ant_nav", "point_soccer"} <= set(table)
+    fields = bundled_fields()
     for recipe in table.values():
-        config = trainer(recipe.algo).config.layered(recipe=recipe, agent="ant")
-        assert config.total_steps == (recipe.steps or trainer(recipe.algo).config().total_steps)
+        team = load_spec(fields[recipe.field]).teams is not None  # a match trains by self-play
+        trains = SelfPlayConfig if team else trainer(recipe.algo).config
+        config = trains.layered(recipe=recipe, agent="ant")
+        assert config.total_steps == (recipe.steps or trains().total_steps)
 
 
 def test_the_measured_recipes_are_the_commands_their_figures_came_from():
