@@ -69,18 +69,24 @@ def runs(source: Path, algos: list[str], seeds: list[int], folder: Path | None, 
     return folder, result
 
 
-def curves(run: session.Run, judge=None) -> dict:
-    """Per evaluation: env steps, wall seconds, and each metric success.png plots (success_any, time_at_goal,
-    closest_distance, farthest_from_start) over the seeds (NaN in rows written before the metric was logged), each row judged by
-    `judge` (default `on_field`)."""
+# what a self-play run's evaluations measure, drawn in place of success.png's panels: metric -> (axis label,
+# panel title, y limits or None)
+TEAM_PANELS = {"win_vs_random": ("share won (IQM)", "matches won against a random policy", (-0.02, 1.02)),
+               "elo": ("Elo (IQM)", "the newest snapshot's rating", None)}
+
+
+def curves(run: session.Run, judge=None, metrics=plots.PANELS) -> dict:
+    """Per evaluation: env steps, wall seconds, and each of `metrics` (default those success.png plots:
+    success_any, time_at_goal, closest_distance, farthest_from_start) over the seeds (NaN in rows written before
+    the metric was logged), each row judged by `judge` (default `on_field`)."""
     judge = judge or on_field
     evals = sorted({r["eval"] for r in run.rows})
-    out = {"env_steps": [], "wall_seconds": [], **{metric: [] for metric in plots.PANELS}}
+    out = {"env_steps": [], "wall_seconds": [], **{metric: [] for metric in metrics}}
     for e in evals:
         rows = [r for r in run.rows if r["eval"] == e]
         out["env_steps"].append(rows[0]["env_steps"])
         out["wall_seconds"].append(rows[0].get("wall_seconds", np.nan))
-        for metric in plots.PANELS:
+        for metric in metrics:
             out[metric].append([judge(r, metric) for r in rows])
     return out
 
@@ -155,6 +161,8 @@ def plot(runs_: list[session.Run], path: Path, title: str, labels: list[str] | N
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    if getattr(runs_[0], "team", False):
+        return _plot_matches(runs_, path, title, labels, output)
     drawn = [curves(run, judge) for run in runs_]
     # how far the ball moved gets a fifth panel where a run measured it, the five then wrapped three a row
     moved = any(np.isfinite(v).all() for c in drawn for v in c["farthest_from_start"])
@@ -186,6 +194,33 @@ def plot(runs_: list[session.Run], path: Path, title: str, labels: list[str] | N
     handles, names = axes[0].get_legend_handles_labels()  # one legend under the panels, none over the curves
     fig.legend(handles, names, loc="lower center", ncol=min(len(names), 3), fontsize=9, frameon=False)
     plots.save_figure(fig, axes, title, path, output)
+
+
+def _plot_matches(runs_: list, path: Path, title: str, labels: list[str] | None, output: Output | None) -> None:
+    """Self-play runs: the share of matches won against a random policy against env steps and wall-clock seconds,
+    and the newest snapshot's rating against env steps, IQM over seeds with its 95% interval shaded."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 3, figsize=(15, 3.8))
+    panels = [(axes[0], "env_steps", "win_vs_random"), (axes[1], "wall_seconds", "win_vs_random"),
+              (axes[2], "env_steps", "elo")]
+    for k, run in enumerate(runs_):
+        c = curves(run, metrics=TEAM_PANELS)
+        for ax, x, metric in panels:
+            centre, low, high = np.array([over_seeds(v) for v in c[metric]]).T
+            line, = ax.plot(c[x], centre, marker="o", ms=3, label=labels[k] if labels else run.algo)
+            if len(run.seeds) > 1:
+                ax.fill_between(c[x], low, high, color=line.get_color(), alpha=0.2)
+    for ax, x, metric in panels:
+        label, name, limits = TEAM_PANELS[metric]
+        ax.set(xlabel="env steps" if x == "env_steps" else "wall-clock seconds (compiling, training, evaluating)",
+               ylabel=label, title=name if x == "env_steps" else "against time", ylim=limits)
+    handles, names = axes[0].get_legend_handles_labels()
+    fig.legend(handles, names, loc="lower center", ncol=min(len(names), 3), fontsize=9, frameon=False)
+    plots.save_figure(fig, list(axes), title, path, output)
 
 
 def report(runs_: list[session.Run], folder: Path, console: Console, command: str) -> None:
@@ -268,15 +303,21 @@ class Recorded:
     field: str  # the name of the field the run is judged on (a curriculum's last stage)
     field_digest: str  # of the resolved spec run.json records: fields alike in name can differ
     actions: str  # how its evaluations acted (registry.EVAL_ACTIONS)
+    team: bool = False  # a self-play run: judged by the share of matches won against a random policy
+
+    @property
+    def metric(self) -> str:
+        """What the run is judged by: success_any on its field, or for a self-play run win_vs_random."""
+        return "win_vs_random" if self.team else "success_any"
 
     @property
     def last(self) -> dict[int, dict]:
         return last_evaluation(self.rows)
 
     def last_success(self) -> summary.MetricSummary:
-        """success_any at the last evaluation (on the field, `on_field`), each seed's and their IQM with its
-        95% stratified bootstrap interval."""
-        return summary.MetricSummary.of({s: float(on_field(row, "success_any")) for s, row in self.last.items()})
+        """The run's `metric` at the last evaluation (on the field, `on_field`), each seed's and their IQM with
+        its 95% stratified bootstrap interval."""
+        return summary.MetricSummary.of({s: float(on_field(row, self.metric)) for s, row in self.last.items()})
 
 
 def reached_by_every_seed(rows: list[dict], seeds: list[int]) -> list[dict]:
@@ -310,13 +351,14 @@ def recorded(folder: Path) -> Recorded:
         raise record.RunError(f"{folder / record.METRICS} {said}, so {folder} has nothing to compare; train it "
                               f"first (fieldgen train --resume {folder}) or leave it out")
     rows = reached_by_every_seed([r for r in rows if r["seed"] in seeds], seeds)
+    metric = "win_vs_random" if saved.selfplay else "success_any"
     for r in rows:
-        if not np.isfinite(on_field(r, "success_any")):
+        if not np.isfinite(on_field(r, metric)):
             raise record.RunError(f"{folder / record.METRICS}: evaluation {r['eval']} of seed {r['seed']} holds no "
-                                  "success_any (edited or damaged); restore the file from a copy, or leave the run out")
+                                  f"{metric} (edited or damaged); restore the file from a copy, or leave the run out")
     field = (saved.field or {}).get("name") or "(field not recorded)"
     return Recorded(folder, saved.algo, list(seeds), rows, str(field), field_digest(saved.field),
-                    str(saved.config.get("eval_actions", "mean")))
+                    str(saved.config.get("eval_actions", "mean")), saved.selfplay)
 
 
 def fields_differ(runs_: list[Recorded]) -> str:
@@ -336,23 +378,36 @@ def fields_differ(runs_: list[Recorded]) -> str:
 
 def report_recorded(runs_: list[Recorded], plot_path: Path, console: Console) -> None:
     """The table of runs already trained (one row each: field, algorithm, seeds, env steps at the last evaluation,
-    success there as IQM [95% interval] and per seed) and their curves with the bands, at `plot_path`."""
+    success there as IQM [95% interval] and per seed) and their curves with the bands, at `plot_path`. Self-play runs
+    are judged by the matches they won against a random policy, and compare only with one another."""
+    kinds = {run.team for run in runs_}
+    if len(kinds) > 1:
+        matched = next(r for r in runs_ if r.team)
+        single = next(r for r in runs_ if not r.team)
+        raise record.RunError(f"{matched.folder} is a self-play run on a team field, judged by the matches it won, "
+                              f"and {single.folder} a run judged by its success: the two figures are not alike; "
+                              "compare self-play runs with self-play runs and the others apart")
+    team = kinds == {True}
+    judged = "won vs random (last)" if team else "success_any (last)"
+    what = "share of matches won against a random policy (in-run)" if team else "success_any on each run's field"
     table = Table(Column("run", overflow="fold"), Column("field", overflow="fold"), "algo", "seeds", "env steps",
-                  Column("success_any (last)", no_wrap=True), "per seed",
+                  Column(judged, no_wrap=True), "per seed", *(["Elo (newest snapshot)"] if team else []),
                   title="runs at their last evaluation",
-                  caption="success_any on each run's field: interquartile mean over seeds [95% stratified bootstrap "
-                          "interval]; one seed: its value")
+                  caption=f"{what}: interquartile mean over seeds [95% stratified bootstrap interval]; one seed: "
+                          "its value")
     for run in runs_:
         success = run.last_success()
         steps = sorted({r["env_steps"] for r in run.last.values()})
         table.add_row(str(run.folder), run.field, run.algo + registry.judged_on(run.actions), str(len(run.seeds)),
                       ", ".join(f"{s:,}" for s in steps), success.text(3),
-                      ", ".join(f"{s}: {v:.3f}" for s, v in success.per_seed.items()))
+                      ", ".join(f"{s}: {v:.3f}" for s, v in success.per_seed.items()),
+                      *([", ".join(f"{s}: {row.get('elo', np.nan):,.0f}" for s, row in run.last.items())]
+                        if team else []))
     console.print(table)
     if differ := fields_differ(runs_):
         console.print(differ, soft_wrap=True)
     names = list(dict.fromkeys(r.field for r in runs_))
     seeds = {len(r.seeds) for r in runs_}
     bands = "IQM over seeds, 95% bootstrap interval shaded" if max(seeds) > 1 else "one seed each"
-    plot(runs_, plot_path, f"{', '.join(names)}: {len(runs_)} runs ({bands})", labels=[str(r.folder) for r in runs_])
+    plot(runs_, plot_path, f"{', '.join(names)}: {len(runs_)} run{'s' * (len(runs_) != 1)} ({bands})", labels=[str(r.folder) for r in runs_])
     console.print(f"plot: {plot_path}")

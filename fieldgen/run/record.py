@@ -116,6 +116,7 @@ class RunRecord(BaseModel):
     curriculum: StrictStr = ""  # the name of the curriculum the run trains through; "" (left out): a field
     init_from: InitFrom | None = None
     recipe: dict = {}  # the recipe the run was set up from (fieldgen/run/recipe.py); {} (left out): none
+    selfplay: StrictBool = False  # a team field's self-play run (fieldgen/run/selfplay.py): judged by matches won
 
 
 # what the metrics that figures are computed over can hold: success is a share of episodes, time at the goal a

@@ -296,3 +296,39 @@ def test_compare_of_run_folders_writes_compare_png_in_a_folder_dash_o_names(tmp_
     result = runner.invoke(app, ["compare", str(run), "-o", str(tmp_path)], env={"COLUMNS": "250"})
     assert result.exit_code == 0, result.output
     assert (tmp_path / "compare.png").is_file() and "0.500 [0.500, 0.500]" in result.output
+
+
+def team_run_folder(folder, per_eval: list[list[float]], seeds: list[int]):
+    """A self-play run folder for reading: each evaluation's share of matches won against a random policy per
+    seed, and the newest snapshot's rating rising with it."""
+    from fieldgen.schema import load_spec, resolve_spec_path
+
+    folder.mkdir(parents=True)
+    (folder / "run.json").write_text(json.dumps({
+        "field": load_spec(resolve_spec_path("soccer_1v1")).model_dump(mode="json"), "algo": "ppo",
+        "observation": {}, "seeds": seeds, "fields": ["field"], "selfplay": True,
+        "config": {"seed": seeds[0], "eval_envs": 128, "eval_actions": "mean", "num_evals": len(per_eval) - 1}}))
+    rows = [{"eval": e, "seed": s, "env_steps": 1000 * e, "wall_seconds": 10.0 * e, "win_vs_random": v,
+             "draw_vs_random": 1 - v, "loss_vs_random": 0.0, "success_any": v, "elo": 1000 + 500 * v}
+            for e, values in enumerate(per_eval) for s, v in zip(seeds, values)]
+    (folder / "metrics.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
+    return folder
+
+
+def test_self_play_runs_compare_by_matches_won_and_ratings_and_never_beside_single_agent_runs(tmp_path):
+    team = team_run_folder(tmp_path / "soccer_1v1-ppo-0to2", [[0.0] * 3, [0.5, 1.0, 0.75]], [0, 1, 2])
+    plot = tmp_path / "team.png"
+    result = runner.invoke(app, ["compare", str(team), "-o", str(plot)], env={"COLUMNS": "300"})
+    assert result.exit_code == 0, result.output
+    [row] = [line for line in result.output.splitlines() if "soccer_1v1-ppo-0to2" in line and "│" in line]
+    cells = [cell.strip() for cell in row.split("│")[1:-1]]
+    assert cells[5].startswith("0.750 [") and cells[6] == "0: 0.500, 1: 1.000, 2: 0.750"
+    assert cells[7] == "0: 1,250, 1: 1,500, 2: 1,375"
+    assert "won vs random (last)" in result.output and "success_any" not in result.output
+    assert plot.stat().st_size > 10_000
+    single = run_folder(tmp_path / "point_nav-crl-0", [[0.0], [0.5]])
+    mixed = runner.invoke(app, ["compare", str(team), str(single), "-o", str(tmp_path / "mixed.png")],
+                          env={"COLUMNS": "400"})
+    assert mixed.exit_code == 1 and "Traceback" not in mixed.output, mixed.output
+    assert mixed.output.startswith(f"error: {team} is a self-play run on a team field") and str(single) in mixed.output
+    assert not (tmp_path / "mixed.png").exists()
