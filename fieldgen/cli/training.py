@@ -241,6 +241,13 @@ def train(
             _read_config(config)
             field = session.field_spec(source)
             if field.teams is not None:  # a match: one network plays both sides (self-play PPO)
+                from fieldgen import curriculum as curricula
+
+                if curricula.is_curriculum(source):
+                    last = curricula.load(source).spec_paths()[-1]
+                    fail(f"{spec} is a curriculum of team fields: a match trains by self-play on one field from "
+                         f"nothing (docs/teams.md), never through stages; train one of its stages itself, e.g. "
+                         f"fieldgen train {last}")
                 _refuse_for_self_play(field.name, mixed=mixed, curriculum=curriculum_kind, levels=levels,
                                       sampler=samplers, init_from=init_from, logger=logger)
                 team = _team_run(source, field, algo, seeds, config, sets, preset, steps, envs, seed, runs, prepare,

@@ -81,11 +81,25 @@ def variants(base: Path, asked: Asked) -> tuple[str, list[tuple[dict, str]]]:
                                       f"give {other.asked_by.split()[0]} too")
     if asked.then_stages is not None and not asked.then:
         raise CurriculumError("--then-stages belongs to --then: give the field to go on to")
+    for field in (base, asked.to, *asked.then):
+        if field is not None and _is_team_field(field):
+            raise CurriculumError(f"{field} is a team field: a match trains by self-play on one field from nothing "
+                                  "(docs/teams.md), never through a curriculum's stages; make a curriculum between "
+                                  "single-agent fields, or train the team field itself")
     out = chosen[0].generate(base, asked)
     for target in asked.then:
         out = out + go_on(base, out, target, asked.stages - 1 if asked.then_stages is None else asked.then_stages,
                           asked.geometric)
     return chosen[0].name + ", then interpolation" * len(asked.then), out
+
+
+def _is_team_field(path: Path) -> bool:
+    """Whether the spec at `path` names two sides; a spec that does not load is left to the generator's own
+    messages."""
+    try:
+        return load_spec(path).teams is not None
+    except SpecError:
+        return False
 
 
 @kind("interpolation", "--to FIELD", "interpolation", lambda a: a.to is not None)

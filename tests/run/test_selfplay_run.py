@@ -32,6 +32,26 @@ def test_a_team_field_trains_by_self_play_with_ppo_alone(tmp_path):
     assert not list(tmp_path.iterdir())
 
 
+def test_no_curriculum_is_made_of_team_fields_and_one_written_by_hand_is_refused_in_one_line(tmp_path):
+    for args in (["soccer_1v1", "--to", "soccer_2v2"], ["soccer_v1", "--to", "soccer_2v2"],
+                 ["soccer_1v1", "--vary", "goal.width=1,2"]):
+        result = runner.invoke(app, ["curriculum", *args, "-o", str(tmp_path / "c")], env={"COLUMNS": "300"})
+        assert result.exit_code == 1 and "Traceback" not in result.output, result.output
+        team = args[2] if args[0] == "soccer_v1" else args[0]
+        assert result.output.startswith(f"error: {team} is a team field: a match trains by self-play"), result.output
+        assert not (tmp_path / "c").exists()
+    made = runner.invoke(app, ["curriculum", "point_soccer", "--vary", "goal.width=1,2", "-o", str(tmp_path / "c")])
+    assert made.exit_code == 0, made.output
+    for stage in sorted((tmp_path / "c").glob("stage_*.yaml")):  # the same stages, by hand, on a team field
+        stage.write_text(stage.read_text().replace("extends: point_soccer", "extends: soccer_1v1"))
+    (tmp_path / "c" / "curriculum.yaml").write_text(
+        (tmp_path / "c" / "curriculum.yaml").read_text().replace("base: point_soccer", "base: soccer_1v1"))
+    result = runner.invoke(app, ["train", str(tmp_path / "c"), "--out", str(tmp_path / "runs")],
+                           env={"COLUMNS": "300"})
+    assert result.exit_code == 1 and "Traceback" not in result.output, result.output
+    assert "is a curriculum of team fields" in result.output and not (tmp_path / "runs").exists()
+
+
 def test_a_team_field_takes_several_seeds_in_one_run(tmp_path):
     result = runner.invoke(app, ["train", "soccer_1v1", "--seed", "3", "--seeds", "2", "--prepare",
                                  "--out", str(tmp_path), *TINY])
