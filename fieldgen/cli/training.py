@@ -813,6 +813,10 @@ def export(
     except (SpecError, ConfigError, record.RunError, FolderError, OnnxMissing) as exc:
         fail(str(exc))
     onnx = f", or run {folder}/policy.onnx in onnxruntime" if fmt == "onnx" else ""
+    from fieldgen.run import selfplay
+
+    whose = (", one agent's, on either side: its observation in its own side's frame"
+             if selfplay.is_team_run(run_dir) else "")
     out.print(f"exported {d.algorithm} seed {d.seed} at {d.env_steps:,} env steps ({d.field}: "
-              f"{len(d.observation_names)} observations -> {len(d.action_names)} actions) to {folder}; "
+              f"{len(d.observation_names)} observations -> {len(d.action_names)} actions{whose}) to {folder}; "
               f"load it with fieldgen.load_policy('{folder}'){onnx}", highlight=False)

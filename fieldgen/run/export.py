@@ -12,7 +12,7 @@ from fieldgen.agents import loop
 from fieldgen.agents.actor import Policy
 from fieldgen.files import WriteError
 from fieldgen.policy_folder import Description, describe, save_policy
-from fieldgen.run import record, session
+from fieldgen.run import record, selfplay, session
 
 
 @dataclasses.dataclass(frozen=True)
@@ -23,11 +23,18 @@ class Exported:
 
 def export(run_dir: Path, out: Path, seed: int | None = None, fmt: str = "flax") -> Exported:
     """Write the policy of `seed` (the run's first by default) to `out`, replacing what was there; with `fmt`
-    "onnx" also as policy.onnx (fieldgen.policy_folder.save_policy)."""
-    run = session.open_run(run_dir, learned=True)
-    seed, policy, state = learned_policy(run, seed)
+    "onnx" also as policy.onnx (fieldgen.policy_folder.save_policy). A self-play run's policy is one agent's:
+    it reads that agent's observation in its own side's frame and drives that agent, on either side."""
+    if selfplay.is_team_run(run_dir):
+        run = selfplay.open_run(run_dir)
+        seed, policy, state = team_policy(run, seed)
+        algo = run.config.algo
+    else:
+        run = session.open_run(run_dir, learned=True)
+        seed, policy, state = learned_policy(run, seed)
+        algo = run.algo
     env = run.env
-    description = describe(policy, env.observation_names, env.action_names, algorithm=run.algo, field=env.spec.name,
+    description = describe(policy, env.observation_names, env.action_names, algorithm=algo, field=env.spec.name,
                            seed=seed, env_steps=int(jax.device_get(state.env_steps)))
     try:
         save_policy(policy, description, out, fmt)
@@ -36,9 +43,8 @@ def export(run_dir: Path, out: Path, seed: int | None = None, fmt: str = "flax")
     return Exported(out, description)
 
 
-def learned_policy(run: session.Run, seed: int | None = None) -> tuple[int, Policy, object]:
-    """(seed, its policy, its training state) of a run opened with what it learned (session.open_run(...,
-    learned=True)), `seed` the run's first by default: what an export writes and `fieldgen view` plays."""
+def _seed_state(run, seed: int | None) -> tuple[int, object]:
+    """(seed, its training state) of a run with a checkpoint, `seed` the run's first by default."""
     if run.state is None:
         raise record.RunError(f"{run.folder} has not trained yet, so it has no policy; start it with: "
                               f"fieldgen train --resume {run.folder}")
@@ -46,5 +52,24 @@ def learned_policy(run: session.Run, seed: int | None = None) -> tuple[int, Poli
     if seed not in run.seeds:
         raise record.RunError(f"{run.folder} trained seeds {', '.join(map(str, run.seeds))}, not {seed}; "
                               "pick one of them with --seed")
-    state = loop.seed_slice(run.state, run.seeds.index(seed))
+    return seed, loop.seed_slice(run.state, run.seeds.index(seed))
+
+
+def team_policy(run: selfplay.TeamRun, seed: int | None = None) -> tuple[int, Policy, object]:
+    """(seed, the learner's policy as one agent's, its training state) of a self-play run: the one network every
+    agent of both sides acts with, on the observation of the agent it drives."""
+    from fieldgen.agents.ppo.train import Normalizer, networks
+
+    seed, state = _seed_state(run, seed)
+    c = run.config
+    stats = dict(obs_mean=state.normalizer.mean, obs_std=state.normalizer.std, clip=Normalizer.CLIP) \
+        if c.normalize_observations else {}
+    outputs = networks(c, run.env.action_size)[0].out
+    return seed, Policy.whole(run.env, state.params["policy"], c.hidden, outputs, **stats), state
+
+
+def learned_policy(run: session.Run, seed: int | None = None) -> tuple[int, Policy, object]:
+    """(seed, its policy, its training state) of a run opened with what it learned (session.open_run(...,
+    learned=True)), `seed` the run's first by default: what an export writes and `fieldgen view` plays."""
+    seed, state = _seed_state(run, seed)
     return seed, run.judged_trainer.export(state), state

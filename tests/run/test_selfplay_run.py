@@ -5,9 +5,13 @@ from __future__ import annotations
 import json
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 from typer.testing import CliRunner
+
+import fieldgen
+import fieldgen.policy_folder
 
 from fieldgen.agents import loop
 from fieldgen.agents.selfplay import SelfPlayConfig
@@ -50,6 +54,39 @@ def test_no_curriculum_is_made_of_team_fields_and_one_written_by_hand_is_refused
                            env={"COLUMNS": "300"})
     assert result.exit_code == 1 and "Traceback" not in result.output, result.output
     assert "is a curriculum of team fields" in result.output and not (tmp_path / "runs").exists()
+
+
+def test_a_team_runs_policy_exports_as_one_agents_and_acts_as_its_actor(tmp_path):
+    """Before any training (the initial state, its normaliser moved off zero): the exported network, its
+    normaliser and its loaded form act as the self-play actor on an agent's observation."""
+    from fieldgen.agents.ppo.train import networks
+    from fieldgen.policy_folder import save_policy
+    from fieldgen.run import export
+
+    result = runner.invoke(app, ["train", "soccer_1v1", "--seed", "4", "--prepare", "--out", str(tmp_path), *TINY])
+    assert result.exit_code == 0, result.output
+    run = selfplay.open_run(tmp_path / "soccer_1v1-ppo-4")
+    untrained = runner.invoke(app, ["export", str(run.folder), "-o", str(tmp_path / "nothing")])
+    assert untrained.exit_code == 1 and "has not trained yet, so it has no policy" in untrained.output
+    sp, n = run.algorithm, run.env.observation_size
+    template = jax.eval_shape(jax.vmap(sp.init), loop.seed_keys(run.seeds))  # traced, not run: MJX resets are slow
+    state = jax.tree.map(lambda x: jnp.zeros(x.shape, x.dtype), template)
+    policy_net = networks(run.config, run.env.action_size)[0]
+    drawn = jax.vmap(lambda k: policy_net.init(k, jnp.zeros((1, n))))(jax.random.split(jax.random.PRNGKey(2), 1))
+    state = state.replace(params={**state.params, "policy": drawn})
+    moved = state.normalizer.replace(count=jnp.full((1,), 50.0), mean=jnp.linspace(-1, 1, n)[None],
+                                     m2=jnp.linspace(10, 200, n)[None])
+    run.state = state.replace(normalizer=moved)
+    seed, policy, _ = export.team_policy(run)
+    save_policy(policy, fieldgen.policy_folder.describe(policy, run.env.observation_names, run.env.action_names,
+                                                          algorithm="ppo", field="soccer_1v1", seed=seed,
+                                                          env_steps=0), tmp_path / "policy")
+    obs = jax.random.normal(jax.random.PRNGKey(1), (7, n)) * 4
+    acted = sp.act(sp.current(loop.seed_slice(run.state, 0)), obs)
+    assert seed == 4 and acted.shape == (7, run.env.action_size)
+    np.testing.assert_allclose(np.asarray(policy(obs)), np.asarray(acted), atol=1e-5)
+    np.testing.assert_allclose(np.asarray(fieldgen.load_policy(tmp_path / "policy")(obs)), np.asarray(acted),
+                               atol=1e-5)
 
 
 def test_a_team_field_takes_several_seeds_in_one_run(tmp_path):
@@ -168,6 +205,18 @@ def test_self_play_writes_ratings_resumes_exactly_and_is_judged(tmp_path, interr
     mine = judged["per_seed"]["0"]
     assert mine["vs_snapshot"]["snapshot"] == 1 and sum(mine["vs_random"].values()) == 8
     assert mine["ratings"] == last["ratings"]
+
+    # the learner exported as one agent's policy acts as the run's own actor does, on either side's observation
+    policy_folder = tmp_path / "policy"
+    result = runner.invoke(app, ["export", str(run), "-o", str(policy_folder)], env={"COLUMNS": "300"})
+    assert result.exit_code == 0, result.output
+    assert "exported ppo seed 0 at 2,400 env steps (soccer_1v1: 10 observations -> 2 actions, one agent's" in \
+        result.output
+    opened = selfplay.open_run(run)
+    sp, state = opened.algorithm, loop.seed_slice(opened.state, 0)
+    obs = jax.random.normal(jax.random.PRNGKey(3), (5, opened.env.observation_size)) * 3
+    np.testing.assert_allclose(np.asarray(fieldgen.load_policy(policy_folder)(obs)),
+                               np.asarray(sp.act(sp.current(state), obs)), atol=1e-5)
 
     # a time limit shorter than the first chunk (which compiles) stops after it; the resume ends as the whole run
     limited = tmp_path / "limited"
