@@ -94,7 +94,13 @@ class Player:
         """Labels and values of the episode so far, for the viewer's corner."""
         acting = "zero actions" if self.act is None else "its policy"
         step = f"{int(self.state.info['episode_step'])} of {self.env.episode_length}" + " (paused)" * self.paused
-        episode = f"{step}, reward {float(self.state.reward):.3f}, success {float(self.state.metrics['success']):.0f}"
+        reward, success = np.asarray(self.state.reward), np.asarray(self.state.metrics["success"])
+        if reward.ndim:  # a match: each side's own (home, away), the policy playing every agent of both
+            episode = (f"{step}, reward home {reward[0]:.3f} away {reward[1]:.3f}, goal home {success[0]:.0f} "
+                       f"away {success[1]:.0f}")
+            acting = "zero actions" if self.act is None else "its policy on both sides"
+        else:
+            episode = f"{step}, reward {float(reward):.3f}, success {float(success):.0f}"
         return "field\nstep\nkeys", "\n".join((f"{self.env.spec.name}, {acting}", episode, KEYS))
 
 

@@ -113,6 +113,46 @@ def test_an_exported_policy_plays_on_the_field_it_names_and_no_other(tmp_path, m
     assert result.output.count("\n") == 1
 
 
+def test_a_self_play_run_plays_every_agent_of_both_sides_on_its_own_field(tmp_path, monkeypatch):
+    """A self-play run's learner (its checkpoint, here its first state) drives each agent on that agent's own
+    observation; the corner says each side's reward and goal; --field is refused, as the run plays its field alone."""
+    import fieldgen.view
+    from fieldgen import files
+    from fieldgen.agents import checkpoint, loop
+    from fieldgen.run import record, selfplay
+
+    result = CliRunner().invoke(app, ["train", "soccer_1v1", "--steps", "2400", "--envs", "8", "--set",
+                                      "ppo.unroll_length=10", "--set", "ppo.num_evals=3", "--set", "ppo.eval_envs=8",
+                                      "--set", "ppo.num_minibatches=4",
+                                      "--prepare", "--out", str(tmp_path)])
+    assert result.exit_code == 0, result.output
+    folder = tmp_path / "soccer_1v1-ppo-0"
+    run = selfplay.open_run(folder)
+    template = jax.eval_shape(jax.vmap(run.algorithm.init), loop.seed_keys(run.seeds))  # traced, not run
+    state = jax.tree.map(lambda x: np.zeros(x.shape, x.dtype), template)
+    files.write_atomic(folder / record.CHECKPOINT, checkpoint.pieces(state))
+    (folder / record.METRICS).write_text(json.dumps({"eval": 0, "seed": 0, "env_steps": 0, "win_vs_random": 0.0,
+                                                     "success_any": 0.0, "elo": 1000.0}) + "\n")
+    shown = []
+    monkeypatch.setenv("DISPLAY", ":0")
+    monkeypatch.setattr(fieldgen.view, "Player", lambda env, act: shown.append((env, act)) or "player")
+    monkeypatch.setattr(fieldgen.view, "open_viewer", lambda player, camera: "window")
+    monkeypatch.setattr(fieldgen.view, "play", lambda handle, player, camera: None)
+    result = CliRunner().invoke(app, ["view", str(folder)])
+    assert result.exit_code == 0, result.output
+    (env, act), = shown
+    agents = len(env.agent_names)
+    assert env.spec.name == "soccer_1v1" and agents == 2
+    assert np.asarray(act(jnp.zeros((agents, env.observation_size)))).shape == (agents, env.action_size)
+    result = CliRunner().invoke(app, ["view", str(folder), "--field", "soccer_2v2"])
+    assert result.exit_code == 1 and "is a self-play run: it plays on its own team field alone" in result.output
+
+    player = Player(env, act)  # at the kick-off: a step would compile the match's physics, seconds on a CPU
+    field, step = player.status()[1].splitlines()[:2]
+    assert field == "soccer_1v1, its policy on both sides"
+    assert step == "0 of 400, reward home 0.000 away 0.000, goal home 0 away 0"
+
+
 WINDOW = textwrap.dedent("""
     import json, os, shutil, sys
     import fieldgen, mujoco

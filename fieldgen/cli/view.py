@@ -33,6 +33,7 @@ def view(
     Example: fieldgen view soccer_v1
     Example: fieldgen view runs/point_nav-crl-0
     Example: fieldgen view policies/point_nav --field my_nav.yaml
+    Example: fieldgen view runs/soccer_2v2-ppo-0   (a self-play run: its policy plays both sides)
     """
     from fieldgen.view import no_display_reason
 
@@ -69,12 +70,18 @@ def _playing(source: str, field: str | None, seed: int | None):
     from fieldgen.agents.config import ConfigError
     from fieldgen.compile.artifact import ArtifactError
     from fieldgen.policy_folder import DESCRIPTION, PolicyError, load_policy, read_description
-    from fieldgen.run import record, session
-    from fieldgen.run.export import learned_policy
+    from fieldgen.run import record, selfplay, session
+    from fieldgen.run.export import learned_policy, team_policy
     from fieldgen.schema import SpecError, bundled_fields
 
     folder = Path(source)
     try:
+        if selfplay.is_team_run(folder):  # its learner plays every agent of both sides, on its own field
+            if field is not None:
+                fail(f"{source} is a self-play run: it plays on its own team field alone; leave out --field")
+            run = selfplay.open_run(folder)
+            _, policy, _ = team_policy(run, seed)
+            return run.env, jax.tree_util.Partial(type(policy).__call__, policy)
         if (folder / record.RUN).is_file():
             run = session.open_run(folder, learned=True)
             if field is not None:
