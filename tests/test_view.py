@@ -87,10 +87,24 @@ def test_keys_pause_and_draw_a_new_episode(player):
     assert not player.paused and int(player.state.info["episode_step"]) == 1
 
 
+def viewed(monkeypatch, source) -> list:
+    """`fieldgen view SOURCE` with a display said to be there and the window left out: what it would have played,
+    as (environment, act) pairs."""
+    import fieldgen.view
+
+    shown = []
+    monkeypatch.setenv("DISPLAY", ":0")
+    monkeypatch.setattr(fieldgen.view, "Player", lambda env, act: shown.append((env, act)) or "player")
+    monkeypatch.setattr(fieldgen.view, "open_viewer", lambda player, camera: "window")
+    monkeypatch.setattr(fieldgen.view, "play", lambda handle, player, camera: None)
+    result = CliRunner().invoke(app, ["view", str(source)])
+    assert result.exit_code == 0, result.output
+    return shown
+
+
 def test_an_exported_policy_plays_on_the_field_it_names_and_no_other(tmp_path, monkeypatch, env_cache):
     from fieldgen.agents.actor import Policy
     from fieldgen.policy_folder import describe, save_policy
-    import fieldgen.view
 
     env = env_cache(FIELD)
     policy = Policy.whole(env, None, (8,), env.action_size)
@@ -98,13 +112,7 @@ def test_an_exported_policy_plays_on_the_field_it_names_and_no_other(tmp_path, m
     folder = tmp_path / "policy"
     save_policy(policy, describe(policy, env.observation_names, env.action_names, algorithm="crl", field=FIELD,
                                  seed=0, env_steps=0), folder)
-    shown = []
-    monkeypatch.setenv("DISPLAY", ":0")
-    monkeypatch.setattr(fieldgen.view, "Player", lambda env, act: shown.append((env, act)) or "player")
-    monkeypatch.setattr(fieldgen.view, "open_viewer", lambda player, camera: "window")
-    monkeypatch.setattr(fieldgen.view, "play", lambda handle, player, camera: None)
-    result = CliRunner().invoke(app, ["view", str(folder)])
-    assert result.exit_code == 0, result.output
+    shown = viewed(monkeypatch, folder)
     (played_on, act), = shown
     assert played_on.spec.name == FIELD
     assert np.asarray(act(jnp.zeros(env.observation_size))).shape == (env.action_size,)
@@ -116,7 +124,6 @@ def test_an_exported_policy_plays_on_the_field_it_names_and_no_other(tmp_path, m
 def test_a_self_play_run_plays_every_agent_of_both_sides_on_its_own_field(tmp_path, monkeypatch):
     """A self-play run's learner (its checkpoint, here its first state) drives each agent on that agent's own
     observation; the corner says each side's reward and goal; --field is refused, as the run plays its field alone."""
-    import fieldgen.view
     from fieldgen import files
     from fieldgen.agents import checkpoint, loop
     from fieldgen.run import record, selfplay
@@ -133,13 +140,7 @@ def test_a_self_play_run_plays_every_agent_of_both_sides_on_its_own_field(tmp_pa
     files.write_atomic(folder / record.CHECKPOINT, checkpoint.pieces(state))
     (folder / record.METRICS).write_text(json.dumps({"eval": 0, "seed": 0, "env_steps": 0, "win_vs_random": 0.0,
                                                      "success_any": 0.0, "elo": 1000.0}) + "\n")
-    shown = []
-    monkeypatch.setenv("DISPLAY", ":0")
-    monkeypatch.setattr(fieldgen.view, "Player", lambda env, act: shown.append((env, act)) or "player")
-    monkeypatch.setattr(fieldgen.view, "open_viewer", lambda player, camera: "window")
-    monkeypatch.setattr(fieldgen.view, "play", lambda handle, player, camera: None)
-    result = CliRunner().invoke(app, ["view", str(folder)])
-    assert result.exit_code == 0, result.output
+    shown = viewed(monkeypatch, folder)
     (env, act), = shown
     agents = len(env.agent_names)
     assert env.spec.name == "soccer_1v1" and agents == 2
