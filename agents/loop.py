@@ -20,7 +20,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..curriculum.contract import OneStage, Schedule, adapt, start_sampling, with_episode_sampling
-from ..env.contract import DIVERGED, OVERFLOW, Environment, merged_overflow
+from ..env.contract import DIVERGED, OVERFLOW, Environment, merged_overflow, shared_by_batch
 from .config import RunConfig
 from .programs import Programs, computed
 from .sharding import from_host, meet, to_host
@@ -172,15 +172,16 @@ def batched_with(key: jax.Array, tree):
     Under a vmap over seeds, a scan whose carry starts the same for every seed but differs after one step
     (episodes alive, an environment's counters) has its body batched again until the carry's batching
     settles, the whole environment step traced anew each time; carries tied to the seed's key settle at
-    once. Typed PRNG keys are left as they are."""
+    once. Typed PRNG keys are left as they are, and so is what a batch of environments shares (Warp's contact
+    buffer, `shared_by_batch`), which is no seed's own."""
     zero = (jax.random.key_data(key) if jnp.issubdtype(key.dtype, jax.dtypes.prng_key) else key).ravel()[0] * 0
 
-    def tie(x):
+    def tie(path, x):
         x = jnp.asarray(x)
-        if jnp.issubdtype(x.dtype, jax.dtypes.prng_key):
+        if jnp.issubdtype(x.dtype, jax.dtypes.prng_key) or shared_by_batch(path):
             return x
         return x | (zero > 0) if x.dtype == jnp.bool_ else x - zero.astype(x.dtype)  # x - 0 is x, -0.0 too
-    return jax.tree.map(tie, tree)
+    return jax.tree_util.tree_map_with_path(tie, tree)
 
 
 @flax.struct.dataclass

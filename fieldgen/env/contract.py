@@ -26,6 +26,15 @@ OVERFLOW = "physics_overflow"  # State.info entry: the physics' overflow flags (
 DIVERGED = "diverged_episodes"  # State.info entry: episodes ended since reset because the simulation blew up (int32)
 
 
+SHARED_BY_BATCH = "contact__"  # a physics state's leaves named so are one buffer for a whole batch (Warp's contacts)
+
+
+def shared_by_batch(path) -> bool:
+    """Whether the state leaf at `path` (a jax.tree_util key path) belongs to the whole batch, not to one
+    environment: MuJoCo Warp's contact buffer, which a vmap over environments (or seeds) must leave unbatched."""
+    return SHARED_BY_BATCH in jax.tree_util.keystr(path)
+
+
 def merged_overflow(flags: jax.Array) -> jax.Array:
     """Overflow flags of any shape (per environment, per flag) as one int32 of bits: set where any is set."""
     flags = flags.astype(jnp.int32)

@@ -94,3 +94,35 @@ def test_another_library_s_wrappers_take_a_warp_field_once_its_batch_is_reserved
     field.reserve_worlds(4)
     assert BraxField(field).field is field
     assert BraxField(make("point_nav")).field.impl == "jax"
+
+
+def test_a_seed_s_carry_leaves_the_batch_s_shared_contact_buffer_unbatched():
+    """agents.loop.batched_with ties every leaf of an evaluation's carry to its seed but Warp's contact buffer,
+    which the whole batch of every seed shares: tied, a vmap over seeds would batch it and Warp refuse it."""
+    key = jax.random.PRNGKey(3)
+    tree = {"_impl": {"contact__dist": jnp.ones(6), "qpos": jnp.ones((2, 3))}, "alive": jnp.ones(2)}
+    tied = jax.vmap(lambda k: loop.batched_with(k, tree))(jax.random.split(key, 4))
+    assert tied["_impl"]["qpos"].shape == (4, 2, 3) and tied["alive"].shape == (4, 2)
+    shared = jax.vmap(lambda k: loop.batched_with(k, tree)["_impl"]["contact__dist"], out_axes=None)(
+        jax.random.split(key, 4))  # out_axes=None: refused for a leaf batched over the seeds
+    np.testing.assert_array_equal(np.asarray(shared), np.ones(6))
+
+
+@pytest.mark.slow
+def test_ppo_trains_and_evaluates_seeds_on_warp_s_physics(tmp_path):
+    """Two seeds vmapped, an evaluation batch smaller than training's: the run ends with its metrics."""
+    import json
+
+    from typer.testing import CliRunner
+
+    from fieldgen.cli import app
+
+    spec = tmp_path / "warp_nav.yaml"
+    spec.write_text("extends: point_nav\nname: warp_nav\nsim: {backend: warp}\n")
+    result = CliRunner().invoke(app, ["train", str(spec), "--algo", "ppo", "--steps", "4000", "--envs", "4",
+                                      "--seeds", "2", "--set", "ppo.unroll_length=10", "--set",
+                                      "ppo.num_minibatches=4", "--set", "ppo.num_evals=2", "--set", "ppo.eval_envs=2",
+                                      "--no-videos", "--out", str(tmp_path / "runs")])
+    assert result.exit_code == 0, result.output
+    rows = [json.loads(line) for line in (tmp_path / "runs" / "warp_nav-ppo-0to1" / "metrics.jsonl").open()]
+    assert sorted((r["eval"], r["seed"]) for r in rows) == [(e, s) for e in range(3) for s in (0, 1)]

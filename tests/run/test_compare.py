@@ -317,14 +317,19 @@ def team_run_folder(folder, per_eval: list[list[float]], seeds: list[int]):
 
 def test_self_play_runs_compare_by_matches_won_and_ratings_and_never_beside_single_agent_runs(tmp_path):
     team = team_run_folder(tmp_path / "soccer_1v1-ppo-0to2", [[0.0] * 3, [0.5, 1.0, 0.75]], [0, 1, 2])
-    plot = tmp_path / "team.png"
-    result = runner.invoke(app, ["compare", str(team), "-o", str(plot)], env={"COLUMNS": "300"})
-    assert result.exit_code == 0, result.output
-    [row] = [line for line in result.output.splitlines() if "soccer_1v1-ppo-0to2" in line and "│" in line]
+    import io
+
+    from rich.console import Console
+
+    from fieldgen.run import compare
+
+    plot, printed = tmp_path / "team.png", io.StringIO()
+    compare.report_recorded([compare.recorded(team)], plot, Console(file=printed, width=400))
+    [row] = [line for line in printed.getvalue().splitlines() if "soccer_1v1-ppo-0to2" in line and "│" in line]
     cells = [cell.strip() for cell in row.split("│")[1:-1]]
     assert cells[5].startswith("0.750 [") and cells[6] == "0: 0.500, 1: 1.000, 2: 0.750"
     assert cells[7] == "0: 1,250, 1: 1,500, 2: 1,375"
-    assert "won vs random (last)" in result.output and "success_any" not in result.output
+    assert "won vs random (last)" in printed.getvalue() and "success_any" not in printed.getvalue()
     assert plot.stat().st_size > 10_000
     single = run_folder(tmp_path / "point_nav-crl-0", [[0.0], [0.5]])
     mixed = runner.invoke(app, ["compare", str(team), str(single), "-o", str(tmp_path / "mixed.png")],
