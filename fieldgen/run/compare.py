@@ -409,5 +409,6 @@ def report_recorded(runs_: list[Recorded], plot_path: Path, console: Console) ->
     names = list(dict.fromkeys(r.field for r in runs_))
     seeds = {len(r.seeds) for r in runs_}
     bands = "IQM over seeds, 95% bootstrap interval shaded" if max(seeds) > 1 else "one seed each"
-    plot(runs_, plot_path, f"{', '.join(names)}: {len(runs_)} run{'s' * (len(runs_) != 1)} ({bands})", labels=[str(r.folder) for r in runs_])
+    count = f"{len(runs_)} run{'s' * (len(runs_) != 1)}"
+    plot(runs_, plot_path, f"{', '.join(names)}: {count} ({bands})", labels=[str(r.folder) for r in runs_])
     console.print(f"plot: {plot_path}")
