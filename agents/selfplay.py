@@ -2,8 +2,9 @@
 
 Every agent observes and acts in its own side's frame, so the one policy drives home and away alike. In each
 environment the policy plays either itself (`self_play_share` of the episodes: every agent's steps are its
-own, to learn from) or an earlier snapshot of itself, on a side drawn at random (only its own side's steps are
-learned from). A snapshot is taken at every evaluation; the opponent pool is the newest `pool_size` of them,
+own, to learn from), a random policy (`random_share`: uniform actions, the opponent a league's specialised
+selves stop scoring against) or an earlier snapshot of itself, on a side drawn at random (against another, only
+its own side's steps are learned from). A snapshot is taken at every evaluation; the opponent pool is the newest `pool_size` of them,
 drawn by recency (weight `recency_decay ** age`, the newest age 0) or by win rate (prioritized fictitious
 self-play: weight (1 - w) ** `win_rate_power`, w the learner's score against that snapshot in training so far,
 wins 1 and draws 1/2, with one win and one loss assumed before any game), as `pool_sampling` says. An episode
@@ -44,6 +45,7 @@ PoolSampling = Annotated[Literal[POOL_SAMPLINGS], Unknown(
     "unknown ppo.pool_sampling '{}'; choose recency (newer snapshots more often) or win_rate (the snapshots the "
     "policy beats least, more often)")]
 RESULTS = ("win", "draw", "loss")
+ITSELF, RANDOM = -1, -2  # an environment's opponent that is no snapshot: the policy itself, a random policy
 
 
 class SelfPlayConfig(PPOConfig):
@@ -54,6 +56,7 @@ class SelfPlayConfig(PPOConfig):
     recency_decay: Annotated[Float, Field(gt=0, le=1)] = 0.7  # pool_sampling recency: weight decay ** age
     win_rate_power: Rate = 2.0  # pool_sampling win_rate: weight (1 - win rate) ** power
     self_play_share: Share = 0.5  # episodes the policy plays against itself rather than a snapshot
+    random_share: Share = 0.0  # episodes it plays against a random policy (uniform actions)
     league_opponents: Count = 4  # earlier snapshots each snapshot plays at its evaluation
     elo_k: Rate = 32.0  # the Elo K factor
 
@@ -62,6 +65,9 @@ class SelfPlayConfig(PPOConfig):
         if self.eval_envs % 2:
             raise ConfigError(f"ppo.eval_envs {self.eval_envs} is odd: a snapshot plays half its evaluation "
                               "episodes on each side; give an even number")
+        if self.self_play_share + self.random_share > 1:
+            raise ConfigError(f"ppo.self_play_share {self.self_play_share:g} and ppo.random_share "
+                              f"{self.random_share:g} add up to more than every episode; keep their sum at most 1")
 
 
 @flax.struct.dataclass
@@ -77,7 +83,7 @@ class SelfPlayState:
     newest: jax.Array  # the newest snapshot's index (its evaluation's)
     wins: jax.Array  # [num_evals + 1]: the learner's score in training against each snapshot (win 1, draw 1/2)
     games: jax.Array  # [num_evals + 1]: training episodes the learner played against each snapshot
-    opponent: jax.Array  # [envs]: the snapshot each environment's episode plays, -1 the policy itself
+    opponent: jax.Array  # [envs]: the snapshot each environment's episode plays, or ITSELF, or RANDOM
     learner_side: jax.Array  # [envs]: the side the learner plays against a snapshot (0 home, 1 away)
 
 
@@ -105,13 +111,17 @@ def pool_probabilities(config: SelfPlayConfig, newest, taken, wins, games) -> tu
 
 
 def draw_opponents(config: SelfPlayConfig, key, count: int, newest, taken, wins, games):
-    """([count] opponents, [count] learner sides): each environment's next opponent, -1 (the policy itself) with
-    chance self_play_share or while no snapshot exists, else a snapshot drawn from the pool."""
+    """([count] opponents, [count] learner sides): each environment's next opponent, ITSELF with chance
+    self_play_share, RANDOM (a random policy) with chance random_share, else a snapshot drawn from the pool (the
+    policy itself while no snapshot exists)."""
     k_pick, k_self, k_side = jax.random.split(key, 3)
     ids, probs = pool_probabilities(config, newest, taken, wins, games)
     picked = ids[jax.random.categorical(k_pick, jnp.log(jnp.maximum(probs, 1e-30)), shape=(count,))]
-    itself = (jax.random.uniform(k_self, (count,)) < config.self_play_share) | (probs.sum() <= 0)
-    return jnp.where(itself, -1, picked).astype(jnp.int32), jax.random.randint(k_side, (count,), 0, 2, jnp.int32)
+    u = jax.random.uniform(k_self, (count,))
+    itself = (u < config.self_play_share) | ((u >= config.self_play_share + config.random_share) & (probs.sum() <= 0))
+    random = ~itself & (u < config.self_play_share + config.random_share)
+    opponent = jnp.where(itself, ITSELF, jnp.where(random, RANDOM, picked))
+    return opponent.astype(jnp.int32), jax.random.randint(k_side, (count,), 0, 2, jnp.int32)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -171,7 +181,7 @@ def make_selfplay(config: SelfPlayConfig, env) -> SelfPlay:
 
     def controls(opponent, learner_side):
         """[envs, agents]: the agents the learner drives (all of them against itself)."""
-        return (opponent[:, None] < 0) | (sides[None, :] == learner_side[:, None])
+        return (opponent[:, None] == ITSELF) | (sides[None, :] == learner_side[:, None])
 
     def init(key) -> SelfPlayState:
         k_pi, k_v, k_env, key = jax.random.split(key, 4)
@@ -183,7 +193,7 @@ def make_selfplay(config: SelfPlayConfig, env) -> SelfPlay:
         env_state = jax.vmap(env.reset)(jax.random.split(k_env, c.num_envs))
         ts = SelfPlayState(params, tx.init(params), normalizer, env_state, key, jnp.zeros((), jnp.int32),
                            None, jnp.zeros(snapshots, bool), jnp.zeros((), jnp.int32), jnp.zeros(snapshots),
-                           jnp.zeros(snapshots), jnp.full(c.num_envs, -1, jnp.int32),
+                           jnp.zeros(snapshots), jnp.full(c.num_envs, ITSELF, jnp.int32),
                            jnp.zeros(c.num_envs, jnp.int32))
         league = jax.tree.map(lambda x: jnp.zeros((snapshots,) + x.shape, x.dtype), current(ts))
         return ts.replace(league=league)
@@ -195,15 +205,17 @@ def make_selfplay(config: SelfPlayConfig, env) -> SelfPlay:
 
         def step(carry, key):
             env_state, opponent, learner_side, wins, games = carry
-            k_act, k_opp, k_draw = jax.random.split(key, 3)
+            k_act, k_opp, k_draw = jax.random.split(key, 3)  # as before random opponents: runs stay as they were
             obs = ts.normalizer(env_state.obs, c.normalize_observations)  # [envs, agents, n]
             mean, log_std = distribution(ts.params, obs)
             noise = jax.random.normal(k_act, mean.shape)
             raw = mean + jnp.exp(log_std) * noise
             theirs = jax.vmap(act, in_axes=(0, None, 0))(pool, env_state.obs, jax.random.split(k_opp, c.pool_size))
             slot = jnp.clip(ts.newest - opponent, 0, c.pool_size - 1)
+            uniform = jax.random.uniform(jax.random.fold_in(k_opp, c.pool_size), mean.shape, minval=-1.0, maxval=1.0)
+            theirs = jnp.where((opponent == RANDOM)[:, None, None], uniform, theirs[slot, envs])
             learns = controls(opponent, learner_side)
-            actions = jnp.where(learns[..., None], jnp.tanh(raw), theirs[slot, envs])
+            actions = jnp.where(learns[..., None], jnp.tanh(raw), theirs)
             nxt = jax.vmap(env.step)(env_state, actions)
             success = nxt.metrics["success"]  # [envs, 2]
             side_reward = nxt.reward if c.reward == "dense" else success - success[:, ::-1]
@@ -277,7 +289,7 @@ def make_selfplay(config: SelfPlayConfig, env) -> SelfPlay:
         (params, opt), metrics = jax.lax.scan(epoch, (ts.params, ts.opt), jax.random.split(k, c.update_epochs))
         learner = data["learns"]
         stats = {"train_reward": jnp.sum(learner * data["reward"]) / jnp.maximum(learner.sum(), 1.0),
-                 "train_goals": jnp.mean(data["goals"]), "self_play_share": jnp.mean(ts.opponent < 0)}
+                 "train_goals": jnp.mean(data["goals"]), "self_play_share": jnp.mean(ts.opponent == ITSELF)}
         ts = ts.replace(params=params, opt=opt, normalizer=normalizer, key=key,
                         env_steps=ts.env_steps + c.num_envs * c.unroll_length)
         return ts, {**jax.tree.map(jnp.mean, metrics), **stats}

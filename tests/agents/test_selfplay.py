@@ -101,6 +101,29 @@ def test_the_policy_plays_itself_as_configured_and_while_there_is_no_snapshot():
     assert np.mean(np.asarray(opponents) == -1) == pytest.approx(0.3, abs=0.03)
 
 
+def test_a_random_policy_is_drawn_as_often_as_configured_and_even_before_any_snapshot():
+    from fieldgen.agents.config import ConfigError
+    from fieldgen.agents.selfplay import ITSELF, RANDOM
+
+    taken = jnp.ones(8, bool)
+    opponents, _ = draw_opponents(config(self_play_share=0.2, random_share=0.3), jax.random.PRNGKey(3), 6000, 5,
+                                  taken, jnp.zeros(8), jnp.zeros(8))
+    drawn = np.asarray(opponents)
+    assert np.mean(drawn == ITSELF) == pytest.approx(0.2, abs=0.02)
+    assert np.mean(drawn == RANDOM) == pytest.approx(0.3, abs=0.02)
+    assert set(drawn[drawn >= 0].tolist()) <= {5, 4, 3, 2, 1, 0}
+    none_yet, _ = draw_opponents(config(self_play_share=0.2, random_share=0.3), jax.random.PRNGKey(3), 6000, 5,
+                                 jnp.zeros(8, bool), jnp.zeros(8), jnp.zeros(8))
+    none_yet = np.asarray(none_yet)  # no snapshot: the pool's share plays itself, the random share stays
+    assert np.array_equal(none_yet == RANDOM, drawn == RANDOM) and set(none_yet.tolist()) == {ITSELF, RANDOM}
+    before, _ = draw_opponents(config(self_play_share=0.3), jax.random.PRNGKey(2), 4000, 5, taken, jnp.zeros(8),
+                               jnp.zeros(8))
+    assert RANDOM not in np.asarray(before)  # left at 0, the draws are those of a run before the setting
+    with pytest.raises(ConfigError, match="add up to more than every episode"):
+        SelfPlayConfig.layered(sets=["ppo.self_play_share=0.8", "ppo.random_share=0.3"]).validate_env(
+            match_env("soccer_1v1"))
+
+
 def test_a_config_is_ppos_keys_with_self_plays_own():
     from fieldgen.agents.config import ConfigError
 
@@ -120,9 +143,11 @@ def match_env(name: str):
 def test_which_agents_the_learner_drives():
     sp = make_selfplay(SelfPlayConfig(total_steps=1600, num_envs=8, unroll_length=10, num_minibatches=4,
                                       num_evals=2, hidden=(8,), eval_envs=8), match_env("soccer_2v2"))
-    learns = np.asarray(sp.controls(jnp.asarray([-1, 3, 3]), jnp.asarray([1, 0, 1])))
-    # home0, home1, away0, away1: against itself all four; against a snapshot the learner's side alone
-    assert learns.tolist() == [[True] * 4, [True, True, False, False], [False, False, True, True]]
+    learns = np.asarray(sp.controls(jnp.asarray([-1, 3, 3, -2]), jnp.asarray([1, 0, 1, 1])))
+    # home0, home1, away0, away1: against itself all four; against a snapshot or a random policy the learner's
+    # side alone
+    assert learns.tolist() == [[True] * 4, [True, True, False, False], [False, False, True, True],
+                               [False, False, True, True]]
 
 
 @pytest.mark.slow
