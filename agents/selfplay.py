@@ -38,7 +38,8 @@ from pydantic import Field
 from .config import ConfigError, Count, Float, Rate, Share, Unknown
 from .loop import batched_with
 from .ppo.config import PPOConfig
-from .ppo.train import Normalizer, advantages, gaussian, networks, optimizer, squashed_entropy
+from .actor import Policy
+from .ppo.train import Normalizer, advantages, exported_policy, gaussian, networks, optimizer, squashed_entropy
 
 POOL_SAMPLINGS = ("recency", "win_rate")
 PoolSampling = Annotated[Literal[POOL_SAMPLINGS], Unknown(
@@ -140,6 +141,7 @@ class SelfPlay:
     match: Callable  # (actor a, actor b or None for random, key) -> [3] a's wins, draws, losses over eval_envs
     controls: Callable  # (opponent [envs], learner_side [envs]) -> [envs, agents]: the agents the learner drives
     film: Callable  # (actor a, actor b or None, key) -> one match, a at home, filmed: ((qpos, mocap_pos), done) a step
+    export: Callable  # state -> the learner as one agent's Policy (agents/actor.py), either side's
 
 
 def make_selfplay(config: SelfPlayConfig, env) -> SelfPlay:
@@ -212,8 +214,11 @@ def make_selfplay(config: SelfPlayConfig, env) -> SelfPlay:
             raw = mean + jnp.exp(log_std) * noise
             theirs = jax.vmap(act, in_axes=(0, None, 0))(pool, env_state.obs, jax.random.split(k_opp, c.pool_size))
             slot = jnp.clip(ts.newest - opponent, 0, c.pool_size - 1)
-            uniform = jax.random.uniform(jax.random.fold_in(k_opp, c.pool_size), mean.shape, minval=-1.0, maxval=1.0)
-            theirs = jnp.where((opponent == RANDOM)[:, None, None], uniform, theirs[slot, envs])
+            theirs = theirs[slot, envs]
+            if c.random_share > 0:  # drawn only where a random policy can be an opponent
+                uniform = jax.random.uniform(jax.random.fold_in(k_opp, c.pool_size), mean.shape, minval=-1.0,
+                                             maxval=1.0)
+                theirs = jnp.where((opponent == RANDOM)[:, None, None], uniform, theirs)
             learns = controls(opponent, learner_side)
             actions = jnp.where(learns[..., None], jnp.tanh(raw), theirs)
             nxt = jax.vmap(env.step)(env_state, actions)
@@ -370,4 +375,8 @@ def make_selfplay(config: SelfPlayConfig, env) -> SelfPlay:
         earlier = jax.lax.map(against, (opponents, keys))
         return ts, {"random": vs_random, "earlier": earlier}
 
-    return SelfPlay(config, env, init, chunk, judge, act, current, snapshot, match, controls, film)
+    def export(ts: SelfPlayState) -> Policy:
+        """The learner as one agent's policy: it reads an agent's observation in its own side's frame."""
+        return exported_policy(c, env, ts.params["policy"], ts.normalizer)
+
+    return SelfPlay(config, env, init, chunk, judge, act, current, snapshot, match, controls, film, export)

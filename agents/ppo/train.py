@@ -134,6 +134,14 @@ def optimizer(c: PPOConfig) -> optax.GradientTransformation:
     return optax.multi_transform({"policy": step(), "value": step()}, network)
 
 
+def exported_policy(c: PPOConfig, env, policy_params, normalizer: Normalizer) -> Policy:
+    """PPO's policy network alone (as `networks` builds it for `env`'s actions), with the normaliser's statistics
+    where observations are normalised; its first outputs are the mean. Self-play's learner exports the same way."""
+    stats = dict(obs_mean=normalizer.mean, obs_std=normalizer.std, clip=normalizer.CLIP) \
+        if c.normalize_observations else {}
+    return Policy.whole(env, policy_params, c.hidden, networks(c, env.action_size)[0].out, **stats)
+
+
 def make_train(config: PPOConfig, env) -> Trainer:
     c = config
     iters_per_eval = c.total_steps // (c.num_envs * c.unroll_length) // c.num_evals
@@ -245,9 +253,6 @@ def make_train(config: PPOConfig, env) -> Trainer:
         return ts, jax.tree.map(jnp.mean, metrics)
 
     def export(ts: TrainState) -> Policy:
-        """The policy network alone, with the normaliser's statistics; its first outputs are the mean."""
-        norm = ts.normalizer
-        stats = dict(obs_mean=norm.mean, obs_std=norm.std, clip=norm.CLIP) if c.normalize_observations else {}
-        return Policy.whole(env, ts.params["policy"], c.hidden, policy_net.out, **stats)
+        return exported_policy(c, env, ts.params["policy"], ts.normalizer)
 
     return Trainer(config, env, init, lambda ts: ts, chunk, act, {"env_state": 0}, export)

@@ -268,8 +268,7 @@ def train(
             trainer_config, agent = registry.trainer(algo).config, field.agent.kind
             algo_config = trainer_config.layered(config, sets or [], agent=agent, preset=named, recipe=recipe,
                                                  total_steps=steps, num_envs=envs, seed=seed)
-            overriding = [flag for flag, given in (("--steps", steps), ("--envs", envs), ("--set", sets),
-                                                   ("--config", config), ("--preset", preset)) if given]
+            overriding = _overriding(steps, envs, sets, config, preset)
             said = chosen.line(overriding)
             if said:
                 out.print(said, soft_wrap=True)  # one line, whole
@@ -305,6 +304,12 @@ def train(
     _train(run, videos, logger, fmt, None if time_limit is None else started + time_limit)
 
 
+def _overriding(steps, envs, sets, config, preset) -> list[str]:
+    """The flags given that override a field's recipe, as the recipe's line names them."""
+    return [flag for flag, given in (("--steps", steps), ("--envs", envs), ("--set", sets), ("--config", config),
+                                     ("--preset", preset)) if given]
+
+
 def _team_run(source: Path, field, algo: str | None, seeds: int, config: Path | None, sets: list[str] | None,
               preset: str | None, steps: int | None, envs: int | None, seed: int, runs: Path, prepare: bool = False,
               use_recipe: bool = True):
@@ -320,8 +325,7 @@ def _team_run(source: Path, field, algo: str | None, seeds: int, config: Path | 
     chosen = recipes.choose(source, SelfPlayConfig.algo, use_recipe)
     settings = SelfPlayConfig.layered(config, sets or [], agent=field.agent.kind, preset=preset,
                                       recipe=chosen.recipe, total_steps=steps, num_envs=envs, seed=seed)
-    overriding = [flag for flag, given in (("--steps", steps), ("--envs", envs), ("--set", sets),
-                                           ("--config", config), ("--preset", preset)) if given]
+    overriding = _overriding(steps, envs, sets, config, preset)
     said = chosen.line(overriding)
     if said:
         out.print(said, soft_wrap=True)

@@ -178,10 +178,7 @@ def plot(runs_: list[session.Run], path: Path, title: str, labels: list[str] | N
         panels.append((axes[4], "env_steps", "farthest_from_start"))
     for k, (run, c) in enumerate(zip(runs_, drawn)):
         for ax, x, metric in panels:
-            centre, low, high = np.array([over_seeds(v) for v in c[metric]]).T
-            line, = ax.plot(c[x], centre, marker="o", ms=3, label=labels[k] if labels else run.algo)
-            if len(run.seeds) > 1:
-                ax.fill_between(c[x], low, high, color=line.get_color(), alpha=0.2)
+            _band(ax, c[x], c[metric], labels[k] if labels else run.algo, len(run.seeds) > 1)
     over = ", level mean" if judge is over_levels else ""
     axes[0].set(xlabel="env steps", ylabel=f"success_any{over} (IQM)", ylim=(-0.02, 1.02),
                 title="episodes with a success")
@@ -194,6 +191,15 @@ def plot(runs_: list[session.Run], path: Path, title: str, labels: list[str] | N
     handles, names = axes[0].get_legend_handles_labels()  # one legend under the panels, none over the curves
     fig.legend(handles, names, loc="lower center", ncol=min(len(names), 3), fontsize=9, frameon=False)
     plots.save_figure(fig, axes, title, path, output)
+
+
+def _band(ax, xs, values, label: str, shaded: bool) -> None:
+    """One run's curve on `ax`: the IQM over seeds of each point's `values`, its 95% interval shaded where
+    `shaded` (several seeds)."""
+    centre, low, high = np.array([over_seeds(v) for v in values]).T
+    line, = ax.plot(xs, centre, marker="o", ms=3, label=label)
+    if shaded:
+        ax.fill_between(xs, low, high, color=line.get_color(), alpha=0.2)
 
 
 def _plot_matches(runs_: list, path: Path, title: str, labels: list[str] | None, output: Output | None) -> None:
@@ -210,10 +216,7 @@ def _plot_matches(runs_: list, path: Path, title: str, labels: list[str] | None,
     for k, run in enumerate(runs_):
         c = curves(run, metrics=TEAM_PANELS)
         for ax, x, metric in panels:
-            centre, low, high = np.array([over_seeds(v) for v in c[metric]]).T
-            line, = ax.plot(c[x], centre, marker="o", ms=3, label=labels[k] if labels else run.algo)
-            if len(run.seeds) > 1:
-                ax.fill_between(c[x], low, high, color=line.get_color(), alpha=0.2)
+            _band(ax, c[x], c[metric], labels[k] if labels else run.algo, len(run.seeds) > 1)
     for ax, x, metric in panels:
         label, name, limits = TEAM_PANELS[metric]
         ax.set(xlabel="env steps" if x == "env_steps" else "wall-clock seconds (compiling, training, evaluating)",

@@ -56,16 +56,10 @@ def _seed_state(run, seed: int | None) -> tuple[int, object]:
 
 
 def team_policy(run: selfplay.TeamRun, seed: int | None = None) -> tuple[int, Policy, object]:
-    """(seed, the learner's policy as one agent's, its training state) of a self-play run: the one network every
+    """(seed, the learner as one agent's policy, its training state) of a self-play run: the one network every
     agent of both sides acts with, on the observation of the agent it drives."""
-    from fieldgen.agents.ppo.train import Normalizer, networks
-
     seed, state = _seed_state(run, seed)
-    c = run.config
-    stats = dict(obs_mean=state.normalizer.mean, obs_std=state.normalizer.std, clip=Normalizer.CLIP) \
-        if c.normalize_observations else {}
-    outputs = networks(c, run.env.action_size)[0].out
-    return seed, Policy.whole(run.env, state.params["policy"], c.hidden, outputs, **stats), state
+    return seed, run.algorithm.export(state), state
 
 
 def learned_policy(run: session.Run, seed: int | None = None) -> tuple[int, Policy, object]:
