@@ -143,12 +143,6 @@ def evaluate_policy(env, act: Callable, key: jax.Array, n_envs: int, film: Calla
     return metrics, frames
 
 
-def reserve_worlds(trainer: Trainer, seeds: int) -> None:
-    """Size the trainer's environment for every environment one of its programs steps at once (over seeds and
-    environments, training's or evaluation's), before the programs are traced (Environment.reserve_worlds)."""
-    trainer.env.reserve_worlds(seeds * max(trainer.config.num_envs, trainer.config.eval_envs))
-
-
 def diverged_episodes(counted, seeds: int) -> dict:
     """{"diverged_episodes": [seeds]}: each seed's training episodes that its environments ended because the
     simulation blew up (`counted`, State.info[DIVERGED] of every environment, on the host) since they started
@@ -313,7 +307,6 @@ def run_staged(trainers: Sequence[Trainer], seeds: Sequence[int], num_evals: int
         trainer = trainers[k]
         kept = (len(seeds), film, schedule)
         if kept not in trainer.compiled:
-            reserve_worlds(trainer, len(seeds))
             weighed = functools.partial(adapted, schedule=schedule)
             trainer.compiled[kept] = Programs(trainer, keys, film, evaluate, weighed)
         return trainer.compiled[kept]

@@ -101,12 +101,20 @@ def under_way() -> bool:
         any(ref() is not None and not ref().is_ready() for ref in _running)
 
 
+def reserve_worlds(trainer, seeds: int) -> None:
+    """Size the trainer's environment for every environment one of its programs steps at once (over seeds and
+    environments, training's or evaluation's), before the programs are traced (Environment.reserve_worlds)."""
+    trainer.env.reserve_worlds(seeds * max(trainer.config.num_envs, trainer.config.eval_envs))
+
+
 def started(trainer, keys: jax.Array) -> tuple[Callable, object]:
     """The vmapped start of a batch of seeds and the shapes of the training state it makes, traced once per
     trainer and seed count: a run's checkpoint and learner are read through these shapes and its programs
-    placed by them, and the start program jitted from the same function reuses the trace."""
+    placed by them, and the start program jitted from the same function reuses the trace. The environment is
+    sized for the batch first, so that a run resumed from its checkpoint is placed as one started afresh."""
     kept = ("started", keys.shape[0])
     if kept not in trainer.compiled:
+        reserve_worlds(trainer, keys.shape[0])
         start = jax.vmap(trainer.start)
         trainer.compiled[kept] = start, jax.eval_shape(start, keys)
     return trainer.compiled[kept]

@@ -31,7 +31,7 @@ import jax
 
 import fieldgen
 from fieldgen import xla_flags
-from fieldgen.agents import buffer, loop, registry, sharding
+from fieldgen.agents import buffer, loop, programs, registry, sharding
 from fieldgen.agents.config import ReplayConfig
 from fieldgen.env.throughput import append_jsonl, measure
 from fieldgen.run.train import peak_memory_mb
@@ -54,8 +54,7 @@ def time_chunk(trainer, seeds: int, devices: int | None = None, profile: Path | 
     default) as training places them, timed after two warm-up calls (the first, and the first fed its
     own output, can both compile); with `profile`, one more chunk is traced into that folder."""
     keys = loop.seed_keys(range(seeds))
-    loop.reserve_worlds(trainer, seeds)  # Warp's physics sized for every environment of every seed
-    shapes = jax.eval_shape(jax.vmap(trainer.start), keys)
+    _, shapes = programs.started(trainer, keys)  # Warp's physics sized for every environment of every seed first
     placement = sharding.training_shardings(shapes, sharding.device_mesh(devices), trainer.env_axes)
     chunk = jax.jit(jax.vmap(trainer.chunk), in_shardings=(placement,), out_shardings=(placement, None))
     state = jax.block_until_ready(jax.jit(jax.vmap(trainer.start), out_shardings=placement)(keys))

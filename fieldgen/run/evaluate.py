@@ -33,7 +33,7 @@ def evaluate(run: Run, episodes: int, seed: int = 0, film: int | None = 0, actio
     mid-compile too."""
     judging = {"eval_envs": episodes, "eval_actions": actions or run.config.eval_actions}
     trainer = dataclasses.replace(run, config=run.config.model_copy(update=judging)).judged_trainer
-    loop.reserve_worlds(trainer, len(run.seeds))
+    programs.reserve_worlds(trainer, len(run.seeds))
     filming = EpisodeRecorder.film if film is not None else None
     judged = jax.vmap(functools.partial(loop.evaluate, trainer, film=filming),
                       in_axes=(0, None))

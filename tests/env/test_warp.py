@@ -110,19 +110,26 @@ def test_a_seed_s_carry_leaves_the_batch_s_shared_contact_buffer_unbatched():
 
 @pytest.mark.slow
 def test_ppo_trains_and_evaluates_seeds_on_warp_s_physics(tmp_path):
-    """Two seeds vmapped, an evaluation batch smaller than training's: the run ends with its metrics."""
+    """Two seeds vmapped, an evaluation batch smaller than training's, stopped and resumed: the run ends with its
+    metrics."""
     import json
 
     from typer.testing import CliRunner
 
     from fieldgen.cli import app
 
-    spec = tmp_path / "warp_nav.yaml"
-    spec.write_text("extends: point_nav\nname: warp_nav\nsim: {backend: warp}\n")
+    spec = tmp_path / "warp_soccer.yaml"
+    spec.write_text("extends: point_soccer\nname: warp_soccer\nsim: {backend: warp}\n")  # with contacts
+    # a time limit shorter than the first chunk stops the run after it; the resume refills its environments
+    # placed as the start placed them, sized for the whole batch
     result = CliRunner().invoke(app, ["train", str(spec), "--algo", "ppo", "--steps", "4000", "--envs", "4",
                                       "--seeds", "2", "--set", "ppo.unroll_length=10", "--set",
                                       "ppo.num_minibatches=4", "--set", "ppo.num_evals=2", "--set", "ppo.eval_envs=2",
-                                      "--no-videos", "--out", str(tmp_path / "runs")])
+                                      "--no-videos", "--out", str(tmp_path / "runs"), "--time-limit", "0.01s"])
+    assert result.exit_code == 75 and "stopped at the time limit" in result.output, result.output  # EX_TEMPFAIL
+    run = tmp_path / "runs" / "warp_soccer-ppo-0to1"
+    (run / "checkpoint.msgpack").unlink()  # as a run carried between machines without it: from the learner alone
+    result = CliRunner().invoke(app, ["train", "--resume", str(run), "--no-videos"])
     assert result.exit_code == 0, result.output
-    rows = [json.loads(line) for line in (tmp_path / "runs" / "warp_nav-ppo-0to1" / "metrics.jsonl").open()]
+    rows = [json.loads(line) for line in (run / "metrics.jsonl").open()]
     assert sorted((r["eval"], r["seed"]) for r in rows) == [(e, s) for e in range(3) for s in (0, 1)]
