@@ -35,6 +35,7 @@ import numpy as np
 import optax
 from pydantic import Field
 
+from .choices import EVAL_ACTIONS
 from .config import ConfigError, Count, Float, Rate, Share, Unknown
 from .loop import batched_with
 from .ppo.config import PPOConfig
@@ -45,6 +46,9 @@ POOL_SAMPLINGS = ("recency", "win_rate")
 PoolSampling = Annotated[Literal[POOL_SAMPLINGS], Unknown(
     "unknown ppo.pool_sampling '{}'; choose recency (newer snapshots more often) or win_rate (the snapshots the "
     "policy beats least, more often)")]
+OpponentActions = Annotated[Literal[EVAL_ACTIONS], Unknown(
+    "unknown ppo.opponent_actions '{}'; choose sampled (drawn from the snapshot's policy) or mean (its mean "
+    "action, as the evaluations play it)")]
 RESULTS = ("win", "draw", "loss")
 ITSELF, RANDOM = -1, -2  # an environment's opponent that is no snapshot: the policy itself, a random policy
 
@@ -58,6 +62,9 @@ class SelfPlayConfig(PPOConfig):
     win_rate_power: Rate = 2.0  # pool_sampling win_rate: weight (1 - win rate) ** power
     self_play_share: Share = 0.5  # episodes the policy plays against itself rather than a snapshot
     random_share: Share = 0.0  # episodes it plays against a random policy (uniform actions)
+    # how snapshots act in training matches: drawn from their policies, or their mean actions, as the evaluations
+    # play them (the opponent the policy is judged against)
+    opponent_actions: OpponentActions = "sampled"
     league_opponents: Count = 4  # earlier snapshots each snapshot plays at its evaluation
     elo_k: Rate = 32.0  # the Elo K factor
 
@@ -94,6 +101,16 @@ def fixed_opponents(index: int, count: int) -> list[int]:
     if index < 1:
         return []
     return sorted({int(round(x)) for x in np.linspace(0, index - 1, min(count, index))})
+
+
+def pool_actions(act: Callable, pool: dict, obs: jax.Array, key: jax.Array, how: str) -> jax.Array:
+    """Every pool snapshot's actions in every match, [pool_size, envs, agents, n]: drawn from its policy, or (`how`
+    "mean") its mean action, as the evaluations play it; then the policy trains against the opponent it is judged
+    against, whose pushes do not vary from one match to the next."""
+    if how == "mean":
+        return jax.vmap(act, in_axes=(0, None))(pool, obs)
+    keys = jax.random.split(key, jax.tree.leaves(pool)[0].shape[0])
+    return jax.vmap(act, in_axes=(0, None, 0))(pool, obs, keys)
 
 
 def pool_probabilities(config: SelfPlayConfig, newest, taken, wins, games) -> tuple[jax.Array, jax.Array]:
@@ -212,7 +229,7 @@ def make_selfplay(config: SelfPlayConfig, env) -> SelfPlay:
             mean, log_std = distribution(ts.params, obs)
             noise = jax.random.normal(k_act, mean.shape)
             raw = mean + jnp.exp(log_std) * noise
-            theirs = jax.vmap(act, in_axes=(0, None, 0))(pool, env_state.obs, jax.random.split(k_opp, c.pool_size))
+            theirs = pool_actions(act, pool, env_state.obs, k_opp, c.opponent_actions)
             slot = jnp.clip(ts.newest - opponent, 0, c.pool_size - 1)
             theirs = theirs[slot, envs]
             if c.random_share > 0:  # drawn only where a random policy can be an opponent

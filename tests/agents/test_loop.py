@@ -156,25 +156,37 @@ def test_sampled_actions_take_a_fresh_key_at_every_step_and_the_mean_ones_none(w
 
 def test_a_trainers_start_is_traced_once_for_its_shapes_checkpoints_and_program():
     """The shapes a run's checkpoint and learner are read through and its programs placed by come from one
-    trace of its start per seed count, which the start program's compile reuses."""
+    trace of its start per seed count, which the start program's compile reuses; the environment is sized for
+    every environment of every seed before it (Warp's data is shaped by it), whoever asks for the shapes first."""
+    from types import SimpleNamespace
+
     from fieldgen.agents import programs
 
     traced = []
 
+    class Reserving:
+        worlds = 1
+
+        def reserve_worlds(self, worlds):
+            self.worlds = max(self.worlds, worlds)
+
     class Starting:
         compiled: dict = {}
+        env = Reserving()
+        config = SimpleNamespace(num_envs=4, eval_envs=8)
 
         def start(self, key):
-            traced.append(key.shape)
+            traced.append((key.shape, self.env.worlds))
             return {"x": jnp.zeros(3) + key[0]}
 
     trainer, keys = Starting(), jnp.zeros((2, 2), jnp.uint32)
     start, shapes = programs.started(trainer, keys)
-    assert programs.started(trainer, keys)[1] is shapes and shapes["x"].shape == (2, 3) and len(traced) == 1
+    assert programs.started(trainer, keys)[1] is shapes and shapes["x"].shape == (2, 3)
+    assert traced == [((2,), 2 * 8)]  # two seeds of the larger of training's and evaluation's batches
     jax.jit(start)(keys)
     assert len(traced) == 1
     programs.started(trainer, jnp.zeros((3, 2), jnp.uint32))  # another seed count: its own trace
-    assert len(traced) == 2
+    assert traced[1] == ((2,), 3 * 8)
 
 
 @pytest.mark.slow

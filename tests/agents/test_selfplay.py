@@ -10,7 +10,9 @@ import numpy as np
 import pytest
 
 from fieldgen.agents import elo
-from fieldgen.agents.selfplay import SelfPlayConfig, draw_opponents, fixed_opponents, make_selfplay, pool_probabilities
+from fieldgen.agents.config import ConfigError
+from fieldgen.agents.selfplay import (SelfPlayConfig, draw_opponents, fixed_opponents, make_selfplay, pool_actions,
+                                      pool_probabilities)
 
 
 def test_an_elo_update_matches_the_hand_computed_case_and_is_zero_sum():
@@ -148,6 +150,24 @@ def test_which_agents_the_learner_drives():
     # side alone
     assert learns.tolist() == [[True] * 4, [True, True, False, False], [False, False, True, True],
                                [False, False, True, True]]
+
+
+def test_snapshots_act_in_training_as_configured_drawn_or_on_their_mean_as_evaluations_play_them():
+    env = match_env("soccer_1v1")
+    sp = make_selfplay(SelfPlayConfig(total_steps=1600, num_envs=8, unroll_length=10, num_minibatches=4,
+                                      num_evals=2, hidden=(8,), eval_envs=8), env)
+    me = sp.current(jax.jit(sp.init)(jax.random.PRNGKey(3)))
+    pool = jax.tree.map(lambda x: jnp.stack([x, x * 0.5]), me)  # two snapshots
+    obs = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(0), 4)).obs  # [envs, agents, n]
+    actions = jax.jit(functools.partial(pool_actions, sp.act), static_argnums=3)
+    mean = [actions(pool, obs, jax.random.PRNGKey(k), "mean") for k in (1, 2)]
+    drawn = [actions(pool, obs, jax.random.PRNGKey(k), "sampled") for k in (1, 2)]
+    assert mean[0].shape == drawn[0].shape == (2, 4, 2, env.action_size)
+    np.testing.assert_array_equal(mean[0], mean[1])  # the key plays no part
+    np.testing.assert_allclose(mean[0][1], sp.act(jax.tree.map(lambda x: x[1], pool), obs), atol=1e-6)
+    assert np.abs(np.asarray(drawn[0] - drawn[1])).max() > 1e-3  # drawn anew with each key
+    with pytest.raises(ConfigError, match="opponent_actions 'greedy'; choose sampled"):
+        SelfPlayConfig.layered(sets=["ppo.opponent_actions=greedy"])
 
 
 @pytest.mark.slow
