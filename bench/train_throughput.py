@@ -54,10 +54,10 @@ def time_chunk(trainer, seeds: int, devices: int | None = None, profile: Path | 
     default) as training places them, timed after two warm-up calls (the first, and the first fed its
     own output, can both compile); with `profile`, one more chunk is traced into that folder."""
     keys = loop.seed_keys(range(seeds))
-    _, shapes = programs.started(trainer, keys)  # Warp's physics sized for every environment of every seed first
+    start, shapes = programs.started(trainer, keys)  # Warp's physics sized for every environment of every seed first
     placement = sharding.training_shardings(shapes, sharding.device_mesh(devices), trainer.env_axes)
     chunk = jax.jit(jax.vmap(trainer.chunk), in_shardings=(placement,), out_shardings=(placement, None))
-    state = jax.block_until_ready(jax.jit(jax.vmap(trainer.start), out_shardings=placement)(keys))
+    state = jax.block_until_ready(jax.jit(start, out_shardings=placement)(keys))
     for _ in range(2):
         state, _ = jax.block_until_ready(chunk(state))
     t0 = time.perf_counter()
