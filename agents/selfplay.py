@@ -4,8 +4,9 @@ Every agent observes and acts in its own side's frame, so the one policy drives 
 environment the policy plays either itself (`self_play_share` of the episodes: every agent's steps are its
 own, to learn from), a random policy (`random_share`: uniform actions, the opponent a league's specialised
 selves stop scoring against) or an earlier snapshot of itself, on a side drawn at random (against another, only
-its own side's steps are learned from). A snapshot is taken at every evaluation; the opponent pool is the newest `pool_size` of them,
-drawn by recency (weight `recency_decay ** age`, the newest age 0) or by win rate (prioritized fictitious
+its own side's steps are learned from). A snapshot is taken at every evaluation and plays as `opponent_actions`
+says (its actions drawn, or its mean actions); the opponent pool is the newest `pool_size` of them, drawn by
+recency (weight `recency_decay ** age`, the newest age 0) or by win rate (prioritized fictitious
 self-play: weight (1 - w) ** `win_rate_power`, w the learner's score against that snapshot in training so far,
 wins 1 and draws 1/2, with one win and one loss assumed before any game), as `pool_sampling` says. An episode
 that ends draws its environment's next opponent and side; a new snapshot redraws them all.
@@ -37,9 +38,9 @@ from pydantic import Field
 
 from .choices import EVAL_ACTIONS
 from .config import ConfigError, Count, Float, Rate, Share, Unknown
+from .actor import Policy
 from .loop import batched_with
 from .ppo.config import PPOConfig
-from .actor import Policy
 from .ppo.train import Normalizer, advantages, exported_policy, gaussian, networks, optimizer, squashed_entropy
 
 POOL_SAMPLINGS = ("recency", "win_rate")
@@ -224,7 +225,8 @@ def make_selfplay(config: SelfPlayConfig, env) -> SelfPlay:
 
         def step(carry, key):
             env_state, opponent, learner_side, wins, games = carry
-            k_act, k_opp, k_draw = jax.random.split(key, 3)  # as before random opponents: runs stay as they were
+            # random opponents' actions fold into k_opp, so runs without them draw as they did before
+            k_act, k_opp, k_draw = jax.random.split(key, 3)
             obs = ts.normalizer(env_state.obs, c.normalize_observations)  # [envs, agents, n]
             mean, log_std = distribution(ts.params, obs)
             noise = jax.random.normal(k_act, mean.shape)
