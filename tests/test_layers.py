@@ -61,7 +61,7 @@ RULES = [  # (folder or file, the fieldgen modules it may import, modules outsid
                           "fieldgen.schema.errors"), (),
      "the settings read a --set value as a spec's values are read, and echo it as a spec's problems do"),
     ("fieldgen/sweep", FIELDGEN + BELOW_CURRICULA + ("fieldgen.curriculum", "fieldgen.agents", "fieldgen.run",
-                                               "fieldgen.counts"), (),
+                                               "fieldgen.counts", "fieldgen.stops"), (),
      "a sweep runs the command, and is below the command line"),
 ]
 

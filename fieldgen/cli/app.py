@@ -11,7 +11,7 @@ import typer
 from rich.console import Console
 from rich.text import Text
 
-from fieldgen import counts, files, limits, xla_cache, xla_flags
+from fieldgen import counts, files, limits, stops, xla_cache, xla_flags
 from fieldgen.cli.helptext import ReadableCommand, ReadableTyper
 from fieldgen.schema import bundled_fields, resolve_spec_path
 from fieldgen.schema.errors import shown_text
@@ -178,6 +178,7 @@ def main(ctx: typer.Context,
                                                help="print fieldgen's version and exit")] = False) -> None:
     """Robot-soccer fields from YAML specs, compiled to GPU-batched MJX environments."""
     ctx.call_on_close(files.release_all)  # the folders a command locked are free once it ends
+    ctx.call_on_close(stops.catch())  # kill and a closed terminal stop it as Ctrl-C does
     xla_cache.enable()
     xla_flags.apply()
 

@@ -9,7 +9,7 @@ import typer
 from rich.table import Table
 from rich.text import Text
 
-from fieldgen import limits
+from fieldgen import limits, stops
 from fieldgen.cli.app import app, bounded, choice, fail, out
 from fieldgen.sweep.plan import BACKENDS
 
@@ -75,9 +75,9 @@ def sweep(
     except plan.SweepError as exc:
         fail(str(exc))
     except KeyboardInterrupt:
-        out.print(f"interrupted; the runs keep their last checkpoints: fieldgen sweep {file} continues them",
+        out.print(f"{stops.said()}; the runs keep their last checkpoints: fieldgen sweep {file} continues them",
                   soft_wrap=True)  # one line: the command stays whole to copy
-        raise typer.Exit(130) from None
+        raise typer.Exit(stops.status()) from None
     raise typer.Exit(_report(planned, standing, command))
 
 

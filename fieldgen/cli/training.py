@@ -13,7 +13,7 @@ from rich.table import Column, Table
 from rich.text import Text
 
 from fieldgen.agents.registry import ALGORITHMS, DEFAULT_ALGORITHM, EVAL_ACTIONS, PRESETS, judged_on
-from fieldgen import limits
+from fieldgen import limits, stops
 from fieldgen.cli.app import app, bounded, choice, count, duration, err, fail, field_source, out, video_format
 from fieldgen.command import TIME_LIMIT_STATUS
 from fieldgen.cameras import CAMERAS
@@ -49,16 +49,17 @@ def _read_config(config: Path | None) -> None:
 
 
 def _exit_interrupted() -> NoReturn:
-    """Exit with Ctrl-C's status, 130, at once: leaving a compile or program under way unfinished (XLA takes no
-    signal mid-compile or mid-program, and waiting could take minutes) loses nothing, as every file a command
-    writes is replaced atomically or not yet written."""
+    """Exit with the status of the signal that stopped the command (130 for Ctrl-C, fieldgen.stops) at once:
+    leaving a compile or program under way unfinished (XLA takes no signal mid-compile or mid-program, and
+    waiting could take minutes) loses nothing, as every file a command writes is replaced atomically or not yet
+    written."""
     from fieldgen.agents import programs
 
     if programs.under_way():
         sys.stdout.flush()
         sys.stderr.flush()
-        os._exit(130)  # a normal exit would wait for the compile's thread
-    raise typer.Exit(130) from None
+        os._exit(stops.status())  # a normal exit would wait for the compile's thread
+    raise typer.Exit(stops.status()) from None
 
 
 def _train(run, videos: bool, logger: str, fmt: str | None = None, deadline: float | None = None) -> None:
@@ -354,7 +355,7 @@ def _train_team(run, deadline: float | None = None, fmt: str | None = None) -> N
     try:
         complete = selfplay.train(run, lambda line: out.print(line, soft_wrap=True), deadline, recorder)
     except KeyboardInterrupt:
-        out.print(f"interrupted; continue with: fieldgen train --resume {run.folder}", soft_wrap=True)
+        out.print(f"{stops.said()}; continue with: fieldgen train --resume {run.folder}", soft_wrap=True)
         _exit_interrupted()
     except (record.RunError, FolderError) as exc:
         fail(str(exc))
@@ -597,7 +598,7 @@ def evaluate(
             if drawn is not None:
                 out.print(f"video: {video_name.with_suffix('.' + fmt)} ({drawn} frames, {camera} camera)")
     except KeyboardInterrupt:
-        out.print(f"interrupted evaluating {evaluating}; " +
+        out.print(f"{stops.said()} evaluating {evaluating}; " +
                   (f"{path} was written, the video was not" if summary_written else "nothing was written"),
                   soft_wrap=True)  # one line, its paths whole
         _exit_interrupted()
@@ -637,7 +638,7 @@ def _evaluate_team(run_dirs: list[Path], episodes: int | None, seed: int, action
     except (ConfigError, record.RunError, files.FolderError) as exc:
         fail(str(exc))
     except KeyboardInterrupt:
-        out.print(f"interrupted evaluating {run_dirs[0]}; nothing was written")
+        out.print(f"{stops.said()} evaluating {run_dirs[0]}; nothing was written")
         _exit_interrupted()
     several = len(run.seeds) > 1
     earlier = result["per_seed"][run.seeds[0]]["vs_snapshot"]

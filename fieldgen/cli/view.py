@@ -7,6 +7,7 @@ from typing import Annotated, Optional
 
 import typer
 
+from fieldgen import stops
 from fieldgen.cameras import CAMERAS, FREE
 from fieldgen.cli.app import app, choice, fail, field_source, out
 
@@ -54,7 +55,7 @@ def view(
         play(handle, player, camera)
     except KeyboardInterrupt:
         handle.close()
-        raise typer.Exit(130) from None
+        raise typer.Exit(stops.status()) from None
 
 
 def _no_display(reason: str, source: str) -> None:

@@ -13,6 +13,7 @@ import jax
 import numpy as np
 from rich.console import Console
 
+from fieldgen import stops
 from fieldgen.agents import checkpoint, loop, sharding
 from fieldgen.agents.registry import judged_on
 from fieldgen.env.mjx_physics import PhysicsOverflow
@@ -168,7 +169,7 @@ def _train(run: Run, console: Console, videos: bool, logger: str, video_format: 
                 console.print("finishing the checkpoint being written...")
             writer.wait()
             saved = record.has_trained(run.folder)
-            console.print(f"interrupted; {'the last checkpoint is intact' if saved else 'no checkpoint yet'}. "
+            console.print(f"{stops.said()}; {'the last checkpoint is intact' if saved else 'no checkpoint yet'}. "
                           f"{'Continue' if saved else 'Start again'} with: fieldgen train --resume {run.folder}",
                           soft_wrap=True)  # one line: the command stays whole to copy
             raise

@@ -23,6 +23,7 @@ import time
 from pathlib import Path
 from typing import Callable
 
+from fieldgen import stops
 from fieldgen.command import TIME_LIMIT_STATUS, fieldgen_command
 from fieldgen.files import SWEEP, write_atomic, write_file
 from fieldgen.sweep.plan import PLAN, PlannedRun, PlanRecord, Sweep, check_plan, read_plan, shell
@@ -92,6 +93,8 @@ def why(log: Path, code: int) -> str:
         return f"stopped by signal {-code}"
     if code == 130:
         return "interrupted (Ctrl-C); start the sweep again to continue it"
+    if code - 128 in stops.AS_CTRL_C:
+        return f"stopped by {signal.Signals(code - 128).name}; start the sweep again to continue it"
     return lines[-1] if lines and not lines[-1].startswith("$ ") else f"exit status {code}"
 
 

@@ -165,6 +165,63 @@ def test_ctrl_c_while_programs_compile_exits_cleanly(tmp_path, tiny_crl_args):
     assert "terminate called" not in result.stderr and "Traceback" not in result.stderr
 
 
+# `fieldgen train` sent SIGNAL (by name) once its training has begun, as kill, a batch system ending or preempting
+# the job (SIGTERM) or a closed terminal (SIGHUP) sends it
+SIGNALLED_TRAINING = textwrap.dedent("""
+    import os, signal, sys, time
+    from fieldgen.agents import loop
+    from fieldgen.cli import app
+
+    sent = getattr(signal, sys.argv[1])
+
+    def signalled(*args, **kwargs):
+        os.kill(os.getpid(), sent)
+        time.sleep(60)  # the handler acts between two bytecodes: here
+
+    loop.run_staged = signalled
+    app(sys.argv[2:])
+""")
+
+
+@pytest.mark.parametrize("name", ["SIGTERM", pytest.param("SIGHUP", marks=pytest.mark.slow)])
+def test_kill_or_a_jobs_end_stops_a_run_as_ctrl_c_does(tmp_path, tiny_crl_args, name):
+    """SIGTERM and SIGHUP, which would kill the process without a word, end `fieldgen train` as Ctrl-C does: one
+    line naming the signal and how to go on, the shell's status for it (128 + its number), the folder whole."""
+    env = dict(os.environ, JAX_PLATFORMS="cpu")
+    result = subprocess.run([sys.executable, "-c", SIGNALLED_TRAINING, name, "train", "point_nav", "--out", "runs",
+                             *tiny_crl_args, "--no-videos"],
+                            cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600)
+    assert result.returncode == 128 + getattr(signal, name), result.stdout[-2000:] + result.stderr[-3000:]
+    run = Path("runs") / "point_nav-crl-0"
+    assert f"stopped by {name}; no checkpoint yet. Start again with: fieldgen train --resume {run}" in " ".join(
+        result.stdout.split())
+    assert "Traceback" not in result.stderr and leftovers(tmp_path / run) == []
+
+
+def test_a_signal_the_process_was_started_ignoring_stays_ignored():
+    """nohup starts a command ignoring SIGHUP, and a program running fieldgen's app may hold SIGTERM itself:
+    the command takes neither, and gives back what it took (a test, a program keeps its own handlers)."""
+    from fieldgen import stops
+
+    def own(number, frame):
+        pass
+
+    before = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, *stops.AS_CTRL_C)}
+    try:
+        signal.signal(signal.SIGHUP, signal.SIG_IGN)
+        signal.signal(signal.SIGTERM, own)
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        give_back = stops.catch()
+        assert signal.getsignal(signal.SIGHUP) is signal.SIG_IGN and signal.getsignal(signal.SIGTERM) is own
+        assert signal.getsignal(signal.SIGINT) is not signal.default_int_handler  # Ctrl-C: its signal kept
+        give_back()
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+        assert (stops.status(), stops.said()) == (130, "interrupted")
+    finally:
+        for sig, handler in before.items():
+            signal.signal(sig, handler)
+
+
 # a `fieldgen` command given Ctrl-C a second into the first of XLA's compiles that lasts that long (JAX tells each
 # program's compile start and end as it lowers and compiles it, whichever way it is jitted): "SIGINT at T" on stderr
 INTERRUPTED_COMPILING_IN_XLA = textwrap.dedent("""

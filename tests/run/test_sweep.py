@@ -488,3 +488,14 @@ def test_a_slurm_sweep_trains_through_submitits_local_executor(tmp_path):
     jobs = launch.submit(sweep, cluster="local")
     assert [job.result() for job in jobs] == [0]
     assert [s.state for s in status.states(sweep)] == ["done"]
+
+
+def test_a_run_a_signal_stopped_says_which_and_how_to_go_on(tmp_path):
+    """A run's exit status names what stopped it when its log says nothing with `error:`: Ctrl-C, kill or the
+    job's end (SIGTERM), a closed terminal (SIGHUP), or a signal it could not catch."""
+    log = tmp_path / "run.log"
+    log.write_text("$ fieldgen train --resume runs/x\nstopped by SIGTERM; the last checkpoint is intact.\n")
+    assert launch.why(log, 143) == "stopped by SIGTERM; start the sweep again to continue it"
+    assert launch.why(log, 129) == "stopped by SIGHUP; start the sweep again to continue it"
+    assert launch.why(log, 130) == "interrupted (Ctrl-C); start the sweep again to continue it"
+    assert launch.why(log, -9) == "stopped by signal 9"
