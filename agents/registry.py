@@ -34,8 +34,9 @@ def trainer(name: str) -> Entry:
     from .config import ConfigError
 
     if name not in ALGORITHMS:
-        raise ConfigError(f"unknown algorithm '{name}'{did_you_mean(name, ALGORITHMS)} "
-                          f"Available: {', '.join(ALGORITHMS)}.")
+        hint, choices = did_you_mean(name, ALGORITHMS), ", ".join(ALGORITHMS)
+        raise ConfigError(f"unknown algorithm '{name}'{hint} Available: {choices}." if hint
+                          else f"unknown algorithm '{name}'; available: {choices}.")
     return _load(name)
 
 

@@ -30,6 +30,9 @@ def test_an_unknown_algorithm_is_refused_with_a_suggestion():
     with pytest.raises(ConfigError) as info:
         registry.trainer("ppo2")
     assert str(info.value) == f"unknown algorithm 'ppo2'; did you mean 'ppo'? Available: {', '.join(registry.ALGORITHMS)}."
+    with pytest.raises(ConfigError) as info:
+        registry.trainer("nonsense")  # nothing near it: the choices alone
+    assert str(info.value) == f"unknown algorithm 'nonsense'; available: {', '.join(registry.ALGORITHMS)}."
 
 
 def test_the_algorithms_are_the_folders_holding_a_config_and_a_training_function():
