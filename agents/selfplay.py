@@ -36,9 +36,9 @@ import numpy as np
 import optax
 from pydantic import Field
 
+from .actor import Policy
 from .choices import EVAL_ACTIONS
 from .config import ConfigError, Count, Float, Rate, Share, Unknown
-from .actor import Policy
 from .loop import batched_with
 from .ppo.config import PPOConfig
 from .ppo.train import Normalizer, advantages, exported_policy, gaussian, networks, optimizer, squashed_entropy
