@@ -33,6 +33,7 @@ def test_the_measured_recipes_are_the_commands_their_figures_came_from():
         "ppo", 250_000_000, 4096, ("ppo.num_evals=25", "ppo.spread=global"))
     assert wide.measured.figure.startswith("IQM 0.346 [0.197, 0.427]") and "760-762" in wide.measured.seeds
     assert table["soccer_v2_dense"].measured is None  # its one-seed figure was of a reward it no longer has
+    assert table["soccer_v1_dense"].sets == ("ppo.num_evals=25", "ppo.spread=global", "ppo.policy_out_scale=1.0")
     ant = table["ant_nav"]
     assert (ant.algo, ant.steps, ant.sets) == ("crl", 14_000_000, ("crl.num_evals=7",))
     assert ant.measured.figure.startswith("IQM 0.923 [0.899, 0.947]") and "600-604" in ant.measured.seeds
