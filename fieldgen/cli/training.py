@@ -278,7 +278,7 @@ def train(
             if layers:
                 out.print(f"{algo} on {agent} fields starts from {' then '.join(layers)} (a --config file or --set "
                           "overrides it)")
-            warning = recipes.sparse_warning(field, algo)
+            warning = recipes.sparse_warning(field, algo, getattr(algo_config, "reward", "dense"))
             if warning:
                 out.print(Text(warning, style="yellow"), soft_wrap=True)
             if levels is not None and curriculum_kind != "auto":
@@ -330,6 +330,9 @@ def _team_run(source: Path, field, algo: str | None, seeds: int, config: Path | 
     said = chosen.line(overriding)
     if said:
         out.print(said, soft_wrap=True)
+    warning = recipes.sparse_warning(field, SelfPlayConfig.algo, settings.reward)
+    if warning:
+        out.print(Text(warning, style="yellow"), soft_wrap=True)
     return selfplay.new_run(source, settings, runs, list(range(seed, seed + seeds)), check_memory=not prepare,
                             recipe=chosen.record(overriding))
 

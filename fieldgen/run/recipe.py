@@ -13,7 +13,7 @@ from fieldgen.agents.recipes import Found, Recipe
 from fieldgen.agents.registry import DEFAULT_ALGORITHM
 from fieldgen.schema import FieldSpec, bundled_fields
 from fieldgen.schema.loader import lineage
-from fieldgen.schema.terms import DENSE_REWARDS, TERMS
+from fieldgen.schema.terms import DENSE_REWARDS, MATCH_TERMS, TERMS
 
 DENSE_TWIN = "{}_dense"  # the bundled field that gives a field's task a dense reward
 
@@ -102,16 +102,27 @@ def dense_route(field: str) -> str:
 
 
 def is_sparse(spec: FieldSpec) -> bool:
-    """Whether a field's reward is a success signal alone: nothing to follow until the first success."""
-    return all(TERMS[term.term].sparse for term in spec.task.reward)
+    """Whether a field's reward is a success signal alone (a match's: its goals): nothing to follow until the
+    first success."""
+    terms = MATCH_TERMS if spec.teams is not None else TERMS
+    return all(terms[term.term].sparse for term in spec.task.reward)
 
 
-def sparse_warning(spec: FieldSpec, algo: str) -> str | None:
-    """The warning for PPO on a field whose reward is its success alone, naming the dense alternative."""
-    if algo != "ppo" or not is_sparse(spec):
+def sparse_warning(spec: FieldSpec, algo: str, reward: str = "dense") -> str | None:
+    """The warning for PPO trained on a success alone, naming the dense alternative: a field whose reward is its
+    success, or a field with reward terms that `ppo.reward=sparse` sets aside (`reward`, PPO's setting)."""
+    if algo != "ppo":
         return None
+    if not is_sparse(spec):
+        if reward != "sparse":
+            return None
+        return (f"warning: PPO learns nothing from a success signal alone until its first success, and "
+                f"ppo.reward=sparse trains it on {spec.name}'s success; leave ppo.reward at dense to train on the "
+                f"field's reward terms")
     twin = DENSE_TWIN.format(spec.name)
-    if twin in bundled_fields():
+    if spec.teams is not None:
+        instead = "list match terms that pay the way to a goal under task.reward (docs/teams.md)"
+    elif twin in bundled_fields():
         instead = f"train its dense twin instead: fieldgen train {twin}"
     elif spec.task.success.kind in DENSE_REWARDS:
         instead = "give the field the dense reward of its task: task: {reward: dense}"

@@ -62,12 +62,13 @@ class MatchTerm:
     zero_sum: bool = False  # one side's value is the other's negated: the sides' rewards of it sum to zero
     per_agent: bool = False  # the single-agent term of the same name (TERMS), averaged over the side's agents
     torso: bool = False  # needs agents with a torso (agent.kind: ant)
+    sparse: bool = False  # nonzero only when a goal is scored: nothing to follow before the first
 
 
 # The terms `task.reward` may name on a field with `teams`: each side's reward is sum(weight * term), the term
 # read from that side's view. They need a ball and a goal at each end, which every team field has.
 MATCH_TERMS: dict[str, MatchTerm] = {
-    "goal": MatchTerm("+1 on the step the side scores, -1 on the step it concedes", zero_sum=True),
+    "goal": MatchTerm("+1 on the step the side scores, -1 on the step it concedes", zero_sum=True, sparse=True),
     "ball_progress": MatchTerm("the ball's speed towards the opponent's goal line, along the field (m/s)",
                                zero_sum=True),
     "ball_goal_progress": MatchTerm("the decrease of the ball's distance to the goal point the side attacks, less "

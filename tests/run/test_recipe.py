@@ -54,6 +54,15 @@ def test_ppo_on_a_success_signal_alone_is_warned_of_naming_the_dense_twin():
         "train its dense twin instead: fieldgen train v2_wide_goalie_dense")
     assert recipe.sparse_warning(wide, "crl") is None
     assert recipe.sparse_warning(load_spec(bundled_fields()["v2_wide_goalie_dense"]), "ppo") is None
+    soccer = load_spec(bundled_fields()["point_soccer"])  # reward terms, set aside by ppo.reward=sparse
+    assert recipe.sparse_warning(soccer, "ppo") is None
+    assert recipe.sparse_warning(soccer, "ppo", "sparse") == (
+        "warning: PPO learns nothing from a success signal alone until its first success, and ppo.reward=sparse "
+        "trains it on point_soccer's success; leave ppo.reward at dense to train on the field's reward terms")
+    assert recipe.sparse_warning(soccer, "crl", "sparse") is None  # CRL learns from the success by hindsight
+    match = load_spec(bundled_fields()["soccer_1v1"])  # a match's terms; its success is a goal
+    assert recipe.sparse_warning(match, "ppo") is None
+    assert "ppo.reward=sparse trains it on soccer_1v1's success" in recipe.sparse_warning(match, "ppo", "sparse")
     nav = load_spec(bundled_fields()["point_nav"])  # no twin: the dense reward its task has
     assert recipe.sparse_warning(nav, "ppo").endswith("give the field the dense reward of its task: task: "
                                                       "{reward: dense}")
@@ -151,3 +160,15 @@ def test_a_team_field_takes_its_recipe_as_any_field_and_flags_override_it(tmp_pa
     assert plain.exit_code == 0 and not lines_with(plain.output, "recipe soccer_2v2"), plain.output
     saved = json.loads((tmp_path / "runs" / "soccer_2v2-ppo-2" / "run.json").read_text())
     assert "recipe" not in saved and saved["config"]["self_play_share"] == 0.5
+
+
+def test_a_match_paid_for_its_goals_alone_is_warned_of_naming_the_match_terms(tmp_path):
+    spec = tmp_path / "goals_only.yaml"
+    spec.write_text("extends: soccer_1v1\nname: goals_only\ntask: {reward: [{term: goal}]}\n")
+    assert recipe.is_sparse(load_spec(spec)) and not recipe.is_sparse(load_spec(bundled_fields()["soccer_1v1"]))
+    assert recipe.sparse_warning(load_spec(spec), "ppo") == (
+        "warning: PPO learns nothing from a success signal alone, and goals_only's reward is its success; list match "
+        "terms that pay the way to a goal under task.reward (docs/teams.md)")
+    result = runner.invoke(app, ["train", str(spec), "--envs", "8", "--prepare", "--out", str(tmp_path / "runs")])
+    assert result.exit_code == 0, result.output
+    assert len(lines_with(result.output, "warning: PPO learns nothing")) == 1
