@@ -278,9 +278,7 @@ def train(
             if layers:
                 out.print(f"{algo} on {agent} fields starts from {' then '.join(layers)} (a --config file or --set "
                           "overrides it)")
-            warning = recipes.sparse_warning(field, algo, getattr(algo_config, "reward", "dense"))
-            if warning:
-                out.print(Text(warning, style="yellow"), soft_wrap=True)
+            _warn_if_sparse(field, algo, getattr(algo_config, "reward", "dense"))
             if levels is not None and curriculum_kind != "auto":
                 fail(f"--levels {levels} sets how many levels --curriculum auto makes; add --curriculum auto")
             sampler = _sampler(samplers) if samplers else None
@@ -330,11 +328,18 @@ def _team_run(source: Path, field, algo: str | None, seeds: int, config: Path | 
     said = chosen.line(overriding)
     if said:
         out.print(said, soft_wrap=True)
-    warning = recipes.sparse_warning(field, SelfPlayConfig.algo, settings.reward)
-    if warning:
-        out.print(Text(warning, style="yellow"), soft_wrap=True)
+    _warn_if_sparse(field, SelfPlayConfig.algo, settings.reward)
     return selfplay.new_run(source, settings, runs, list(range(seed, seed + seeds)), check_memory=not prepare,
                             recipe=chosen.record(overriding))
+
+
+def _warn_if_sparse(field, algo: str, reward: str) -> None:
+    """One line, once, where PPO would train on a success alone (fieldgen.run.recipe.sparse_warning)."""
+    from fieldgen.run import recipe as recipes
+
+    warning = recipes.sparse_warning(field, algo, reward)
+    if warning:
+        out.print(Text(warning, style="yellow"), soft_wrap=True)
 
 
 def _refuse_for_self_play(what: str, logger: str = "none", **given) -> None:
