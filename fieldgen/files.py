@@ -172,9 +172,19 @@ def mark(folder: Path, output: Output) -> None:
 MAX_RECORD = 4 * 2**20  # an ownership record lists file names: megabytes would be one edited or damaged
 
 
+def parsed_json(text: bytes | str):
+    """The value JSON text holds; ValueError for any text that is not JSON, one nested deeper than Python's
+    parser follows included (which it reports as RecursionError), so that every reader of a record fieldgen
+    wrote refuses an edited or damaged one in its own words."""
+    try:
+        return json.loads(text)
+    except RecursionError:
+        raise ValueError("nested deeper than any record fieldgen writes") from None
+
+
 def _record(folder: Path) -> dict | None:
     try:
-        record = json.loads((folder / OWNER).read_bytes()[:MAX_RECORD])
+        record = parsed_json((folder / OWNER).read_bytes()[:MAX_RECORD])
     except (OSError, ValueError):
         return None
     return record if isinstance(record, dict) else None
@@ -517,8 +527,19 @@ def _is_leftover(name: str) -> bool:
 def _in_the_way(folder: Path) -> Path:
     """The file, or the link that leads nowhere (a loop, a missing target), where a folder above `folder` should
     be; the nearest parent where the system raced us to it."""
-    above = (folder.parent, *folder.parent.parents)
-    return next((p for p in above if (p.is_symlink() or p.exists()) and not p.is_dir()), folder.parent)
+    return file_in_the_way(folder.parent) or folder.parent
+
+
+def file_in_the_way(folder: Path) -> Path | None:
+    """The file, or the link that leads nowhere (a loop, a missing target), at `folder` or where a folder above it
+    should be; None where nothing is: a folder that cannot be made is then told by what blocks it, not by the
+    system's "Not a directory" about a path below."""
+    return next((p for p in (folder, *folder.parents) if (p.is_symlink() or p.exists()) and not p.is_dir()), None)
+
+
+def kind_of_blocker(blocker: Path) -> str:
+    """What file_in_the_way found, in the words every message about it uses."""
+    return "a link that leads nowhere (a loop of links, or to nothing)" if blocker.is_symlink() else "a file"
 
 
 def _umask() -> int:

@@ -219,8 +219,10 @@ def train(
                         if getattr(ctx.get_parameter_source(name), "name", "DEFAULT") != "DEFAULT"]
             if settings:
                 total = record.read_run(resume).config.get("total_steps")
-                fail(f"--resume goes on with the settings {resume} was set up with (its run.json: "
-                     f"{total:,} env steps in all), which {' and '.join(settings)} cannot change; to train "
+                # its count where run.json holds one (an edited one may hold anything there)
+                recorded = f" (its run.json: {total:,} env steps in all)" if type(total) is int else ""
+                fail(f"--resume goes on with the settings {resume} was set up with{recorded}, which "
+                     f"{' and '.join(settings)} cannot change; to train "
                      f"on from what it learned, start a new run from it: fieldgen train SPEC --init-from {resume} "
                      "--steps N --out DIR")
             if init_from is not None:

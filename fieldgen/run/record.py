@@ -22,13 +22,14 @@ from pydantic import (AfterValidator, BaseModel, ConfigDict, Field, StrictBool, 
                       model_validator)
 
 from fieldgen.curriculum.promotion import Promotion
-from fieldgen.files import Output, write_atomic
+from fieldgen.files import Output, parsed_json, write_atomic
 from fieldgen.schema.errors import shown_text, shown_value
 
 RUN, METRICS, CSV, CHECKPOINT, PLOT = "run.json", "metrics.jsonl", "metrics.csv", "checkpoint.msgpack", "success.png"
 LEARNER, INITIAL, VIDEOS = "learner.msgpack", "initial.msgpack", "videos"
 RUN_FOLDER = Output("fieldgen train", (), RUN,  # written into file by file, never replaced whole
                     files=(RUN, METRICS, CSV, CHECKPOINT, LEARNER, INITIAL, PLOT, VIDEOS, "field", "stages"))
+PARSER_COMPLAINT = 120  # characters of what JSON's parser says of a broken record: its whole sentence and place
 # the metrics that time the run rather than say what it learned: the only ones in which the same run, trained
 # again or over other processes, may differ
 TIMINGS = ("wall_seconds", "steps_per_second", "peak_memory_mb", "write_wait_seconds")
@@ -187,13 +188,20 @@ def read_run(run_dir: Path) -> RunRecord:
         raise RunError(f"{run_dir} is {what}, not a run folder; name the folder fieldgen train wrote "
                        "(runs/<field>-<algo>-<seed>)")
     try:
-        saved = json.loads((run_dir / RUN).read_bytes())
+        text = (run_dir / RUN).read_bytes()
     except FileNotFoundError:
         raise RunError(f"{run_dir} is not a training run: {RUN} is missing; name the folder fieldgen train "
                        "wrote (runs/<field>-<algo>-<seed>); one whose setup was cut short is set up again by the "
                        "same fieldgen train command") from None
-    except (OSError, ValueError) as exc:
-        raise RunError(f"{run_dir / RUN} cannot be read as a run record ({exc})") from None
+    except OSError as exc:  # no permission, a folder in its place
+        raise RunError(f"{run_dir / RUN} cannot be read ({exc.strerror}); make it the readable file fieldgen train "
+                       "wrote, or name another run folder") from None
+    try:
+        saved = parsed_json(text)
+    except ValueError as exc:
+        said = "it is empty" if not text.strip() else f"it is not JSON: {shown_text(str(exc), PARSER_COMPLAINT)}"
+        raise RunError(f"{run_dir / RUN} cannot be read as a run record ({said}); it was edited or damaged: "
+                       "restore it from a copy, or start the run again in a new folder") from None
     try:
         return RunRecord.model_validate(saved if isinstance(saved, dict) else {})
     except ValidationError as exc:
@@ -216,7 +224,7 @@ def read_metrics(run_dir: Path) -> list[dict]:
         damaged = (f"{path}:{n} is not a metrics row ({{}}); the file was edited or damaged: restore it from a "
                    "copy, or start the run again in a new folder")
         try:
-            row = json.loads(line)
+            row = parsed_json(line)
         except ValueError:  # undecodable bytes as well as broken JSON
             if n == len(lines):
                 break

@@ -82,7 +82,7 @@ def programs(config: SelfPlayConfig, env) -> tuple:
 def is_team_run(folder: Path) -> bool:
     """Whether `folder` holds a self-play run (its run.json says so); False for any other folder."""
     try:
-        return bool(json.loads((folder / record.RUN).read_bytes()).get("selfplay"))
+        return bool(files.parsed_json((folder / record.RUN).read_bytes()).get("selfplay"))
     except (OSError, ValueError, AttributeError):
         return False
 

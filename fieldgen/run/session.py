@@ -155,6 +155,11 @@ def new_run(source: Path, algo: str, seeds: Sequence[int], config, out: Path, mi
                                  **({"recipe": recipe} if recipe else {}),
                                  **({"processes": processes} if processes else {})})
     except OSError as exc:
+        blocker = files.file_in_the_way(folder.parent)
+        if blocker is not None:  # where a folder above the run's should be: no space or permission makes it one
+            raise record.RunError(f"cannot set up the run folder {folder}: {blocker} is "
+                                  f"{files.kind_of_blocker(blocker)}, not a folder; move "
+                                  "it aside or choose another --out") from None
         raise record.RunError(f"cannot set up the run folder {folder}: {exc.strerror}; free some space, fix the "
                               "folder's permissions or choose another --out") from None
     return run
@@ -171,6 +176,11 @@ def check_memory(run: Run) -> None:
     for trainer in run.trainers:
         memory.check(memory.training(trainer, seeds),
                      f"training {seeds:,} seed{'s' * (seeds > 1)} of {algo} with {run.config.num_envs:,} envs", lower)
+    episodes = run.config.eval_envs  # every evaluation plays them at once for each seed, beside training's state
+    for env in run.envs:
+        memory.check(memory.episodes(env, episodes * seeds),
+                     f"evaluating {episodes:,} episodes of each of {seeds:,} seed{'s' * (seeds > 1)} at once",
+                     {memory.EPISODES: f"{algo}.eval_envs{more}"})
 
 
 def learner_contents(trainer: loop.Trainer, state, sampling: dict) -> tuple:
@@ -260,7 +270,8 @@ def open_run(folder: Path, load_state: bool = True, to_train: bool = False, lear
     envs = []
     for sub in saved.fields or [FIELD]:
         if not (folder / sub).is_dir():
-            raise record.RunError(f"{folder / sub} is missing: the run's own copy of its field (a setup cut short, or "
+            what = "is a file, not a folder" if (folder / sub).exists() else "is missing"
+            raise record.RunError(f"{folder / sub} {what}: the run's own copy of its field (a setup cut short, or "
                                   "a copy of the run that left it out); set the run up again with the fieldgen train "
                                   "command that made it, or restore the folder from a copy")
         try:
@@ -280,10 +291,12 @@ def open_run(folder: Path, load_state: bool = True, to_train: bool = False, lear
                               "or start it again in a new folder")
     try:
         config = registry.trainer(saved.algo).config.layered(**saved.config)
+        seeds = saved.seeds or [config.seed]
+        for env in envs:  # values each fine alone that together build no trainer: refused as new runs' are
+            config.validate_env(env, seeds=len(seeds))
     except (KeyError, ConfigError) as exc:
         raise record.RunError(f"{folder / record.RUN} holds no usable config ({exc}); it was edited or damaged, "
                               "or written by another version of fieldgen") from None
-    seeds = saved.seeds or [config.seed]
     rows = record.read_metrics(folder)
     try:
         plan = curriculum.Plan.recorded(saved, len(envs), folder / record.RUN)

@@ -140,6 +140,8 @@ def draw_kept(path: Path, models: dict, fmt: str) -> tuple[str, int | None]:
     from fieldgen.run.record import RunError
 
     try:
+        if not zipfile.is_zipfile(path):  # else numpy reads it as a pickle, and its refusal speaks of unpickling
+            raise ValueError("not an .npz archive")
         with np.load(path) as kept:
             _check_sizes(path, kept)
             played, camera, episode = str(kept["field"]), str(kept["camera"]), dict(kept)

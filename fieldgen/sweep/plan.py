@@ -25,6 +25,7 @@ from pydantic import (BaseModel, BeforeValidator, ConfigDict, Field, StrictBool,
 from fieldgen import limits
 from fieldgen.agents.registry import ALGORITHMS
 from fieldgen.counts import count
+from fieldgen.files import file_in_the_way, kind_of_blocker
 from fieldgen.schema import Problem, SpecError, bundled_fields, resolve_spec_path
 from fieldgen.schema.messages import problems
 from fieldgen.schema.errors import shown_text
@@ -204,6 +205,13 @@ def load(path: Path, out: Path | None = None, **overrides) -> Sweep:
     if found:
         raise SweepError(found)
     folder = (Path(spec.out) if out is None and spec.out else out or Path("runs") / f"sweep-{path.stem}").absolute()
+    blocker = file_in_the_way(folder)  # said here, once, rather than as a plan in the folder that cannot be read
+    if blocker is not None:
+        said = (f"is {kind_of_blocker(blocker)}, not a folder, where the sweep's folder {folder} goes; move it "
+                "aside or choose another")
+        if out is None and spec.out:
+            raise SweepError([source.problem(("out",), f"{blocker} {said} out:")])
+        raise SweepError([Problem(blocker, None, None, "", f"{said} --out")])
     runs = []
     for ref, name in zip(spec.fields, names):
         field_arg = ref if ref in bundled_fields() and "/" not in ref else str(_relative(path, ref).absolute())

@@ -13,7 +13,7 @@ import socket
 from pathlib import Path
 
 from fieldgen.command import TIME_LIMIT_STATUS
-from fieldgen.files import SWEEP, write_file
+from fieldgen.files import SWEEP, parsed_json, write_file
 from fieldgen.run import record
 from fieldgen.sweep.launch import finished, log_path
 from fieldgen.sweep.plan import PlannedRun, Sweep, read_plan
@@ -31,7 +31,7 @@ class RunState:
 
 def _read(path: Path) -> dict | None:
     try:
-        data = json.loads(path.read_text())
+        data = parsed_json(path.read_bytes())
     except (OSError, ValueError):
         return None
     return data if isinstance(data, dict) else None

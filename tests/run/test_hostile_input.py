@@ -1,0 +1,211 @@
+"""What a careless or hostile user hands fieldgen besides a field spec (a damaged run folder, a record nested past
+Python's parser, settings in run.json that build no trainer, an --out where a file is in the way): one sentence
+naming the file, exit status 1, never a traceback, and nothing of the user's lost."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from fieldgen import files
+from fieldgen.cli import app
+from fieldgen.run import record
+
+runner = CliRunner()
+
+DEEP = "[" * 100_000 + "]" * 100_000  # JSON that Python's parser gives up on with RecursionError, not ValueError
+
+
+def said(result) -> str:
+    """The command's output as one line, wherever the console wrapped it."""
+    return " ".join(result.output.split())
+
+
+def refused(result, phrase: str) -> None:
+    assert result.exit_code == 1 and "Traceback" not in result.output, result.output
+    assert " ".join(phrase.split()) in said(result), result.output
+
+
+def edit_config(run: Path, **changes) -> None:
+    saved = json.loads((run / record.RUN).read_text())
+    saved["config"].update(changes)
+    (run / record.RUN).write_text(json.dumps(saved))
+
+
+@pytest.mark.parametrize("command", [["train", "--resume"], ["export", "-o", "POLICY"], ["eval", "--no-video"],
+                                     ["compare"], ["view"]], ids=lambda c: c[0])
+def test_a_run_json_nested_too_deep_to_parse_is_one_sentence(tmp_path, monkeypatch, command):
+    """Before: every command that opens a run died in a RecursionError traceback on such a run.json (each first
+    asks whether it is a self-play run, then reads the record)."""
+    monkeypatch.setenv("DISPLAY", ":99")  # `fieldgen view` reads the run before it opens a window
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / record.RUN).write_text(DEEP)
+    arguments = [str(tmp_path / word) if word == "POLICY" else word for word in command]
+    result = runner.invoke(app, [*arguments, str(run)])
+    refused(result, f"{run / record.RUN} cannot be read as a run record (it is not JSON: nested deeper than any "
+                    "record fieldgen writes); it was edited or damaged: restore it from a copy, or start the run "
+                    "again in a new folder")
+
+
+@pytest.mark.parametrize("text,phrase", [
+    ("", "cannot be read as a run record (it is empty); it was edited or damaged"),
+    ("{not json", ("cannot be read as a run record (it is not JSON: Expecting property name enclosed in double "
+                   "quotes: line 1 column 2 (char 1)); it was edited or damaged: restore it from a copy")),
+    (None, ("cannot be read (Is a directory); make it the readable file fieldgen train wrote, or name another run "
+            "folder")),
+], ids=["empty", "broken", "folder"])
+def test_a_run_json_that_is_no_json_says_what_it_is_and_what_to_do(tmp_path, text, phrase):
+    """Before: the parser's words alone, cut mid-sentence, with no way on; a folder in its place read as errno 21."""
+    run = tmp_path / "run"
+    run.mkdir()
+    if text is None:
+        (run / record.RUN).mkdir()
+    else:
+        (run / record.RUN).write_text(text)
+    refused(runner.invoke(app, ["export", str(run), "-o", str(tmp_path / "policy")]), f"{run / record.RUN} {phrase}")
+
+
+def test_a_metrics_line_nested_too_deep_is_a_damaged_row(tmp_path):
+    """Before: RecursionError. Inside the file it is a damaged row; as the last line, a torn one, dropped."""
+    row = json.dumps({"eval": 0, "seed": 0, "env_steps": 800})
+    (tmp_path / record.METRICS).write_text(f"{DEEP}\n{row}\n")
+    with pytest.raises(record.RunError, match=r"metrics.jsonl:1 is not a metrics row \(not JSON\)"):
+        record.read_metrics(tmp_path)
+    (tmp_path / record.METRICS).write_text(f"{row}\n{DEEP}\n")
+    assert [r["eval"] for r in record.read_metrics(tmp_path)] == [0]
+
+
+def test_records_nested_too_deep_read_as_no_record(tmp_path):
+    """An ownership record or a sweep run's start and end records nested past the parser: no record (a file of
+    the folder is then no one's, a run's start unknown), as any other damaged one; before, RecursionError."""
+    from fieldgen.sweep import status
+
+    (tmp_path / files.OWNER).write_text(DEEP)
+    (tmp_path / "summary.json").write_text("{}")
+    assert files.writer_of(tmp_path / "summary.json") is None
+    with pytest.raises(files.NotOurs, match="is not a file fieldgen wrote"):
+        files.check_file(tmp_path / "summary.json", files.EVAL)
+    (tmp_path / "run.started").write_text(DEEP)
+    assert status._read(tmp_path / "run.started") is None
+
+
+def test_parsed_json_says_every_unreadable_text_is_a_value_error():
+    assert files.parsed_json(b'{"a": [1]}') == {"a": [1]}
+    for text in (DEEP, "{", b"\xff\xfe", ""):
+        with pytest.raises(ValueError):
+            files.parsed_json(text)
+
+
+@pytest.fixture
+def prepared(tmp_path, tiny_crl_args) -> Path:
+    """A tiny CRL run on point_nav set up with --prepare (its fields and run.json written, nothing trained)."""
+    result = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path / "runs"), "--prepare", *tiny_crl_args])
+    assert result.exit_code == 0, result.output
+    return tmp_path / "runs" / "point_nav-crl-0"
+
+
+def test_a_run_json_whose_settings_build_no_trainer_is_refused_as_a_new_runs_are(prepared):
+    """Each value in range alone, together too few steps for one iteration: a new run with them is refused, and
+    one edited into run.json was a ValueError traceback from the trainer once the run opened."""
+    edit_config(prepared, total_steps=100)
+    refused(runner.invoke(app, ["train", "--resume", str(prepared)]),
+            f"{prepared / record.RUN} holds no usable config (--steps 100 is too few:")
+
+
+def test_a_trained_run_whose_settings_build_no_trainer_cannot_be_exported_or_viewed(tmp_path, monkeypatch,
+                                                                                   train_point_nav):
+    """What reads a trained run's policy (export, view, eval) builds its trainer: refused where it opens."""
+    monkeypatch.setenv("DISPLAY", ":99")
+    run = tmp_path / "run"
+    shutil.copytree(train_point_nav(2), run)  # the run tests/run/test_export.py trains
+    edit_config(run, num_envs=10**30)
+    phrase = f"{run / record.RUN} holds no usable config (--steps"
+    refused(runner.invoke(app, ["export", str(run), "-o", str(tmp_path / "policy")]), phrase)
+    refused(runner.invoke(app, ["view", str(run)]), phrase)
+    assert not (tmp_path / "policy").exists()
+
+
+def test_evaluation_episodes_the_machine_cannot_hold_are_refused_before_training(tmp_path, tiny_crl_args):
+    """Training checked its own state's memory, not its evaluations': eval_envs=1e12 compiled, trained a chunk and
+    died in an OverflowError traceback at the first evaluation."""
+    out = tmp_path / "runs"
+    huge = [*tiny_crl_args, "--set", "crl.eval_envs=1e12", "--no-videos", "--out", str(out)]
+    result = runner.invoke(app, ["train", "point_nav", *huge])
+    refused(result, "evaluating 1,000,000,000,000 episodes of each of 1 seed at once needs about")
+    assert "lower crl.eval_envs" in said(result)
+    assert not (out / "point_nav-crl-0").exists()
+    prepared = runner.invoke(app, ["train", "point_nav", "--prepare", *huge])
+    assert prepared.exit_code == 0, prepared.output
+    assert "note: evaluating 1,000,000,000,000 episodes" in said(prepared), prepared.output
+    assert not (out / "point_nav-crl-0" / record.CHECKPOINT).exists()
+
+
+def test_a_run_whose_field_copy_is_a_file_says_so(prepared):
+    (prepared / "field").rename(prepared / "field.moved")
+    (prepared / "field").write_text("not a folder")
+    refused(runner.invoke(app, ["train", "--resume", str(prepared)]),
+            f"{prepared / 'field'} is a file, not a folder: the run's own copy of its field")
+
+
+@pytest.mark.parametrize("blocker,what", [("file", "a file"),
+                                          ("link", "a link that leads nowhere (a loop of links, or to nothing)")])
+@pytest.mark.parametrize("below", ["", "sub"], ids=["out", "under_out"])
+def test_an_out_where_a_file_is_in_the_way_names_it(tmp_path, tiny_crl_args, blocker, what, below):
+    """Before: "a file is in the way of the folder; free some space, fix the folder's permissions", or the
+    system's "Not a directory" about the run's folder, for a path under a file; neither named the file."""
+    in_the_way = tmp_path / "in_the_way"
+    if blocker == "file":
+        in_the_way.write_text("mine")
+    else:
+        in_the_way.symlink_to(tmp_path / "nowhere")
+    out = in_the_way / below if below else in_the_way
+    result = runner.invoke(app, ["train", "point_nav", "--out", str(out), "--prepare", *tiny_crl_args])
+    refused(result, f"cannot set up the run folder {out / 'point_nav-crl-0'}: {in_the_way} is {what}, not a folder; "
+                    "move it aside or choose another --out")
+    if blocker == "file":
+        assert in_the_way.read_text() == "mine"
+
+
+def test_a_sweeps_folder_where_a_file_is_in_the_way_names_it(tmp_path):
+    """Before: "out/sweep.json: cannot be read (Not a directory); move it aside to plan the sweep anew", about a
+    plan that was never there."""
+    in_the_way = tmp_path / "results"
+    in_the_way.write_text("mine")
+    sweep = tmp_path / "sweep.yaml"
+    sweep.write_text(f"fields: [point_nav]\nalgorithms: [crl]\nout: {in_the_way / 'sweep'}\n")
+    refused(runner.invoke(app, ["sweep", str(sweep), "--dry-run"]),
+            f"{sweep}:3:1: out: {in_the_way} is a file, not a folder, where the sweep's folder "
+            f"{in_the_way / 'sweep'} goes; move it aside or choose another out:")
+    refused(runner.invoke(app, ["sweep", str(sweep), "--status", "--out", str(in_the_way)]),
+            f"{in_the_way}: is a file, not a folder, where the sweep's folder {in_the_way} goes; move it aside or "
+            "choose another --out")
+    assert in_the_way.read_text() == "mine"
+
+
+@pytest.mark.parametrize("total", ["abc", None], ids=["text", "left_out"])
+def test_resume_with_a_setting_refuses_it_whatever_run_json_holds_as_its_steps(prepared, total):
+    """Before: the refusal of --steps quoted run.json's total_steps as a count, and died formatting one that was
+    edited into text or left out (ValueError, TypeError)."""
+    saved = json.loads((prepared / record.RUN).read_text())
+    if total is None:
+        del saved["config"]["total_steps"]
+    else:
+        saved["config"]["total_steps"] = total
+    (prepared / record.RUN).write_text(json.dumps(saved))
+    refused(runner.invoke(app, ["train", "--resume", str(prepared), "--steps", "5"]),
+            f"--resume goes on with the settings {prepared} was set up with, which --steps cannot change")
+
+
+def test_a_kept_episode_that_is_no_archive_is_refused_without_talk_of_pickles(prepared):
+    """Before: numpy's words for a file it would read as a pickle: "load it unsafely using allow_pickle"."""
+    (prepared / record.VIDEOS).mkdir()
+    (prepared / record.VIDEOS / "eval_001.npz").write_bytes(b"\x80\x04 not a zip of arrays")
+    result = runner.invoke(app, ["videos", str(prepared)])
+    refused(result, f"{prepared / record.VIDEOS / 'eval_001.npz'} is not an episode kept by fieldgen train (not an "
+                    ".npz archive); delete it or train again")
+    assert "pickle" not in result.output
