@@ -235,8 +235,10 @@ def train(
             run = session.open_run(resume, to_train=True)
             if run.refills and run.rows and not run.finished:
                 drawn = "; its episodes drawn as they were (its levels and their counts)" if run.sampling else ""
+                refilled = (" and a replay buffer filled anew by its policy (those env steps count)"
+                            if "buffer" in run.trainers[0].env_axes else "")  # PPO keeps no buffer
                 out.print(f"{resume} holds no {record.CHECKPOINT}: it goes on from {record.LEARNER} with fresh "
-                          f"episodes and a replay buffer filled anew by its policy (those env steps count){drawn}")
+                          f"episodes{refilled}{drawn}")
         else:
             if spec is None:
                 fail("name a field to train on, or --resume a run folder")

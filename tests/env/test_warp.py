@@ -131,5 +131,7 @@ def test_ppo_trains_and_evaluates_seeds_on_warp_s_physics(tmp_path):
     (run / "checkpoint.msgpack").unlink()  # as a run carried between machines without it: from the learner alone
     result = CliRunner().invoke(app, ["train", "--resume", str(run), "--no-videos"])
     assert result.exit_code == 0, result.output
+    said = " ".join(result.output.split())
+    assert "goes on from learner.msgpack with fresh episodes" in said and "replay buffer" not in said  # PPO keeps none
     rows = [json.loads(line) for line in (run / "metrics.jsonl").open()]
     assert sorted((r["eval"], r["seed"]) for r in rows) == [(e, s) for e in range(3) for s in (0, 1)]
