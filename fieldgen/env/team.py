@@ -38,6 +38,7 @@ TURNED_QVEL = {"point": ((0, 1), (-1, -1)),
                "ant": (tuple(range(14)), (-1, -1, *[1] * 12))}
 TURNED_ACTION = {"point": (-1, -1), "ant": (1,) * 8}  # a point's motors push along the field's axes; an ant's turn with it
 # the match terms `score` computes; the others are task.py's, for each agent
+STILL_STEPS = "ball_still_steps"  # info: control steps the ball has been still, under teams.lack_of_progress
 MATCH_OWN = ("goal", "ball_progress", "ball_goal_progress")
 if set(MATCH_OWN) != {name for name, t in MATCH_TERMS.items() if not t.per_agent}:
     raise ImportError(f"the match terms of fieldgen/schema/terms.py that are not per agent must be computed in "
@@ -103,6 +104,16 @@ class TeamFieldEnv:
                            if MATCH_TERMS[t.term].per_agent}
         self.zero_sum_terms = tuple(t for t in dict.fromkeys(self.terms) if MATCH_TERMS[t].zero_sum)
         self.metric_names = ("success", *dict.fromkeys(self.terms))
+        self._stall = spec.teams.lack_of_progress
+        if self._stall is not None:
+            ball = ("ball",) if spec.ball.joint == "free" else ("ball_x", "ball_y")
+            dofs = [range(int(self.mj_model.joint(j).dofadr[0]),
+                          int(self.mj_model.joint(j).dofadr[0]) + (6 if j == "ball" else 1)) for j in ball]
+            self._ball_dofs = jnp.asarray([d for r in dofs for d in r])  # x, y (planar) or x, y, z and spin (free)
+            self._stall_steps = max(1, round(self._stall.seconds / self.dt))
+            quarter, half = spec.field.width / 4, spec.goal.distance / 2
+            self._neutral_spots = jnp.asarray([[0.0, 0.0], *[[sx * quarter, sy * half] for sx in (-1, 1)
+                                                              for sy in (-1, 1)]])
 
     @property
     def unwrapped(self) -> "TeamFieldEnv":
@@ -116,6 +127,8 @@ class TeamFieldEnv:
         zero = jnp.zeros(())
         info = {"rng": rng, "episode_step": jnp.zeros((), jnp.int32), "truncation": zero,
                 "episode": jnp.zeros((), jnp.int32), DIVERGED: jnp.zeros((), jnp.int32)}
+        if self._stall is not None:
+            info[STILL_STEPS] = jnp.zeros((), jnp.int32)
         if self.impl == "warp":
             info[mjx_physics.OVERFLOW] = jnp.zeros((), jnp.int32)
         metrics = {name: jnp.zeros(2) for name in self.metric_names}
@@ -155,6 +168,8 @@ class TeamFieldEnv:
         info[DIVERGED] = state.info[DIVERGED] + broken.astype(jnp.int32)  # kept over episodes, as OVERFLOW
         if overflow is not None:
             info[mjx_physics.OVERFLOW] = state.info[mjx_physics.OVERFLOW] | overflow
+        if self._stall is not None:
+            data, info[STILL_STEPS] = self._restart_stalled(data, state.info[STILL_STEPS], done)
         obs = self.observe(data)
         if self.auto_reset:
             rng, key = jax.random.split(state.info["rng"])
@@ -164,6 +179,20 @@ class TeamFieldEnv:
             info.update(rng=rng, episode_step=jnp.where(done, 0, steps),
                         episode=state.info["episode"] + done.astype(jnp.int32))
         return State(data, obs, reward, done.astype(jnp.float32), metrics, info)
+
+    def _restart_stalled(self, data, still: jax.Array, done: jax.Array):
+        """(data, still steps): the ball moved, at rest, to the neutral spot farthest from every agent once it has
+        been still for the rule's time; after the step's scoring, so the move itself pays no term."""
+        speed = jnp.linalg.norm(data.qvel[self._ball_dofs[:2]])
+        still = jnp.where(done | (speed >= self._stall.speed), 0, still + 1)
+        stalled = still >= self._stall_steps
+        agents = self._agent_positions(data)[:, :2]
+        clearance = jnp.min(jnp.linalg.norm(self._neutral_spots[:, None] - agents[None], axis=-1), axis=1)
+        spot = self._neutral_spots[jnp.argmax(clearance)]
+        at = jnp.asarray(self.layout.ball_qpos[:2])
+        qpos = jnp.where(stalled, data.qpos.at[at].set(spot), data.qpos)
+        qvel = jnp.where(stalled, data.qvel.at[self._ball_dofs].set(0.0), data.qvel)
+        return data.replace(qpos=qpos, qvel=qvel), jnp.where(stalled, 0, still)
 
     def score(self, before, after, actions: jax.Array) -> tuple[dict, jax.Array, jax.Array]:
         """(metrics [2] per name, reward [2], whether a goal was scored) of one step from `before` to `after`."""
