@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 from pathlib import Path
 from typing import Annotated, ClassVar, Literal, Sequence
 
@@ -22,8 +23,8 @@ import yaml
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, StrictBool, ValidationError
 
 from ..env.contract import Environment
-from ..limits import MAX_SEEDS, SEED_MAX
-from ..schema.errors import shown_text
+from ..limits import COUNT_MAX, MAX_SEEDS, SEED_MAX
+from ..schema.errors import shown_text, shown_value
 from ..schema.source import SpecLoader
 from ..suggest import allowed, did_you_mean
 from .buffer import gradient_steps, iterations
@@ -59,7 +60,9 @@ def _listed(value):
     return value if isinstance(value, (list, tuple)) else [value]
 
 
-Int = Annotated[int, BeforeValidator(_number)]
+# a whole number as large as a count on the command line at most: a larger one is a typo, and past a machine
+# integer it would end in an OverflowError where it first sizes an array
+Int = Annotated[int, BeforeValidator(_number), Field(ge=-COUNT_MAX, le=COUNT_MAX)]
 Count = Annotated[Int, Field(gt=0)]  # how many of something: at least one
 Float = Annotated[float, BeforeValidator(_number), Field(allow_inf_nan=False)]
 Rate = Annotated[Float, Field(gt=0)]  # a learning rate, a step size, a scale
@@ -125,9 +128,9 @@ class RunConfig(BaseModel):
     @classmethod
     def _section_values(cls, source: Path | None, skipped: tuple[str, ...]) -> dict:
         """This algorithm's keys in a preset or config file, each checked at its line."""
-        section, lines = cls._section(source, skipped)
-        return {key: cls._checked(key, value, f"{source}:{lines[key]}" if key in lines else f"{source}")
-                for key, value in section.items()}  # a key merged in (<<: *defaults) has no line
+        section, lines, written = cls._section(source, skipped)
+        return {key: cls._checked(key, value, f"{source}:{lines[key]}" if key in lines else f"{source}",
+                                  written.get(key)) for key, value in section.items()}  # merged in: no line
 
     @classmethod
     def _assigned(cls, items: Sequence[str], others: tuple[str, ...], source: str) -> dict:
@@ -150,7 +153,7 @@ class RunConfig(BaseModel):
                 said = f": {exc.problem}" if isinstance(exc, yaml.constructor.ConstructorError) else ""
                 raise ConfigError(f"{source}{shown_text(item)}: {shown_text(repr(raw))} is not a YAML value{said}") \
                     from None
-            values[key] = cls._checked(key, value, f"{source}{item}")
+            values[key] = cls._checked(key, value, f"{source}{shown_text(item)}", raw.strip())
         return values
 
     @classmethod
@@ -162,11 +165,11 @@ class RunConfig(BaseModel):
         return f"{cls.algo}.{key}={value}"
 
     @classmethod
-    def _section(cls, file: Path | None, others: tuple[str, ...]) -> tuple[dict, dict[str, int]]:
-        """This algorithm's keys in a config file, and the line of each; a file with any other section is
-        refused."""
+    def _section(cls, file: Path | None, others: tuple[str, ...]) -> tuple[dict, dict[str, int], dict[str, str]]:
+        """This algorithm's keys in a config file, the line of each, and each single value as it is written there;
+        a file with any other section is refused."""
         if file is None:
-            return {}, {}
+            return {}, {}, {}
         try:
             text = file.read_text()
             loaded = yaml.safe_load(text) or {}
@@ -179,11 +182,14 @@ class RunConfig(BaseModel):
             raise ConfigError(f"{file}: a config file is a mapping with {what} of config keys")
         root = yaml.compose(text, Loader=yaml.SafeLoader)
         body = next(value for key, value in root.value if key.value == cls.algo) if section else None
-        return section, {key.value: key.start_mark.line + 1 for key, _ in getattr(body, "value", [])}
+        pairs = getattr(body, "value", [])
+        return (section, {key.value: key.start_mark.line + 1 for key, _ in pairs},
+                {key.value: node.value for key, node in pairs if isinstance(node, yaml.ScalarNode)})
 
     @classmethod
-    def _checked(cls, key: str, value, where: str):
-        """`value` as the field `key` holds it; a ConfigError that says `where` it came from if it cannot be."""
+    def _checked(cls, key: str, value, where: str, written: str | None = None):
+        """`value` as the field `key` holds it; a ConfigError that says `where` it came from if it cannot be,
+        quoting a number past a float's range as it was `written` (1e400), not as Python reads it (inf)."""
         fields = cls.model_fields
         if key not in fields:
             raise ConfigError(f"{where}: unknown config key '{key}'{did_you_mean(key, fields) or '.'} "
@@ -195,8 +201,10 @@ class RunConfig(BaseModel):
                 unknown = next(m for m in fields[key].metadata if isinstance(m, Unknown))
                 raise ConfigError(f"{where}: {unknown.message.format(value)}") from None
             listed = f"; write it as a list, [{value}]" if isinstance(value, str) and "," in value else ""
+            past = isinstance(value, float) and math.isinf(value) and written is not None
+            shown = shown_text(written) if past else shown_value(value)
             raise ConfigError(f"{where}: {cls.algo}.{key} {allowed(exc.errors()[0], fields[key])}, "
-                              f"not {value!r}{listed}") from None
+                              f"not {shown}{listed}") from None
 
     def validate_env(self, env: Environment, devices: int = 1, seeds: int = 1) -> None:
         """Problems a run would hit after compiling, reported before. `seeds` trained at once on `devices`

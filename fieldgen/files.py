@@ -245,8 +245,33 @@ def _refuse_unlike(path: Path, kind: str, output: Output, where: str) -> None:
 
 def check_file(path: Path, output: Output, how: str | None = None) -> None:
     """Refuse (NotOurs) to write the file `path` for `output.command` where something is there that the same
-    command did not write (a file of the user's, another command's, a run's own record, a folder, a link).
-    `how` is how the user chooses another path (by default `output.option`)."""
+    command did not write (a file of the user's, another command's, a run's own record, a folder, a link), and
+    (FolderError) where its folder cannot take it (a file in its place, or read-only): a command checks before
+    its work what would otherwise fail only once the work is done. `how` is how the user chooses another path
+    (by default `output.option`)."""
+    _check_folder(path, how or output.option)
+    _check_replace(path, output, how)
+
+
+def _check_folder(path: Path, how: str) -> None:
+    folder = path.parent
+    blocker = file_in_the_way(folder)
+    if blocker is not None:
+        raise FolderError(f"cannot write {path}: {blocker} is {kind_of_blocker(blocker)}, not a folder; move it "
+                          f"aside or choose another {how}")
+    if not folder.is_dir():
+        return  # said by whoever makes the folder
+    try:  # the system's own answer (permissions, a read-only disk), which root's too is subject to
+        fd, probe = tempfile.mkstemp(dir=folder, prefix=f".{path.name}.", suffix=TMP_SUFFIX)
+    except OSError as exc:
+        raise FolderError(f"cannot write {path}: {exc.strerror}; free some space, fix the folder's permissions or "
+                          f"choose another {how}") from None
+    os.close(fd)
+    with contextlib.suppress(OSError):
+        os.unlink(probe)
+
+
+def _check_replace(path: Path, output: Output, how: str | None) -> None:
     if not path.exists() and not path.is_symlink():
         return
     where = f"move it aside or choose another {how or output.option}"
@@ -260,9 +285,10 @@ def check_file(path: Path, output: Output, how: str | None = None) -> None:
 
 
 def write_file(path: Path, data: bytes | Iterable[bytes], output: Output, how: str | None = None) -> None:
-    """Write the file `path` as `output.command` (check_file first: refused where it would replace what that
-    command did not write), record in the folder that it wrote it, then write it whole (write_atomic)."""
-    check_file(path, output, how)
+    """Write the file `path` as `output.command` (refused, as by check_file, where it would replace what that
+    command did not write; a folder that cannot take it is a WriteError, which each writer words), record in
+    the folder that it wrote it, then write it whole (write_atomic)."""
+    _check_replace(path, output, how)
     own(path, output)
     write_atomic(path, data)
 

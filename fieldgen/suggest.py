@@ -19,15 +19,35 @@ BOUNDS = {"greater_than": ("greater than", "gt"), "greater_than_equal": ("at lea
           "less_than": ("less than", "lt"), "less_than_equal": ("at most", "le")}
 
 
+# a whole number too large: past the setting's largest, past a machine integer (1e30), or infinite (1e400)
+TOO_LARGE = ("less_than", "less_than_equal", "int_parsing_size", "finite_number")
+
+
 def allowed(error: dict, field) -> str:
     """What a setting's value must be, in words, from pydantic's first complaint about it (`field`: the
-    setting's pydantic FieldInfo): a trainer's config and a curriculum's sampler say it alike."""
+    setting's pydantic FieldInfo): a trainer's config and a curriculum's sampler say it alike. A whole number
+    too large is told the setting's whole range."""
+    span = _whole_range(field)
+    if span is not None and error["type"] in TOO_LARGE:
+        return f"must be {span}"
     if error["type"] in BOUNDS:
         phrase, key = BOUNDS[error["type"]]
-        return f"must be {phrase} {error['ctx'][key]}"
+        bound = error["ctx"][key]
+        return f"must be {phrase} {f'{bound:,}' if isinstance(bound, int) else bound}"
     if error["type"] == "finite_number":
         return "must be a finite number"
     kind = typing.get_origin(field.annotation) or field.annotation
     words = {int: "a whole number", float: "a number", bool: "true or false",
              tuple: "a list of layer widths, whole numbers above 0"}
     return f"must be {words.get(kind, kind.__name__)}"
+
+
+def _whole_range(field) -> str | None:
+    """"a whole number from LOW to HIGH" for a whole-number setting bounded both ways; None for any other."""
+    if field.annotation is not int:
+        return None
+    lows = [m.gt + 1 for m in field.metadata if getattr(m, "gt", None) is not None] + \
+        [m.ge for m in field.metadata if getattr(m, "ge", None) is not None]
+    highs = [m.lt - 1 for m in field.metadata if getattr(m, "lt", None) is not None] + \
+        [m.le for m in field.metadata if getattr(m, "le", None) is not None]
+    return f"a whole number from {max(lows):,} to {min(highs):,}" if lows and highs else None

@@ -536,6 +536,8 @@ def evaluate(
 
     if summary_file is not None and summary_file.is_dir():
         fail(f"--summary {summary_file} is a folder; name the file to write, such as {summary_file / summary.SUMMARY}")
+    if summary_file is not None:
+        files.check_file(summary_file, files.EVAL)  # a file in its folder's place, or a folder it may not write
     if summary_file is not None and not summary_file.parent.is_dir():
         fail(f"--summary {summary_file}: there is no folder {summary_file.parent} to write it in")
     from fieldgen.run import selfplay

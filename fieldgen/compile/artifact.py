@@ -22,7 +22,7 @@ from pathlib import Path
 import mujoco
 from pydantic import ValidationError
 
-from fieldgen.files import Output, replace_folder, write_atomic
+from fieldgen.files import Output, parsed_json, replace_folder, write_atomic
 from fieldgen.version import VERSION
 from fieldgen.compile.contacts import candidate_pairs
 from fieldgen.compile.layout import Layout, observation_layout, team_layout
@@ -104,7 +104,13 @@ def compiler_digest() -> str:
 
 
 class ArtifactError(Exception):
-    """A build directory that is missing, incomplete or from an incompatible version."""
+    """A build directory that is missing, incomplete or from an incompatible version: `problem` says what is
+    wrong, `str()` adds how a build folder is made whole (`remedy`); a run's own copy of its field, which
+    `fieldgen build` does not write, is mended otherwise (fieldgen.run.record.field_copy_error)."""
+
+    def __init__(self, problem: str, remedy: str):
+        self.problem, self.remedy = problem, remedy
+        super().__init__(f"{problem}; {remedy}")
 
 
 @dataclass(frozen=True)
@@ -213,35 +219,38 @@ def load_artifact(out_dir: str | Path) -> Artifact:
     try:
         meta, scene = (out_dir / META).read_bytes(), (out_dir / SCENE).read_bytes()
     except FileNotFoundError as exc:
-        raise ArtifactError(f"{out_dir} is not a built field: {Path(exc.filename).name} is missing; "
+        raise ArtifactError(f"{out_dir} is not a built field: {Path(exc.filename).name} is missing",
                             "run `fieldgen build` on its spec") from None
     except OSError as exc:
-        raise ArtifactError(f"{out_dir} cannot be read as a built field ({exc}); rebuild it with `fieldgen build`") from None
+        raise ArtifactError(f"{out_dir} cannot be read as a built field ({exc})",
+                            "rebuild it with `fieldgen build`") from None
     try:
-        meta = json.loads(meta)
+        meta = parsed_json(meta)
     except ValueError as exc:
-        raise ArtifactError(f"{out_dir / META} is not valid JSON ({exc}); rebuild the field") from None
+        raise ArtifactError(f"{out_dir / META} is not valid JSON ({exc})", "rebuild the field") from None
     if not isinstance(meta, dict) or meta.get("artifact_format") != ARTIFACT_FORMAT:
         found = meta.get("artifact_format") if isinstance(meta, dict) else None
-        raise ArtifactError(f"{out_dir} has artifact format {found}, "
-                            f"this fieldgen reads format {ARTIFACT_FORMAT}; rebuild the field")
+        raise ArtifactError(f"{out_dir} has artifact format {found}, this fieldgen reads format {ARTIFACT_FORMAT}",
+                            "rebuild the field")
     mismatch = (f"{out_dir / SCENE} is not the scene {out_dir / META} describes (an interrupted, mixed-up or "
-                "damaged build); rebuild the field with `fieldgen build --force`")
-    damaged = f"{out_dir / META} was edited or damaged ({{}}); rebuild the field with `fieldgen build --force`"
+                "damaged build)")
+    damaged = f"{out_dir / META} was edited or damaged ({{}})"
+    force = "rebuild the field with `fieldgen build --force`"
     if meta.get(RECORD_DIGEST) != record_digest(meta):
         raise ArtifactError(damaged.format(f"its {RECORD_DIGEST} is not the digest of the rest of it"
-                                           if RECORD_DIGEST in meta else f"it lacks {RECORD_DIGEST}"))
+                                           if RECORD_DIGEST in meta else f"it lacks {RECORD_DIGEST}"), force)
     if meta.get("scene_sha256") != scene_digest(scene):
-        raise ArtifactError(mismatch)
+        raise ArtifactError(mismatch, force)
     try:
         xml = scene.decode()
     except UnicodeDecodeError:
-        raise ArtifactError(mismatch) from None
+        raise ArtifactError(mismatch, force) from None
     if not isinstance(meta.get("hash"), str) or "spec" not in meta:
-        raise ArtifactError(damaged.format("it lacks the spec or its hash"))
+        raise ArtifactError(damaged.format("it lacks the spec or its hash"), force)
     try:
         spec = FieldSpec.model_validate(meta["spec"])
     except ValidationError as exc:
         error = exc.errors()[0]
-        raise ArtifactError(damaged.format(f"spec.{'.'.join(map(str, error['loc']))}: {error['msg']}")) from None
+        raise ArtifactError(damaged.format(f"spec.{'.'.join(map(str, error['loc']))}: {error['msg']}"),
+                            force) from None
     return Artifact(spec, xml, meta["hash"])

@@ -51,6 +51,15 @@ class RunError(Exception):
     that diverged."""
 
 
+SET_UP_AGAIN = "set the run up again with the fieldgen train command that made it, or restore the folder from a copy"
+
+
+def field_copy_error(copy: Path, problem: str) -> RunError:
+    """A run's own copy of its field (`copy`, a folder of the run) that cannot be loaded, for `problem`, with the
+    way on for a run folder: `fieldgen build` writes build folders, never that copy."""
+    return RunError(f"{problem}; {copy} is the run's own copy of its field: {SET_UP_AGAIN}")
+
+
 def write_run(run_dir: Path, field: dict, algo: str, config, layout: dict, seeds: list[int], extra: dict) -> None:
     """run.json: the resolved field spec (a curriculum's last stage), the algorithm, its full config,
     the observation layout, the seeds, and `extra` (where the run keeps its fields, the promotion rule)."""

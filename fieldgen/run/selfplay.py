@@ -152,7 +152,7 @@ def open_run(folder: Path, load_state: bool = True, to_train: bool = False) -> T
     try:
         env = _team_env(folder / FIELD)
     except ArtifactError as exc:
-        raise record.RunError(f"{folder / FIELD}: {exc}") from None
+        raise record.field_copy_error(folder / FIELD, exc.problem) from None
     try:
         config = SelfPlayConfig.layered(**saved.config)
     except ConfigError as exc:

@@ -272,12 +272,11 @@ def open_run(folder: Path, load_state: bool = True, to_train: bool = False, lear
         if not (folder / sub).is_dir():
             what = "is a file, not a folder" if (folder / sub).exists() else "is missing"
             raise record.RunError(f"{folder / sub} {what}: the run's own copy of its field (a setup cut short, or "
-                                  "a copy of the run that left it out); set the run up again with the fieldgen train "
-                                  "command that made it, or restore the folder from a copy")
+                                  f"a copy of the run that left it out); {record.SET_UP_AGAIN}")
         try:
             envs.append(fieldgen.FieldEnv(load_artifact(folder / sub)))
         except ArtifactError as exc:
-            raise record.RunError(f"{folder / sub}: {exc}") from None
+            raise record.field_copy_error(folder / sub, exc.problem) from None
     if any(saved.observation != env.layout.to_json() for env in envs):
         raise record.RunError(f"{folder} was trained on a different observation layout than its fields give now")
     try:

@@ -26,7 +26,8 @@ from typing import Callable
 from fieldgen import stops
 from fieldgen.command import TIME_LIMIT_STATUS, fieldgen_command
 from fieldgen.files import SWEEP, write_atomic, write_file
-from fieldgen.sweep.plan import PLAN, PlannedRun, PlanRecord, Sweep, check_plan, read_plan, shell
+from fieldgen.schema import Problem
+from fieldgen.sweep.plan import PLAN, PlannedRun, PlanRecord, Sweep, SweepError, check_plan, read_plan, shell
 
 LOGS = "logs"
 SUBMITIT = "slurm"  # submitit's folder of job scripts, pickles and scheduler logs
@@ -105,7 +106,13 @@ def _write_json(path: Path, data: dict) -> None:
 def record_plan(sweep: Sweep, jobs: dict[str, str] | None = None) -> None:
     """sweep.json: the sweep file, each run's command, and (slurm) each run's job id."""
     check_plan(sweep)
-    sweep.folder.mkdir(parents=True, exist_ok=True)
+    try:
+        sweep.folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:  # a file in the way was said as the sweep was planned: no space, or no permission
+        how = "out:" if sweep.spec.out and Path(sweep.spec.out).absolute() == sweep.folder else "--out"
+        raise SweepError([Problem(sweep.path, None, None, "", f"cannot set up the sweep's folder {sweep.folder}: "
+                                  f"{exc.strerror}; free some space, fix the folder's permissions or choose "
+                                  f"another {how}")]) from None
     path = sweep.folder / PLAN
     before = read_plan(sweep.folder) or PlanRecord(file="", backend="")
     write_file(path, (json.dumps({"file": str(sweep.path.absolute()), "backend": sweep.spec.backend,

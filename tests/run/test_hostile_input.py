@@ -4,7 +4,9 @@ naming the file, exit status 1, never a traceback, and nothing of the user's los
 
 from __future__ import annotations
 
+import errno
 import json
+import os
 import shutil
 from pathlib import Path
 
@@ -123,7 +125,7 @@ def test_a_trained_run_whose_settings_build_no_trainer_cannot_be_exported_or_vie
     monkeypatch.setenv("DISPLAY", ":99")
     run = tmp_path / "run"
     shutil.copytree(train_point_nav(2), run)  # the run tests/run/test_export.py trains
-    edit_config(run, num_envs=10**30)
+    edit_config(run, num_envs=10**12)
     phrase = f"{run / record.RUN} holds no usable config (--steps"
     refused(runner.invoke(app, ["export", str(run), "-o", str(tmp_path / "policy")]), phrase)
     refused(runner.invoke(app, ["view", str(run)]), phrase)
@@ -209,3 +211,95 @@ def test_a_kept_episode_that_is_no_archive_is_refused_without_talk_of_pickles(pr
     refused(result, f"{prepared / record.VIDEOS / 'eval_001.npz'} is not an episode kept by fieldgen train (not an "
                     ".npz archive); delete it or train again")
     assert "pickle" not in result.output
+
+
+def test_eval_refuses_a_summary_where_a_file_is_in_the_folders_place(prepared, tmp_path):
+    """Before: "there is no folder in_the_way to write it in", of a file that is there, with no way on."""
+    in_the_way = tmp_path / "in_the_way"
+    in_the_way.write_text("mine")
+    summary = in_the_way / "sub" / "summary.json"
+    refused(runner.invoke(app, ["eval", str(prepared), "--no-video", "--summary", str(summary)]),
+            f"cannot write {summary}: {in_the_way} is a file, not a folder; move it aside or choose another --summary")
+    assert in_the_way.read_text() == "mine"
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root writes a folder whatever its permissions")
+def test_eval_refuses_a_summary_in_a_read_only_folder_before_evaluating(prepared, tmp_path):
+    """Before: every seed evaluated, then "cannot write PATH: Permission denied"."""
+    folder = tmp_path / "read_only"
+    folder.mkdir()
+    folder.chmod(0o555)
+    try:
+        result = runner.invoke(app, ["eval", str(prepared), "--no-video", "--summary", str(folder / "s.json")])
+    finally:
+        folder.chmod(0o755)
+    refused(result, f"cannot write {folder / 's.json'}: Permission denied; free some space, fix the folder's "
+                    "permissions or choose another --summary")
+    assert list(folder.iterdir()) == []
+
+
+def test_a_sweeps_folder_that_cannot_be_made_says_what_to_do(tmp_path, monkeypatch):
+    """Before: "DIR: Permission denied", the system's words alone. Root may write a read-only folder: there its
+    mkdir is refused as the system refuses anyone else's."""
+    parent = tmp_path / "read_only"
+    parent.mkdir()
+    parent.chmod(0o555)
+    if os.geteuid() == 0:
+        make = Path.mkdir
+
+        def refused_below(self, *args, **kwargs):
+            if parent in self.parents:
+                raise PermissionError(errno.EACCES, "Permission denied", str(self))
+            return make(self, *args, **kwargs)
+
+        monkeypatch.setattr(Path, "mkdir", refused_below)
+    sweep = tmp_path / "sweep.yaml"
+    sweep.write_text("fields: [point_nav]\nalgorithms: [crl]\nsteps: 1000\n")
+    try:
+        result = runner.invoke(app, ["sweep", str(sweep), "--out", str(parent / "sweep")])
+    finally:
+        parent.chmod(0o755)
+    refused(result, f"{sweep}: cannot set up the sweep's folder {parent / 'sweep'}: Permission denied; free some "
+                    "space, fix the folder's permissions or choose another --out")
+    assert list(parent.iterdir()) == []
+
+
+@pytest.mark.parametrize("damage,problem", [
+    (lambda field: (field / "field.json").write_text("{}"), "has artifact format None, this fieldgen reads format"),
+    (lambda field: (field / "scene.xml").unlink(), "is not a built field: scene.xml is missing"),
+    (lambda field: (field / "field.json").write_text(DEEP), "field.json is not valid JSON (nested deeper than any"),
+], ids=["edited", "scene_missing", "nested_too_deep"])
+def test_a_run_whose_field_copy_is_damaged_is_set_up_again_not_rebuilt(prepared, damage, problem):
+    """Before: the advice for a build folder ("run `fieldgen build`", "rebuild the field"), which never writes
+    a run's copy; and a field.json nested past the parser was a RecursionError traceback."""
+    damage(prepared / "field")
+    result = runner.invoke(app, ["train", "--resume", str(prepared)])
+    refused(result, problem)
+    refused(result, f"; {prepared / 'field'} is the run's own copy of its field: set the run up again with the "
+                    "fieldgen train command that made it, or restore the folder from a copy")
+    assert "fieldgen build" not in said(result) and "rebuild" not in said(result)
+
+
+GIANT = "9" * 90
+
+
+@pytest.mark.parametrize("written,phrase", [
+    ("--set crl.num_envs=1e400", "crl.num_envs must be a whole number from 1 to 1,000,000,000,000,000, not 1e400"),
+    (f"--set crl.total_steps={GIANT}", "crl.total_steps must be a whole number from 1 to 1,000,000,000,000,000, "
+                                       f"not {GIANT[:28]}...{GIANT[:29]}"),
+    (f"crl:\n  repr_dim: {GIANT}\n", f"config.yaml:2: crl.repr_dim must be a whole number from 1 to "
+                                     f"1,000,000,000,000,000, not {GIANT[:28]}...{GIANT[:29]}"),
+    ("crl:\n  batch_size: 1.0e+400\n", "config.yaml:2: crl.batch_size must be a whole number from 1 to "
+                                       "1,000,000,000,000,000, not 1.0e+400"),
+], ids=["set_past_a_float", "set_giant", "file_giant", "file_past_a_float"])
+def test_a_giant_config_number_is_one_line_with_its_range(tmp_path, written, phrase):
+    """Before: "must be a finite number, not inf"; a giant count quoted whole in a later check of the steps or
+    the batch; and a giant network width an OverflowError traceback once the run was already prepared."""
+    if written.startswith("--set"):
+        settings = written.split(" ")
+    else:
+        (tmp_path / "config.yaml").write_text(written)
+        settings = ["--config", str(tmp_path / "config.yaml")]
+    result = runner.invoke(app, ["train", "point_nav", "--prepare", "--out", str(tmp_path / "runs"), *settings])
+    refused(result, phrase)
+    assert GIANT not in said(result) and not (tmp_path / "runs").exists()
