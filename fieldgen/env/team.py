@@ -38,7 +38,8 @@ TURNED_QVEL = {"point": ((0, 1), (-1, -1)),
                "ant": (tuple(range(14)), (-1, -1, *[1] * 12))}
 TURNED_ACTION = {"point": (-1, -1), "ant": (1,) * 8}  # a point's motors push along the field's axes; an ant's turn with it
 # the match terms `score` computes; the others are task.py's, for each agent
-STILL_STEPS = "ball_still_steps"  # info: control steps the ball has been still, under teams.lack_of_progress
+# info under teams.lack_of_progress: the control steps the ball has stayed near its anchor, and the anchor (x, y)
+STILL_STEPS, ANCHOR = "ball_still_steps", "ball_anchor"
 MATCH_OWN = ("goal", "ball_progress", "ball_goal_progress")
 if set(MATCH_OWN) != {name for name, t in MATCH_TERMS.items() if not t.per_agent}:
     raise ImportError(f"the match terms of fieldgen/schema/terms.py that are not per agent must be computed in "
@@ -128,7 +129,7 @@ class TeamFieldEnv:
         info = {"rng": rng, "episode_step": jnp.zeros((), jnp.int32), "truncation": zero,
                 "episode": jnp.zeros((), jnp.int32), DIVERGED: jnp.zeros((), jnp.int32)}
         if self._stall is not None:
-            info[STILL_STEPS] = jnp.zeros((), jnp.int32)
+            info[STILL_STEPS], info[ANCHOR] = jnp.zeros((), jnp.int32), self._ball(data)[:2]
         if self.impl == "warp":
             info[mjx_physics.OVERFLOW] = jnp.zeros((), jnp.int32)
         metrics = {name: jnp.zeros(2) for name in self.metric_names}
@@ -169,7 +170,8 @@ class TeamFieldEnv:
         if overflow is not None:
             info[mjx_physics.OVERFLOW] = state.info[mjx_physics.OVERFLOW] | overflow
         if self._stall is not None:
-            data, info[STILL_STEPS] = self._restart_stalled(data, state.info[STILL_STEPS], done)
+            data, info[STILL_STEPS], info[ANCHOR] = self._restart_stalled(data, state.info[STILL_STEPS],
+                                                                          state.info[ANCHOR])
         obs = self.observe(data)
         if self.auto_reset:
             rng, key = jax.random.split(state.info["rng"])
@@ -178,13 +180,18 @@ class TeamFieldEnv:
             obs = jnp.where(done, self.observe(fresh), obs)
             info.update(rng=rng, episode_step=jnp.where(done, 0, steps),
                         episode=state.info["episode"] + done.astype(jnp.int32))
+            if self._stall is not None:  # a new episode counts from its own kick-off
+                info[STILL_STEPS] = jnp.where(done, 0, info[STILL_STEPS])
+                info[ANCHOR] = jnp.where(done, self._ball(data)[:2], info[ANCHOR])
         return State(data, obs, reward, done.astype(jnp.float32), metrics, info)
 
-    def _restart_stalled(self, data, still: jax.Array, done: jax.Array):
-        """(data, still steps): the ball moved, at rest, to the neutral spot farthest from every agent once it has
-        been still for the rule's time; after the step's scoring, so the move itself pays no term."""
-        speed = jnp.linalg.norm(data.qvel[self._ball_dofs[:2]])
-        still = jnp.where(done | (speed >= self._stall.speed), 0, still + 1)
+    def _restart_stalled(self, data, still: jax.Array, anchor: jax.Array):
+        """(data, still steps, anchor): the ball moved, at rest, to the neutral spot farthest from every agent once
+        it has stayed within the rule's distance of its anchor for the rule's time; a ball that leaves that
+        distance anchors there anew. After the step's scoring, so the move itself pays no term."""
+        ball = self._ball(data)[:2]
+        moved = jnp.linalg.norm(ball - anchor) > self._stall.distance
+        still = jnp.where(moved, 0, still + 1)
         stalled = still >= self._stall_steps
         agents = self._agent_positions(data)[:, :2]
         clearance = jnp.min(jnp.linalg.norm(self._neutral_spots[:, None] - agents[None], axis=-1), axis=1)
@@ -192,7 +199,8 @@ class TeamFieldEnv:
         at = jnp.asarray(self.layout.ball_qpos[:2])
         qpos = jnp.where(stalled, data.qpos.at[at].set(spot), data.qpos)
         qvel = jnp.where(stalled, data.qvel.at[self._ball_dofs].set(0.0), data.qvel)
-        return data.replace(qpos=qpos, qvel=qvel), jnp.where(stalled, 0, still)
+        anchor = jnp.where(moved | stalled, jnp.where(stalled, spot, ball), anchor)
+        return data.replace(qpos=qpos, qvel=qvel), jnp.where(stalled, 0, still), anchor
 
     def score(self, before, after, actions: jax.Array) -> tuple[dict, jax.Array, jax.Array]:
         """(metrics [2] per name, reward [2], whether a goal was scored) of one step from `before` to `after`."""

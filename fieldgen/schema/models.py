@@ -228,8 +228,9 @@ class TeamSide(Section):
 
 
 class LackOfProgress(Section):
-    seconds: float = Field(3.0, gt=0, le=3600, description="how long the ball may stay slower than `speed`")
-    speed: float = Field(0.05, ge=0, le=100, description="the ball's speed (m/s) below which it counts as still")
+    seconds: float = Field(3.0, gt=0, le=3600, description="how long the ball may stay within `distance` of a spot")
+    distance: float = Field(0.5, ge=0, le=MAX_EXTENT, description="how far (m) the ball must move from where it "
+                            "was to count as progress: a ball pinned between two agents creeps, it does not stop")
 
 
 class TeamsSection(Section):
@@ -238,9 +239,10 @@ class TeamsSection(Section):
     away: TeamSide = Field(default_factory=TeamSide,
                            description="the side that attacks the goal at -y and defends the one at +y")
     lack_of_progress: LackOfProgress | None = Field(
-        None, description="a ball left still this long is moved, at rest, to the neutral spot farthest from every "
-                          "agent (the centre spot, or a quarter of the width out and half the goal distance up or "
-                          "down), as robot-soccer referees restart a stalled game; the episode goes on. Default: none")
+        None, description="a ball that stays this long near one spot is moved, at rest, to the neutral spot "
+                          "farthest from every agent (the centre spot, or a quarter of the width out and half the "
+                          "goal distance up or down), as robot-soccer referees restart a stalled game; the episode "
+                          "goes on. Default: none")
 
 
 SIDES = ("home", "away")  # a team field's sides, in the order its agents and rewards come

@@ -166,27 +166,28 @@ def test_time_runs_out_for_both_sides(no_physics):
     assert not np.asarray(state.metrics["success"]).any() and int(state.info["episode_step"]) == 0
 
 
-@pytest.mark.parametrize("rolling", [False, True])
-def test_a_ball_left_still_is_moved_to_the_neutral_spot_farthest_from_the_agents(no_physics, write_spec, rolling):
-    """teams.lack_of_progress: after its time of a still ball (three steps here) the ball is moved, at rest, to
-    the centre spot, the spot farthest from agents at their kick-offs; a ball rolling faster than the rule's speed
-    is left alone, and a field without the rule leaves a still one alone."""
+@pytest.mark.parametrize("pushed", [False, True])
+def test_a_ball_left_near_one_spot_is_moved_to_the_neutral_spot_farthest_from_the_agents(no_physics, write_spec,
+                                                                                         pushed):
+    """teams.lack_of_progress: after its time (three steps here) of a ball within its distance of one spot, the
+    ball is moved, at rest, to the centre spot, the spot farthest from agents at their kick-offs; a ball pushed
+    farther than that each step is left alone, and a field without the rule leaves a still one alone."""
     spec = load_spec(write_spec("extends: soccer_1v1\nname: stalls\nball: {spawn: {x: 2, y: 1}}\n"
-                                "teams: {lack_of_progress: {seconds: 0.15, speed: 0.05}}\n"))
-    for env, moved in ((fieldgen.make(spec), not rolling), (match("soccer_1v1"), False)):
+                                "teams: {lack_of_progress: {seconds: 0.15, distance: 0.5}}\n"))
+    for env, moved in ((fieldgen.make(spec), not pushed), (match("soccer_1v1"), False)):
         state = env.reset(jax.random.PRNGKey(0))
-        data = with_ball(env, state.pipeline_state, 2.0, 1.0)
-        if rolling:
-            data = data.replace(qvel=data.qvel.at[env.mj_model.joint("ball_x").dofadr[0]].set(0.06))
-        state = state.replace(pipeline_state=data)
+        ball = np.array([2.0, 1.0])
+        state = state.replace(pipeline_state=with_ball(env, state.pipeline_state, *ball))
         for step in range(3):
-            np.testing.assert_allclose(state.pipeline_state.qpos[env.layout.ball_qpos[:2]], [2.0, 1.0], atol=1e-6)
+            if pushed and step:
+                ball += [0.0, 0.6]
+                state = state.replace(pipeline_state=with_ball(env, state.pipeline_state, *ball))
             state = env.step(state, jnp.zeros((2, 2)))
-        ball = np.asarray(state.pipeline_state.qpos[env.layout.ball_qpos[:2]])
-        np.testing.assert_allclose(ball, [0.0, 0.0] if moved else [2.0, 1.0], atol=1e-6)
+        np.testing.assert_allclose(state.pipeline_state.qpos[env.layout.ball_qpos[:2]],
+                                   [0.0, 0.0] if moved else ball, atol=1e-6)
         assert float(state.done) == 0.0 and int(state.info["episode_step"]) == 3  # the match goes on
         if moved:
-            assert not np.asarray(state.metrics["ball_progress"]).any()  # the move itself pays nothing
+            assert not np.asarray(state.pipeline_state.qvel[env._ball_dofs]).any()  # at rest
             assert int(state.info["ball_still_steps"]) == 0
 
 
