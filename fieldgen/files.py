@@ -261,14 +261,10 @@ def _check_folder(path: Path, how: str) -> None:
                           f"aside or choose another {how}")
     if not folder.is_dir():
         return  # said by whoever makes the folder
-    try:  # the system's own answer (permissions, a read-only disk), which root's too is subject to
-        fd, probe = tempfile.mkstemp(dir=folder, prefix=f".{path.name}.", suffix=TMP_SUFFIX)
-    except OSError as exc:
-        raise FolderError(f"cannot write {path}: {exc.strerror}; free some space, fix the folder's permissions or "
-                          f"choose another {how}") from None
-    os.close(fd)
-    with contextlib.suppress(OSError):
-        os.unlink(probe)
+    # asked, not tried: a file made and removed to find out would change the folder a check must leave as it was
+    if not os.access(folder, os.W_OK | os.X_OK):  # permissions, or a read-only disk (root's too)
+        raise FolderError(f"cannot write {path}: its folder is read-only or not the user's to write in; fix the "
+                          f"folder's permissions or choose another {how}")
 
 
 def _check_replace(path: Path, output: Output, how: str | None) -> None:

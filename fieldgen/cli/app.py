@@ -3,6 +3,7 @@ resolving a field named on the command line, and failing with one paragraph."""
 
 from __future__ import annotations
 
+import errno
 import re
 from pathlib import Path
 from typing import Annotated
@@ -60,6 +61,8 @@ def os_problem(exc: OSError) -> str:
     if isinstance(exc, files.WriteError):
         return str(exc)  # its own words: "cannot write PATH: why"
     said = exc.strerror or str(exc)
+    if exc.errno == errno.ENAMETOOLONG:  # the system's words name no limit and no way on
+        said += "; a folder's or file's name holds at most 255 bytes and a path 4,096: choose a shorter one"
     return said if exc.filename is None else f"{shown_text(str(exc.filename), PATH_CHARACTERS)}: {said}"
 
 

@@ -223,18 +223,16 @@ def test_eval_refuses_a_summary_where_a_file_is_in_the_folders_place(prepared, t
     assert in_the_way.read_text() == "mine"
 
 
-@pytest.mark.skipif(os.geteuid() == 0, reason="root writes a folder whatever its permissions")
-def test_eval_refuses_a_summary_in_a_read_only_folder_before_evaluating(prepared, tmp_path):
-    """Before: every seed evaluated, then "cannot write PATH: Permission denied"."""
+def test_eval_refuses_a_summary_in_a_read_only_folder_before_evaluating(prepared, tmp_path, monkeypatch):
+    """Before: every seed evaluated, then "cannot write PATH: Permission denied". The system's answer for the
+    folder is the one a read-only disk gives (root's permissions would let root write it)."""
     folder = tmp_path / "read_only"
     folder.mkdir()
-    folder.chmod(0o555)
-    try:
-        result = runner.invoke(app, ["eval", str(prepared), "--no-video", "--summary", str(folder / "s.json")])
-    finally:
-        folder.chmod(0o755)
-    refused(result, f"cannot write {folder / 's.json'}: Permission denied; free some space, fix the folder's "
-                    "permissions or choose another --summary")
+    access = os.access
+    monkeypatch.setattr(files.os, "access", lambda path, mode: Path(path) != folder and access(path, mode))
+    result = runner.invoke(app, ["eval", str(prepared), "--no-video", "--summary", str(folder / "s.json")])
+    refused(result, f"cannot write {folder / 's.json'}: its folder is read-only or not the user's to write in; fix "
+                    "the folder's permissions or choose another --summary")
     assert list(folder.iterdir()) == []
 
 
@@ -303,3 +301,11 @@ def test_a_giant_config_number_is_one_line_with_its_range(tmp_path, written, phr
     result = runner.invoke(app, ["train", "point_nav", "--prepare", "--out", str(tmp_path / "runs"), *settings])
     refused(result, phrase)
     assert GIANT not in said(result) and not (tmp_path / "runs").exists()
+
+
+def test_an_out_folder_whose_name_is_too_long_says_the_limit_and_what_to_do(tmp_path):
+    result = runner.invoke(app, ["train", "point_nav", "--steps", "100", "--out", str(tmp_path / ("a" * 300))])
+    said = " ".join(result.output.split())
+    assert result.exit_code == 1 and "Traceback" not in said, result.output
+    assert "File name too long; a folder's or file's name holds at most 255 bytes" in said
+    assert "choose a shorter one" in said and not os.listdir(tmp_path)  # nothing made
