@@ -14,6 +14,11 @@ Spread = Annotated[Literal[SPREADS], Unknown(
     "unknown ppo.spread '{}'; choose global (one learned log-std per action) "
     "or state (the policy network's own spread for each state)")]
 
+LEARNING_RATE_SCHEDULES = ("constant", "linear")
+LearningRateSchedule = Annotated[Literal[LEARNING_RATE_SCHEDULES], Unknown(
+    "unknown ppo.learning_rate_schedule '{}'; choose constant (every update at learning_rate) "
+    "or linear (from learning_rate down to zero at the run's last update)")]
+
 GRAD_CLIPS = ("together", "apart")
 GradClip = Annotated[Literal[GRAD_CLIPS], Unknown(
     "unknown ppo.grad_clip '{}'; choose together (one norm over the policy's and the value's gradients) "
@@ -29,6 +34,9 @@ class PPOConfig(RunConfig):
     num_minibatches: Count = 32
     update_epochs: Count = 4
     learning_rate: Rate = 3e-4
+    # linear: each update's rate falls from learning_rate to zero at the run's last one, so that late updates
+    # refine what the policy does rather than move it on as far as early ones (total_steps fixes the end)
+    learning_rate_schedule: LearningRateSchedule = "constant"
     discount: Discount = 0.97
     gae_lambda: Share = 0.95
     clip: Rate = 0.3
@@ -46,6 +54,13 @@ class PPOConfig(RunConfig):
     spread: Spread = "state"
     reward: Reward = "dense"  # dense: the field's weighted terms; sparse: its success metric
     normalize_observations: StrictBool = True
+
+    @property
+    def updates(self) -> int:
+        """Gradient steps over the whole run: its iterations (whole ones between evaluations), each of
+        update_epochs passes over num_minibatches minibatches."""
+        iterations = self.total_steps // self.per_iteration // self.num_evals * self.num_evals
+        return iterations * self.update_epochs * self.num_minibatches
 
     def validate_env(self, env: Environment, devices: int = 1, seeds: int = 1) -> None:
         super().validate_env(env, devices, seeds)

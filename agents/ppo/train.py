@@ -126,8 +126,11 @@ def networks(c: PPOConfig, action_size: int) -> tuple[MLP, MLP]:
 
 def optimizer(c: PPOConfig) -> optax.GradientTransformation:
     """Adam after clipping the gradients' norm, over both networks together or over each apart (the policy's
-    global spread, `log_std`, goes with the policy)."""
-    step = lambda: optax.chain(optax.clip_by_global_norm(c.max_grad_norm), optax.adam(c.learning_rate))  # noqa: E731
+    global spread, `log_std`, goes with the policy), at a constant rate or one falling linearly to zero over
+    the run's updates."""
+    rate = c.learning_rate if c.learning_rate_schedule == "constant" else \
+        optax.linear_schedule(c.learning_rate, 0.0, max(c.updates, 1))
+    step = lambda: optax.chain(optax.clip_by_global_norm(c.max_grad_norm), optax.adam(rate))  # noqa: E731
     if c.grad_clip == "together":
         return step()
     network = lambda params: {key: "value" if key == "value" else "policy" for key in params}  # noqa: E731

@@ -96,6 +96,44 @@ def test_gradients_clipped_apart_move_the_policy_as_if_the_value_network_were_no
         tiny(grad_clip="each")
 
 
+def test_a_linear_learning_rate_falls_from_its_rate_to_zero_over_the_runs_updates():
+    """Each of the run's `updates` gradient steps moves a parameter by the rate of its place in the run (Adam's
+    step under a steady gradient is the rate itself): the first at learning_rate, half-way at half, the last
+    near zero; constant keeps every step at learning_rate."""
+    import optax
+
+    from fieldgen.agents.ppo.train import optimizer
+
+    def steps(schedule: str) -> np.ndarray:
+        c = tiny(learning_rate_schedule=schedule, learning_rate=1e-2)
+        tx, params = optimizer(c), {"policy": {"w": jnp.zeros(2)}, "value": {"w": jnp.zeros(1)}}
+        state, moves = tx.init(params), []
+        grads = {"policy": {"w": jnp.asarray([1e-3, -1e-3])}, "value": {"w": jnp.asarray([1e-3])}}
+        for _ in range(c.updates):
+            updates, state = tx.update(grads, state, params)
+            moves.append(float(jnp.abs(updates["policy"]["w"][0])))
+        return np.asarray(moves)
+
+    n = tiny().updates
+    assert n == 2 * 2 * 4  # two iterations, two epochs of four minibatches
+    linear, constant = steps("linear"), steps("constant")
+    np.testing.assert_allclose(constant, 1e-2, rtol=1e-3)
+    np.testing.assert_allclose(linear, 1e-2 * (1 - np.arange(n) / n), rtol=1e-3)
+    with pytest.raises(ValueError, match="learning_rate_schedule"):
+        tiny(learning_rate_schedule="cosine")
+
+
+@pytest.mark.slow
+def test_the_schedules_length_is_the_number_of_updates_the_run_takes(env_cache):
+    c = tiny(learning_rate_schedule="linear")
+    algo = ppo.make_train(c, env_cache("point_nav"))
+    state, chunk = algo.init(jax.random.PRNGKey(0)), jax.jit(algo.chunk)
+    for _ in range(c.num_evals):  # the iterations between each pair of evaluations, as the loop runs them
+        state, _ = chunk(state)
+    counts = [np.asarray(leaf) for leaf in jax.tree.leaves(state.opt) if jnp.issubdtype(leaf.dtype, jnp.integer)]
+    assert counts and all((count == c.updates).all() for count in counts)
+
+
 @pytest.mark.parametrize("spread", SPREADS)
 @pytest.mark.slow
 def test_resume_reproduces_the_uninterrupted_run(env_cache, spread):
