@@ -78,12 +78,13 @@ def choose(source: Path, algo: str | None, use: bool = True) -> Choice:
     return Choice(field, found, algo or (found.recipe.algo if found else DEFAULT_ALGORITHM))
 
 
-def figure(found: Found) -> str:
-    """The recipe's measured figure on the field, or that it has none, and then the dense twin's measured route."""
+def figure(found: Found, beside: bool = True) -> str:
+    """The recipe's measured figure on the field, or that it has none, and then the dense twin's measured route;
+    with `beside`, also the measured routes of the fields that extend it (a listing shows those on their rows)."""
     recipe, field = found.recipe, found.lineage[0]
     measured = recipe.measured
     if measured is not None and not found.inherited:
-        return f"measured: {measured.figure}, {measured.seeds}"
+        return f"measured: {measured.figure}, {measured.seeds}" + (routes_beside(field) if beside else "")
     said = f"not measured on {field} yet" if found.inherited else "not measured yet"
     said += f" ({recipe.field}: {measured.figure}, {measured.seeds})" if measured is not None else ""
     return said + dense_route(field)
@@ -98,7 +99,18 @@ def dense_route(field: str) -> str:
         return ""
     measured = found.recipe.measured
     return (f"; the measured route is its dense twin {twin} ({found.recipe.summary()}): {measured.figure}, "
-            f"{measured.seeds}")
+            f"{measured.seeds}" + routes_beside(twin))
+
+
+def routes_beside(field: str) -> str:
+    """'; also measured: ...' for each bundled field that extends `field` with a measured recipe of its own
+    (the same task another way, such as other physics); else ''."""
+    table, fields = recipes.read(), bundled_fields()
+    found = [(name, recipes.find(lineage(path), table)) for name, path in fields.items() if name != field]
+    routes = [(name, hit.recipe.measured) for name, hit in found
+              if hit is not None and not hit.inherited and hit.recipe.measured is not None
+              and field in lineage(fields[name])]
+    return "".join(f"; also measured: {name}, {measured.figure}, {measured.seeds}" for name, measured in routes)
 
 
 def is_sparse(spec: FieldSpec) -> bool:
@@ -142,5 +154,5 @@ def listing() -> list[tuple[str, str, str]]:
             rows.append((name, f"none: {DEFAULT_ALGORITHM} with its defaults", route or "-"))
             continue
         inherited = f" (the recipe of {found.recipe.field})" if found.inherited else ""
-        rows.append((name, found.recipe.summary() + inherited, figure(found)))
+        rows.append((name, found.recipe.summary() + inherited, figure(found, beside=False)))
     return rows

@@ -31,10 +31,12 @@ def test_a_field_of_ones_own_takes_the_recipe_of_the_field_it_extends_and_says_s
         "(v2_wide_goalie_dense: "
         f"{chosen.recipe.measured.figure}, {chosen.recipe.measured.seeds})")
     own = recipe.choose(bundled_fields()["v2_wide_goalie_dense"], None)
+    warp = recipe.choose(bundled_fields()["v2_wide_goalie_dense_warp"], None).recipe.measured
     assert own.line(["--steps"]) == (
         "recipe v2_wide_goalie_dense: ppo, 250M env steps, 4,096 envs, "
         "--set ppo.num_evals=25 --set ppo.spread=global; "
-        f"measured: {own.recipe.measured.figure}, three fresh seeds (760-762); --steps overrides it")
+        f"measured: {own.recipe.measured.figure}, three fresh seeds (760-762); also measured: "
+        f"v2_wide_goalie_dense_warp, {warp.figure}, {warp.seeds}; --steps overrides it")
     assert recipe.choose(spec, None, use=False).recipe is None
     other = recipe.choose(spec, "crl")
     assert other.recipe is None and other.algo == "crl" and "not taken: --algo crl" in other.line([])
@@ -45,6 +47,17 @@ def test_the_sparse_wide_goalie_points_to_its_dense_twin_as_the_measured_route()
     assert chosen.algo == "crl"
     assert chosen.line([]).startswith("recipe v2_wide_goalie: crl with its defaults; not measured yet; the measured "
                                       "route is its dense twin v2_wide_goalie_dense (ppo, 250M env steps")
+    also = "; also measured: v2_wide_goalie_dense_warp, IQM 0.675 [0.583, 0.746] success at 560M env steps"
+    assert also in chosen.line([])  # the twin's own field on other physics, with a recipe measured there
+    assert also in recipe.choose(bundled_fields()["v2_wide_goalie_dense"], None).line([])
+
+
+def test_a_field_on_other_physics_keeps_its_own_measured_recipe_over_the_one_it_extends():
+    chosen = recipe.choose(bundled_fields()["v2_wide_goalie_dense_warp"], None)
+    assert (chosen.algo, chosen.recipe.steps, chosen.recipe.envs) == ("ppo", 560_000_000, 8192)
+    assert chosen.recipe.sets == ("ppo.spread=global", "ppo.num_evals=28")  # num_evals replaced, spread kept
+    assert chosen.line([]).startswith("recipe v2_wide_goalie_dense_warp: ppo, 560M env steps, 8,192 envs")
+    assert "three fresh seeds (990-992)" in chosen.line([]) and "also measured" not in chosen.line([])
 
 
 def test_ppo_on_a_success_signal_alone_is_warned_of_naming_the_dense_twin():
