@@ -23,6 +23,7 @@ import yaml
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, StrictBool, ValidationError
 
 from ..env.contract import Environment
+from ..counts import count
 from ..limits import COUNT_MAX, MAX_SEEDS, SEED_MAX
 from ..schema.errors import shown_text, shown_value
 from ..schema.source import SpecLoader
@@ -63,7 +64,13 @@ def _listed(value):
 # a whole number as large as a count on the command line at most: a larger one is a typo, and past a machine
 # integer it would end in an OverflowError where it first sizes an array
 Int = Annotated[int, BeforeValidator(_number), Field(ge=-COUNT_MAX, le=COUNT_MAX)]
-Count = Annotated[Int, Field(gt=0)]  # how many of something: at least one
+def _count_text(value):
+    """A count written as the command line takes one (50M, 1.5k, 2e6: fieldgen.counts) is that count, so a
+    config file, --set and a recipe read counts as --steps does; a number stays as it is."""
+    return count(value) if isinstance(value, str) else value
+
+
+Count = Annotated[Int, Field(gt=0), BeforeValidator(_count_text)]  # how many of something: at least one
 Float = Annotated[float, BeforeValidator(_number), Field(allow_inf_nan=False)]
 Rate = Annotated[Float, Field(gt=0)]  # a learning rate, a step size, a scale
 Share = Annotated[Float, Field(ge=0, le=1)]

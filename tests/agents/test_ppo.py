@@ -96,6 +96,23 @@ def test_gradients_clipped_apart_move_the_policy_as_if_the_value_network_were_no
         tiny(grad_clip="each")
 
 
+def test_counts_in_a_config_file_and_set_read_as_the_command_line_writes_them(tmp_path):
+    """50M, 1.5k and 2e6 mean in a config file (where YAML reads 2e6 as text) and in --set what --steps reads."""
+    from fieldgen.agents.config import ConfigError
+
+    written = tmp_path / "c.yaml"
+    written.write_text("ppo:\n  total_steps: 2e6\n  num_envs: 1.5k\n  hidden: [64, 1k]\n")
+    c = ppo.PPOConfig.layered(file=written)
+    assert (c.total_steps, c.num_envs, c.hidden) == (2_000_000, 1500, (64, 1000))
+    assert ppo.PPOConfig.layered(sets=["ppo.total_steps=50M"]).total_steps == 50_000_000
+    for wrong in ("abc", "0", "1.5", "2e20"):
+        with pytest.raises(ConfigError, match="ppo.total_steps"):
+            ppo.PPOConfig.layered(sets=[f"ppo.total_steps={wrong}"])
+    written.write_text("ppo:\n  learning_rate: 3e-4\n  num_envs: 1.5\n")
+    with pytest.raises(ConfigError, match=r"c.yaml:3: ppo.num_envs must be a whole number"):
+        ppo.PPOConfig.layered(file=written)
+
+
 def test_a_linear_learning_rate_falls_from_its_rate_to_zero_over_the_runs_updates():
     """Each of the run's `updates` gradient steps moves a parameter by the rate of its place in the run (Adam's
     step under a steady gradient is the rate itself): the first at learning_rate, half-way at half, the last
