@@ -66,8 +66,9 @@ def _listed(value):
 Int = Annotated[int, BeforeValidator(_number), Field(ge=-COUNT_MAX, le=COUNT_MAX)]
 def _count_text(value):
     """A count written as the command line takes one (50M, 1.5k, 2e6: fieldgen.counts) is that count, so a
-    config file, --set and a recipe read counts as --steps does; a number stays as it is."""
-    return count(value) if isinstance(value, str) else value
+    config file, --set and a recipe read counts as --steps does; a number stays as it is. Text with a comma is
+    left to be refused: `64,64` is two layer widths written without brackets, not 6,464."""
+    return count(value) if isinstance(value, str) and "," not in value else value
 
 
 Count = Annotated[Int, Field(gt=0), BeforeValidator(_count_text)]  # how many of something: at least one

@@ -58,8 +58,9 @@ RULES = [  # (folder or file, the fieldgen modules it may import, modules outsid
     ("agents", ("fieldgen.env.contract", "fieldgen.curriculum.contract", "fieldgen.suggest", "fieldgen.limits"), (),
      "trainers know environments and curricula through their contracts alone"),
     ("agents/config.py", ("fieldgen.agents", "fieldgen.env.contract", "fieldgen.suggest", "fieldgen.limits", "fieldgen.schema.source",
-                          "fieldgen.schema.errors"), (),
-     "the settings read a --set value as a spec's values are read, and echo it as a spec's problems do"),
+                          "fieldgen.schema.errors", "fieldgen.counts"), (),
+     "the settings read a --set value as a spec's values are read, a count as the command line's, and echo it as a "
+     "spec's problems do"),
     ("fieldgen/sweep", FIELDGEN + BELOW_CURRICULA + ("fieldgen.curriculum", "fieldgen.agents", "fieldgen.run",
                                                "fieldgen.counts", "fieldgen.stops"), (),
      "a sweep runs the command, and is below the command line"),

@@ -105,7 +105,7 @@ def test_counts_in_a_config_file_and_set_read_as_the_command_line_writes_them(tm
     c = ppo.PPOConfig.layered(file=written)
     assert (c.total_steps, c.num_envs, c.hidden) == (2_000_000, 1500, (64, 1000))
     assert ppo.PPOConfig.layered(sets=["ppo.total_steps=50M"]).total_steps == 50_000_000
-    for wrong in ("abc", "0", "1.5", "2e20"):
+    for wrong in ("abc", "0", "1.5", "2e20", "1,000"):  # a comma in a config's count is a list gone wrong
         with pytest.raises(ConfigError, match="ppo.total_steps"):
             ppo.PPOConfig.layered(sets=[f"ppo.total_steps={wrong}"])
     written.write_text("ppo:\n  learning_rate: 3e-4\n  num_envs: 1.5\n")
