@@ -61,9 +61,6 @@ def _listed(value):
     return value if isinstance(value, (list, tuple)) else [value]
 
 
-# a whole number as large as a count on the command line at most: a larger one is a typo, and past a machine
-# integer it would end in an OverflowError where it first sizes an array
-Int = Annotated[int, BeforeValidator(_number), Field(ge=-COUNT_MAX, le=COUNT_MAX)]
 def _count_text(value):
     """A count written as the command line takes one (50M, 1.5k, 2e6: fieldgen.counts) is that count, so a
     config file, --set and a recipe read counts as --steps does; a number stays as it is. Text with a comma is
@@ -71,6 +68,9 @@ def _count_text(value):
     return count(value) if isinstance(value, str) and "," not in value else value
 
 
+# a whole number as large as a count on the command line at most: a larger one is a typo, and past a machine
+# integer it would end in an OverflowError where it first sizes an array
+Int = Annotated[int, BeforeValidator(_number), Field(ge=-COUNT_MAX, le=COUNT_MAX)]
 Count = Annotated[Int, Field(gt=0), BeforeValidator(_count_text)]  # how many of something: at least one
 Float = Annotated[float, BeforeValidator(_number), Field(allow_inf_nan=False)]
 Rate = Annotated[Float, Field(gt=0)]  # a learning rate, a step size, a scale

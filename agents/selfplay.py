@@ -164,7 +164,7 @@ class SelfPlay:
 
 def make_selfplay(config: SelfPlayConfig, env) -> SelfPlay:
     c = config
-    iters_per_eval = c.total_steps // (c.num_envs * c.unroll_length) // c.num_evals
+    iters_per_eval = c.iterations_per_eval
     if iters_per_eval < 1:
         raise ValueError(f"total_steps {c.total_steps:,} leaves no iteration between evaluations")
     agents, n_obs, n_act = len(env.agent_names), env.observation_size, env.action_size

@@ -56,11 +56,15 @@ class PPOConfig(RunConfig):
     normalize_observations: StrictBool = True
 
     @property
+    def iterations_per_eval(self) -> int:
+        """The whole iterations between two evaluations, which the trainer scans; a remainder is not run."""
+        return self.total_steps // self.per_iteration // self.num_evals
+
+    @property
     def updates(self) -> int:
-        """Gradient steps over the whole run: its iterations (whole ones between evaluations), each of
-        update_epochs passes over num_minibatches minibatches."""
-        iterations = self.total_steps // self.per_iteration // self.num_evals * self.num_evals
-        return iterations * self.update_epochs * self.num_minibatches
+        """Gradient steps over the whole run: its iterations, each of update_epochs passes over num_minibatches
+        minibatches."""
+        return self.iterations_per_eval * self.num_evals * self.update_epochs * self.num_minibatches
 
     def validate_env(self, env: Environment, devices: int = 1, seeds: int = 1) -> None:
         super().validate_env(env, devices, seeds)

@@ -147,7 +147,7 @@ def exported_policy(c: PPOConfig, env, policy_params, normalizer: Normalizer) ->
 
 def make_train(config: PPOConfig, env) -> Trainer:
     c = config
-    iters_per_eval = c.total_steps // (c.num_envs * c.unroll_length) // c.num_evals
+    iters_per_eval = c.iterations_per_eval
     if iters_per_eval < 1:
         raise ValueError(f"total_steps {c.total_steps:,} leaves no iteration between evaluations")
     policy_net, value_net = networks(c, env.action_size)

@@ -90,12 +90,18 @@ def figure(found: Found, beside: bool = True) -> str:
     return said + dense_route(field)
 
 
+def measured_own(names: list[str], table: dict[str, Recipe]) -> Found | None:
+    """The recipe of the first of `names` (a field's lineage) where it is that field's own and has a figure."""
+    found = recipes.find(names, table)
+    return None if found is None or found.inherited or found.recipe.measured is None else found
+
+
 def dense_route(field: str) -> str:
     """Where a field's dense twin has a figure of its own recipe: '; the measured route is ...'; else ''."""
     twin = DENSE_TWIN.format(field)
     path = bundled_fields().get(twin)
-    found = recipes.find(lineage(path), recipes.read()) if path is not None else None
-    if found is None or found.inherited or found.recipe.measured is None:
+    found = measured_own(lineage(path), recipes.read()) if path is not None else None
+    if found is None:
         return ""
     measured = found.recipe.measured
     return (f"; the measured route is its dense twin {twin} ({found.recipe.summary()}): {measured.figure}, "
@@ -105,12 +111,13 @@ def dense_route(field: str) -> str:
 def routes_beside(field: str) -> str:
     """'; also measured: ...' for each bundled field that extends `field` with a measured recipe of its own
     (the same task another way, such as other physics); else ''."""
-    table, fields = recipes.read(), bundled_fields()
-    found = [(name, recipes.find(lineage(path), table)) for name, path in fields.items() if name != field]
-    routes = [(name, hit.recipe.measured) for name, hit in found
-              if hit is not None and not hit.inherited and hit.recipe.measured is not None
-              and field in lineage(fields[name])]
-    return "".join(f"; also measured: {name}, {measured.figure}, {measured.seeds}" for name, measured in routes)
+    table, said = recipes.read(), ""
+    for name, path in bundled_fields().items():
+        names = lineage(path)
+        found = measured_own(names, table) if name != field and field in names else None
+        if found is not None:
+            said += f"; also measured: {name}, {found.recipe.measured.figure}, {found.recipe.measured.seeds}"
+    return said
 
 
 def is_sparse(spec: FieldSpec) -> bool:
