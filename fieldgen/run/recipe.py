@@ -11,7 +11,7 @@ from fieldgen import curriculum
 from fieldgen.agents import recipes
 from fieldgen.agents.recipes import Found, Recipe
 from fieldgen.agents.registry import DEFAULT_ALGORITHM
-from fieldgen.schema import FieldSpec, bundled_fields
+from fieldgen.schema import FieldSpec, bundled_fields, load_spec
 from fieldgen.schema.loader import lineage
 from fieldgen.schema.terms import DENSE_REWARDS, MATCH_TERMS, TERMS
 
@@ -87,7 +87,7 @@ def figure(found: Found, beside: bool = True) -> str:
         return f"measured: {measured.figure}, {measured.seeds}" + (routes_beside(field) if beside else "")
     said = f"not measured on {field} yet" if found.inherited else "not measured yet"
     said += f" ({recipe.field}: {measured.figure}, {measured.seeds})" if measured is not None else ""
-    return said + dense_route(field)
+    return said + dense_route(field) + (routes_beside(field) if beside and not found.inherited else "")
 
 
 def measured_own(names: list[str], table: dict[str, Recipe]) -> Found | None:
@@ -102,22 +102,31 @@ def dense_route(field: str) -> str:
     path = bundled_fields().get(twin)
     found = measured_own(lineage(path), recipes.read()) if path is not None else None
     if found is None:
-        return ""
+        beside = routes_beside(twin) if path is not None else ""
+        return f"; its dense twin {twin} is not measured itself{beside}" if beside else ""
     measured = found.recipe.measured
     return (f"; the measured route is its dense twin {twin} ({found.recipe.summary()}): {measured.figure}, "
             f"{measured.seeds}" + routes_beside(twin))
 
 
 def routes_beside(field: str) -> str:
-    """'; also measured: ...' for each bundled field that extends `field` with a measured recipe of its own
-    (the same task another way, such as other physics); else ''."""
+    """'; also measured: ...' for each bundled field that extends `field` with a measured recipe of its own and
+    differs from it in its physics alone (the same task another way); else ''."""
     table, said = recipes.read(), ""
-    for name, path in bundled_fields().items():
+    fields = bundled_fields()
+    for name, path in fields.items():
         names = lineage(path)
         found = measured_own(names, table) if name != field and field in names else None
-        if found is not None:
+        if found is not None and same_task(fields[field], path):
             said += f"; also measured: {name}, {found.recipe.measured.figure}, {found.recipe.measured.seeds}"
     return said
+
+
+def same_task(path: Path, other: Path) -> bool:
+    """Whether two fields set the same scene, task and episode, whatever physics steps them (`sim`)."""
+    def task(source: Path) -> dict:
+        return load_spec(source).model_dump(exclude={"name", "description", "extends", "sim"})
+    return task(path) == task(other)
 
 
 def is_sparse(spec: FieldSpec) -> bool:

@@ -60,6 +60,22 @@ def test_a_field_on_other_physics_keeps_its_own_measured_recipe_over_the_one_it_
     assert "three fresh seeds (990-992)" in chosen.line([]) and "also measured" not in chosen.line([])
 
 
+def test_an_unmeasured_recipe_names_its_task_measured_on_other_physics_and_not_other_tasks_extending_it():
+    said = recipe.choose(bundled_fields()["soccer_v2_dense"], None).line([])
+    assert said.startswith("recipe soccer_v2_dense: ppo, 250M env steps, 4,096 envs")
+    assert "not measured yet; also measured: soccer_v2_dense_warp, IQM 0.668 [0.615, 0.724]" in said
+    assert "v2_wide_goalie" not in said  # extends soccer_v2_dense with another goalie: another task
+    sparse = dict((name, route) for name, _, route in recipe.listing())["soccer_v2"]
+    assert sparse.startswith("its dense twin soccer_v2_dense is not measured itself; also measured: "
+                             "soccer_v2_dense_warp")
+
+
+def test_fields_differing_in_physics_alone_set_the_same_task():
+    fields = bundled_fields()
+    assert recipe.same_task(fields["soccer_v2_dense"], fields["soccer_v2_dense_warp"])
+    assert not recipe.same_task(fields["soccer_v2_dense"], fields["v2_wide_goalie_dense"])
+
+
 def test_ppo_on_a_success_signal_alone_is_warned_of_naming_the_dense_twin():
     wide = load_spec(bundled_fields()["v2_wide_goalie"])
     assert recipe.sparse_warning(wide, "ppo") == (
