@@ -76,6 +76,7 @@ class PPOConfig(RunConfig):
         if self.total_steps < need:
             step = self.num_minibatches  # envs that keep a minibatch whole at any unroll
             envs = self.total_steps // (self.num_evals * self.unroll_length) // step * step
-            raise ConfigError(f"--steps {self.total_steps:,} is too few: {self.num_evals} evaluations of "
+            raise ConfigError(f"{self.total_steps:,} env steps (--steps or {self.algo}.total_steps) are too few: "
+                              f"{self.num_evals} evaluations of "
                               f"{per_iter:,}-step iterations need at least {need:,}"
                               + self.instead(envs, self.total_steps // per_iter))

@@ -116,7 +116,7 @@ def test_a_run_json_whose_settings_build_no_trainer_is_refused_as_a_new_runs_are
     one edited into run.json was a ValueError traceback from the trainer once the run opened."""
     edit_config(prepared, total_steps=100)
     refused(runner.invoke(app, ["train", "--resume", str(prepared)]),
-            f"{prepared / record.RUN} holds no usable config (--steps 100 is too few:")
+            f"{prepared / record.RUN} holds no usable config (100 env steps (--steps or crl.total_steps) are too few:")
 
 
 def test_a_trained_run_whose_settings_build_no_trainer_cannot_be_exported_or_viewed(tmp_path, monkeypatch,

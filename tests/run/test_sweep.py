@@ -344,7 +344,8 @@ def test_a_sweep_whose_every_run_failed_exits_one(tmp_path):
     path = sweep_file(tmp_path, seeds=1)
     path.write_text(path.read_text().replace("steps: 1900", "steps: 100"))
     result = runner.invoke(app, ["sweep", str(path)])
-    assert result.exit_code == 1 and "1 failed" in result.output and "--steps 100 is too few" in result.output, \
+    too_few = "100 env steps (--steps or crl.total_steps) are too few"
+    assert result.exit_code == 1 and "1 failed" in result.output and too_few in result.output, \
         result.output
     assert "Traceback" not in result.output
 
@@ -443,7 +444,7 @@ def test_the_slurm_path_through_submitits_local_executor_records_failures_and_sk
         jobs[0].result()
     found = {s.run.id: s for s in status.states(sweep)}
     assert found[sweep.runs[0].id].state == "failed"
-    assert "--steps 100 is too few" in found[sweep.runs[0].id].detail
+    assert "100 env steps (--steps or crl.total_steps) are too few" in found[sweep.runs[0].id].detail
     assert found[sweep.runs[1].id].state == "done"
     assert json.loads((sweep.folder / plan.PLAN).read_text())["jobs"][sweep.runs[0].id] == jobs[0].job_id
 
