@@ -531,6 +531,7 @@ def evaluate(
     from fieldgen.agents.config import ConfigError
     from fieldgen.files import WriteError
     from fieldgen.run import evaluate as judging
+    from fieldgen.run import recipe as recipes
     from fieldgen.run import record, summary
     from fieldgen.run.videos import EpisodeRecorder
 
@@ -557,6 +558,11 @@ def evaluate(
             filmed_run, filmed_place = judging.filmed(runs, film_seed)
         except (SpecError, ConfigError, record.RunError) as exc:
             fail(str(exc))
+        twin = recipes.physics_twin(runs[0].env.spec) if field is None else None
+        if twin is not None:  # a figure on the training physics is not the one a recipe's figure is judged on
+            trained = runs[0].env.spec
+            out.print(f"note: {trained.name} is {twin} with sim.backend {trained.sim.backend}; this evaluation "
+                      f"plays that physics, and the recipe's figure is judged on {twin} itself: add --field {twin}")
         path = summary_file or judging.summary_path(run_dirs, runs[0], field is not None)
         video_name = judging.video_path(run_dirs[filmed_run], None if field is None else runs[0].env.spec.name,
                                         film_seed)

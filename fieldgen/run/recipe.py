@@ -122,11 +122,20 @@ def routes_beside(field: str) -> str:
     return said
 
 
-def same_task(path: Path, other: Path) -> bool:
+def same_task(path: Path | FieldSpec, other: Path | FieldSpec) -> bool:
     """Whether two fields set the same scene, task and episode, whatever physics steps them (`sim`)."""
-    def task(source: Path) -> dict:
+    def task(source: Path | FieldSpec) -> dict:
         return load_spec(source).model_dump(exclude={"name", "description", "extends", "sim"})
     return task(path) == task(other)
+
+
+def physics_twin(spec: FieldSpec) -> str | None:
+    """The bundled field `spec` extends where the two differ in their physics alone (a `_warp` field's own field):
+    the field whose physics a recipe's figure is judged on; else None."""
+    parent = bundled_fields().get(spec.extends or "")
+    if parent is None or load_spec(parent).sim.backend == spec.sim.backend or not same_task(spec, parent):
+        return None
+    return spec.extends
 
 
 def is_sparse(spec: FieldSpec) -> bool:

@@ -263,3 +263,23 @@ def test_ctrl_c_says_what_an_evaluation_wrote_and_exits_as_train_does(tmp_path, 
     assert result.exit_code == 130, result.output
     assert said(f"interrupted evaluating {run} on point_nav; {written} was written, the video was not", result.output)
     assert sorted(tmp_path.rglob("*")) == sorted([*before, written])
+
+
+@pytest.mark.slow
+def test_a_run_on_other_physics_alone_is_told_which_field_its_recipe_is_judged_on(train_point_nav, monkeypatch,
+                                                                                  tmp_path):
+    """As a run of soccer_v2_dense_warp is, whose recipe's figure is judged on soccer_v2_dense (here the run's
+    field is taken for such a twin); naming --field says nothing more."""
+    from fieldgen.run import recipe
+
+    monkeypatch.setattr(recipe, "physics_twin", lambda spec: "point_nav_mjx" if spec.name == "point_nav" else None)
+    run = train_point_nav(2)
+    plain = runner.invoke(app, ["eval", str(run), "--episodes", "2", "--no-video", "--summary",
+                                str(tmp_path / "plain.json")], env=WIDE)
+    assert plain.exit_code == 0, plain.output
+    assert said("note: point_nav is point_nav_mjx with sim.backend mjx; this evaluation plays that physics, and the "
+                "recipe's figure is judged on point_nav_mjx itself: add --field point_nav_mjx", plain.output)
+    judged = runner.invoke(app, ["eval", str(run), "--episodes", "2", "--no-video", "--field", "point_nav",
+                                 "--summary", str(tmp_path / "judged.json")], env=WIDE)
+    assert judged.exit_code == 0, judged.output
+    assert "note:" not in judged.output

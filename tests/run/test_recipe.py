@@ -201,3 +201,14 @@ def test_a_match_paid_for_its_goals_alone_is_warned_of_naming_the_match_terms(tm
     result = runner.invoke(app, ["train", str(spec), "--envs", "8", "--prepare", "--out", str(tmp_path / "runs")])
     assert result.exit_code == 0, result.output
     assert len(lines_with(result.output, "warning: PPO learns nothing")) == 1
+
+
+def test_a_field_differing_in_physics_alone_names_the_field_it_is_judged_on(tmp_path):
+    fields = bundled_fields()
+    assert recipe.physics_twin(load_spec(fields["soccer_v2_dense_warp"])) == "soccer_v2_dense"
+    assert recipe.physics_twin(load_spec(fields["soccer_v2_dense"])) is None  # extends soccer_v2: another task
+    own = tmp_path / "point_soccer_warp.yaml"
+    own.write_text("extends: point_soccer\nname: point_soccer_warp\nsim: {backend: warp}\n")
+    assert recipe.physics_twin(load_spec(own)) == "point_soccer"
+    own.write_text("extends: point_soccer\nname: point_soccer_warp\nsim: {backend: warp}\nepisode: {length: 100}\n")
+    assert recipe.physics_twin(load_spec(own)) is None  # other physics and a shorter episode: not the same task
