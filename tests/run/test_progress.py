@@ -9,14 +9,20 @@ from rich.console import Console
 
 from fieldgen import curriculum
 from fieldgen.run import progress
+from fieldgen.schema import bundled_fields, load_spec
 
 
-def test_the_summary_table_keeps_every_header_whole_at_80_columns():
+def finished(field: str, folder: str):
+    """A finished run of two seeds on a bundled field, as the end-of-run summary reads it."""
     rows = [{"seed": s, "eval": e, "env_steps": 9_078_784 * e, "success_any": 0.74 * e, "time_at_goal": 208.2 * e,
              "closest_distance": 9.69 - 8.66 * e, "episode_return": 208.2 * e, "steps_per_second": 20_342.0}
             for e in (0, 1) for s in (500, 501)]
-    run = SimpleNamespace(rows=rows, seeds=[500, 501], folder=Path("runs/ant_nav-crl-500to502"), algo="crl",
-                          envs=[None], plan=curriculum.Plan())
+    return SimpleNamespace(rows=rows, seeds=[500, 501], folder=Path(folder), algo="crl", envs=[None],
+                           plan=curriculum.Plan(), env=SimpleNamespace(spec=load_spec(bundled_fields()[field])))
+
+
+def test_the_summary_table_keeps_every_header_whole_at_80_columns():
+    run = finished("ant_nav", "runs/ant_nav-crl-500to502")
     console = Console(width=80, record=True)
     progress.summary(run, console)
     shown = console.export_text()
@@ -24,6 +30,15 @@ def test_the_summary_table_keeps_every_header_whole_at_80_columns():
     assert "…" not in shown
     assert all(name in header for name in ("seed", "env steps", "success_any", "time at", "goal", "closest",
                                            "return", "steps/s")), shown
+    assert "judge the policy on" not in shown
+
+
+def test_a_run_on_other_physics_alone_ends_with_the_command_that_judges_it_as_its_recipe_is():
+    console = Console(width=400, record=True)
+    progress.summary(finished("soccer_v2_dense_warp", "runs/w"), console)
+    assert ("these evaluations played soccer_v2_dense_warp's physics (sim.backend warp); judge the policy on "
+            "soccer_v2_dense itself, as its recipe's figure is: fieldgen eval runs/w --episodes 1024 --field "
+            "soccer_v2_dense") in console.export_text()
 
 
 def test_seeds_whose_simulations_blew_up_are_named_once_with_their_last_count():
