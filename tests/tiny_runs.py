@@ -6,3 +6,20 @@ has its own conftest, so `from conftest import ...` would find the nearest one, 
 # `fieldgen train`, uses these very settings, so that the session compiles its programs once.
 TINY_CRL = {"total_steps": 1900, "num_envs": 8, "unroll_length": 10, "batch_size": 32, "min_replay_rows": 100,
             "max_replay_rows": 400, "hidden": (32, 32), "repr_dim": 8, "num_evals": 2, "eval_envs": 8}
+
+
+def as_if_learned(run):
+    """A run folder set up with `fieldgen train --prepare` given a learner.msgpack of exactly the shapes its
+    trainer learns (zeros, from the trainer's traced shapes: no program compiled or run), so that it reads as a
+    run that has learned wherever only its record and the shapes of what it learned are read: the refusals of
+    --init-from, export and view. Training the tiny run instead costs most of a minute on two CPU cores."""
+    import jax
+    import numpy as np
+
+    from fieldgen.agents import checkpoint
+    from fieldgen.files import write_atomic
+    from fieldgen.run import record, session
+
+    shapes = session.learner_template(session.open_run(run, load_state=False))
+    write_atomic(run / record.LEARNER, checkpoint.pieces(jax.tree.map(lambda s: np.zeros(s.shape, s.dtype), shapes)))
+    return run

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import os
 import subprocess
 import sys
@@ -16,39 +17,46 @@ from backends import compare_backends
 from fieldgen.schema import bundled_fields, load_spec
 
 
-def one_step_episodes(env, n: int, seed: int):
-    """Step one env n times with zero actions; returns the stacked states after each step."""
+@functools.cache
+def zero_action_rollout(env, n: int):
+    """A jitted n-step scan of one env with zero actions (the stacked states after each step); compiled once per
+    env and length, for the tests that share it."""
 
     def body(state, _):
         state = env.step(state, jnp.zeros(env.action_size))
         return state, state
 
-    last, states = jax.jit(lambda s: jax.lax.scan(body, s, None, length=n))(env.reset(jax.random.PRNGKey(seed)))
-    return last, states
+    return jax.jit(lambda s: jax.lax.scan(body, s, None, length=n))
+
+
+def zero_action_steps(env, n: int, seed: int):
+    """Step one env n times with zero actions; returns the last state and the stacked states after each step."""
+    return zero_action_rollout(env, n)(env.reset(jax.random.PRNGKey(seed)))
 
 
 def test_auto_reset_draws_fresh_episodes(env_cache):
-    """100 consecutive one-step episodes of one env never repeat a ball start or a target."""
+    """100 consecutive one-step episodes of one env never repeat a ball start."""
     env = env_cache("point_soccer", episode_length=1)
-    last, states = one_step_episodes(env, 100, seed=3)
+    last, states = zero_action_steps(env, 100, seed=3)
     assert np.all(np.asarray(states.done) == 1.0)
     ball_starts = np.asarray(states.obs[:, slice(*env.layout.slices["ball_pos"])]).round(6)
     assert len({tuple(b) for b in ball_starts}) == 100
     assert int(last.info["episode"]) == 100 and int(last.info["episode_step"]) == 0
 
-    nav = env_cache("point_nav", episode_length=1)
-    _, states = one_step_episodes(nav, 100, seed=4)
-    assert len({tuple(g) for g in np.asarray(states.info["goal"]).round(6)}) == 100
+
+def test_auto_reset_draws_fresh_targets(env_cache):
+    """100 consecutive three-step episodes of one env never repeat a target: the first episode's and the 100
+    drawn on auto-reset are 101. The env and its compiled rollout are test_truncation_and_done_flags'."""
+    nav = env_cache("point_nav", episode_length=3)
+    last, states = zero_action_steps(nav, 300, seed=4)
+    assert int(last.info["episode"]) == 100
+    assert len({tuple(g) for g in np.asarray(states.info["goal"]).round(6)}) == 101
 
 
 def test_truncation_and_done_flags(env_cache):
     env = env_cache("point_nav", episode_length=3)
-    state = env.reset(jax.random.PRNGKey(0))
-    step = jax.jit(env.step)
-    flags = []
-    for _ in range(6):
-        state = step(state, jnp.zeros(2))
-        flags.append((float(state.done), float(state.info["truncation"])))
+    _, states = zero_action_steps(env, 300, seed=0)
+    flags = list(zip(np.asarray(states.done)[:6].tolist(), np.asarray(states.info["truncation"])[:6].tolist()))
     assert flags == [(0, 0), (0, 0), (1, 1), (0, 0), (0, 0), (1, 1)]
 
 

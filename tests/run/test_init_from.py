@@ -16,6 +16,7 @@ from fieldgen.agents import checkpoint
 from fieldgen.cli import app
 from fieldgen.run import evaluate, record, session, summary
 from test_training import unwrapped as flat
+from tiny_runs import as_if_learned
 
 runner = CliRunner()
 
@@ -27,6 +28,17 @@ def source(tmp_path_factory, tiny_crl_args):
     result = runner.invoke(app, ["train", "point_nav", "--out", str(out), "--no-videos", *tiny_crl_args])
     assert result.exit_code == 0, result.output
     return out / "point_nav-crl-0"
+
+
+@pytest.fixture(scope="module")
+def learned(tmp_path_factory, tiny_crl_args):
+    """A tiny CRL run on point_nav that reads as having learned (tiny_runs.as_if_learned), untrained: all that the
+    refusals below read of a source is its record and the shapes of what it learned; the slow test above starts
+    from a trained one."""
+    out = tmp_path_factory.mktemp("learned")
+    result = runner.invoke(app, ["train", "point_nav", "--out", str(out), "--prepare", *tiny_crl_args])
+    assert result.exit_code == 0, result.output
+    return as_if_learned(out / "point_nav-crl-0")
 
 
 @pytest.mark.slow
@@ -76,20 +88,20 @@ def test_a_run_starts_from_what_another_learned_and_trains_on(tmp_path, source, 
     ("point_nav", ["--set", "crl.hidden=[16,16]"], "the configs differ in crl.hidden ([32, 32] there, [16, 16] here)"),
     ("point_nav", ["--seeds", "2"], "it trained 1 seeds at once, this run (crl on point_nav) 2; give --seeds 1"),
 ], ids=["layout", "network", "seeds"])
-def test_a_source_whose_networks_do_not_fit_is_refused_before_anything_is_written(tmp_path, source, tiny_crl_args,
+def test_a_source_whose_networks_do_not_fit_is_refused_before_anything_is_written(tmp_path, learned, tiny_crl_args,
                                                                                   field, changes, phrase):
     result = runner.invoke(app, ["train", field, "--out", str(tmp_path / "runs"), "--prepare", "--init-from",
-                                 str(source), *tiny_crl_args, *changes])
+                                 str(learned), *tiny_crl_args, *changes])
     assert result.exit_code == 1 and "Traceback" not in result.output
     assert flat(phrase) in flat(result.output)
     assert not (tmp_path / "runs").exists()
 
 
-def test_a_damaged_source_is_said_to_be_damaged_not_to_differ(tmp_path, source, tiny_crl_args):
+def test_a_damaged_source_is_said_to_be_damaged_not_to_differ(tmp_path, learned, tiny_crl_args):
     """Before: a learner.msgpack cut short read as 'its networks do not fit', the configs differing in nothing."""
     damaged = tmp_path / "source"
-    shutil.copytree(source, damaged)
-    whole = (source / record.LEARNER).read_bytes()
+    shutil.copytree(learned, damaged)
+    whole = (learned / record.LEARNER).read_bytes()
     (damaged / record.LEARNER).write_bytes(whole[:len(whole) // 2])
     result = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path / "runs"), "--prepare", "--init-from",
                                  str(damaged), *tiny_crl_args])
@@ -99,9 +111,9 @@ def test_a_damaged_source_is_said_to_be_damaged_not_to_differ(tmp_path, source, 
     assert "do not fit" not in result.output and not (tmp_path / "runs").exists()
 
 
-def test_a_source_of_another_algorithm_is_refused(tmp_path, source):
+def test_a_source_of_another_algorithm_is_refused(tmp_path, learned):
     result = runner.invoke(app, ["train", "point_nav", "--algo", "sac", "--out", str(tmp_path), "--prepare",
-                                 "--init-from", str(source)])
+                                 "--init-from", str(learned)])
     assert result.exit_code == 1 and "Traceback" not in result.output
     assert flat("it trained crl, this run (sac on point_nav) trains sac") in flat(result.output)
 
@@ -113,7 +125,7 @@ def test_init_from_names_a_run_that_has_learned(tmp_path, tiny_crl_args):
     assert flat(f"--init-from {tmp_path / 'none'}: no learner.msgpack there") in flat(result.output)
 
 
-def test_init_from_is_not_for_a_resumed_run(tmp_path, source):
-    result = runner.invoke(app, ["train", "--resume", str(source), "--init-from", str(source)])
+def test_init_from_is_not_for_a_resumed_run(tmp_path, learned):
+    result = runner.invoke(app, ["train", "--resume", str(learned), "--init-from", str(learned)])
     assert result.exit_code == 1 and "Traceback" not in result.output
     assert flat("--init-from sets up a new run") in flat(result.output)
