@@ -558,17 +558,17 @@ def evaluate(
             filmed_run, filmed_place = judging.filmed(runs, film_seed)
         except (SpecError, ConfigError, record.RunError) as exc:
             fail(str(exc))
-        twin = recipes.physics_twin(runs[0].env.spec) if field is None else None
-        if twin is not None:  # a figure on the training physics is not the one a recipe's figure is judged on
-            trained = runs[0].env.spec
-            out.print(f"note: {trained.name} is {twin} with sim.backend {trained.sim.backend}; this evaluation "
-                      f"plays that physics, and the recipe's figure is judged on {twin} itself: add --field {twin}")
         path = summary_file or judging.summary_path(run_dirs, runs[0], field is not None)
         video_name = judging.video_path(run_dirs[filmed_run], None if field is None else runs[0].env.spec.name,
                                         film_seed)
         files.check_file(path, files.EVAL)  # before evaluating: a file it may not replace is one line now
         if video:
             files.check_file(video_name.with_suffix(f".{fmt}"), files.EVAL, "--no-video")
+        twin = recipes.physics_twin(runs[0].env.spec) if field is None else None
+        if twin is not None:  # a figure on the training physics is not the one a recipe's figure is judged on
+            trained = runs[0].env.spec
+            out.print(f"note: {trained.name} is {twin} with sim.backend {trained.sim.backend}; this evaluation "
+                      f"plays that physics, and the recipe's figure is judged on {twin} itself: add --field {twin}")
         try:
             evaluations = [judging.evaluate(run, episodes, seed, filmed_place if video and k == filmed_run else None,
                                             actions) for k, run in enumerate(runs)]
