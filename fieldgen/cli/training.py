@@ -564,11 +564,9 @@ def evaluate(
         files.check_file(path, files.EVAL)  # before evaluating: a file it may not replace is one line now
         if video:
             files.check_file(video_name.with_suffix(f".{fmt}"), files.EVAL, "--no-video")
-        twin = recipes.physics_twin(runs[0].env.spec) if field is None else None
-        if twin is not None:  # a figure on the training physics is not the one a recipe's figure is judged on
-            trained = runs[0].env.spec
-            out.print(f"note: {trained.name} is {twin} with sim.backend {trained.sim.backend}; this evaluation "
-                      f"plays that physics, and the recipe's figure is judged on {twin} itself: add --field {twin}")
+        elsewhere = recipes.judged_elsewhere(runs[0].env.spec, " ".join(map(str, run_dirs))) if field is None else None
+        if elsewhere is not None:  # a figure on the training physics is not the one a recipe's figure is judged on
+            out.print(f"note: {elsewhere}", soft_wrap=True)
         try:
             evaluations = [judging.evaluate(run, episodes, seed, filmed_place if video and k == filmed_run else None,
                                             actions) for k, run in enumerate(runs)]

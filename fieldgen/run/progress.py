@@ -12,7 +12,7 @@ from rich.table import Column, Table
 from rich.text import Text
 
 from fieldgen.run import record
-from fieldgen.run.recipe import physics_twin
+from fieldgen.run.recipe import judged_elsewhere
 
 if TYPE_CHECKING:
     from fieldgen.run.session import Run
@@ -175,8 +175,6 @@ def summary(run: Run, console: Console) -> None:
     if memory is not None:
         console.print(f"peak device memory: {memory:,.0f} MiB")
     console.print(f"metrics: {run.folder / record.CSV}; plot: {run.folder / record.PLOT}")
-    twin = physics_twin(run.env.spec)
-    if twin is not None:
-        console.print(f"these evaluations played {run.env.spec.name}'s physics (sim.backend {run.env.spec.sim.backend});"
-                      f" judge the policy on {twin} itself, as its recipe's figure is: fieldgen eval {run.folder} "
-                      f"--episodes 1024 --field {twin}")
+    elsewhere = judged_elsewhere(run.env.spec, run.folder)
+    if elsewhere is not None:
+        console.print(elsewhere, soft_wrap=True)

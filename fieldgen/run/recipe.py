@@ -132,10 +132,21 @@ def same_task(path: Path | FieldSpec, other: Path | FieldSpec) -> bool:
 def physics_twin(spec: FieldSpec) -> str | None:
     """The bundled field `spec` extends where the two differ in their physics alone (a `_warp` field's own field):
     the field whose physics a recipe's figure is judged on; else None."""
-    parent = bundled_fields().get(spec.extends or "")
-    if parent is None or load_spec(parent).sim.backend == spec.sim.backend or not same_task(spec, parent):
+    path = bundled_fields().get(spec.extends or "")
+    parent = None if path is None else load_spec(path)
+    if parent is None or parent.sim.backend == spec.sim.backend or not same_task(spec, parent):
         return None
     return spec.extends
+
+
+def judged_elsewhere(spec: FieldSpec, runs: Path | str) -> str | None:
+    """For runs (their folders) on a physics twin (`physics_twin`): that their evaluations play the training
+    physics, and the command that judges them as the recipe's figure is judged; else None."""
+    twin = physics_twin(spec)
+    if twin is None:
+        return None
+    return (f"{spec.name} is {twin} with sim.backend {spec.sim.backend}: its evaluations play that physics, and its "
+            f"recipe's figure is judged on {twin} itself: fieldgen eval {runs} --episodes 1024 --field {twin}")
 
 
 def is_sparse(spec: FieldSpec) -> bool:

@@ -277,8 +277,9 @@ def test_a_run_on_other_physics_alone_is_told_which_field_its_recipe_is_judged_o
     plain = runner.invoke(app, ["eval", str(run), "--episodes", "2", "--no-video", "--summary",
                                 str(tmp_path / "plain.json")], env=WIDE)
     assert plain.exit_code == 0, plain.output
-    assert said("note: point_nav is point_nav_mjx with sim.backend mjx; this evaluation plays that physics, and the "
-                "recipe's figure is judged on point_nav_mjx itself: add --field point_nav_mjx", plain.output)
+    assert said(f"note: point_nav is point_nav_mjx with sim.backend mjx: its evaluations play that physics, and its "
+                f"recipe's figure is judged on point_nav_mjx itself: fieldgen eval {run} --episodes 1024 --field "
+                "point_nav_mjx", plain.output)
     judged = runner.invoke(app, ["eval", str(run), "--episodes", "2", "--no-video", "--field", "point_nav",
                                  "--summary", str(tmp_path / "judged.json")], env=WIDE)
     assert judged.exit_code == 0, judged.output

@@ -30,14 +30,14 @@ def test_the_summary_table_keeps_every_header_whole_at_80_columns():
     assert "…" not in shown
     assert all(name in header for name in ("seed", "env steps", "success_any", "time at", "goal", "closest",
                                            "return", "steps/s")), shown
-    assert "judge the policy on" not in shown
+    assert "is judged on" not in shown
 
 
 def test_a_run_on_other_physics_alone_ends_with_the_command_that_judges_it_as_its_recipe_is():
     console = Console(width=400, record=True)
     progress.summary(finished("soccer_v2_dense_warp", "runs/w"), console)
-    assert ("these evaluations played soccer_v2_dense_warp's physics (sim.backend warp); judge the policy on "
-            "soccer_v2_dense itself, as its recipe's figure is: fieldgen eval runs/w --episodes 1024 --field "
+    assert ("soccer_v2_dense_warp is soccer_v2_dense with sim.backend warp: its evaluations play that physics, and "
+            "its recipe's figure is judged on soccer_v2_dense itself: fieldgen eval runs/w --episodes 1024 --field "
             "soccer_v2_dense") in console.export_text()
 
 
