@@ -54,7 +54,7 @@ def batched_model(models, names: list[str], impl: str = "jax") -> tuple[object, 
         raise ValueError(f"{names[-1]}: variants batched in one model run on sim.backend mjx only (fieldgen stacks "
                          "the models of MJX's JAX implementation, not Warp's, whose static fields it cannot compare): "
                          "train the stages in turn (without --mixed), or give every stage sim.backend: mjx")
-    systems = [mjx_physics.put_model(m, impl, own_device()) for m in models]
+    systems = [mjx_physics.put_model(m, impl, own_device(), field=n) for m, n in zip(models, names)]
     first = systems[0]
     systems = [first] + [_static_like(first, s, f"{n} and {names[0]}") for s, n in zip(systems[1:], names[1:])]
     columns = zip(*(jax.tree.leaves(s) for s in systems))

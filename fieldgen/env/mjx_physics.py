@@ -11,14 +11,32 @@ from __future__ import annotations
 
 import jax
 
-from fieldgen.env.contract import OVERFLOW, merged_overflow  # noqa: F401  (OVERFLOW: Warp's flags since reset, kept
-# over auto-resets)
+# OVERFLOW: Warp's flags since reset, kept over auto-resets
+from fieldgen.env.contract import OVERFLOW, merged_overflow  # noqa: F401
+from fieldgen.schema.errors import Problem, SpecError
+
 # Warp's flags (mujoco_warp's OverflowType) that are not a capacity outgrown: iteration limits reached
 NOT_CAPACITY = ("ITERATIONS", "LS_ITERATIONS")
 
 
 class PhysicsOverflow(RuntimeError):
     """An environment outgrew one of Warp's capacities: its physics left contacts or constraints out."""
+
+
+class WarpMissing(SpecError):
+    """A field on sim.backend warp where warp-lang is not installed: a spec problem (every command that makes an
+    environment refuses it in one paragraph), though the remedy is an install, not an edit."""
+
+    def __init__(self, field: str):
+        self.field = field
+        super().__init__([Problem(None, None, None, "sim.backend",
+                                  "warp (MuJoCo Warp's kernels) needs warp-lang, which is not installed here: "
+                                  "pip install -c requirements.lock -e '.[warp]' in fieldgen's checkout (or pip "
+                                  "install 'fieldgen[warp]'); sim.backend: mjx steps the same field on MJX's JAX "
+                                  "implementation without it")])
+
+    def __str__(self) -> str:
+        return f"{self.field}: sim.backend: {self.problems[0].message}"
 
 
 def capacities(mj_model) -> tuple[int, int]:
@@ -29,10 +47,13 @@ def capacities(mj_model) -> tuple[int, int]:
     return int(data._impl.contact.dist.shape[0]), int(data._impl.efc_J.shape[0])
 
 
-def put_model(mj_model, impl: str, device=None, **options):
+def put_model(mj_model, impl: str, device=None, field: str = "the field", **options):
     """The field's mjx.Model of implementation `impl` (options: mjx.put_model's, e.g. Warp's graph_mode); Warp's
-    reports overflows in its data alone."""
+    reports overflows in its data alone. WarpMissing where `field` needs Warp and warp-lang is not installed."""
     from mujoco import mjx
+
+    if impl == "warp":
+        require_warp(field)
 
     model = mjx.put_model(mj_model, device=device, impl=impl, **options)
     if impl == "warp":  # the flags are read (`overflow_bits`); a warning printed per world and step would flood
@@ -40,12 +61,22 @@ def put_model(mj_model, impl: str, device=None, **options):
     return model
 
 
-def make_data(mj_model, impl: str, device, worlds: int = 1):
-    """Fresh data of one environment; Warp's sized for a batch of `worlds` environments."""
+def require_warp(field: str) -> None:
+    """Refuse (WarpMissing) a field on Warp's physics where warp-lang cannot be imported."""
+    try:
+        import warp  # noqa: F401
+    except ImportError:
+        raise WarpMissing(field) from None
+
+
+def make_data(mj_model, impl: str, device, worlds: int = 1, field: str = "the field"):
+    """Fresh data of one environment; Warp's sized for a batch of `worlds` environments (WarpMissing as
+    put_model)."""
     from mujoco import mjx
 
     if impl != "warp":
         return mjx.make_data(mj_model, device=device, impl=impl)
+    require_warp(field)
     import warp
 
     warp.config.log_level = max(warp.config.log_level, warp.LOG_WARNING)  # not a line per module of kernels loaded

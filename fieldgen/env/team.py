@@ -79,9 +79,10 @@ class TeamFieldEnv:
         self.mj_model = artifact.model()
         self.layout = layout = team_layout(spec, self.mj_model)
         self.impl = mjx_impl(spec)
-        self.sys = mjx_physics.put_model(self.mj_model, self.impl, own_device())
+        self.sys = mjx_physics.put_model(self.mj_model, self.impl, own_device(), field=self.name)
         self.home_qpos = jnp.asarray(self.mj_model.key("home").qpos)
-        self.data0 = mjx_physics.make_data(self.mj_model, self.impl, own_device()).replace(qpos=self.home_qpos)
+        self.data0 = mjx_physics.make_data(self.mj_model, self.impl, own_device(),
+                                             field=self.name).replace(qpos=self.home_qpos)
         self.episode_length = episode_length or spec.episode.length
         self.auto_reset = auto_reset
         self.n_substeps, self.dt = spec.episode.substeps, spec.episode.control_dt
