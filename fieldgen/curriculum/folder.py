@@ -74,7 +74,7 @@ def write(folder: Path, base_ref: str, base: Path, kind: str, variants: list[tup
         for stage in stages:
             (staging / stage.file).write_text(_stage_text(stage, extends, schema))
         (staging / INDEX).write_text(_index_text(curriculum))
-        _validate_all(dataclasses.replace(curriculum, folder=staging))
+        _validate_all(dataclasses.replace(curriculum, folder=staging), staged=True)
 
     replace_folder(folder, fill, CURRICULUM)
     return curriculum
@@ -162,13 +162,19 @@ def is_curriculum(path: Path) -> bool:
 
 # -- helpers -------------------------------------------------------------------------------------
 
-def _validate_all(curriculum: Curriculum) -> None:
-    """Every stage loads, its name is the one listed, and every stage has the first one's observation layout."""
+def _validate_all(curriculum: Curriculum, staged: bool = False) -> None:
+    """Every stage loads, its name is the one listed, and every stage has the first one's observation layout.
+    `staged`: the stages are being written and the folder is a staging one that goes away on a refusal, so a
+    problem names the stage by what made it (its --stage, --vary or interpolation), not by a file to open."""
     layouts = {}
     for i, (stage, path) in enumerate(zip(curriculum.stages, curriculum.spec_paths()), 1):
         try:
             spec = load_spec(path)
         except SpecError as exc:
+            if staged:
+                problems = "; ".join(f"{p.path}: {p.message}" if p.path else p.message for p in exc.problems)
+                raise CurriculumError(f"stage {i} ({stage.origin}) is not a valid field ({problems}); nothing was "
+                                      "written") from None
             raise CurriculumError(f"stage {i} ({stage.file}) is not a valid field: {exc}") from None
         if spec.name != stage.name:
             raise CurriculumError(f"stage {i} ({stage.file}) is named '{spec.name}' but {INDEX} lists "

@@ -17,6 +17,7 @@ import yaml
 
 from fieldgen.curriculum.folder import CurriculumError, layout_key
 from fieldgen.schema import FieldSpec, SpecError, geometry, load_spec
+from fieldgen.schema.errors import shown_text
 from fieldgen.schema.loader import bundled_names_where, merge, validate
 from fieldgen.schema.source import Source
 from fieldgen.suggest import did_you_mean
@@ -181,7 +182,7 @@ def grid(base: Path, axes: dict[str, list]) -> list[tuple[dict, str]]:
     """Every combination of the axes' values over the base spec, first axis slowest."""
     a = _resolved(base)
     for key, values in axes.items():
-        _check_key(key, a)
+        _check_key(key, a, "--vary")
         if not values:
             raise CurriculumError(f"--vary {key}: the list of values is empty")
     out = []
@@ -196,7 +197,7 @@ def explicit(base: Path, variants: list[dict[str, object]]) -> list[tuple[dict, 
     a = _resolved(base)
     for assignment in variants:
         for key in assignment:
-            _check_key(key, a)
+            _check_key(key, a, "--stage")
     return [(_nest(v), "listed: " + ", ".join(f"{k}={x}" for k, x in v.items())) for v in variants]
 
 
@@ -288,13 +289,18 @@ def _leaf_keys(tree: dict, prefix: str = "") -> list[str]:
     return keys
 
 
-def _check_key(dotted: str, resolved: dict) -> None:
+def _check_key(dotted: str, resolved: dict, option: str) -> None:
+    """A key of the base field, or CurriculumError naming the option that gave it and the keys it may start with."""
+    shown = shown_text(dotted)
+    if dotted.split(".")[0] in IGNORED:  # a key of every spec, but each stage's is written for it
+        raise CurriculumError(f"{option} {shown}: '{shown}' names the variant, it cannot be varied")
     known = _leaf_keys(resolved)
     if dotted in known:
         return
-    if dotted.split(".")[0] in IGNORED:
-        raise CurriculumError(f"'{dotted}' names the variant, it cannot be varied")
-    raise CurriculumError(f"unknown key '{dotted}'{did_you_mean(dotted, sorted(known))}")
+    sections = ", ".join(k for k in resolved if k not in IGNORED)
+    raise CurriculumError(f"{option} {shown}: unknown key '{shown}'{did_you_mean(dotted, sorted(known)) or '.'} A key "
+                          f"is a dotted path into the base field, such as goal.distance, starting with one of its "
+                          f"sections: {sections}")
 
 
 def _nest(assignment: dict[str, object]) -> dict:

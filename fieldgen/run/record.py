@@ -104,10 +104,20 @@ def _schedule(name: str) -> str:
     return name
 
 
+def _algorithm(name: str) -> str:
+    """One of this fieldgen's trainers: what reads a run's curves alone (fieldgen compare) checks it as what opens
+    the run does."""
+    from fieldgen.agents.choices import ALGORITHMS
+
+    if name not in ALGORITHMS:
+        raise ValueError(f"should be one of this fieldgen's algorithms, {', '.join(ALGORITHMS)}")
+    return name
+
+
 class RunRecord(BaseModel):
     """What run.json must hold to reopen a run, each value of the type fieldgen wrote."""
 
-    algo: StrictStr
+    algo: Annotated[StrictStr, AfterValidator(_algorithm)]
     config: dict
     observation: dict
     field: Annotated[dict, Field(strict=True)] | None = None  # the resolved spec of the field the run is judged on

@@ -123,6 +123,9 @@ class SeedSummary(BaseModel):
                 if (said := metric_problem(metric, value)) is not None:
                     raise ValueError(f"seed {seed}'s {said}")
         seeds = sorted(self.env_steps)
+        if not seeds:  # fieldgen eval judges one seed at least; an interval over none has no value
+            raise ValueError("it holds no seed (env_steps is empty), and fieldgen eval writes one for every seed it "
+                             "judged")
         for metric in METRICS:
             if sorted(per_seed := getattr(self, metric).per_seed) != seeds:
                 raise ValueError(f"{metric}.per_seed holds seeds {_seed_list(per_seed)} where env_steps holds "
@@ -182,7 +185,7 @@ def read(path: Path) -> SeedSummary:
 
 def _first_problem(exc: ValidationError) -> str:
     error = exc.errors()[0]
-    where = ".".join(str(p) for p in error["loc"])
+    where = shown_text(".".join(str(p) for p in error["loc"]))  # a key may be a text of any length
     if error["type"] == "missing":
         return f"it has no key '{where}' (fieldgen eval --summary writes one)"
     said = error["msg"].removeprefix("Value error, ")

@@ -309,3 +309,18 @@ def test_an_out_folder_whose_name_is_too_long_says_the_limit_and_what_to_do(tmp_
     assert result.exit_code == 1 and "Traceback" not in said, result.output
     assert "File name too long; a folder's or file's name holds at most 255 bytes" in said
     assert "choose a shorter one" in said and not os.listdir(tmp_path)  # nothing made
+
+
+def test_compare_refuses_a_run_json_naming_an_algorithm_fieldgen_has_not(prepared, tmp_path):
+    """Every command that opens the run refused it, but compare, which reads only run.json and metrics.jsonl,
+    tabled and plotted the damaged run under the name it was edited to."""
+    (prepared / record.METRICS).write_text(json.dumps({"eval": 0, "seed": 0, "env_steps": 0, "success_any": 0.5,
+                                                       "time_at_goal": 1.0}) + "\n")
+    edit = json.loads((prepared / record.RUN).read_text())
+    edit["algo"] = "foo"
+    (prepared / record.RUN).write_text(json.dumps(edit))
+    plot = tmp_path / "compare.png"
+    result = runner.invoke(app, ["compare", str(prepared), "-o", str(plot)])
+    refused(result, f"{prepared / record.RUN} is not a run record: algo should be one of this fieldgen's algorithms, "
+                    "crl, icrl, ppo, sac, td3, not 'foo' (edited or damaged)")
+    assert not plot.exists()

@@ -234,3 +234,35 @@ def test_no_summary_is_computed_over_a_value_that_cannot_be_what_it_claims(metri
     per_seed[metric][1] = value
     with pytest.raises(SummaryError, match=rf"^no summary of runs/a: seed 1's {metric} is "):
         summarize(["point_nav"], "crl", ["runs/a"], 8, {0: 800, 1: 800}, per_seed, "")
+
+
+def test_aggregate_refuses_a_summary_of_no_seeds_naming_it(tmp_path):
+    """Before: a summary.json edited down to no seeds was read, and pooling it alone ended in a ValueError traceback
+    from the interquartile mean."""
+    from typer.testing import CliRunner
+
+    from fieldgen.cli import app
+
+    paths, _, _ = one_seed_each(tmp_path)
+    emptied = json.loads(paths[0].read_text())
+    emptied["env_steps"], emptied["success_any"]["per_seed"], emptied["time_at_goal"]["per_seed"] = {}, {}, {}
+    paths[0].write_text(json.dumps(emptied))
+    result = CliRunner().invoke(app, ["aggregate", str(paths[0])])
+    assert result.exit_code == 1 and "Traceback" not in result.output, result.output
+    assert " ".join(result.output.split()) == (f"error: {paths[0]} is not a summary of fieldgen eval: it holds no seed "
+                                               "(env_steps is empty), and fieldgen eval writes one for every seed it "
+                                               "judged")
+
+
+def test_a_summary_key_of_any_length_is_quoted_by_its_start(tmp_path):
+    """Before: a seed key of thousands of digits was quoted whole in the one-line refusal."""
+    from fieldgen.run.summary import SummaryError, read
+
+    paths, _, _ = one_seed_each(tmp_path)
+    edited = json.loads(paths[0].read_text())
+    edited["success_any"]["per_seed"] = {"1" * 5000: 0.5}
+    paths[0].write_text(json.dumps(edited))
+    with pytest.raises(SummaryError) as caught:
+        read(paths[0])
+    assert "success_any.per_seed.111" in str(caught.value) and "(5,027 characters)" in str(caught.value)
+    assert len(str(caught.value)) < 300 + len(str(paths[0]))
