@@ -8,7 +8,10 @@ near the target without scoring in 5" or "pins it against an obstacle in 6". Epi
 
 Prints how many episodes scored (the ball's centre within the success radius of the target at some step),
 came near without scoring (closest within --near metres), and ended elsewhere (and how many of those the
-agent left where it started), with the 1 m cells where the ball most often ends; --out keeps one row per episode.
+agent left where it started), with the 1 m cells where the ball most often ends; for an agent with a torso, how
+many of the episodes without a score saw it turned upside down (its torso's up axis below the horizontal) and
+when. --out keeps one row per episode, with the steps of the ball's first move, of its first score and of the agent's
+first turn over, and how many steps the agent spent upside down.
 """
 
 from __future__ import annotations
@@ -34,10 +37,13 @@ def endings(policy: Path, field: str, episodes: int, seed: int) -> list[dict]:
     act = jax.vmap(fieldgen.load_policy(policy))
     ball = [names.index("ball.x"), names.index("ball.y")]
     goal = [names.index("goal.x"), names.index("goal.y")]
+    torso = [names.index("root.qx"), names.index("root.qy")] if "root.qx" in names else None
 
     def step(state, _):
         state = jax.vmap(env.step)(state, act(state.obs))
-        return state, (state.obs[:, ball], state.obs[:, goal], state.metrics["success"])
+        # the z component of the torso's up axis, from its quaternion: 1 upright, below 0 upside down
+        up = 1.0 - 2.0 * (state.obs[:, torso] ** 2).sum(-1) if torso else state.obs[:, 0] * 0.0 + 1.0
+        return state, (state.obs[:, ball], state.obs[:, goal], state.metrics["success"], up)
 
     @jax.jit
     def play(key):
@@ -46,11 +52,23 @@ def endings(policy: Path, field: str, episodes: int, seed: int) -> list[dict]:
         _, trace = jax.lax.scan(step, state, None, length=env.episode_length - 1)
         return trace
 
-    ball_xy, goal_xy, success = (np.asarray(x) for x in play(jax.random.PRNGKey(seed)))
+    ball_xy, goal_xy, success, up = (np.asarray(x) for x in play(jax.random.PRNGKey(seed)))
     distance = np.linalg.norm(ball_xy - goal_xy, axis=-1)
+    moved = np.linalg.norm(ball_xy - ball_xy[:1], axis=-1) > MOVED
     return [{"episode": i, "scored": bool(success[:, i].max() > 0), "closest": float(distance[:, i].min()),
              "start": [round(float(v), 3) for v in ball_xy[0, i]],
-             "final": [round(float(v), 3) for v in ball_xy[-1, i]]} for i in range(episodes)]
+             "final": [round(float(v), 3) for v in ball_xy[-1, i]],
+             "first_move": first_step(moved[:, i]), "scored_at": first_step(success[:, i] > 0),
+             **({"upside_down_at": first_step(up[:, i] < 0.0), "upside_down_steps": int((up[:, i] < 0.0).sum())}
+                if torso else {})} for i in range(episodes)]
+
+
+MOVED = 0.05  # metres from where the ball stood after the first step: a move, not the solver settling it
+
+
+def first_step(flags: np.ndarray) -> int | None:
+    """The first step (from 1) at which `flags` holds, None where it never does."""
+    return int(np.argmax(flags)) + 1 if flags.any() else None
 
 
 def report(rows: list[dict], near: float) -> str:
@@ -60,9 +78,15 @@ def report(rows: list[dict], near: float) -> str:
                 for r in rows)
     cells = collections.Counter((round(r["final"][0]), round(r["final"][1])) for r in rows if not r["scored"])
     common = ", ".join(f"({x}, {y}) x{n}" for (x, y), n in cells.most_common(5))
-    return (f"{len(rows)} episodes: {scored} scored, {close} came within {near} m of the target without scoring, "
+    line = (f"{len(rows)} episodes: {scored} scored, {close} came within {near} m of the target without scoring, "
             f"{len(rows) - scored - close} ended farther ({still} of them within 0.5 m of where the ball started); "
             f"where the ball ends in episodes without a score (1 m cells): {common or '-'}")
+    missed = [r for r in rows if not r["scored"] and "upside_down_at" in r]
+    turned = sorted(r["upside_down_at"] for r in missed if r["upside_down_at"] is not None)
+    if missed:
+        line += (f"; {len(turned)} of the {len(missed)} without a score saw the agent upside down"
+                 + (f" (first at step {turned[0]}, median {int(np.median(turned))})" if turned else ""))
+    return line
 
 
 def main() -> None:

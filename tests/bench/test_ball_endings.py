@@ -35,3 +35,20 @@ def test_a_policy_of_a_field_without_a_ball_is_one_line(tmp_path):
     (tmp_path / "policy.json").write_text(json.dumps({"observation_names": ["root.x", "root.y", "goal.x"]}))
     with pytest.raises(SystemExit, match="observes no ball"):
         ball_endings.endings(tmp_path, "point_nav", episodes=2, seed=0)
+
+
+def test_the_report_says_how_many_misses_saw_an_agent_with_a_torso_upside_down_and_when():
+    rows = [dict(row(True, 0.2, [0, 5], [0.1, 20.2]), upside_down_at=None),
+            dict(row(False, 15.0, [0, 5], [0.0, 5.0]), upside_down_at=30),
+            dict(row(False, 7.0, [0, 5], [0.6, 13.1]), upside_down_at=None),
+            dict(row(False, 9.0, [0, 5], [0.2, 11.0]), upside_down_at=400)]
+    assert ball_endings.report(rows, near=1.5).endswith(
+        "; 2 of the 3 without a score saw the agent upside down (first at step 30, median 215)")
+    assert "upside down" not in ball_endings.report([row(False, 7.0, [0, 5], [0.6, 13.1])], near=1.5)
+
+
+def test_first_step_counts_from_one_and_is_none_where_nothing_holds():
+    import numpy as np
+
+    assert ball_endings.first_step(np.array([False, False, True, True])) == 3
+    assert ball_endings.first_step(np.zeros(4, bool)) is None
