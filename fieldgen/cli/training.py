@@ -100,11 +100,12 @@ def _train(run, videos: bool, logger: str, fmt: str | None = None, deadline: flo
         raise typer.Exit(TIME_LIMIT_STATUS)
 
 
-# what a run is set up with and --resume goes on with: parameter -> how a user gives it
+# what a run is set up with and --resume goes on with (a resumed run stays in its folder, so --out too):
+# parameter -> how a user gives it
 FIXED_AT_SETUP = {"spec": "a field named beside it", "algo": "--algo", "steps": "--steps", "envs": "--envs", "seed": "--seed",
                   "seeds": "--seeds", "sets": "--set", "config": "--config", "preset": "--preset",
                   "use_recipe": "--recipe/--no-recipe", "mixed": "--mixed", "curriculum_kind": "--curriculum",
-                  "levels": "--levels", "samplers": "--sampler"}
+                  "levels": "--levels", "samplers": "--sampler", "runs": "--out"}
 
 
 @app.command()

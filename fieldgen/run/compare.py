@@ -346,14 +346,14 @@ def recorded(folder: Path) -> Recorded:
     """The run in `folder` from its run.json and metrics.jsonl; RunError naming the file where it has no
     evaluation yet or its rows lack a seed's success."""
     saved = record.read_run(folder)
-    rows = record.read_metrics(folder)
-    seeds = saved.seeds or [saved.config.get("seed", 0)]
+    seeds = saved.every_seed
+    rows = record.read_metrics(folder, seeds)
     missing = sorted(set(seeds) - {r.get("seed") for r in rows})
     if missing:
         said = "holds no evaluation yet" if not rows else f"holds no evaluation of seed {missing[0]}"
         raise record.RunError(f"{folder / record.METRICS} {said}, so {folder} has nothing to compare; train it "
                               f"first (fieldgen train --resume {folder}) or leave it out")
-    rows = reached_by_every_seed([r for r in rows if r["seed"] in seeds], seeds)
+    rows = reached_by_every_seed(rows, seeds)
     metric = "win_vs_random" if saved.selfplay else "success_any"
     for r in rows:
         if not np.isfinite(on_field(r, metric)):

@@ -89,7 +89,8 @@ def field_digests(run: Run) -> list[str]:
 def open_runs(folders: list[Path], field: Path | None = None) -> list[Run]:
     """The runs to judge together, each with its last checkpoint (its policy put on `field` where given).
     Refused before any checkpoint loads: a folder that is not a run or has not trained, runs of another
-    field or algorithm than the first's, a seed in two of them; a summary is over the seeds of one recipe."""
+    field or algorithm than the first's, a seed in two of them, a `field` that is a folder of fields; a summary
+    is over the seeds of one recipe."""
     first, owners = None, {}
     for folder in folders:
         run = session.open_run(folder, load_state=False)
@@ -107,6 +108,8 @@ def open_runs(folders: list[Path], field: Path | None = None) -> list[Run]:
                 raise record.RunError(f"seed {s} is in both {owners[s]} and {folder}: each seed counts once in a "
                                       "summary; leave one of them out")
             owners[s] = folder
+    if field is not None:
+        session.refuse_folder_of_fields(field)
     runs = [session.open_run(folder, learned=True) for folder in folders]
     return runs if field is None else [session.on_field(run, field) for run in runs]
 

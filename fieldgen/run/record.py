@@ -138,6 +138,11 @@ class RunRecord(BaseModel):
     recipe: dict = {}  # the recipe the run was set up from (fieldgen/run/recipe.py); {} (left out): none
     selfplay: StrictBool = False  # a team field's self-play run (fieldgen/run/selfplay.py): judged by matches won
 
+    @property
+    def every_seed(self) -> list[int]:
+        """The run's seeds: the list it records, else its config's one seed (0 where it names none)."""
+        return self.seeds or [self.config.get("seed", 0)]
+
 
 # what the metrics that figures are computed over can hold: success is a share of episodes, time at the goal a
 # count of steps, a variant's weight its share of new episodes
@@ -228,9 +233,11 @@ def read_run(run_dir: Path) -> RunRecord:
                        "start the run again in a new folder") from None
 
 
-def read_metrics(run_dir: Path) -> list[dict]:
+def read_metrics(run_dir: Path, seeds: list[int] | None = None) -> list[dict]:
     """The evaluation rows; a torn last line (a write cut short by a kill) is dropped, since the run
-    resumes from its checkpoint, which never comes after the last whole row."""
+    resumes from its checkpoint, which never comes after the last whole row. Given the run's `seeds`, a row of
+    another seed is refused as damage: every reader of a run (train, eval, export, compare, a sweep's status)
+    passes them, so none judges, resumes or plots rows that are not the run's."""
     path = run_dir / METRICS
     try:
         lines = [line for line in path.read_bytes().splitlines() if line.strip()]
@@ -252,6 +259,9 @@ def read_metrics(run_dir: Path) -> list[dict]:
             MetricsRow.model_validate(row if isinstance(row, dict) else {})
         except ValidationError as exc:
             raise RunError(damaged.format(_problems(exc))) from None
+        if seeds is not None and "seed" in row and row["seed"] not in seeds:
+            raise RunError(damaged.format(f"its seed {shown_value(row['seed'])} is not one of the run's seeds, "
+                                          f"{', '.join(map(str, seeds))}"))
         rows.append(row)
     return rows
 

@@ -157,7 +157,8 @@ def open_run(folder: Path, load_state: bool = True, to_train: bool = False) -> T
         config = SelfPlayConfig.layered(**saved.config)
     except ConfigError as exc:
         raise record.RunError(f"{folder / record.RUN} holds no usable self-play config ({exc})") from None
-    run = TeamRun(folder, config, env, saved.seeds or [config.seed], record.read_metrics(folder))
+    seeds = saved.seeds or [config.seed]
+    run = TeamRun(folder, config, env, seeds, record.read_metrics(folder, seeds))
     if to_train and not run.finished:
         try:
             fits_memory(config, env, len(run.seeds))

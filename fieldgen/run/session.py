@@ -296,7 +296,7 @@ def open_run(folder: Path, load_state: bool = True, to_train: bool = False, lear
     except (KeyError, ConfigError) as exc:
         raise record.RunError(f"{folder / record.RUN} holds no usable config ({exc}); it was edited or damaged, "
                               "or written by another version of fieldgen") from None
-    rows = record.read_metrics(folder)
+    rows = record.read_metrics(folder, seeds)
     try:
         plan = curriculum.Plan.recorded(saved, len(envs), folder / record.RUN)
     except curriculum.PlanError as exc:
@@ -377,6 +377,7 @@ def _check_levels_results(folder: Path, rows: list[dict], kind: str, levels: int
 def on_field(run: Run, source: Path) -> Run:
     """The run with its policy judged on another field (a YAML file or build folder) that observes and
     acts alike: whether what it learnt carries over, e.g. from an easier variant to the field it stands for."""
+    refuse_folder_of_fields(source)
     try:
         env = fieldgen.make(source)
     except ArtifactError as exc:
@@ -385,6 +386,26 @@ def on_field(run: Run, source: Path) -> Run:
         raise record.RunError(f"{source} observes or acts differently from {run.env.spec.name}, which {run.folder} "
                               f"was trained on ({differ}); a policy moves only between fields of one layout")
     return dataclasses.replace(run, envs=[env], plan=run.plan.on_one_field(), stage=0)
+
+
+def refuse_folder_of_fields(source: Path) -> None:
+    """Refuse a run folder or a curriculum folder named where one field is asked for, saying what it is and the
+    field to name instead: read as a build folder, either would be called one whose field.json is missing."""
+    if (source / record.RUN).is_file():
+        try:
+            copy = (record.read_run(source).fields or [FIELD])[-1]
+        except record.RunError:  # a damaged record: the copy a plain run keeps
+            copy = FIELD
+        raise record.RunError(f"{source} is a run folder, not a field: --field takes one field (a YAML file, "
+                              f"bundled name or build folder); the field that run trained on is its copy "
+                              f"{source / copy}")
+    if curriculum.is_curriculum(source):
+        try:
+            last = f", e.g. its last stage, {curriculum.load(source).spec_paths()[-1]}"
+        except curriculum.CurriculumError:
+            last = ""
+        raise record.RunError(f"{source} is a curriculum folder: --field takes one field, such as one of its "
+                              f"stages (a stage's spec or its build folder){last}")
 
 
 def interface_difference(env, other) -> str:

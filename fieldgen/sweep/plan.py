@@ -192,6 +192,7 @@ def load(path: Path, out: Path | None = None, **overrides) -> Sweep:
     if config is not None and not config.is_file():
         found.append(source.problem(("config",), f"there is no file {config}"))
     _assignments(spec, source, found)
+    _set_or_grid(spec, source, found)
     _each_once(spec, names, source, found)
     if spec.levels is not None and spec.curriculum is None:
         found.append(source.problem(("levels",), f"{spec.levels} levels of the automatic curriculum: add "
@@ -325,6 +326,14 @@ def _each_once(spec: SweepFile, names: list[str], source: Source, found: list[Pr
                                                        "their runs would share folders and a summary; give one "
                                                        "another name, or list it once"))
         first.setdefault(name, i)
+
+
+def _set_or_grid(spec: SweepFile, source: Source, found: list[Problem]) -> None:
+    """Refuse a `set` key that `grid` varies too: every run takes the grid's value, so the fixed one would be
+    planned into no run, silently."""
+    for key in (k for k in spec.set if k in spec.grid):
+        found.append(source.problem(("set", key), f"grid varies {key} too, so every run would take the grid's value, "
+                                                  "never this one: keep the key in set or in grid, not both"))
 
 
 def _assignments(spec: SweepFile, source: Source, found: list[Problem]) -> None:

@@ -68,8 +68,8 @@ def damaged(run: PlannedRun) -> str | None:
     if not (run.folder / record.RUN).is_file():
         return None
     try:
-        record.read_run(run.folder)
-        record.read_metrics(run.folder)
+        saved = record.read_run(run.folder)
+        record.read_metrics(run.folder, saved.every_seed)
     except record.RunError as exc:
         return str(exc)
     return None

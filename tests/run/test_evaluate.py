@@ -216,6 +216,29 @@ def test_bad_evaluations_are_one_line_and_write_nothing(tmp_path):
     assert sorted(tmp_path.rglob("*")) == before
 
 
+def test_a_folder_of_fields_given_as_field_says_which_field_to_name(tmp_path):
+    """--field takes one field: a run folder is told apart and pointed at its own copy of its field, a curriculum
+    folder at its stages, before any checkpoint loads; a folder that is neither is still told it is no built
+    field."""
+    root = Path(__file__).resolve().parents[2]
+    run = looks_trained(prepared(tmp_path / "runs", "point_nav"))
+    curriculum = root / "curricula" / "point_nav_to_far"
+    for field, phrase in ((run, f"{run} is a run folder, not a field: --field takes one field (a YAML file, "
+                                f"bundled name or build folder); the field that run trained on is its copy "
+                                f"{run / session.FIELD}"),
+                          (curriculum, f"{curriculum} is a curriculum folder: --field takes one field, such as one "
+                                       f"of its stages (a stage's spec or its build folder), e.g. its last stage, "
+                                       f"{curriculum / 'stage_04.yaml'}")):
+        result = runner.invoke(app, ["eval", str(run), "--field", str(field), "--no-video"])
+        message = " ".join(result.output.split())
+        assert result.exit_code == 1 and message.startswith(f"error: {phrase}"), result.output
+        assert message.count("error:") == 1 and "Traceback" not in message
+    assert not list(run.glob("summary*"))
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(record.RunError, match="empty is not a built field: field.json is missing"):
+        session.on_field(session.open_run(run, load_state=False), tmp_path / "empty")
+
+
 def test_runs_of_two_fields_that_share_a_name_are_not_judged_as_seeds_of_one(tmp_path):
     """A summary pools seeds by their field's digest: the bundled point_nav and a point_nav of your own are
     two fields, whatever their names say."""

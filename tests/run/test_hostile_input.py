@@ -147,6 +147,27 @@ def test_evaluation_episodes_the_machine_cannot_hold_are_refused_before_training
     assert not (out / "point_nav-crl-0" / record.CHECKPOINT).exists()
 
 
+def test_metrics_rows_of_a_seed_the_run_does_not_have_are_refused_by_every_reader(tmp_path, tiny_crl_args):
+    """Before: compare refused a run whose rows were of seed 9 in place of one of its own, while export and eval
+    (and a resume) read on as if the rows were the run's; rows of a seed beside the run's were dropped unsaid."""
+    out = tmp_path / "runs"
+    result = runner.invoke(app, ["train", "point_nav", "--seeds", "3", "--out", str(out), "--prepare", *tiny_crl_args])
+    assert result.exit_code == 0, result.output
+    run = out / "point_nav-crl-0to2"
+    (run / record.CHECKPOINT).write_bytes(b"never read: the rows are refused first")
+    for seeds in ([0, 1, 9], [0, 1, 2, 9]):
+        (run / record.METRICS).write_text("".join(json.dumps({"eval": 0, "seed": s, "env_steps": 0, "success_any": 0.0,
+                                                              "time_at_goal": 0.0}) + "\n" for s in seeds))
+        phrase = (f"{run / record.METRICS}:{seeds.index(9) + 1} is not a metrics row (its seed 9 is not one of the run's seeds, 0, 1, 2); "
+                  "the file was edited or damaged")
+        for command in (["export", str(run), "-o", str(tmp_path / "policy")], ["eval", str(run), "--no-video"],
+                        ["compare", str(run), "--out", str(tmp_path / "compare.png")],
+                        ["train", "--resume", str(run), "--no-videos"]):
+            refused(runner.invoke(app, command), phrase)
+    assert not (tmp_path / "policy").exists() and not (tmp_path / "compare.png").exists()
+    assert not list(run.glob("summary*"))
+
+
 def test_a_run_whose_field_copy_is_a_file_says_so(prepared):
     (prepared / "field").rename(prepared / "field.moved")
     (prepared / "field").write_text("not a folder")

@@ -29,9 +29,12 @@ TINY_SET = "\n".join(f"  crl.{k}: {json.dumps(list(v) if isinstance(v, tuple) el
 
 
 def sweep_file(folder: Path, body: str = "", name: str = "sweep.yaml", seeds: int = 2, grid: str = "") -> Path:
+    """The tiny CRL run's settings in `set`, less those `grid` varies (a key goes in one of them)."""
     path = folder / name
+    varied = {line.partition(":")[0].strip() for line in grid.splitlines()}
+    fixed = "\n".join(line for line in TINY_SET.splitlines() if line.partition(":")[0].strip() not in varied)
     path.write_text(f"fields: [point_nav]\nalgorithms: [crl]\nseeds: {seeds}\nsteps: {TINY_CRL['total_steps']}\n"
-                    f"envs: {TINY_CRL['num_envs']}\nout: {folder / 'out'}\nset:\n{TINY_SET}\n"
+                    f"envs: {TINY_CRL['num_envs']}\nout: {folder / 'out'}\nset:\n{fixed}\n"
                     + (f"grid:\n{grid}\n" if grid else "") + body)
     return path
 
@@ -157,6 +160,24 @@ def test_bad_sweep_files_are_one_line_at_the_key(tmp_path, body, phrase):
     assert result.exit_code == 1
     assert result.output.startswith(f"error: {path}") and phrase in result.output, result.output
     assert len(result.output.strip().splitlines()) == 1 and "Traceback" not in result.output
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("body,phrase", [
+    ("set:\n  crl.batch_size: 64\n  crl.repr_dim: 16\ngrid:\n  crl.repr_dim: [8, 32]\n",
+     ":8:3: set.crl.repr_dim: grid varies crl.repr_dim too, so every run would take the grid's value, never this "
+     "one: keep the key in set or in grid, not both"),
+    ("curriculum: auto\nset:\n  sampler.kept: 0.5\ngrid:\n  sampler.kept: [0.25, 0.75]\n",
+     ":8:3: set.sampler.kept: grid varies sampler.kept too"),
+])
+def test_a_set_key_the_grid_varies_too_is_refused_at_the_key(tmp_path, body, phrase):
+    """Every run took the grid's value of a key that set also gave, and the set value was dropped unsaid."""
+    path = tmp_path / "sweep.yaml"
+    path.write_text("fields: [point_nav]\nalgorithms: [crl]\nseeds: 2\nsteps: 1900\nenvs: 8\n" + body)
+    result = runner.invoke(app, ["sweep", str(path), "--dry-run", "--out", str(tmp_path / "out")])
+    assert result.exit_code == 1 and result.output.startswith(f"error: {path}") and phrase in result.output, \
+        result.output
+    assert len(result.output.strip().splitlines()) == 1 and "fieldgen train" not in result.output
     assert not (tmp_path / "out").exists()
 
 

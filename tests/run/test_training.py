@@ -271,6 +271,20 @@ def test_resume_says_it_keeps_the_runs_own_settings(tmp_path, tiny_crl_args):
             message and f"fieldgen train SPEC --init-from {run} --steps N --out DIR" in message, message
 
 
+def test_resume_refuses_an_out_it_would_ignore(tmp_path, tiny_crl_args):
+    """A resumed run goes on in its own folder: --out beside --resume (even naming the folder it is in) is
+    refused the way a setting is, and nothing is written where it pointed."""
+    prepared = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path), "--prepare", *tiny_crl_args])
+    assert prepared.exit_code == 0, prepared.output
+    run = tmp_path / "point_nav-crl-0"
+    for elsewhere in (tmp_path / "elsewhere", tmp_path):
+        result = runner.invoke(app, ["train", "--resume", str(run), "--out", str(elsewhere), "--no-videos"])
+        message = " ".join(result.output.split())
+        assert result.exit_code == 1 and "which --out cannot change" in message and \
+            f"fieldgen train SPEC --init-from {run} --steps N --out DIR" in message, message
+    assert not (tmp_path / "elsewhere").exists() and not (run / record.METRICS).exists()
+
+
 def test_a_full_disk_is_a_clear_error(tmp_path, monkeypatch, tiny_crl_args):
     def full(*args, **kwargs):
         raise OSError(28, "No space left on device", str(tmp_path / "point_nav-crl-0" / "checkpoint.msgpack"))
