@@ -11,7 +11,7 @@ came near without scoring (closest within --near metres), and ended elsewhere (a
 agent left where it started), with the 1 m cells where the ball most often ends; for an agent with a torso, how
 many of the episodes without a score saw it turned upside down (its torso's up axis below the horizontal) and
 when. --out keeps one row per episode, with the steps of the ball's first move, of its first score and of the agent's
-first turn over, and how many steps the agent spent upside down.
+first turn over, how many steps the agent spent upside down and its torso's median height meanwhile.
 """
 
 from __future__ import annotations
@@ -38,12 +38,14 @@ def endings(policy: Path, field: str, episodes: int, seed: int) -> list[dict]:
     ball = [names.index("ball.x"), names.index("ball.y")]
     goal = [names.index("goal.x"), names.index("goal.y")]
     torso = [names.index("root.qx"), names.index("root.qy")] if "root.qx" in names else None
+    height = names.index("root.z") if "root.z" in names else None
 
     def step(state, _):
         state = jax.vmap(env.step)(state, act(state.obs))
         # the z component of the torso's up axis, from its quaternion: 1 upright, below 0 upside down
         up = 1.0 - 2.0 * (state.obs[:, torso] ** 2).sum(-1) if torso else state.obs[:, 0] * 0.0 + 1.0
-        return state, (state.obs[:, ball], state.obs[:, goal], state.metrics["success"], up)
+        z = state.obs[:, height] if height is not None else state.obs[:, 0] * 0.0
+        return state, (state.obs[:, ball], state.obs[:, goal], state.metrics["success"], up, z)
 
     @jax.jit
     def play(key):
@@ -52,18 +54,24 @@ def endings(policy: Path, field: str, episodes: int, seed: int) -> list[dict]:
         _, trace = jax.lax.scan(step, state, None, length=env.episode_length - 1)
         return trace
 
-    ball_xy, goal_xy, success, up = (np.asarray(x) for x in play(jax.random.PRNGKey(seed)))
+    ball_xy, goal_xy, success, up, z = (np.asarray(x) for x in play(jax.random.PRNGKey(seed)))
     distance = np.linalg.norm(ball_xy - goal_xy, axis=-1)
     moved = np.linalg.norm(ball_xy - ball_xy[:1], axis=-1) > MOVED
     return [{"episode": i, "scored": bool(success[:, i].max() > 0), "closest": float(distance[:, i].min()),
              "start": [round(float(v), 3) for v in ball_xy[0, i]],
              "final": [round(float(v), 3) for v in ball_xy[-1, i]],
              "first_move": first_step(moved[:, i]), "scored_at": first_step(success[:, i] > 0),
-             **({"upside_down_at": first_step(up[:, i] < 0.0), "upside_down_steps": int((up[:, i] < 0.0).sum())}
+             **({"upside_down_at": first_step(up[:, i] < 0.0), "upside_down_steps": int((up[:, i] < 0.0).sum()),
+                 "torso_height_upside_down": median_where(z[:, i], up[:, i] < 0.0)}
                 if torso else {})} for i in range(episodes)]
 
 
 MOVED = 0.05  # metres from where the ball stood after the first step: a move, not the solver settling it
+
+
+def median_where(values: np.ndarray, flags: np.ndarray) -> float | None:
+    """The median of `values` over the steps where `flags` holds, None where it never does."""
+    return round(float(np.median(values[flags])), 3) if flags.any() else None
 
 
 def first_step(flags: np.ndarray) -> int | None:

@@ -52,3 +52,10 @@ def test_first_step_counts_from_one_and_is_none_where_nothing_holds():
 
     assert ball_endings.first_step(np.array([False, False, True, True])) == 3
     assert ball_endings.first_step(np.zeros(4, bool)) is None
+
+
+def test_median_where_reads_only_the_flagged_steps():
+    import numpy as np
+
+    assert ball_endings.median_where(np.array([0.5, -0.2, -0.4, 0.6]), np.array([False, True, True, False])) == -0.3
+    assert ball_endings.median_where(np.array([0.5]), np.array([False])) is None
