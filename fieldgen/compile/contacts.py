@@ -31,6 +31,8 @@ def relation(spec: FieldSpec) -> set[frozenset[str]]:
     pairs |= {frozenset((a, s)) for a in AGENT_CONTACTS[spec.sim.agent_contacts] for s in STATIC}
     if spec.teams is not None:  # agents push each other: torso on torso (an agent's own torso is one geom)
         pairs.add(frozenset(("torso",)))
+    if spec.sim.contacts == "torso_floor":  # a turned-over ant lies on its back, not with its torso under the floor
+        pairs.add(frozenset(("torso", "floor")))
     return pairs
 
 

@@ -40,6 +40,9 @@ def physics_problems(spec: FieldSpec) -> Found:
     out += backend_problems(spec)
     out += _task_needs(spec) if spec.teams is None else _match(spec)
     out += _fits_on_field(spec)
+    if spec.sim.contacts == "torso_floor" and spec.agent.kind != "ant":
+        out.append((("sim", "contacts"), f"'torso_floor' gives an ant's torso a floor contact; a {spec.agent.kind} "
+                    "agent slides at a fixed height and has no torso to give one: use pruned or study"))
     if spec.ball.enabled and not out:
         out += _ball_spawn(spec)
     if not out:

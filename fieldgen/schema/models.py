@@ -413,10 +413,12 @@ class SimSection(Section):
         description="contacts passed to the solver each step, nearest first (MJX max_contact_points); "
         "auto: the agent's resting contacts + 8; all: no limit",
     )
-    contacts: Literal["pruned", "study"] = Field(
+    contacts: Literal["pruned", "torso_floor", "study"] = Field(
         "pruned",
-        description="pruned: only pairs that can matter are checked; study: the soccer study's contact bits "
-        "(feet touch each other and the torso; walls, goalie and posts touch nothing)",
+        description="pruned: only pairs that can matter are checked, the ant's torso not against the floor (as in "
+        "the soccer study), so a turned-over ant sinks its torso through it; torso_floor: pruned, and the ant's "
+        "torso touches the floor too, so a turned-over ant lies on its back; study: the soccer study's contact "
+        "bits (feet touch each other and the torso; walls, goalie and posts touch nothing)",
     )
     precision: Literal["highest", "default"] = Field(
         "highest",

@@ -22,7 +22,7 @@ from fieldgen.compile.build import build
 from fieldgen.compile.contacts import candidate_pairs
 from fieldgen.render import preview
 from mujoco import mjx
-from fieldgen.schema import bundled_fields, load_spec
+from fieldgen.schema import SpecError, bundled_fields, load_spec
 
 FIELDS = sorted(bundled_fields())
 
@@ -330,3 +330,32 @@ def test_seed_field_reproduces_the_studys_contact_set():
     assert len(pairs) == 20
     assert not any(g.startswith(("wall", "obstacle", "post")) for p in pairs for g in p)
     assert ("back_left_foot", "front_left_foot") in pairs and ("ball", "floor") in pairs
+
+
+def turned_over_torso_height(spec) -> float:
+    """The torso's height after 4 s of an ant dropped upside down from 0.6 m with its motors idle (MuJoCo's own
+    step: the contact set is the model's, whichever library steps it)."""
+    model = compile_spec(spec).model()
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, model.key("home").id)
+    root = model.joint("root").qposadr[0]
+    data.qpos[root + 2: root + 7] = (0.6, 0.0, 1.0, 0.0, 0.0)  # half a turn about x: the torso's up axis points down
+    for _ in range(int(4.0 / model.opt.timestep)):
+        mujoco.mj_step(model, data)
+    return float(data.qpos[root + 2])
+
+
+def test_torso_floor_contacts_keep_a_turned_over_ant_on_its_back_where_pruned_ones_let_it_sink(write_spec):
+    pruned = load_spec(bundled_fields()["ant_nav"])
+    grounded = load_spec(write_spec("extends: ant_nav\nname: ant_nav_torso_floor\nsim: {contacts: torso_floor}\n"))
+    assert ("floor", "torso") in {tuple(sorted(p)) for p in candidate_pairs(compile_spec(grounded).model())}
+    assert ("floor", "torso") not in {tuple(sorted(p)) for p in candidate_pairs(compile_spec(pruned).model())}
+    assert turned_over_torso_height(pruned) < 0.0  # the torso under the floor, the ant on its feet from below
+    assert turned_over_torso_height(grounded) > 0.2  # on its back: the torso's radius is 0.25
+
+
+def test_torso_floor_contacts_on_a_point_agent_are_refused_at_the_key(write_spec):
+    path = write_spec("extends: point_nav\nname: p\nsim: {contacts: torso_floor}\n")
+    with pytest.raises(SpecError) as refused:
+        load_spec(path)
+    assert f"{path}:3:" in str(refused.value) and "sim.contacts: 'torso_floor' gives an ant's torso" in str(refused.value)
