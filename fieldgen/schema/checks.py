@@ -150,7 +150,7 @@ def _match(spec: FieldSpec) -> Found:
                     "in a region (mode: region)"))
     if spec.sim.contacts == "study":
         out.append((("sim", "contacts"), "'study' is the soccer study's contact set for one ant, in which agents "
-                    "never touch each other; use pruned"))
+                    "never touch each other; use pruned or torso_floor"))
     for i, term in enumerate(task.reward):
         needs, where = MATCH_TERMS.get(term.term), ("task", "reward", i, "term")
         if needs is None:
