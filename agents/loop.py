@@ -20,7 +20,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..curriculum.contract import OneStage, Schedule, adapt, start_sampling, with_episode_sampling
-from ..env.contract import DIVERGED, OVERFLOW, Environment, merged_overflow, shared_by_batch
+from ..env.contract import (DIVERGED, OVERFLOW, TORSO_QUATERNION, Environment, merged_overflow, shared_by_batch,
+                            up_axis_z)
 from .config import RunConfig
 from .programs import Programs, computed
 from .sharding import from_host, meet, to_host
@@ -68,6 +69,12 @@ class Trainer:
         return all(getattr(state, name) is not None for name in self.env_axes)
 
 
+def torso_quaternion_entries(names) -> list[int] | None:
+    """Where an observation holds the agent's torso quaternion (w, x, y, z), None where it has none (a point)."""
+    names = list(names)
+    return [names.index(n) for n in TORSO_QUATERNION] if set(TORSO_QUATERNION) <= set(names) else None
+
+
 def evaluate_policy(env, act: Callable, key: jax.Array, n_envs: int, film: Callable | None = None,
                     sampled: bool = False) -> tuple[dict, object]:
     """One episode per environment with `act(obs)`, counted up to its first `done`. Returns (metrics, film).
@@ -83,7 +90,9 @@ def evaluate_policy(env, act: Callable, key: jax.Array, n_envs: int, film: Calla
     where the episode began (on a ball field, how far the agent pushed the ball: zero until it first touches
     it, where hindsight goals about the ball begin to differ from its kick-off);
     episode_length: steps before the episode ended, short where the agent falls (leaves its
-    healthy band) early; episode_return; and `term_<name>`: each reward term's mean per live step.
+    healthy band) early; episode_return; and `term_<name>`: each reward term's mean per live step;
+    on a field whose agent has a torso, turned_over: the share of steps with its up axis below the horizontal
+    (an ant's torso, which touches no floor under the default contacts, then sinks through it).
     An environment of several variants (`env.variant_count > 1`) is evaluated on each in turn,
     and also reports each variant's own under `variants` (a `VariantResults`).
 
@@ -109,6 +118,7 @@ def evaluate_policy(env, act: Callable, key: jax.Array, n_envs: int, film: Calla
         return jnp.linalg.norm(obs[:, state_entries] - start, axis=-1)
 
     filmed = count - 1  # 0 without variants; with them, the last (a mixed curriculum's hardest stage)
+    torso = torso_quaternion_entries(env.observation_names)
 
     def step(carry, act_key):
         env_state, alive, closest, start, farthest = carry
@@ -117,6 +127,9 @@ def evaluate_policy(env, act: Callable, key: jax.Array, n_envs: int, film: Calla
                **{name: nxt.metrics[name] * alive for name in terms}}
         # under auto-reset the obs of an episode's last step is already the next episode's
         still = alive * (1.0 - nxt.done)
+        if torso is not None:
+            out["still"] = still
+            out["turned_over"] = still * (up_axis_z(nxt.obs[:, torso].T) < 0.0)
         closest = jnp.where(still > 0, jnp.minimum(closest, goal_distance(nxt.obs)), closest)
         farthest = jnp.where(still > 0, jnp.maximum(farthest, distance_from(start, nxt.obs)), farthest)
         frame = None if film is None else (jax.tree.map(lambda x: x[filmed], film(env_state)), nxt.done[filmed])
@@ -134,6 +147,8 @@ def evaluate_policy(env, act: Callable, key: jax.Array, n_envs: int, film: Calla
                "episode_length": live_steps / n_envs,
                "episode_return": jnp.mean(jnp.sum(out["reward"], axis=0)),
                **{f"term_{name}": jnp.sum(out[name]) / live_steps for name in terms}}
+    if torso is not None:
+        metrics["turned_over"] = jnp.sum(out["turned_over"]) / jnp.maximum(jnp.sum(out["still"]), 1.0)
     if OVERFLOW in last.info:  # the physics' overflow flags of any environment (stop_on_overflow reads them)
         metrics[OVERFLOW] = merged_overflow(last.info[OVERFLOW])
     if count > 1:

@@ -29,6 +29,7 @@ def endings(policy: Path, field: str, episodes: int, seed: int) -> list[dict]:
     import jax
 
     import fieldgen
+    from fieldgen.env.contract import TORSO_QUATERNION, up_axis_z
 
     names = json.loads((policy / "policy.json").read_text())["observation_names"]
     if "ball.x" not in names:
@@ -37,13 +38,12 @@ def endings(policy: Path, field: str, episodes: int, seed: int) -> list[dict]:
     act = jax.vmap(fieldgen.load_policy(policy))
     ball = [names.index("ball.x"), names.index("ball.y")]
     goal = [names.index("goal.x"), names.index("goal.y")]
-    torso = [names.index("root.qx"), names.index("root.qy")] if "root.qx" in names else None
+    torso = [names.index(n) for n in TORSO_QUATERNION] if set(TORSO_QUATERNION) <= set(names) else None
     height = names.index("root.z") if "root.z" in names else None
 
     def step(state, _):
         state = jax.vmap(env.step)(state, act(state.obs))
-        # the z component of the torso's up axis, from its quaternion: 1 upright, below 0 upside down
-        up = 1.0 - 2.0 * (state.obs[:, torso] ** 2).sum(-1) if torso else state.obs[:, 0] * 0.0 + 1.0
+        up = up_axis_z(state.obs[:, torso].T) if torso else state.obs[:, 0] * 0.0 + 1.0  # below 0: upside down
         z = state.obs[:, height] if height is not None else state.obs[:, 0] * 0.0
         return state, (state.obs[:, ball], state.obs[:, goal], state.metrics["success"], up, z)
 

@@ -586,7 +586,9 @@ def evaluate(
         if result.env_steps_before:  # runs started from others' networks: count the chain from nothing too
             whole = sorted({result.env_steps[s] + result.env_steps_before.get(s, 0) for s in result.seeds})
             at += f" ({whole[0]:,}" + (f" to {whole[-1]:,}" if len(whole) > 1 else "") + " from nothing learned)"
-        table = Table(*["run"] * several, "seed", "success_any", "time at goal", "closest", "length", "return",
+        turned = all("turned_over" in e.metrics for e in evaluations)  # an agent with a torso: how long upside down
+        table = Table(*["run"] * several, "seed", "success_any", "time at goal", "closest", *["turned over"] * turned,
+                      "length", "return",
                       title=f"{judged} at {at} on {runs[0].env.spec.name}, {episodes} episodes per seed"
                             + judged_on(actions))
         for run, evaluation in zip(runs, evaluations):
@@ -594,11 +596,12 @@ def evaluate(
             for i, s in enumerate(run.seeds):
                 table.add_row(*[run.folder.name] * several, str(s), f"{metrics['success_any'][i]:.3f}",
                               f"{metrics['time_at_goal'][i]:.1f} of {length} steps",
-                              f"{metrics['closest_distance'][i]:.2f}", f"{metrics['episode_length'][i]:.0f}",
-                              f"{metrics['episode_return'][i]:.2f}")
+                              f"{metrics['closest_distance'][i]:.2f}",
+                              *([f"{metrics['turned_over'][i]:.2f}"] if turned else []),
+                              f"{metrics['episode_length'][i]:.0f}", f"{metrics['episode_return'][i]:.2f}")
         table.add_section()
         table.add_row(*[""] * several, result.label, result.success_any.text(3),
-                      f"{result.time_at_goal.text(1)} of {length} steps", "", "", "")
+                      f"{result.time_at_goal.text(1)} of {length} steps", "", *[""] * turned, "", "")
         out.print(table)
         # the headline again as a line of its own, which a terminal too narrow for the table still shows whole
         out.print(f"{result.label}: success_any {result.success_any.text(3)}, time at goal "

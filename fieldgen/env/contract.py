@@ -41,6 +41,16 @@ def merged_overflow(flags: jax.Array) -> jax.Array:
     return jax.lax.reduce(flags, jnp.int32(0), jax.lax.bitwise_or, tuple(range(flags.ndim)))
 
 
+# the observation entries of an agent's torso orientation, where it has one (an ant; a point has none)
+TORSO_QUATERNION = ("root.qw", "root.qx", "root.qy", "root.qz")
+
+
+def up_axis_z(quat: jax.Array) -> jax.Array:
+    """The world z of a body's own z axis (1 upright, -1 upside down), from its unit quaternion (w, x, y, z)."""
+    _, x, y, _ = quat
+    return 1.0 - 2.0 * (x * x + y * y)
+
+
 @runtime_checkable
 class State(Protocol):
     """One environment's state as trainers read it: a JAX pytree (brax's `State`, or MuJoCo Playground's,
@@ -134,7 +144,8 @@ class Environment(Protocol):
     @property
     def observation_names(self) -> Sequence[str]:
         """One name per obs entry (`root.z`, `front_left_hip.vel`, `goal.x`...): trainers that split a body
-        among agents pick entries by name, never by position."""
+        among agents pick entries by name, never by position; an agent with a torso names its orientation
+        TORSO_QUATERNION."""
 
     @property
     def action_names(self) -> Sequence[str]:

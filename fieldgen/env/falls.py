@@ -14,6 +14,7 @@ from typing import Callable
 
 import jax
 
+from fieldgen.env.contract import up_axis_z
 from fieldgen.schema.models import FieldSpec
 
 
@@ -29,9 +30,3 @@ def fall_fn(spec: FieldSpec) -> tuple[Callable[[jax.Array, jax.Array], jax.Array
         return (lambda pos, quat: (pos[2] < lo) | (pos[2] > hi)), 0
     min_up = math.cos(math.radians(fall.tilt_deg))
     return (lambda pos, quat: up_axis_z(quat) < min_up), fall.grace_steps
-
-
-def up_axis_z(quat: jax.Array) -> jax.Array:
-    """The world z of a body's own z axis (1 upright, -1 upside down), from its unit quaternion."""
-    _, x, y, _ = quat
-    return 1.0 - 2.0 * (x * x + y * y)

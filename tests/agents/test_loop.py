@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from fieldgen.agents import crl, loop, ppo
+from fieldgen.env.contract import TORSO_QUATERNION
 
 
 @pytest.fixture(scope="module")
@@ -232,3 +233,34 @@ def test_a_calls_first_chunk_counts_toward_the_time_a_chunk_takes_only_while_it_
     assert loop.longest_chunk([118.0]) == 118.0
     assert loop.longest_chunk([118.0, 70.0, 72.0]) == 72.0
     assert loop.longest_chunk([60.0, 70.0]) == 70.0
+
+
+class TurningOver:
+    """An agent with a torso and nothing else: upright for its first two steps, upside down from its third, over
+    episodes of 10 steps; just what the evaluation reads of an environment."""
+
+    observation_names = ("root.x", "root.y", "root.z", *TORSO_QUATERNION, "goal.x", "goal.y")
+    state_dim, goal_indices, success_goal_entries = 7, (0, 1), (0, 1)
+    episode_length, variant_count = 10, 1
+
+    def observe(self, t):
+        quat = jnp.where(t >= 3, jnp.asarray([0.0, 1.0, 0.0, 0.0]), jnp.asarray([1.0, 0.0, 0.0, 0.0]))
+        return jnp.concatenate([jnp.asarray([0.0, 0.0, 0.5]), quat, jnp.asarray([5.0, 0.0])])
+
+    def reset(self, key):
+        from brax.envs.base import State
+
+        zero = jnp.zeros(())
+        return State(zero, self.observe(0), zero, zero, {"success": zero}, {"t": jnp.zeros((), jnp.int32)})
+
+    def step(self, state, action):
+        t = state.info["t"] + 1
+        return state.replace(obs=self.observe(t), done=(t >= self.episode_length).astype(jnp.float32),
+                             info={"t": t})
+
+
+def test_the_evaluation_reports_the_share_of_steps_an_agent_with_a_torso_spent_turned_over():
+    metrics, _ = jax.device_get(loop.evaluate_policy(TurningOver(), lambda obs: obs[:, :1] * 0, jax.random.PRNGKey(0), 2))
+    assert float(metrics["turned_over"]) == pytest.approx(7 / 9)  # steps 3-9 of the 9 inside the episode
+    assert loop.torso_quaternion_entries(TurningOver.observation_names) == [3, 4, 5, 6]
+    assert loop.torso_quaternion_entries(("agent.x", "agent.y", "goal.x", "goal.y")) is None  # a point: no metric

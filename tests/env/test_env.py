@@ -189,7 +189,7 @@ def test_fall_rules_on_hand_set_torso_poses(env_cache, rule):
 
 
 def test_a_flipped_rule_with_a_smaller_tilt_ends_sooner():
-    from fieldgen.env.falls import up_axis_z
+    from fieldgen.env.contract import up_axis_z
 
     assert float(up_axis_z(jnp.asarray(TILTED_60))) == pytest.approx(0.5, abs=1e-6)
     assert float(up_axis_z(jnp.asarray(UPSIDE_DOWN))) == pytest.approx(-1.0)

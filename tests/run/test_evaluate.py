@@ -307,3 +307,29 @@ def test_a_run_on_other_physics_alone_is_told_which_field_its_recipe_is_judged_o
                                  "--summary", str(tmp_path / "judged.json")], env=WIDE)
     assert judged.exit_code == 0, judged.output
     assert "note:" not in judged.output
+
+
+def test_the_table_says_how_long_an_agent_with_a_torso_lay_turned_over_and_nothing_of_it_for_one_without(
+        tmp_path, monkeypatch):
+    """`turned_over` comes with the evaluation of an ant (agents.loop.evaluate_policy); the table shows it as a
+    column where every run measured it, and leaves the column out where none could."""
+    import numpy as np
+
+    from fieldgen.run import evaluate as judging
+
+    run = looks_trained(prepared(tmp_path, "point_nav"))
+    shown = {}
+
+    def evaluated(run, episodes, seed, film, actions):
+        metrics = ("success_any", "time_at_goal", "closest_distance", "episode_length", "episode_return",
+                   *shown["extra"])
+        return judging.Evaluation({m: np.full(len(run.seeds), 0.25) for m in metrics}, 0, {})
+
+    monkeypatch.setattr(judging, "open_runs", lambda folders, field: [session.open_run(f, load_state=False)
+                                                                     for f in folders])
+    monkeypatch.setattr(judging, "evaluate", evaluated)
+    for extra, column in (((), False), (("turned_over",), True)):
+        shown["extra"] = extra
+        result = runner.invoke(app, ["eval", str(run), "--no-video", "--summary", str(tmp_path / f"s{column}.json")])
+        assert result.exit_code == 0, result.output
+        assert ("turned" in result.output) == column and "0.25" in result.output  # a narrow cell splits its title
