@@ -359,3 +359,15 @@ def test_torso_floor_contacts_on_a_point_agent_are_refused_at_the_key(write_spec
     with pytest.raises(SpecError) as refused:
         load_spec(path)
     assert f"{path}:3:" in str(refused.value) and "sim.contacts: 'torso_floor' gives an ant's torso" in str(refused.value)
+
+
+def test_an_ant_names_its_torso_orientation_as_the_environment_contract_does():
+    """The evaluation's turned_over and bench/ball_endings.py find the torso by these
+    names; a point has none."""
+    from fieldgen.compile.layout import observation_layout
+    from fieldgen.env.contract import TORSO_QUATERNION
+
+    for name, has_torso in (("ant_nav", True), ("point_nav", False)):
+        spec = load_spec(bundled_fields()[name])
+        names = observation_layout(spec, compile_spec(spec).model()).names
+        assert (set(TORSO_QUATERNION) <= set(names)) == has_torso, name
