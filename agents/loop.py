@@ -20,7 +20,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..curriculum.contract import OneStage, Schedule, adapt, start_sampling, with_episode_sampling
-from ..env.contract import (DIVERGED, OVERFLOW, TORSO_QUATERNION, Environment, merged_overflow, shared_by_batch,
+from ..env.contract import (DIVERGED, OVERFLOW, Environment, merged_overflow, shared_by_batch, torso_entries,
                             up_axis_z)
 from .config import RunConfig
 from .programs import Programs, computed
@@ -69,12 +69,6 @@ class Trainer:
         return all(getattr(state, name) is not None for name in self.env_axes)
 
 
-def torso_quaternion_entries(names) -> list[int] | None:
-    """Where an observation holds the agent's torso quaternion (w, x, y, z), None where it has none (a point)."""
-    names = list(names)
-    return [names.index(n) for n in TORSO_QUATERNION] if set(TORSO_QUATERNION) <= set(names) else None
-
-
 def evaluate_policy(env, act: Callable, key: jax.Array, n_envs: int, film: Callable | None = None,
                     sampled: bool = False) -> tuple[dict, object]:
     """One episode per environment with `act(obs)`, counted up to its first `done`. Returns (metrics, film).
@@ -118,7 +112,7 @@ def evaluate_policy(env, act: Callable, key: jax.Array, n_envs: int, film: Calla
         return jnp.linalg.norm(obs[:, state_entries] - start, axis=-1)
 
     filmed = count - 1  # 0 without variants; with them, the last (a mixed curriculum's hardest stage)
-    torso = torso_quaternion_entries(env.observation_names)
+    torso = torso_entries(env.observation_names)
 
     def step(carry, act_key):
         env_state, alive, closest, start, farthest = carry

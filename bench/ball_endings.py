@@ -29,7 +29,7 @@ def endings(policy: Path, field: str, episodes: int, seed: int) -> list[dict]:
     import jax
 
     import fieldgen
-    from fieldgen.env.contract import TORSO_QUATERNION, up_axis_z
+    from fieldgen.env.contract import torso_entries, up_axis_z
 
     names = json.loads((policy / "policy.json").read_text())["observation_names"]
     if "ball.x" not in names:
@@ -38,7 +38,7 @@ def endings(policy: Path, field: str, episodes: int, seed: int) -> list[dict]:
     act = jax.vmap(fieldgen.load_policy(policy))
     ball = [names.index("ball.x"), names.index("ball.y")]
     goal = [names.index("goal.x"), names.index("goal.y")]
-    torso = [names.index(n) for n in TORSO_QUATERNION] if set(TORSO_QUATERNION) <= set(names) else None
+    torso = torso_entries(names)
     height = names.index("root.z") if "root.z" in names else None
 
     def step(state, _):

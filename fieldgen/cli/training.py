@@ -587,7 +587,7 @@ def evaluate(
             whole = sorted({result.env_steps[s] + result.env_steps_before.get(s, 0) for s in result.seeds})
             at += f" ({whole[0]:,}" + (f" to {whole[-1]:,}" if len(whole) > 1 else "") + " from nothing learned)"
         turned = all("turned_over" in e.metrics for e in evaluations)  # an agent with a torso: how long upside down
-        table = Table(*["run"] * several, "seed", "success_any", "time at goal", "closest", *["turned over"] * turned,
+        table = Table(*["run"] * several, "seed", "success_any", "time at goal", "closest", *(["turned over"] if turned else []),
                       "length", "return",
                       title=f"{judged} at {at} on {runs[0].env.spec.name}, {episodes} episodes per seed"
                             + judged_on(actions))
@@ -601,7 +601,7 @@ def evaluate(
                               f"{metrics['episode_length'][i]:.0f}", f"{metrics['episode_return'][i]:.2f}")
         table.add_section()
         table.add_row(*[""] * several, result.label, result.success_any.text(3),
-                      f"{result.time_at_goal.text(1)} of {length} steps", "", *[""] * turned, "", "")
+                      f"{result.time_at_goal.text(1)} of {length} steps", "", *([""] if turned else []), "", "")
         out.print(table)
         # the headline again as a line of its own, which a terminal too narrow for the table still shows whole
         out.print(f"{result.label}: success_any {result.success_any.text(3)}, time at goal "

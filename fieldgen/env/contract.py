@@ -45,6 +45,13 @@ def merged_overflow(flags: jax.Array) -> jax.Array:
 TORSO_QUATERNION = ("root.qw", "root.qx", "root.qy", "root.qz")
 
 
+def torso_entries(names: Sequence[str]) -> list[int] | None:
+    """Where an observation named `names` holds the agent's torso quaternion (TORSO_QUATERNION's order), None
+    where it has none (a point)."""
+    names = list(names)
+    return [names.index(n) for n in TORSO_QUATERNION] if set(TORSO_QUATERNION) <= set(names) else None
+
+
 def up_axis_z(quat: jax.Array) -> jax.Array:
     """The world z of a body's own z axis (1 upright, -1 upside down), from its unit quaternion (w, x, y, z)."""
     _, x, y, _ = quat

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from fieldgen.agents import crl, loop, ppo
-from fieldgen.env.contract import TORSO_QUATERNION
+from fieldgen.env.contract import TORSO_QUATERNION, torso_entries
 
 
 @pytest.fixture(scope="module")
@@ -262,5 +262,5 @@ class TurningOver:
 def test_the_evaluation_reports_the_share_of_steps_an_agent_with_a_torso_spent_turned_over():
     metrics, _ = jax.device_get(loop.evaluate_policy(TurningOver(), lambda obs: obs[:, :1] * 0, jax.random.PRNGKey(0), 2))
     assert float(metrics["turned_over"]) == pytest.approx(7 / 9)  # steps 3-9 of the 9 inside the episode
-    assert loop.torso_quaternion_entries(TurningOver.observation_names) == [3, 4, 5, 6]
-    assert loop.torso_quaternion_entries(("agent.x", "agent.y", "goal.x", "goal.y")) is None  # a point: no metric
+    assert torso_entries(TurningOver.observation_names) == [3, 4, 5, 6]
+    assert torso_entries(("agent.x", "agent.y", "goal.x", "goal.y")) is None  # a point: no metric
