@@ -1,5 +1,6 @@
 """Recipes: what learns a field (an algorithm, env steps, environments, config overrides, a named preset, a
-curriculum), keyed by the field's name in presets/recipes.yaml, beside the presets they layer over.
+curriculum, and what the run trains on in the field's place: its task's dense reward, another physics),
+keyed by the field's name in presets/recipes.yaml, beside the presets they layer over.
 
 A recipe writes a trainer's settings only as `--set` writes them (`steps` and `envs` are total_steps and
 num_envs), so the configs and the presets stay the one owner of what a setting means and allows:
@@ -21,7 +22,9 @@ from .choices import ALGORITHMS, PRESETS
 
 RECIPES = Path(__file__).with_name("presets") / "recipes.yaml"
 CURRICULA = ("auto",)  # the curricula a recipe may name, as `fieldgen train --curriculum` does
-KEYS = ("extends", "algo", "steps", "envs", "set", "preset", "curriculum", "measured")
+KEYS = ("extends", "algo", "steps", "envs", "set", "preset", "curriculum", "reward", "backend", "measured")
+REWARDS = ("dense",)  # `reward: dense`: a field paid for its success alone trains on its task's dense reward
+BACKENDS = ("mjx", "warp")  # `backend`: the MJX implementation a run trains on where it runs (fieldgen/run/recipe.py)
 MEASURED_KEYS = ("figure", "seeds", "data")
 
 
@@ -50,6 +53,8 @@ class Recipe:
     sets: tuple[str, ...] = ()  # ALGO.KEY=VALUE, as --set writes them
     preset: str | None = None  # a named preset (choices.PRESETS), as --preset names it
     curriculum: str | None = None
+    reward: str | None = None  # dense: where the field's reward is its success alone, its task's dense reward
+    backend: str | None = None  # the physics (sim.backend) the run trains on in the field's own place
     measured: Measured | None = None
     where: str = ""  # file:line of the recipe, for messages about its settings
 
@@ -67,12 +72,15 @@ class Recipe:
         parts += [" ".join(f"--set {item}" for item in self.sets)] if self.sets else []
         parts += [f"--preset {self.preset}"] if self.preset else []
         parts += [f"--curriculum {self.curriculum}"] if self.curriculum else []
+        parts += [f"on its task's {self.reward} reward"] if self.reward else []
+        parts += [f"on sim.backend {self.backend}"] if self.backend else []
         return ", ".join(parts) if len(parts) > 1 else f"{self.algo} with its defaults"
 
     def record(self) -> dict:
         """The recipe as run.json keeps it."""
         kept = {"field": self.field, "algo": self.algo, "steps": self.steps, "envs": self.envs,
-                "set": list(self.sets), "preset": self.preset, "curriculum": self.curriculum}
+                "set": list(self.sets), "preset": self.preset, "curriculum": self.curriculum,
+                "reward": self.reward, "backend": self.backend}
         return {key: value for key, value in kept.items() if value not in (None, [])}
 
 
@@ -141,8 +149,9 @@ def _checked(where: str, key: str, value):
     def refuse(allowed: str):
         raise RecipeError(f"{where}: {key} {allowed}, not {value!r}")
 
-    if key in ("extends", "algo", "preset", "curriculum"):
-        choices = {"algo": ALGORITHMS, "preset": PRESETS, "curriculum": CURRICULA}.get(key)
+    if key in ("extends", "algo", "preset", "curriculum", "reward", "backend"):
+        choices = {"algo": ALGORITHMS, "preset": PRESETS, "curriculum": CURRICULA, "reward": REWARDS,
+                   "backend": BACKENDS}.get(key)
         if not isinstance(value, str) or (choices is not None and value not in choices):
             near = did_you_mean(value, choices) if isinstance(value, str) and choices else ""
             refuse(f"must be {'one of ' + ', '.join(choices) if choices else 'the name of a field with a recipe'}"
@@ -178,7 +187,7 @@ def _resolved(path: Path, name: str, entries: dict, chain: tuple[str, ...]) -> R
         base = dataclasses.asdict(_resolved(path, parent, entries, chain + (name,)))
         own = {item.partition("=")[0] for item in values.get("set", ())}
         sets = tuple(item for item in base["sets"] if item.partition("=")[0] not in own) + values.pop("set", ())
-        inherited = {key: base[key] for key in ("algo", "steps", "envs", "preset", "curriculum")}
+        inherited = {key: base[key] for key in ("algo", "steps", "envs", "preset", "curriculum", "reward", "backend")}
         values = {**inherited, **values, "set": sets}
     if values.get("algo") is None:
         raise RecipeError(f"{entry['where']}: recipe '{name}' names no algo; choose one of {', '.join(ALGORITHMS)}")

@@ -19,7 +19,7 @@ from fieldgen.command import TIME_LIMIT_STATUS
 from fieldgen.cameras import CAMERAS
 from fieldgen.policy_onnx import FORMATS as POLICY_FORMATS
 from fieldgen.run.loggers import LOGGERS
-from fieldgen.schema import SpecError
+from fieldgen.schema import FieldSpec, SpecError
 from fieldgen.video import FORMATS as VIDEO_FORMATS
 
 # --steps' and --envs' defaults, the config's total_steps and num_envs, in words: --help loads no trainer to read
@@ -283,13 +283,20 @@ def train(
             if layers:
                 out.print(f"{algo} on {agent} fields starts from {' then '.join(layers)} (a --config file or --set "
                           "overrides it)")
-            _warn_if_sparse(field, algo, getattr(algo_config, "reward", "dense"))
+            trained_on, left_aside = recipes.training(field, recipe, trains_here=not prepare)
+            if left_aside:
+                out.print(Text(f"note: {left_aside}", style="yellow"), soft_wrap=True)
+            if trained_on is not None:
+                out.print(trained_on.line(field), soft_wrap=True)
+            _warn_if_sparse(field if trained_on is None else trained_on.spec, algo,
+                            getattr(algo_config, "reward", "dense"))
             if levels is not None and curriculum_kind != "auto":
                 fail(f"--levels {levels} sets how many levels --curriculum auto makes; add --curriculum auto")
             sampler = _sampler(samplers) if samplers else None
             run = session.new_run(source, algo, range(seed, seed + seeds), algo_config, runs, mixed, init_from,
                                   auto=curriculum_kind == "auto", levels=levels, processes=processes,
-                                  trains_here=not prepare, sampler=sampler, recipe=chosen.record(overriding))
+                                  trains_here=not prepare, sampler=sampler, recipe=chosen.record(overriding),
+                                  trained_on=None if trained_on is None else trained_on.spec)
         if run.init_from and not run.rows:
             chain = f", {run.learned_before:,} from nothing learned" if run.init_from.get("before") else ""
             out.print(f"starts from what {run.init_from['run']} learned in {run.init_from['env_steps']:,} env steps "
@@ -327,6 +334,10 @@ def _team_run(source: Path, field, algo: str | None, seeds: int, config: Path | 
         fail(f"{field.name} is a team field: it trains by self-play, whose learner is {SelfPlayConfig.algo}; "
              f"give --algo {SelfPlayConfig.algo} or leave --algo out")
     chosen = recipes.choose(source, SelfPlayConfig.algo, use_recipe)
+    if chosen.recipe is not None and (chosen.recipe.reward or chosen.recipe.backend):
+        fail(f"{chosen.recipe.where}: recipe '{chosen.recipe.field}' names reward or backend, which a team field's "
+             f"recipe cannot: a match trains on its own terms and physics (docs/teams.md); leave them out, or "
+             f"train with --no-recipe")
     settings = SelfPlayConfig.layered(config, sets or [], agent=field.agent.kind, preset=preset,
                                       recipe=chosen.recipe, total_steps=steps, num_envs=envs, seed=seed)
     overriding = _overriding(steps, envs, sets, config, preset)
@@ -551,7 +562,8 @@ def evaluate(
     summary_written = False  # what Ctrl-C leaves: the summary and the video are each written whole or not at all
     try:
         try:
-            runs = judging.open_runs(run_dirs, None if field is None else field_source(field))
+            judged = judging.judged_copy(run_dirs) if field is None else None  # the field as written, by default
+            runs = judging.open_runs(run_dirs, judged if field is None else field_source(field))
             episodes = episodes or runs[0].config.eval_envs  # sized with training: a CPU-sized run evaluates quickly
             actions = actions or runs[0].config.eval_actions  # the figures training drew are the ones judged again
             for run in runs:
@@ -568,6 +580,11 @@ def evaluate(
         elsewhere = recipes.judged_elsewhere(runs[0].env.spec, " ".join(map(str, run_dirs))) if field is None else None
         if elsewhere is not None:  # a figure on the training physics is not the one a recipe's figure is judged on
             out.print(f"note: {elsewhere}", soft_wrap=True)
+        if judged is not None:
+            trained = FieldSpec.model_validate(record.read_run(run_dirs[0]).field)
+            out.print(f"judged on {runs[0].env.spec.name} as written ({judged}), where its recipe trained it on "
+                      f"{recipes.trained_form(trained, runs[0].env.spec)}; --field {run_dirs[0] / 'field'} judges it "
+                      "on the field it trained on", soft_wrap=True)
         try:
             evaluations = [judging.evaluate(run, episodes, seed, filmed_place if video and k == filmed_run else None,
                                             actions) for k, run in enumerate(runs)]

@@ -96,8 +96,8 @@ def _sampler_type():
     return Sampler
 
 
-def plan(source: Path, kind: str = "staged", levels: int | None = None, sampler=None) -> tuple[Plan, list]:
-    """The plan of a run on `source` (a field's YAML file or build folder, or a curriculum folder) as `kind` (one
+def plan(source, kind: str = "staged", levels: int | None = None, sampler=None) -> tuple[Plan, list]:
+    """The plan of a run on `source` (a field's YAML file, build folder or FieldSpec, or a curriculum folder) as `kind` (one
     of SCHEDULES) says, and the environments of its stages: a field alone, a curriculum's stages one at a time
     (staged) or all at once (mixed, built to one structure), or with auto `levels` levels (curriculum.auto.LEVELS
     by default) between the field's easy end and itself, drawn as `sampler` (curriculum.auto.Sampler, its
@@ -108,10 +108,11 @@ def plan(source: Path, kind: str = "staged", levels: int | None = None, sampler=
     if kind not in SCHEDULES:
         raise PlanError(f"{kind}: a run goes through its stages as one of {', '.join(SCHEDULES)}")
     mixed, auto = kind == "mixed", kind == "auto"
+    folder = isinstance(source, Path) and curriculum.is_curriculum(source)
     if sampler is not None and not auto:
         raise PlanError("--sampler sets how --curriculum auto draws its levels; add --curriculum auto")
     if auto:
-        if curriculum.is_curriculum(source):
+        if folder:
             raise PlanError(f"--curriculum auto makes its own levels from one field and trains them all at once; "
                             f"give it a field (YAML or build folder), without --mixed, not the curriculum folder "
                             f"{source}")
@@ -120,7 +121,7 @@ def plan(source: Path, kind: str = "staged", levels: int | None = None, sampler=
 
         return Plan("auto", run_label(envs[-1].spec.name), levels=coordinates, kickoffs=kickoffs,
                     sampler=sampler or Sampler()), envs
-    if curriculum.is_curriculum(source):
+    if folder:
         from fieldgen.compile.variants import VariantError
 
         try:
@@ -133,14 +134,14 @@ def plan(source: Path, kind: str = "staged", levels: int | None = None, sampler=
             raise PlanError(f"{source}: the stages' observation layouts differ; a policy cannot move between them")
         return Plan(kind, source.name + ("-mixed" if mixed else ""), c.promotion), envs
     if mixed:
-        raise PlanError(f"{source} is a single field; --mixed trains the stages of a curriculum folder "
+        raise PlanError(f"{source if isinstance(source, Path) else source.name} is a single field; --mixed trains the stages of a curriculum folder "
                         "(or let fieldgen make the stages: --curriculum auto)")
     import fieldgen
 
     return Plan(), [fieldgen.make(source)]
 
 
-def auto_environments(source: Path, count: int | None) -> tuple[list, list[dict], list]:
+def auto_environments(source, count: int | None) -> tuple[list, list[dict], list]:
     """The environments of `count` levels from `source`'s easy end to the field itself (curriculum.auto),
     built to one structure, each level's coordinates by axis name and its kick-off points, for run.json."""
     from fieldgen.compile.artifact import ArtifactError, load_artifact
@@ -151,7 +152,7 @@ def auto_environments(source: Path, count: int | None) -> tuple[list, list[dict]
     from fieldgen.schema import load_spec
 
     try:
-        spec = load_artifact(source).spec if source.is_dir() else load_spec(source)
+        spec = load_artifact(source).spec if isinstance(source, Path) and source.is_dir() else load_spec(source)
         wanted = LEVELS if count is None else count
         chosen = auto_levels(spec, wanted)
         if len(chosen) < 2:  # every level but the field refused: no curriculum is left to train through

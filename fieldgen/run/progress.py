@@ -178,3 +178,7 @@ def summary(run: Run, console: Console) -> None:
     elsewhere = judged_elsewhere(run.env.spec, run.folder)
     if elsewhere is not None:
         console.print(elsewhere, soft_wrap=True)
+    if run.judged is not None:
+        console.print(f"its recipe trained it on another form of {run.env.spec.name} (run.json: recipe), judged on "
+                      f"the field as written ({run.judged}): fieldgen eval {run.folder} --episodes 1024",
+                      soft_wrap=True)

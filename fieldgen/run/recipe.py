@@ -1,17 +1,20 @@
-"""Which recipe (fieldgen.agents.recipes) sets up a new run on a field, and what `fieldgen train` and
-`fieldgen list --recipes` say of it: the recipe, why it was chosen, its measured figure, and the dense route
-where a field's reward is its success alone."""
+"""Which recipe (fieldgen.agents.recipes) sets up a new run on a field, what the run trains on where the recipe
+trains it on its task's dense reward or another physics (judged on the field as written all the same), and what
+`fieldgen train` and `fieldgen list --recipes` say of it: the recipe, why it was chosen, its measured figure, and
+the dense route where a field's reward is its success alone."""
 
 from __future__ import annotations
 
 import dataclasses
+import importlib.util
 from pathlib import Path
 
 from fieldgen import curriculum
 from fieldgen.agents import recipes
-from fieldgen.agents.recipes import Found, Recipe
+from fieldgen.agents.recipes import Found, Recipe, RecipeError
 from fieldgen.agents.registry import DEFAULT_ALGORITHM
 from fieldgen.schema import FieldSpec, bundled_fields, load_spec
+from fieldgen.schema.backends import BACKENDS
 from fieldgen.schema.loader import lineage
 from fieldgen.schema.terms import DENSE_REWARDS, MATCH_TERMS, TERMS
 
@@ -76,6 +79,82 @@ def choose(source: Path, algo: str | None, use: bool = True) -> Choice:
     if found is not None and algo is not None and algo != found.recipe.algo:
         return Choice(field, None, algo, passed_over=found)
     return Choice(field, found, algo or (found.recipe.algo if found else DEFAULT_ALGORITHM))
+
+
+@dataclasses.dataclass(frozen=True)
+class Training:
+    """What a new run trains on in its field's place, as its recipe says: the field with its task's dense reward
+    (where the field pays for its success alone) or on another of MJX's implementations; the run is judged on the
+    field as written (its copy kept in the run's `judged` folder), whose success is the same."""
+
+    spec: FieldSpec  # the field as the run trains on it, named as the field
+    changes: dict  # what differs, as a spec writes it: {"task": {"reward": "dense"}, "sim": {"backend": "warp"}}
+
+    def line(self, written: FieldSpec) -> str:
+        """One line: what the run trains on, and that it is judged on the field as written."""
+        parts = []
+        if "task" in self.changes:
+            terms = ", ".join(term.term for term in self.spec.task.reward)
+            parts.append(f"its task's dense reward (task: {{reward: dense}}: {terms})")
+        if "sim" in self.changes:
+            parts.append(f"sim.backend {self.spec.sim.backend} ({BACKENDS[self.spec.sim.backend].description})")
+        return (f"trains {written.name} on {' and '.join(parts)}, as its recipe says; the run keeps the field as "
+                f"written, and fieldgen eval judges it there (the same success)")
+
+
+def trained_form(trained: FieldSpec, written: FieldSpec) -> str:
+    """How the field a run trained on differs from the field as written, in words: 'its task's dense reward and
+    sim.backend warp'."""
+    parts = []
+    if trained.task.reward != written.task.reward:
+        parts.append("its task's dense reward" if load_spec(written, changes={"task": {"reward": "dense"}}).task.reward
+                     == trained.task.reward else "other reward terms")
+    if trained.sim.backend != written.sim.backend:
+        parts.append(f"sim.backend {trained.sim.backend}")
+    return " and ".join(parts) or "the field as written"
+
+
+def warp_runs_here() -> bool:
+    """Whether MuJoCo Warp's kernels step a field here at the speed a recipe chose them for: warp-lang installed and
+    a GPU for JAX (on a CPU Warp runs its CPU kernels, slower than MJX's JAX implementation)."""
+    if importlib.util.find_spec("warp") is None:
+        return False
+    import jax
+
+    return jax.default_backend() == "gpu"
+
+
+def training(written: FieldSpec, recipe: Recipe | None, trains_here: bool = True) -> tuple[Training | None, str | None]:
+    """What a new run on `written` trains on as `recipe` says (None: the field as written), and a line where the
+    recipe's physics is left aside here. `reward: dense` applies to a field paid for its success alone (a field with
+    reward terms of its own trains on them); `backend` replaces one of MJX's implementations with another, Warp only
+    where it runs (`warp_runs_here`), or anywhere for a run prepared to train elsewhere (not `trains_here`).
+    RecipeError where the field's task has no dense reward."""
+    if recipe is None or written.teams is not None:
+        return None, None
+    changes, note = {}, None
+    if recipe.reward == "dense" and is_sparse(written):
+        kind = written.task.success.kind
+        if kind not in DENSE_REWARDS:
+            raise RecipeError(f"{recipe.where}: recipe '{recipe.field}' trains {written.name} on its task's dense "
+                              f"reward, and its task (task.success.kind: {kind}) has none; the kinds with one are "
+                              f"{', '.join(DENSE_REWARDS)}. List reward terms under task.reward, or train with the "
+                              f"defaults: --no-recipe")
+        changes["task"] = {"reward": "dense"}
+    backend, own = recipe.backend, written.sim.backend
+    if backend not in (None, own):
+        if BACKENDS[own].mjx_impl is None:
+            note = (f"{written.name} trains on its own sim.backend {own}: its recipe's backend {backend} replaces one "
+                    f"of MJX's implementations, not brax's pipelines")
+        elif backend == "warp" and trains_here and not warp_runs_here():
+            note = (f"{written.name} trains on its own sim.backend {own} here: its recipe's backend warp (the physics "
+                    f"its figure was measured on) runs MuJoCo Warp's kernels on a GPU with warp-lang installed "
+                    f"(pip install -c requirements.lock -e '.[warp]'), and this machine has not both")
+        else:
+            changes["sim"] = {"backend": backend}
+    if not changes:
+        return None, note
+    return Training(load_spec(written, changes=changes), changes), note
 
 
 def figure(found: Found, beside: bool = True) -> str:

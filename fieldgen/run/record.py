@@ -136,6 +136,8 @@ class RunRecord(BaseModel):
     curriculum: StrictStr = ""  # the name of the curriculum the run trains through; "" (left out): a field
     init_from: InitFrom | None = None
     recipe: dict = {}  # the recipe the run was set up from (fieldgen/run/recipe.py); {} (left out): none
+    judged: Annotated[StrictStr, AfterValidator(_inside)] | None = None  # the run's copy of the field as written,
+    # where its recipe trained it on another form of it (session.JUDGED); None (left out): judged where it trained
     selfplay: StrictBool = False  # a team field's self-play run (fieldgen/run/selfplay.py): judged by matches won
 
     @property

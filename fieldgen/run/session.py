@@ -25,6 +25,7 @@ from fieldgen.run import record
 from fieldgen.schema import FieldSpec, load_spec
 
 FIELD, STAGES = "field", "stages"  # the run's own copies of its built fields: resuming needs no compiler
+JUDGED = "judged"  # the field as written, where a recipe trains the run on another (fieldgen.run.recipe.Training)
 
 
 @dataclasses.dataclass
@@ -39,6 +40,8 @@ class Run:
     state: object = None  # the checkpointed training state of a resumed run
     stage: int = 0  # the stage the next chunk trains on
     init_from: dict | None = None  # record.InitFrom of a run started from another run's networks
+    judged: Path | None = None  # the run's copy of the field as written where its recipe trained it on another
+    # form of it (JUDGED); None: judged on the field it trains on
     sampling: dict | None = None  # how the state's environments draw their episodes (curriculum.contract.
     # start_sampling, as its checkpoint or learner keeps it); None: as the state's own environments draw
 
@@ -98,23 +101,28 @@ def field_spec(source: Path) -> FieldSpec:
 
 def new_run(source: Path, algo: str, seeds: Sequence[int], config, out: Path, mixed: bool = False,
             init_from: Path | None = None, auto: bool = False, levels: int | None = None,
-            processes: dict | None = None, trains_here: bool = True, sampler=None, recipe: dict | None = None) -> Run:
+            processes: dict | None = None, trains_here: bool = True, sampler=None, recipe: dict | None = None,
+            trained_on: FieldSpec | None = None) -> Run:
     """A run folder for a field (a YAML file or a build folder) or a curriculum folder (staged, or mixed:
     every stage in one batch, built to one structure); with `auto`, a field trained through `levels` levels
     (curriculum.auto.LEVELS by default) between its easy end and itself, drawn as `sampler`
     (curriculum.auto.Sampler, its defaults where None) says; with `init_from`, starting from what that run
     learned; with `recipe`, the recipe it was set up from (run/recipe.py), as run.json keeps it. A run over
     several processes (`processes`: their layout, recorded in run.json) is set up alike in
-    each, and written by the first alone. Nothing is written before every setting is known good, the memory
+    each, and written by the first alone. With `trained_on` (a field's spec as its recipe trains on it, Training),
+    the run trains on that and keeps the field `source` holds, as written, in its `judged` folder, where `fieldgen
+    eval` judges it. Nothing is written before every setting is known good, the memory
     the run needs included where it `trains_here` (a run prepared to train elsewhere is checked where it
     resumes); `seeds` may be a range."""
     if auto and mixed:
         raise record.RunError("--curriculum auto makes its own levels from one field and trains them all at once; "
                               "give it a field (YAML or build folder), without --mixed")
     try:
-        plan, envs = curriculum.plan(source, "auto" if auto else "mixed" if mixed else "staged", levels, sampler)
+        plan, envs = curriculum.plan(source if trained_on is None else trained_on, "auto" if auto else
+                                     "mixed" if mixed else "staged", levels, sampler)
     except curriculum.PlanError as exc:
         raise record.RunError(str(exc)) from None
+    judged = None if trained_on is None else written_field(source)
     if plan.kind == "staged" and not plan.name:
         try:
             refuse_team(envs[0], f"fieldgen train's {algo}")
@@ -127,7 +135,7 @@ def new_run(source: Path, algo: str, seeds: Sequence[int], config, out: Path, mi
     for env in envs:
         config.validate_env(env, sharding.device_count(), len(seeds))
     dirs = [FIELD] if len(envs) == 1 else [f"{STAGES}/{k + 1:02d}" for k in range(len(envs))]
-    run = Run(folder, algo, envs, config, seeds, [], plan)
+    run = Run(folder, algo, envs, config, seeds, [], plan, judged=None if judged is None else folder / JUDGED)
     if trains_here:
         check_memory(run)
     run.seeds = seeds = list(seeds)
@@ -147,12 +155,15 @@ def new_run(source: Path, algo: str, seeds: Sequence[int], config, out: Path, mi
             (folder / stale).unlink(missing_ok=True)
         for env, sub in zip(envs, dirs):
             write_artifact(env.artifact, folder / sub)
+        if judged is not None:
+            write_artifact(judged, folder / JUDGED)
         if run.state is not None:
             files.write_atomic(folder / record.INITIAL, checkpoint.pieces(jax.device_get(run.state)))
         record.write_run(folder, envs[-1].spec.model_dump(mode="json"), algo, config, envs[0].layout.to_json(),
                          seeds, {"fields": dirs, **plan.record(),
                                  **({"init_from": run.init_from} if run.init_from else {}),
                                  **({"recipe": recipe} if recipe else {}),
+                                 **({"judged": JUDGED} if judged is not None else {}),
                                  **({"processes": processes} if processes else {})})
     except OSError as exc:
         blocker = files.file_in_the_way(folder.parent)
@@ -163,6 +174,17 @@ def new_run(source: Path, algo: str, seeds: Sequence[int], config, out: Path, mi
         raise record.RunError(f"cannot set up the run folder {folder}: {exc.strerror}; free some space, fix the "
                               "folder's permissions or choose another --out") from None
     return run
+
+
+def written_field(source: Path):
+    """The built field `source` (a YAML file or build folder) holds as written: what a run trained on another form
+    of it (a recipe's Training) is judged on."""
+    from fieldgen.compile.artifact import compile_spec
+
+    try:
+        return load_artifact(source) if source.is_dir() else compile_spec(load_spec(source))
+    except ArtifactError as exc:
+        raise record.RunError(f"{source}: {exc}") from None
 
 
 def check_memory(run: Run) -> None:
@@ -277,6 +299,10 @@ def open_run(folder: Path, load_state: bool = True, to_train: bool = False, lear
             envs.append(fieldgen.FieldEnv(load_artifact(folder / sub)))
         except ArtifactError as exc:
             raise record.field_copy_error(folder / sub, exc.problem) from None
+    if saved.judged and not (folder / saved.judged).is_dir():
+        raise record.RunError(f"{folder / saved.judged} is missing: the run's own copy of the field as written, which "
+                              f"its figures are judged on (a copy of the run that left it out); restore it from the "
+                              f"run's copy, or judge it on that field by name: fieldgen eval {folder} --field FIELD")
     if any(saved.observation != env.layout.to_json() for env in envs):
         raise record.RunError(f"{folder} was trained on a different observation layout than its fields give now")
     try:
@@ -303,7 +329,8 @@ def open_run(folder: Path, load_state: bool = True, to_train: bool = False, lear
         raise record.RunError(str(exc)) from None
     _check_levels_results(folder, rows, plan.kind, len(envs))
     run = Run(folder, saved.algo, envs, config, seeds, rows, plan,
-              init_from=saved.init_from.model_dump() if saved.init_from else None)
+              init_from=saved.init_from.model_dump() if saved.init_from else None,
+              judged=folder / saved.judged if saved.judged else None)
     if not load_state:
         return run  # only reported on
     damaged = "the file was edited or damaged: restore it from a copy, or start the run again in a new folder"

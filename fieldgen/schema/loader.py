@@ -57,15 +57,18 @@ def resolve_spec_path(ref: str, relative_to: Path | None = None) -> Path:
     return path
 
 
-def load_spec(path: str | Path | FieldSpec, backend: str | None = None) -> FieldSpec:
+def load_spec(path: str | Path | FieldSpec, backend: str | None = None, changes: dict | None = None) -> FieldSpec:
     """Load, merge and validate a field spec; raises SpecError listing every problem. `backend`
-    replaces its sim.backend, with that pipeline's defaults for whatever the spec leaves out."""
+    replaces its sim.backend, with that pipeline's defaults for whatever the spec leaves out; `changes`
+    (keys as a spec writes them, e.g. {"task": {"reward": "dense"}}) merge over it as over what it extends."""
     if isinstance(path, FieldSpec):
         source = Source(path.model_dump(mode="json", exclude_unset=True))
     else:
         source = _load_merged(Path(path), ())
     if backend is not None:
         source = merge(source, Source({"sim": {"backend": backend}}))
+    if changes:
+        source = merge(source, Source(changes))
     return validate(source)
 
 

@@ -37,7 +37,11 @@ def test_the_measured_recipes_are_the_commands_their_figures_came_from():
     ant = table["ant_nav"]
     assert (ant.algo, ant.steps, ant.sets) == ("crl", 14_000_000, ("crl.num_evals=7",))
     assert ant.measured.figure.startswith("IQM 0.923 [0.899, 0.947]") and "600-604" in ant.measured.seeds
-    assert table["v2_wide_goalie"].algo == "crl" and table["v2_wide_goalie"].measured is None
+    wide_goalie = table["v2_wide_goalie"]  # the field as written trains as its dense twin on Warp did
+    assert (wide_goalie.algo, wide_goalie.steps, wide_goalie.envs, wide_goalie.reward, wide_goalie.backend) == (
+        "ppo", 560_000_000, 8192, "dense", "warp")
+    assert wide_goalie.sets == table["v2_wide_goalie_dense_warp"].sets
+    assert wide_goalie.measured.figure.startswith("IQM 0.675 [0.583, 0.746]") and "990-992" in wide_goalie.measured.seeds
 
 
 def test_a_recipe_extends_another_keeping_its_own_set_items_and_never_its_figure(tmp_path):
@@ -47,12 +51,12 @@ def test_a_recipe_extends_another_keeping_its_own_set_items_and_never_its_figure
     assert dense.measured is None and "760-762" in wide.measured.seeds  # its own runs
     path = tmp_path / "recipes.yaml"
     path.write_text("base:\n  algo: ppo\n  steps: 1000\n  set: [ppo.num_evals=2, ppo.spread=global]\n"
-                    "  measured: {figure: '0.5', seeds: one seed (0), data: here}\n"
-                    "child:\n  extends: base\n  envs: 8\n  set: [ppo.num_evals=3]\n")
+                    "  measured: {figure: '0.5', seeds: one seed (0), data: here}\n  reward: dense\n  backend: warp\n"
+                    "child:\n  extends: base\n  envs: 8\n  set: [ppo.num_evals=3]\n  backend: mjx\n")
     child = recipes.read(path)["child"]
-    assert (child.algo, child.steps, child.envs) == ("ppo", 1000, 8)
+    assert (child.algo, child.steps, child.envs, child.reward, child.backend) == ("ppo", 1000, 8, "dense", "mjx")
     assert child.sets == ("ppo.spread=global", "ppo.num_evals=3") and child.measured is None
-    assert child.where == f"{path}:6"
+    assert child.where == f"{path}:8"
 
 
 def test_a_field_takes_the_recipe_of_the_nearest_field_it_extends():
@@ -87,6 +91,9 @@ def test_a_recipe_sits_over_the_agents_preset_and_under_every_setting_the_comman
     ("f:\n  extends: g\ng:\n  extends: f\n", "extends forms a cycle: f -> g -> f"),
     ("f:\n  steps: 10\n", ":1: recipe 'f' names no algo; choose one of crl,"),
     ("f:\n  algo: crl\n  measured: {figure: '0.5'}\n", "measured must be a mapping of figure, seeds, data, each a text"),
+    ("f:\n  algo: ppo\n  reward: shaped\n", ":3: recipe 'f': reward must be one of dense, not 'shaped'"),
+    ("f:\n  algo: ppo\n  backend: wrap\n", ":3: recipe 'f': backend must be one of mjx, warp (did you mean 'warp'?), "
+                                              "not 'wrap'"),
 ])
 def test_a_wrong_recipe_is_one_sentence_at_its_line(tmp_path, text, phrase):
     path = tmp_path / "recipes.yaml"

@@ -406,12 +406,16 @@ TORN = '{"eval": 1, "se'
     (lambda run: shutil.rmtree(run / "field"), "point_nav-crl-0/field is missing: the run's own copy of its field "
      "(a setup cut short, or a copy of the run that left it out); set the run up again with the fieldgen train "
      "command that made it"),
+    (lambda run: edit_record(run, judged="../../elsewhere"), "run.json is not a run record: judged should name a "
+     "folder inside the run, such as field or stages/01, not '../../elsewhere'"),
+    (lambda run: edit_record(run, judged="judged"), "point_nav-crl-0/judged is missing: the run's own copy of the "
+     "field as written, which its figures are judged on"),
     (lambda run: (run / "run.json").unlink(), "point_nav-crl-0 is not a training run: run.json is missing; name the "
      "folder fieldgen train wrote (runs/<field>-<algo>-<seed>); one whose setup was cut short is set up again by the "
      "same fieldgen train command"),
 ], ids=["file", "empty", "list", "config", "seeds", "seeds_mixed", "fields", "promotion", "middle", "bytes",
         "eval_text", "stage", "no_rows", "folder", "field", "other_field", "field_text", "no_field", "field_missing",
-        "record_missing"])
+        "judged_outside", "judged_missing", "record_missing"])
 def test_damaged_run_folders_are_clear_errors(tmp_path, damage, phrase, tiny_crl_args):
     """What a kill, an editor or a copy can leave in a run folder: one sentence naming the file and the key,
     never a traceback."""

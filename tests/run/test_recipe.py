@@ -42,14 +42,13 @@ def test_a_field_of_ones_own_takes_the_recipe_of_the_field_it_extends_and_says_s
     assert other.recipe is None and other.algo == "crl" and "not taken: --algo crl" in other.line([])
 
 
-def test_the_sparse_wide_goalie_points_to_its_dense_twin_as_the_measured_route():
-    chosen = recipe.choose(bundled_fields()["v2_wide_goalie"], None)
-    assert chosen.algo == "crl"
-    assert chosen.line([]).startswith("recipe v2_wide_goalie: crl with its defaults; not measured yet; the measured "
-                                      "route is its dense twin v2_wide_goalie_dense (ppo, 250M env steps")
+def test_a_sparse_field_without_a_recipe_of_its_own_points_to_its_dense_twin_as_the_measured_route(tmp_path):
+    fields = bundled_fields()
     also = "; also measured: v2_wide_goalie_dense_warp, IQM 0.675 [0.583, 0.746] success at 560M env steps"
-    assert also in chosen.line([])  # the twin's own field on other physics, with a recipe measured there
-    assert also in recipe.choose(bundled_fields()["v2_wide_goalie_dense"], None).line([])
+    assert also in recipe.choose(fields["v2_wide_goalie_dense"], None).line([])  # its task on other physics
+    assert recipe.dense_route("v2_wide_goalie").startswith(
+        "; the measured route is its dense twin v2_wide_goalie_dense (ppo, 250M env steps")
+    assert also in recipe.dense_route("v2_wide_goalie")
 
 
 def test_a_field_on_other_physics_keeps_its_own_measured_recipe_over_the_one_it_extends():
@@ -132,8 +131,8 @@ def test_list_shows_each_bundled_fields_recipe_and_measured_figure_with_its_seed
     assert rows["soccer_v2_dense"][1] == "not measured yet"
     assert rows["ant_nav"][1] == ("measured: IQM 0.923 [0.899, 0.947] success at 14M env steps, 1,024 episodes a "
                                   "seed; five seeds in one program in 414 s on one H200, five fresh seeds (600-604)")
-    assert rows["v2_wide_goalie"][1].startswith("not measured yet; the measured route is its dense twin "
-                                                "v2_wide_goalie_dense (ppo, 250M env steps")
+    assert rows["v2_wide_goalie"][0].endswith("on its task's dense reward, on sim.backend warp")
+    assert rows["v2_wide_goalie"][1].startswith("measured: IQM 0.675 [0.583, 0.746] success at 560M env steps")
     assert rows["soccer_v2_dense_near"][0].endswith("(the recipe of soccer_v2_dense)")
     assert rows["soccer_v2_dense_near"][1] == "not measured on soccer_v2_dense_near yet"  # nor is its parent
     assert rows["point_soccer"] == ("crl, --preset cpu", "not measured yet")
@@ -212,3 +211,120 @@ def test_a_field_differing_in_physics_alone_names_the_field_it_is_judged_on(tmp_
     assert recipe.physics_twin(load_spec(own)) == "point_soccer"
     own.write_text("extends: point_soccer\nname: point_soccer_warp\nsim: {backend: warp}\nepisode: {length: 100}\n")
     assert recipe.physics_twin(load_spec(own)) is None  # other physics and a shorter episode: not the same task
+
+
+def spec_keys(data: dict) -> dict:
+    """A resolved spec without what names it: what a run trains on."""
+    return {k: v for k, v in data.items() if k not in ("name", "description", "extends")}
+
+
+def test_the_users_field_trains_on_the_field_its_recipes_figure_was_measured_on():
+    """v2_wide_goalie's recipe trains it on its task's dense reward on Warp's physics: the very field
+    v2_wide_goalie_dense_warp builds to but for its name, which is why that field's figure is the recipe's."""
+    from fieldgen.compile.artifact import compile_spec
+
+    fields = bundled_fields()
+    chosen = recipe.choose(fields["v2_wide_goalie"], None)
+    assert (chosen.algo, chosen.recipe.reward, chosen.recipe.backend) == ("ppo", "dense", "warp")
+    assert (chosen.recipe.steps, chosen.recipe.envs) == (560_000_000, 8192)
+    assert "990-992" in chosen.recipe.measured.seeds and chosen.line([]).startswith(
+        "recipe v2_wide_goalie: ppo, 560M env steps, 8,192 envs, --set ppo.spread=global --set ppo.num_evals=28, on "
+        "its task's dense reward, on sim.backend warp; measured: IQM 0.675 [0.583, 0.746]")
+    written = load_spec(fields["v2_wide_goalie"])
+    trained, note = recipe.training(written, chosen.recipe, trains_here=False)
+    assert note is None and trained.changes == {"task": {"reward": "dense"}, "sim": {"backend": "warp"}}
+    assert trained.spec.name == "v2_wide_goalie"
+    ours, twin = (compile_spec(spec) for spec in (trained.spec, load_spec(fields["v2_wide_goalie_dense_warp"])))
+    named = ('<mujoco model="v2_wide_goalie">', '<mujoco model="v2_wide_goalie_dense_warp">')
+    assert ours.xml.replace(*named) == twin.xml  # the scene: the same but for the model's name
+    digests = ("name", "hash", "scene_sha256", "record_sha256")  # each over the name too
+    alike = [{**{k: v for k, v in meta.items() if k not in digests}, "spec": spec_keys(meta["spec"])}
+             for meta in (ours.metadata(), twin.metadata())]
+    assert alike[0] == alike[1] and ours.metadata()["name"] == "v2_wide_goalie"
+    assert recipe.trained_form(trained.spec, written) == "its task's dense reward and sim.backend warp"
+
+
+def test_where_warp_does_not_run_the_recipe_trains_on_the_fields_own_physics_and_says_why(monkeypatch):
+    monkeypatch.setattr(recipe, "warp_runs_here", lambda: False)
+    written = load_spec(bundled_fields()["v2_wide_goalie"])
+    wide = recipe.choose(bundled_fields()["v2_wide_goalie"], None).recipe
+    trained, note = recipe.training(written, wide)
+    assert trained.changes == {"task": {"reward": "dense"}} and trained.spec.sim.backend == "mjx"
+    assert note.startswith("v2_wide_goalie trains on its own sim.backend mjx here: its recipe's backend warp")
+    prepared, note = recipe.training(written, wide, trains_here=False)  # set up here, trained on a GPU elsewhere
+    assert prepared.spec.sim.backend == "warp" and note is None
+
+
+def test_a_field_with_reward_terms_of_its_own_keeps_them_under_a_dense_recipe(tmp_path):
+    own = tmp_path / "my_goalie.yaml"
+    own.write_text("extends: v2_wide_goalie\nname: my_goalie\n"
+                   "task: {reward: [{term: success, weight: 1.0}, {term: ball_progress, weight: 5.0}]}\n")
+    written = load_spec(own)
+    trained, _ = recipe.training(written, recipe.choose(own, None).recipe, trains_here=False)
+    assert trained.changes == {"sim": {"backend": "warp"}} and trained.spec.task.reward == written.task.reward
+    nowhere = tmp_path / "to_the_goal.yaml"  # the agent to a goal mouth: a task with no dense reward
+    nowhere.write_text("extends: v2_wide_goalie\nname: to_the_goal\ntask: {success: {kind: ball_in_goal}}\n")
+    with pytest.raises(recipe.RecipeError) as caught:
+        recipe.training(load_spec(nowhere), recipe.choose(nowhere, None).recipe)
+    assert "recipe 'v2_wide_goalie' trains to_the_goal on its task's dense reward, and its task " \
+           "(task.success.kind: ball_in_goal) has none; the kinds with one are ball_near_target, " \
+           "agent_near_target" in str(caught.value) and str(caught.value).endswith("--no-recipe")
+
+
+def test_train_the_users_field_keeps_it_as_written_beside_the_field_it_trains_on(tmp_path):
+    result = runner.invoke(app, ["train", str(bundled_fields()["v2_wide_goalie"]), "--prepare",
+                                 "--out", str(tmp_path)])
+    assert result.exit_code == 0, result.output
+    said = lines_with(" ".join(result.output.split("\n")), "trains v2_wide_goalie on its task's dense reward")
+    assert len(said) == 1 and "the run keeps the field as written, and fieldgen eval judges it there" in said[0]
+    run = tmp_path / "v2_wide_goalie-ppo-0"
+    saved = json.loads((run / "run.json").read_text())
+    assert saved["judged"] == "judged" and (saved["recipe"]["reward"], saved["recipe"]["backend"]) == ("dense", "warp")
+    trained, written = (json.loads((run / sub / "field.json").read_text())["spec"] for sub in ("field", "judged"))
+    assert (trained["sim"]["backend"], written["sim"]["backend"]) == ("warp", "mjx")
+    assert [t["term"] for t in written["task"]["reward"]] == ["success"]
+    assert trained == saved["field"] and spec_keys(written) == spec_keys(
+        load_spec(bundled_fields()["v2_wide_goalie"]).model_dump(mode="json"))
+
+
+def test_a_run_judged_on_the_field_as_written_and_one_judged_where_it_trained_are_not_judged_together(tmp_path):
+    from fieldgen.run import evaluate, record
+
+    fields = bundled_fields()
+    for args in ([str(fields["v2_wide_goalie"])], [str(fields["v2_wide_goalie"]), "--no-recipe", "--algo", "ppo"]):
+        result = runner.invoke(app, ["train", *args, "--seed", str(len(list(tmp_path.iterdir()))), "--envs", "16",
+                                     "--prepare", "--out", str(tmp_path)])
+        assert result.exit_code == 0, result.output
+    recipe_run, plain_run = tmp_path / "v2_wide_goalie-ppo-0", tmp_path / "v2_wide_goalie-ppo-1"
+    assert evaluate.judged_copy([recipe_run]) == recipe_run / "judged"
+    assert evaluate.judged_copy([plain_run]) is None
+    with pytest.raises(record.RunError, match="evaluate them separately, or name the field to judge both on"):
+        evaluate.judged_copy([plain_run, recipe_run])
+
+
+@pytest.mark.slow
+def test_a_run_trained_on_its_recipes_dense_reward_is_judged_on_the_field_as_written(tmp_path, monkeypatch,
+                                                                                     tiny_crl_args):
+    """point_nav (paid for its success alone) under a recipe with `reward: dense`, trained to its end with the tests'
+    tiny settings: `fieldgen eval RUN` judges it on point_nav as written, --field RUN/field where it trained."""
+    from fieldgen.agents import recipes
+
+    path = tmp_path / "recipes.yaml"
+    path.write_text("point_nav:\n  algo: crl\n  reward: dense\n")
+    monkeypatch.setattr(recipes.read, "__defaults__", (path,))
+    result = runner.invoke(app, ["train", "point_nav", "--no-videos", "--out", str(tmp_path), *tiny_crl_args])
+    assert result.exit_code == 0, result.output
+    run = tmp_path / "point_nav-crl-0"
+    assert lines_with(" ".join(result.output.split()), f"judged on the field as written ({run / 'judged'})")
+    judged = runner.invoke(app, ["eval", str(run), "--episodes", "4", "--no-video"])
+    assert judged.exit_code == 0, judged.output
+    said = " ".join(judged.output.split())
+    assert f"judged on point_nav as written ({run / 'judged'}), where its recipe trained it on its task's dense " \
+           f"reward; --field {run / 'field'} judges it on the field it trained on" in said
+    summary = json.loads((run / "summary.json").read_text())
+    written = load_spec(bundled_fields()["point_nav"]).model_dump(mode="json")
+    from fieldgen.compile.artifact import field_digest
+
+    assert summary["fields"] == ["point_nav"] and summary["field_digests"] == [field_digest(written)]
+    trained = runner.invoke(app, ["eval", str(run), "--episodes", "4", "--no-video", "--field", str(run / "field")])
+    assert trained.exit_code == 0 and "judged on point_nav as written" not in trained.output, trained.output
