@@ -121,6 +121,23 @@ def test_an_exported_policy_plays_on_the_field_it_names_and_no_other(tmp_path, m
     assert result.output.count("\n") == 1
 
 
+def test_a_run_its_recipe_trained_on_the_dense_reward_plays_on_the_field_as_written(tmp_path, monkeypatch,
+                                                                                       tiny_crl_args):
+    from tiny_runs import as_if_learned
+
+    from fieldgen.agents import recipes
+
+    path = tmp_path / "recipes.yaml"
+    path.write_text("point_nav:\n  algo: crl\n  reward: dense\n")
+    monkeypatch.setattr(recipes.read, "__defaults__", (path,))
+    result = CliRunner().invoke(app, ["train", "point_nav", "--prepare", "--out", str(tmp_path), *tiny_crl_args])
+    assert result.exit_code == 0, result.output
+    run = as_if_learned(tmp_path / "point_nav-crl-0")
+    (run / "metrics.jsonl").write_text(json.dumps({"eval": 0, "seed": 0, "env_steps": 0, "success_any": 0.0}) + "\n")
+    (env, _), = viewed(monkeypatch, run)
+    assert [term.term for term in env.spec.task.reward] == ["success"]  # point_nav's own, not the dense terms
+
+
 def test_a_self_play_run_plays_every_agent_of_both_sides_on_its_own_field(tmp_path, monkeypatch):
     """A self-play run's learner (its checkpoint, here its first state) drives each agent on that agent's own
     observation; the corner says each side's reward and goal; --field is refused, as the run plays its field alone."""

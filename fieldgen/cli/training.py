@@ -290,6 +290,8 @@ def train(
                 out.print(trained_on.line(field), soft_wrap=True)
             _warn_if_sparse(field if trained_on is None else trained_on.spec, algo,
                             getattr(algo_config, "reward", "dense"))
+            if not prepare:
+                _note_if_gpu_sized(algo_config.total_steps)
             if levels is not None and curriculum_kind != "auto":
                 fail(f"--levels {levels} sets how many levels --curriculum auto makes; add --curriculum auto")
             sampler = _sampler(samplers) if samplers else None
@@ -347,6 +349,20 @@ def _team_run(source: Path, field, algo: str | None, seeds: int, config: Path | 
     _warn_if_sparse(field, SelfPlayConfig.algo, settings.reward)
     return selfplay.new_run(source, settings, runs, list(range(seed, seed + seeds)), check_memory=not prepare,
                             recipe=chosen.record(overriding))
+
+
+GPU_SIZED = 100_000_000  # env steps from which a run is sized for a GPU: days on a CPU
+
+
+def _note_if_gpu_sized(total_steps: int) -> None:
+    """One line where a run sized for a GPU is about to train on a CPU: its first progress comes after a chunk,
+    hours away there."""
+    import jax
+
+    if total_steps >= GPU_SIZED and jax.default_backend() == "cpu":
+        out.print(Text(f"note: {total_steps:,} env steps is a run sized for a GPU, and JAX finds none here: on this "
+                       "CPU it trains for days; --preset cpu sizes a run for a CPU, and --prepare sets this one up "
+                       "to train on a GPU machine (fieldgen train --resume RUN there)", style="yellow"), soft_wrap=True)
 
 
 def _warn_if_sparse(field, algo: str, reward: str) -> None:

@@ -19,7 +19,8 @@ def view(
                                          "policy at its last evaluation plays); or a folder of fieldgen export")],
     field: Annotated[Optional[str], typer.Option(
         metavar="SPEC", help="the field a policy plays on (YAML file, bundled name or build folder) [default: the "
-                             "run's own; for an exported policy, the bundled field it names]")] = None,
+                             "run's own, or the field as written that it keeps where its recipe trained it on another "
+                             "form of it; for an exported policy, the bundled field it names]")] = None,
     seed: Annotated[Optional[int], typer.Option(metavar="SEED",
                                                 help="which of a run's seeds plays (default: its first)")] = None,
     camera: Annotated[str, typer.Option(help="the view: free turns with the mouse; the others are the scene's",
@@ -85,8 +86,8 @@ def _playing(source: str, field: str | None, seed: int | None):
             return run.env, jax.tree_util.Partial(type(policy).__call__, policy)
         if (folder / record.RUN).is_file():
             run = session.open_run(folder, learned=True)
-            if field is not None:
-                run = session.on_field(run, field_source(field))
+            if field is not None or run.judged is not None:  # by default where its figures are judged
+                run = session.on_field(run, field_source(field) if field is not None else run.judged)
             _, policy, _ = learned_policy(run, seed)
             return run.env, jax.tree_util.Partial(type(policy).__call__, policy)
         if seed is not None:

@@ -328,3 +328,18 @@ def test_a_run_trained_on_its_recipes_dense_reward_is_judged_on_the_field_as_wri
     assert summary["fields"] == ["point_nav"] and summary["field_digests"] == [field_digest(written)]
     trained = runner.invoke(app, ["eval", str(run), "--episodes", "4", "--no-video", "--field", str(run / "field")])
     assert trained.exit_code == 0 and "judged on point_nav as written" not in trained.output, trained.output
+
+
+def test_a_run_sized_for_a_gpu_about_to_train_on_a_cpu_is_noted_once(tmp_path, monkeypatch):
+    """Its first progress line would come after a chunk of millions of env steps: hours away on a CPU."""
+    import fieldgen.cli.training as training_command
+
+    trained = []
+    monkeypatch.setattr(training_command, "_train", lambda run, *args, **kwargs: trained.append(run.folder))
+    note = "is a run sized for a GPU, and JAX finds none here"
+    for seed, steps, prepare, said in ((0, "100M", [], 1), (1, "99M", [], 0), (2, "100M", ["--prepare"], 0)):
+        result = runner.invoke(app, ["train", "point_nav", "--algo", "ppo", "--steps", steps, "--envs", "8",
+                                     "--seed", str(seed), "--out", str(tmp_path), *prepare])
+        assert result.exit_code == 0, result.output
+        assert len(lines_with(" ".join(result.output.split()), note)) == said, result.output
+    assert trained == [tmp_path / "point_nav-ppo-0", tmp_path / "point_nav-ppo-1"]
