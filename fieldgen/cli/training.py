@@ -283,7 +283,8 @@ def train(
             if layers:
                 out.print(f"{algo} on {agent} fields starts from {' then '.join(layers)} (a --config file or --set "
                           "overrides it)")
-            trained_on, left_aside = recipes.training(field, recipe, trains_here=not prepare)
+            trained_on, left_aside = recipes.training(field, recipe, trains_here=not prepare,
+                                                      batched=curriculum_kind == "auto")
             if left_aside:
                 out.print(Text(f"note: {left_aside}", style="yellow"), soft_wrap=True)
             if trained_on is not None:

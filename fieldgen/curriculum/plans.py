@@ -117,6 +117,7 @@ def plan(source, kind: str = "staged", levels: int | None = None, sampler=None) 
                             f"give it a field (YAML or build folder), without --mixed, not the curriculum folder "
                             f"{source}")
         envs, coordinates, kickoffs = auto_environments(source, levels)
+        _refuse_warp_batch(envs)
         from fieldgen.curriculum.auto import Sampler, run_label
 
         return Plan("auto", run_label(envs[-1].spec.name), levels=coordinates, kickoffs=kickoffs,
@@ -132,6 +133,8 @@ def plan(source, kind: str = "staged", levels: int | None = None, sampler=None) 
         layouts = {json.dumps(e.layout.to_json()) for e in envs}
         if len(layouts) > 1:
             raise PlanError(f"{source}: the stages' observation layouts differ; a policy cannot move between them")
+        if mixed:
+            _refuse_warp_batch(envs)
         return Plan(kind, source.name + ("-mixed" if mixed else ""), c.promotion), envs
     if mixed:
         raise PlanError(f"{source if isinstance(source, Path) else source.name} is a single field; --mixed trains the stages of a curriculum folder "
@@ -139,6 +142,18 @@ def plan(source, kind: str = "staged", levels: int | None = None, sampler=None) 
     import fieldgen
 
     return Plan(), [fieldgen.make(source)]
+
+
+def _refuse_warp_batch(envs: list) -> None:
+    """PlanError before anything is written where the environments would batch Warp's physics in one model."""
+    from fieldgen.env.batch import refuse_warp_batch
+    from fieldgen.schema.backends import mjx_impl
+
+    try:
+        for impl in {mjx_impl(env.spec) for env in envs}:
+            refuse_warp_batch([env.spec.name for env in envs], impl)
+    except ValueError as exc:
+        raise PlanError(str(exc)) from None
 
 
 def auto_environments(source, count: int | None) -> tuple[list, list[dict], list]:

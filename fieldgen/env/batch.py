@@ -47,13 +47,20 @@ def own_device() -> jax.Device:
     return jax.local_devices()[0]
 
 
+def refuse_warp_batch(names: list[str], impl: str) -> None:
+    """ValueError where variants (a mixed curriculum's stages, an automatic curriculum's levels) of Warp's physics
+    would be batched in one model."""
+    if impl == "warp" and len(names) > 1:
+        raise ValueError(f"{names[-1]}: variants batched in one model (a mixed curriculum's stages, --curriculum "
+                         "auto's levels) run on sim.backend mjx only (fieldgen stacks the models of MJX's JAX "
+                         "implementation, not Warp's, whose static fields it cannot compare): train the stages in "
+                         "turn (without --mixed), or the field on sim.backend: mjx")
+
+
 def batched_model(models, names: list[str], impl: str = "jax") -> tuple[object, frozenset[int]]:
     """One mjx.Model of MJX's implementation `impl` whose leaves that differ between the variants are stacked on
     a leading axis, and the indices of those leaves."""
-    if impl == "warp" and len(models) > 1:
-        raise ValueError(f"{names[-1]}: variants batched in one model run on sim.backend mjx only (fieldgen stacks "
-                         "the models of MJX's JAX implementation, not Warp's, whose static fields it cannot compare): "
-                         "train the stages in turn (without --mixed), or give every stage sim.backend: mjx")
+    refuse_warp_batch(names, impl)
     systems = [mjx_physics.put_model(m, impl, own_device(), field=n) for m, n in zip(models, names)]
     first = systems[0]
     systems = [first] + [_static_like(first, s, f"{n} and {names[0]}") for s, n in zip(systems[1:], names[1:])]

@@ -124,11 +124,13 @@ def warp_runs_here() -> bool:
     return jax.default_backend() == "gpu"
 
 
-def training(written: FieldSpec, recipe: Recipe | None, trains_here: bool = True) -> tuple[Training | None, str | None]:
+def training(written: FieldSpec, recipe: Recipe | None, trains_here: bool = True,
+             batched: bool = False) -> tuple[Training | None, str | None]:
     """What a new run on `written` trains on as `recipe` says (None: the field as written), and a line where the
     recipe's physics is left aside here. `reward: dense` applies to a field paid for its success alone (a field with
     reward terms of its own trains on them); `backend` replaces one of MJX's implementations with another, Warp only
-    where it runs (`warp_runs_here`), or anywhere for a run prepared to train elsewhere (not `trains_here`).
+    where it runs (`warp_runs_here`), or anywhere for a run prepared to train elsewhere (not `trains_here`), and
+    never for a run that batches variants of the field in one model (`batched`: --curriculum auto's levels).
     RecipeError where the field's task has no dense reward."""
     if recipe is None or written.teams is not None:
         return None, None
@@ -146,6 +148,9 @@ def training(written: FieldSpec, recipe: Recipe | None, trains_here: bool = True
         if BACKENDS[own].mjx_impl is None:
             note = (f"{written.name} trains on its own sim.backend {own}: its recipe's backend {backend} replaces one "
                     f"of MJX's implementations, not brax's pipelines")
+        elif backend == "warp" and batched:
+            note = (f"{written.name} trains on its own sim.backend {own}: its recipe's backend warp does not batch "
+                    f"the levels of --curriculum auto in one model, which MJX's JAX implementation does")
         elif backend == "warp" and trains_here and not warp_runs_here():
             note = (f"{written.name} trains on its own sim.backend {own} here: its recipe's backend warp (the physics "
                     f"its figure was measured on) runs MuJoCo Warp's kernels on a GPU with warp-lang installed "

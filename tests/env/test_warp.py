@@ -81,8 +81,25 @@ def test_warp_variants_in_one_batch_are_refused_with_the_reason():
     from fieldgen.env.batch import batched_model
 
     env = make("point_nav", backend="warp")
-    with pytest.raises(ValueError, match="point_nav: variants batched in one model run on sim.backend mjx only"):
+    with pytest.raises(ValueError, match=r"point_nav: variants batched in one model \(a mixed curriculum's stages, "
+                                         r"--curriculum auto's levels\) run on sim.backend mjx only"):
         batched_model([env.mj_model, env.mj_model], ["point_nav", "point_nav"], "warp")
+
+
+def test_an_automatic_curriculum_of_a_warp_field_is_refused_before_anything_is_written(tmp_path):
+    """Before: a traceback from the batch, after the run folder was written."""
+    from typer.testing import CliRunner
+
+    from fieldgen.cli import app
+
+    spec = tmp_path / "point_soccer_warp.yaml"
+    spec.write_text("extends: point_soccer\nname: point_soccer_warp\nsim: {backend: warp}\n")
+    result = CliRunner().invoke(app, ["train", str(spec), "--curriculum", "auto", "--no-recipe", "--envs", "8",
+                                      "--prepare", "--out", str(tmp_path / "runs")])
+    assert result.exit_code == 1 and "Traceback" not in result.output, result.output
+    assert "variants batched in one model (a mixed curriculum's stages, --curriculum auto's levels) run on " \
+           "sim.backend mjx only" in " ".join(result.output.split())
+    assert not (tmp_path / "runs").exists()
 
 
 def test_another_library_s_wrappers_take_a_warp_field_once_its_batch_is_reserved():

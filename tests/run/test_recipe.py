@@ -253,6 +253,8 @@ def test_where_warp_does_not_run_the_recipe_trains_on_the_fields_own_physics_and
     assert note.startswith("v2_wide_goalie trains on its own sim.backend mjx here: its recipe's backend warp")
     prepared, note = recipe.training(written, wide, trains_here=False)  # set up here, trained on a GPU elsewhere
     assert prepared.spec.sim.backend == "warp" and note is None
+    levels, note = recipe.training(written, wide, trains_here=False, batched=True)  # --curriculum auto's levels
+    assert levels.spec.sim.backend == "mjx" and "does not batch the levels of --curriculum auto" in note
 
 
 def test_a_field_with_reward_terms_of_its_own_keeps_them_under_a_dense_recipe(tmp_path):
