@@ -11,7 +11,7 @@ from pathlib import Path
 import jax
 
 from fieldgen.agents import loop, memory, programs
-from fieldgen.compile.artifact import field_digest, load_artifact
+from fieldgen.compile.artifact import ArtifactError, field_digest, load_artifact
 from fieldgen.env.mjx_physics import OVERFLOW, PhysicsOverflow
 from fieldgen.run import record, session, summary
 from fieldgen.run.session import Run
@@ -117,18 +117,23 @@ def open_runs(folders: list[Path], field: Path | None = None) -> list[Run]:
 def judged_copy(folders: list[Path]) -> Path | None:
     """Where runs to judge together are judged by default: the copy of the field as written that each keeps where a
     recipe trained it on another form of it (the first's; refused where they differ), else None (where they trained)."""
-    copies = [session.open_run(folder, load_state=False).judged for folder in folders]
+    kept = [record.read_run(folder).judged for folder in folders]
+    copies = [None if sub is None else folder / sub for folder, sub in zip(folders, kept)]
     if all(copy is None for copy in copies):
         return None
     if any(copy is None for copy in copies):
-        alone = folders[copies.index(None)]
-        raise record.RunError(f"{alone} is judged on the field it trained on, {folders[copies.index(next(c for c in copies if c))]} "
-                              "on the field as written beside another form its recipe trained on: evaluate them "
-                              "separately, or name the field to judge both on: --field FIELD")
-    digests = {field_digest(load_artifact(copy).spec.model_dump(mode="json")) for copy in copies}
+        alone, other = folders[copies.index(None)], folders[next(k for k, c in enumerate(copies) if c is not None)]
+        raise record.RunError(f"{alone} is judged on the field it trained on, {other} on the field as written beside "
+                              "another form its recipe trained on: evaluate them separately, or name the field to "
+                              "judge both on: --field FIELD")
+    try:
+        digests = {field_digest(load_artifact(copy).spec.model_dump(mode="json")) for copy in copies}
+    except ArtifactError as exc:
+        raise record.RunError(f"{exc.problem}; it is a run's own copy of the field as written: restore it from a copy "
+                              "of the run, or judge the run on that field by name: --field FIELD") from None
     if len(digests) > 1:
-        raise record.RunError(f"{', '.join(map(str, folders))} keep different fields as written ({', '.join(map(str, copies))}): "
-                              "runs evaluated together are seeds of one field; evaluate them separately")
+        raise record.RunError(f"{', '.join(map(str, folders))} keep different fields as written: runs evaluated "
+                              "together are seeds of one field; evaluate them separately")
     return copies[0]
 
 
