@@ -240,7 +240,7 @@ def test_eval_writes_no_summary_over_a_sweeps_or_a_runs_own_files(tmp_path, monk
         (run / "run.json").write_text("{}")
     files.write_file(tmp_path / "summary.json", b"the sweep's", files.SWEEP)
     opened = SimpleNamespace(config=SimpleNamespace(eval_envs=8, eval_actions="mean"),
-                             env=SimpleNamespace(spec=SimpleNamespace(name="point_nav")))
+                             env=SimpleNamespace(spec=SimpleNamespace(name="point_nav")), judged=None)
     monkeypatch.setattr(evaluate, "open_runs", lambda folders, field: [opened] * len(folders))
     monkeypatch.setattr(evaluate, "check_memory", lambda run, episodes: None)
     monkeypatch.setattr(evaluate, "evaluate", lambda *a, **k: pytest.fail("evaluated before refusing"))

@@ -130,7 +130,8 @@ def train(
     config: Annotated[Optional[Path], typer.Option(metavar="FILE", help="YAML file: {crl: {key: value}}")] = None,
     use_recipe: Annotated[bool, typer.Option(
         "--recipe/--no-recipe", help="take the field's recipe (agents/presets/recipes.yaml: its algorithm, env steps, "
-                                     "envs, settings, curriculum), or that of the field it extends; its options above "
+                                     "envs, settings, curriculum, and a dense reward or physics to train on, judged "
+                                     "on the field as written), or that of the field it extends; its options above "
                                      "and --set override it; --no-recipe trains with the defaults")] = True,
     runs: Annotated[Path, typer.Option("--out", metavar="DIR", help="folder for run folders")] = Path("runs"),
     resume: Annotated[Optional[Path], typer.Option(metavar="RUN", help="continue the run in this folder")] = None,
@@ -579,8 +580,8 @@ def evaluate(
     summary_written = False  # what Ctrl-C leaves: the summary and the video are each written whole or not at all
     try:
         try:
-            judged = judging.judged_copy(run_dirs) if field is None else None  # the field as written, by default
-            runs = judging.open_runs(run_dirs, judged if field is None else field_source(field))
+            runs = judging.open_runs(run_dirs, None if field is None else field_source(field))
+            judged = runs[0].judged if field is None else None  # by default, the field as written a run keeps
             episodes = episodes or runs[0].config.eval_envs  # sized with training: a CPU-sized run evaluates quickly
             actions = actions or runs[0].config.eval_actions  # the figures training drew are the ones judged again
             for run in runs:

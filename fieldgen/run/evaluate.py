@@ -87,13 +87,15 @@ def field_digests(run: Run) -> list[str]:
 
 
 def open_runs(folders: list[Path], field: Path | None = None) -> list[Run]:
-    """The runs to judge together, each with its last checkpoint (its policy put on `field` where given).
+    """The runs to judge together, each with its last checkpoint (its policy put on `field` where given, else on the
+    copy of the field as written that runs keep where a recipe trained them on another form of it: `judged_copy`).
     Refused before any checkpoint loads: a folder that is not a run or has not trained, runs of another
     field or algorithm than the first's, a seed in two of them, a `field` that is a folder of fields; a summary
     is over the seeds of one recipe."""
-    first, owners = None, {}
+    first, owners, copies = None, {}, []
     for folder in folders:
         run = session.open_run(folder, load_state=False)
+        copies.append(run.judged)
         if not record.has_trained(folder):
             raise record.RunError(f"{folder} has no checkpoint: it has not trained yet; train it with "
                                   f"fieldgen train --resume {folder}, then evaluate it")
@@ -110,15 +112,16 @@ def open_runs(folders: list[Path], field: Path | None = None) -> list[Run]:
             owners[s] = folder
     if field is not None:
         session.refuse_folder_of_fields(field)
+    else:
+        field = judged_copy(folders, copies)
     runs = [session.open_run(folder, learned=True) for folder in folders]
     return runs if field is None else [session.on_field(run, field) for run in runs]
 
 
-def judged_copy(folders: list[Path]) -> Path | None:
-    """Where runs to judge together are judged by default: the copy of the field as written that each keeps where a
-    recipe trained it on another form of it (the first's; refused where they differ), else None (where they trained)."""
-    kept = [record.read_run(folder).judged for folder in folders]
-    copies = [None if sub is None else folder / sub for folder, sub in zip(folders, kept)]
+def judged_copy(folders: list[Path], copies: list[Path | None]) -> Path | None:
+    """Where runs to judge together are judged by default: the copy of the field as written that each keeps (its
+    `judged` folder, `copies`) where a recipe trained it on another form of it (the first's; refused where they
+    differ), else None: where they trained."""
     if all(copy is None for copy in copies):
         return None
     if any(copy is None for copy in copies):

@@ -290,7 +290,7 @@ def test_train_the_users_field_keeps_it_as_written_beside_the_field_it_trains_on
 
 
 def test_a_run_judged_on_the_field_as_written_and_one_judged_where_it_trained_are_not_judged_together(tmp_path):
-    from fieldgen.run import evaluate, record
+    from fieldgen.run import evaluate, record, session
 
     fields = bundled_fields()
     for args in ([str(fields["v2_wide_goalie"])], [str(fields["v2_wide_goalie"]), "--no-recipe", "--algo", "ppo"]):
@@ -298,10 +298,12 @@ def test_a_run_judged_on_the_field_as_written_and_one_judged_where_it_trained_ar
                                      "--prepare", "--out", str(tmp_path)])
         assert result.exit_code == 0, result.output
     recipe_run, plain_run = tmp_path / "v2_wide_goalie-ppo-0", tmp_path / "v2_wide_goalie-ppo-1"
-    assert evaluate.judged_copy([recipe_run]) == recipe_run / "judged"
-    assert evaluate.judged_copy([plain_run]) is None
+    def judged(*runs):
+        return evaluate.judged_copy(list(runs), [session.open_run(run, load_state=False).judged for run in runs])
+
+    assert judged(recipe_run) == recipe_run / "judged" and judged(plain_run) is None
     with pytest.raises(record.RunError, match="evaluate them separately, or name the field to judge both on"):
-        evaluate.judged_copy([plain_run, recipe_run])
+        judged(plain_run, recipe_run)
 
 
 @pytest.mark.slow
