@@ -290,8 +290,9 @@ def train(
                 out.print(Text(f"note: {left_aside}", style="yellow"), soft_wrap=True)
             if trained_on is not None:
                 out.print(trained_on.line(field), soft_wrap=True)
+            set_aside = None if use_recipe else recipes.choose(source, algo).recipe  # what --no-recipe left out
             _warn_if_sparse(field if trained_on is None else trained_on.spec, algo,
-                            getattr(algo_config, "reward", "dense"))
+                            getattr(algo_config, "reward", "dense"), set_aside)
             if not prepare:
                 _note_if_gpu_sized(algo_config.total_steps)
             if levels is not None and curriculum_kind != "auto":
@@ -367,11 +368,11 @@ def _note_if_gpu_sized(total_steps: int) -> None:
                        "to train on a GPU machine (fieldgen train --resume RUN there)", style="yellow"), soft_wrap=True)
 
 
-def _warn_if_sparse(field, algo: str, reward: str) -> None:
+def _warn_if_sparse(field, algo: str, reward: str, set_aside=None) -> None:
     """One line, once, where PPO would train on a success alone (fieldgen.run.recipe.sparse_warning)."""
     from fieldgen.run import recipe as recipes
 
-    warning = recipes.sparse_warning(field, algo, reward)
+    warning = recipes.sparse_warning(field, algo, reward, set_aside)
     if warning:
         out.print(Text(warning, style="yellow"), soft_wrap=True)
 

@@ -240,9 +240,10 @@ def is_sparse(spec: FieldSpec) -> bool:
     return all(terms[term.term].sparse for term in spec.task.reward)
 
 
-def sparse_warning(spec: FieldSpec, algo: str, reward: str = "dense") -> str | None:
+def sparse_warning(spec: FieldSpec, algo: str, reward: str = "dense", set_aside: Recipe | None = None) -> str | None:
     """The warning for PPO trained on a success alone, naming the dense alternative: a field whose reward is its
-    success, or a field with reward terms that `ppo.reward=sparse` sets aside (`reward`, PPO's setting)."""
+    success, or a field with reward terms that `ppo.reward=sparse` sets aside (`reward`, PPO's setting).
+    `set_aside`: the field's recipe that --no-recipe left out, named where it trains on the dense reward."""
     if algo != "ppo":
         return None
     if not is_sparse(spec):
@@ -254,6 +255,8 @@ def sparse_warning(spec: FieldSpec, algo: str, reward: str = "dense") -> str | N
     twin = DENSE_TWIN.format(spec.name)
     if spec.teams is not None:
         instead = "list match terms that pay the way to a goal under task.reward (docs/teams.md)"
+    elif set_aside is not None and set_aside.reward == "dense":
+        instead = f"its recipe ({set_aside.field}) trains it on its task's dense reward: leave out --no-recipe"
     elif twin in bundled_fields():
         instead = f"train its dense twin instead: fieldgen train {twin}"
     elif spec.task.success.kind in DENSE_REWARDS:

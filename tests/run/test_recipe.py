@@ -347,3 +347,12 @@ def test_a_run_sized_for_a_gpu_about_to_train_on_a_cpu_is_noted_once(tmp_path, m
         assert result.exit_code == 0, result.output
         assert len(lines_with(" ".join(result.output.split()), note)) == said, result.output
     assert trained == [tmp_path / "point_nav-ppo-0", tmp_path / "point_nav-ppo-1"]
+
+
+def test_ppo_on_the_users_field_without_its_recipe_is_warned_to_leave_out_no_recipe(tmp_path):
+    result = runner.invoke(app, ["train", str(bundled_fields()["v2_wide_goalie"]), "--no-recipe", "--algo", "ppo",
+                                 "--envs", "16", "--prepare", "--out", str(tmp_path)])
+    assert result.exit_code == 0, result.output
+    assert lines_with(result.output, "warning: PPO learns nothing")[0].endswith(
+        "v2_wide_goalie's reward is its success; its recipe (v2_wide_goalie) trains it on its task's dense reward: "
+        "leave out --no-recipe")
