@@ -27,6 +27,7 @@ import numpy as np
 def endings(policy: Path, field: str, episodes: int, seed: int) -> list[dict]:
     """One row per episode: the ball's closest distance to the target, its final position, whether it scored."""
     import jax
+    import jax.numpy as jnp
 
     import fieldgen
     from fieldgen.env.contract import torso_entries, up_axis_z
@@ -43,8 +44,9 @@ def endings(policy: Path, field: str, episodes: int, seed: int) -> list[dict]:
 
     def step(state, _):
         state = jax.vmap(env.step)(state, act(state.obs))
-        up = up_axis_z(state.obs[:, torso].T) if torso else state.obs[:, 0] * 0.0 + 1.0  # below 0: upside down
-        z = state.obs[:, height] if height is not None else state.obs[:, 0] * 0.0
+        level = jnp.ones(state.obs.shape[0])  # a point: always upright, at no height
+        up = up_axis_z(state.obs[:, torso].T) if torso else level  # below 0: upside down
+        z = state.obs[:, height] if height is not None else 0.0 * level
         return state, (state.obs[:, ball], state.obs[:, goal], state.metrics["success"], up, z)
 
     @jax.jit

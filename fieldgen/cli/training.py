@@ -289,10 +289,9 @@ def train(
             if left_aside:
                 out.print(Text(f"note: {left_aside}", style="yellow"), soft_wrap=True)
             if trained_on is not None:
-                out.print(trained_on.line(field), soft_wrap=True)
+                out.print(recipes.training_line(trained_on, field), soft_wrap=True)
             set_aside = None if use_recipe else recipes.choose(source, algo).recipe  # what --no-recipe left out
-            _warn_if_sparse(field if trained_on is None else trained_on.spec, algo,
-                            getattr(algo_config, "reward", "dense"), set_aside)
+            _warn_if_sparse(trained_on or field, algo, getattr(algo_config, "reward", "dense"), set_aside)
             if not prepare:
                 _note_if_gpu_sized(algo_config.total_steps)
             if levels is not None and curriculum_kind != "auto":
@@ -301,7 +300,7 @@ def train(
             run = session.new_run(source, algo, range(seed, seed + seeds), algo_config, runs, mixed, init_from,
                                   auto=curriculum_kind == "auto", levels=levels, processes=processes,
                                   trains_here=not prepare, sampler=sampler, recipe=chosen.record(overriding),
-                                  trained_on=None if trained_on is None else trained_on.spec)
+                                  trained_on=trained_on)
         if run.init_from and not run.rows:
             chain = f", {run.learned_before:,} from nothing learned" if run.init_from.get("before") else ""
             out.print(f"starts from what {run.init_from['run']} learned in {run.init_from['env_steps']:,} env steps "
@@ -623,8 +622,8 @@ def evaluate(
             whole = sorted({result.env_steps[s] + result.env_steps_before.get(s, 0) for s in result.seeds})
             at += f" ({whole[0]:,}" + (f" to {whole[-1]:,}" if len(whole) > 1 else "") + " from nothing learned)"
         turned = all("turned_over" in e.metrics for e in evaluations)  # an agent with a torso: how long upside down
-        table = Table(*["run"] * several, "seed", "success_any", "time at goal", "closest", *(["turned over"] if turned else []),
-                      "length", "return",
+        table = Table(*["run"] * several, "seed", "success_any", "time at goal", "closest",
+                      *(["turned over"] if turned else []), "length", "return",
                       title=f"{judged} at {at} on {runs[0].env.spec.name}, {episodes} episodes per seed"
                             + judged_on(actions))
         for run, evaluation in zip(runs, evaluations):

@@ -97,8 +97,8 @@ def _sampler_type():
 
 
 def plan(source, kind: str = "staged", levels: int | None = None, sampler=None) -> tuple[Plan, list]:
-    """The plan of a run on `source` (a field's YAML file, build folder or FieldSpec, or a curriculum folder) as `kind` (one
-    of SCHEDULES) says, and the environments of its stages: a field alone, a curriculum's stages one at a time
+    """The plan of a run on `source` (a field's YAML file, build folder or FieldSpec, or a curriculum folder) as
+    `kind` (one of SCHEDULES) says, and the environments of its stages: a field alone, a curriculum's stages one at a time
     (staged) or all at once (mixed, built to one structure), or with auto `levels` levels (curriculum.auto.LEVELS
     by default) between the field's easy end and itself, drawn as `sampler` (curriculum.auto.Sampler, its
     defaults where None) says. PlanError in one sentence where the source, kind and settings do not go together."""
@@ -137,8 +137,9 @@ def plan(source, kind: str = "staged", levels: int | None = None, sampler=None) 
             _refuse_warp_batch(envs)
         return Plan(kind, source.name + ("-mixed" if mixed else ""), c.promotion), envs
     if mixed:
-        raise PlanError(f"{source if isinstance(source, Path) else source.name} is a single field; --mixed trains the stages of a curriculum folder "
-                        "(or let fieldgen make the stages: --curriculum auto)")
+        named = source if isinstance(source, Path) else source.name
+        raise PlanError(f"{named} is a single field; --mixed trains the stages of a curriculum folder (or let "
+                        "fieldgen make the stages: --curriculum auto)")
     import fieldgen
 
     return Plan(), [fieldgen.make(source)]

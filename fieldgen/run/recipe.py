@@ -81,37 +81,25 @@ def choose(source: Path, algo: str | None, use: bool = True) -> Choice:
     return Choice(field, found, algo or (found.recipe.algo if found else DEFAULT_ALGORITHM))
 
 
-@dataclasses.dataclass(frozen=True)
-class Training:
-    """What a new run trains on in its field's place, as its recipe says: the field with its task's dense reward
-    (where the field pays for its success alone) or on another of MJX's implementations; the run is judged on the
-    field as written (its copy kept in the run's `judged` folder), whose success is the same."""
-
-    spec: FieldSpec  # the field as the run trains on it, named as the field
-    changes: dict  # what differs, as a spec writes it: {"task": {"reward": "dense"}, "sim": {"backend": "warp"}}
-
-    def line(self, written: FieldSpec) -> str:
-        """One line: what the run trains on, and that it is judged on the field as written."""
-        parts = []
-        if "task" in self.changes:
-            terms = ", ".join(term.term for term in self.spec.task.reward)
-            parts.append(f"its task's dense reward (task: {{reward: dense}}: {terms})")
-        if "sim" in self.changes:
-            parts.append(f"sim.backend {self.spec.sim.backend} ({BACKENDS[self.spec.sim.backend].description})")
-        return (f"trains {written.name} on {' and '.join(parts)}, as its recipe says; the run keeps the field as "
-                f"written, and fieldgen eval judges it there (the same success)")
-
-
-def trained_form(trained: FieldSpec, written: FieldSpec) -> str:
-    """How the field a run trained on differs from the field as written, in words: 'its task's dense reward and
-    sim.backend warp'."""
+def trained_form(trained: FieldSpec, written: FieldSpec, detail: bool = False) -> str:
+    """How the field a run trains on differs from the field as written, in words: 'its task's dense reward and
+    sim.backend warp'; with `detail`, the dense reward's terms and what the backend is."""
     parts = []
     if trained.task.reward != written.task.reward:
-        parts.append("its task's dense reward" if load_spec(written, changes={"task": {"reward": "dense"}}).task.reward
-                     == trained.task.reward else "other reward terms")
+        dense = load_spec(written, changes={"task": {"reward": "dense"}}).task.reward == trained.task.reward
+        terms = ", ".join(term.term for term in trained.task.reward)
+        parts.append(("its task's dense reward" + (f" (task: {{reward: dense}}: {terms})" if detail else ""))
+                     if dense else f"other reward terms ({terms})")
     if trained.sim.backend != written.sim.backend:
-        parts.append(f"sim.backend {trained.sim.backend}")
+        backend = trained.sim.backend
+        parts.append(f"sim.backend {backend}" + (f" ({BACKENDS[backend].description})" if detail else ""))
     return " and ".join(parts) or "the field as written"
+
+
+def training_line(trained: FieldSpec, written: FieldSpec) -> str:
+    """One line: what a run trains on in its field's place, and that it is judged on the field as written."""
+    return (f"trains {written.name} on {trained_form(trained, written, detail=True)}, as its recipe says; the run "
+            "keeps the field as written, and fieldgen eval judges it there (the same success)")
 
 
 def warp_runs_here() -> bool:
@@ -125,8 +113,9 @@ def warp_runs_here() -> bool:
 
 
 def training(written: FieldSpec, recipe: Recipe | None, trains_here: bool = True,
-             batched: bool = False) -> tuple[Training | None, str | None]:
-    """What a new run on `written` trains on as `recipe` says (None: the field as written), and a line where the
+             batched: bool = False) -> tuple[FieldSpec | None, str | None]:
+    """The field a new run on `written` trains on as `recipe` says (None: the field as written; else the same field,
+    of the same name, with its task's dense reward or on another of MJX's implementations), and a line where the
     recipe's physics is left aside here. `reward: dense` applies to a field paid for its success alone (a field with
     reward terms of its own trains on them); `backend` replaces one of MJX's implementations with another, Warp only
     where it runs (`warp_runs_here`), or anywhere for a run prepared to train elsewhere (not `trains_here`), and
@@ -159,7 +148,7 @@ def training(written: FieldSpec, recipe: Recipe | None, trains_here: bool = True
             changes["sim"] = {"backend": backend}
     if not changes:
         return None, note
-    return Training(load_spec(written, changes=changes), changes), note
+    return load_spec(written, changes=changes), note
 
 
 def figure(found: Found, beside: bool = True) -> str:

@@ -25,7 +25,7 @@ from fieldgen.run import record
 from fieldgen.schema import FieldSpec, load_spec
 
 FIELD, STAGES = "field", "stages"  # the run's own copies of its built fields: resuming needs no compiler
-JUDGED = "judged"  # the field as written, where a recipe trains the run on another (fieldgen.run.recipe.Training)
+JUDGED = "judged"  # the field as written, where a recipe trains the run on another (fieldgen.run.recipe.training)
 
 
 @dataclasses.dataclass
@@ -109,7 +109,7 @@ def new_run(source: Path, algo: str, seeds: Sequence[int], config, out: Path, mi
     (curriculum.auto.Sampler, its defaults where None) says; with `init_from`, starting from what that run
     learned; with `recipe`, the recipe it was set up from (run/recipe.py), as run.json keeps it. A run over
     several processes (`processes`: their layout, recorded in run.json) is set up alike in
-    each, and written by the first alone. With `trained_on` (a field's spec as its recipe trains on it, Training),
+    each, and written by the first alone. With `trained_on` (a field's spec as its recipe trains on it, recipe.training),
     the run trains on that and keeps the field `source` holds, as written, in its `judged` folder, where `fieldgen
     eval` judges it. Nothing is written before every setting is known good, the memory
     the run needs included where it `trains_here` (a run prepared to train elsewhere is checked where it
@@ -178,7 +178,7 @@ def new_run(source: Path, algo: str, seeds: Sequence[int], config, out: Path, mi
 
 def written_field(source: Path):
     """The built field `source` (a YAML file or build folder) holds as written: what a run trained on another form
-    of it (a recipe's Training) is judged on."""
+    of it (fieldgen.run.recipe.training) is judged on."""
     from fieldgen.compile.artifact import compile_spec
 
     try:
