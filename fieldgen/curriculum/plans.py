@@ -98,8 +98,8 @@ def _sampler_type():
 
 def plan(source, kind: str = "staged", levels: int | None = None, sampler=None) -> tuple[Plan, list]:
     """The plan of a run on `source` (a field's YAML file, build folder or FieldSpec, or a curriculum folder) as
-    `kind` (one of SCHEDULES) says, and the environments of its stages: a field alone, a curriculum's stages one at a time
-    (staged) or all at once (mixed, built to one structure), or with auto `levels` levels (curriculum.auto.LEVELS
+    `kind` (one of SCHEDULES) says, and the environments of its stages: a field alone, a curriculum's stages one at a
+    time (staged) or all at once (mixed, built to one structure), or with auto `levels` levels (curriculum.auto.LEVELS
     by default) between the field's easy end and itself, drawn as `sampler` (curriculum.auto.Sampler, its
     defaults where None) says. PlanError in one sentence where the source, kind and settings do not go together."""
     from fieldgen import curriculum
