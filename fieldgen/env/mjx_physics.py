@@ -9,6 +9,10 @@ and only flags it, so a field records the flags (`OVERFLOW`) and whoever steps i
 
 from __future__ import annotations
 
+import os
+import sys
+import tempfile
+
 import jax
 
 # OVERFLOW: Warp's flags since reset, kept over auto-resets
@@ -69,6 +73,32 @@ def require_warp(field: str) -> None:
         raise WarpMissing(field) from None
 
 
+# Warp's native library says so on stderr at its start on a machine without NVIDIA's driver, where its CPU kernels
+# step the field as asked: a line that reads like a failure to a user on a laptop
+NO_CUDA_DRIVER = "Warp CUDA warning: Could not find or load the NVIDIA CUDA driver."
+
+
+def without_native_line(call, line_start: str):
+    """Call `call()` with what native code writes to stderr (file descriptor 2, below Python's sys.stderr) held
+    back, then pass on every line of it but those starting with `line_start`."""
+    sys.stderr.flush()
+    saved = os.dup(2)
+    with tempfile.TemporaryFile(mode="w+b") as held:
+        os.dup2(held.fileno(), 2)
+        try:
+            return call()
+        finally:
+            sys.stderr.flush()
+            os.dup2(saved, 2)
+            os.close(saved)
+            held.seek(0)
+            kept = [line for line in held.read().decode(errors="replace").splitlines(keepends=True)
+                    if not line.startswith(line_start)]
+            if kept:
+                sys.stderr.write("".join(kept))
+                sys.stderr.flush()
+
+
 def make_data(mj_model, impl: str, device, worlds: int = 1, field: str = "the field"):
     """Fresh data of one environment; Warp's sized for a batch of `worlds` environments (WarpMissing as
     put_model)."""
@@ -80,6 +110,7 @@ def make_data(mj_model, impl: str, device, worlds: int = 1, field: str = "the fi
     import warp
 
     warp.config.log_level = max(warp.config.log_level, warp.LOG_WARNING)  # not a line per module of kernels loaded
+    without_native_line(warp.init, NO_CUDA_DRIVER)
     contacts, rows = capacities(mj_model)
     return mjx.make_data(mj_model, device=device, impl="warp", naconmax=contacts * worlds, njmax=rows)
 

@@ -4,6 +4,10 @@ line, never left to step without its contacts."""
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -152,3 +156,29 @@ def test_ppo_trains_and_evaluates_seeds_on_warp_s_physics(tmp_path):
     assert "goes on from learner.msgpack with fresh episodes" in said and "replay buffer" not in said  # PPO keeps none
     rows = [json.loads(line) for line in (run / "metrics.jsonl").open()]
     assert sorted((r["eval"], r["seed"]) for r in rows) == [(e, s) for e in range(3) for s in (0, 1)]
+
+
+def test_native_lines_on_stderr_pass_but_the_one_held_back_and_the_call_s_result_or_error_comes_through(capfd):
+    def speaks():
+        os.write(2, b"Warp CUDA warning: Could not find or load the NVIDIA CUDA driver. GPU execution will not be "
+                    b"available.\nsomething else native\n")
+        return 7
+
+    assert mjx_physics.without_native_line(speaks, mjx_physics.NO_CUDA_DRIVER) == 7
+    assert capfd.readouterr().err == "something else native\n"
+
+    def fails():
+        os.write(2, b"a last word\n")
+        raise ValueError("kept")
+
+    with pytest.raises(ValueError, match="kept"):
+        mjx_physics.without_native_line(fails, mjx_physics.NO_CUDA_DRIVER)
+    os.write(2, b"after\n")  # stderr is the terminal's again
+    assert capfd.readouterr().err == "a last word\nafter\n"
+
+
+def test_making_a_warp_field_on_a_machine_without_nvidia_s_driver_says_nothing_of_it(tmp_path):
+    code = "from fieldgen.env.make import make; make('point_nav', backend='warp').reserve_worlds(2); print('made')"
+    said = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path, check=False)
+    assert said.returncode == 0 and said.stdout.strip() == "made", said.stderr
+    assert "Warp CUDA warning" not in said.stderr
