@@ -65,7 +65,7 @@ class Recipe:
         return counts + list(self.sets)
 
     def summary(self) -> str:
-        """What the recipe trains with, as the command line would say it: ppo, 250M env steps, 4,096 envs, ..."""
+        """What the recipe trains with, as the command line would say it: ppo, 560M env steps, 8,192 envs, ..."""
         parts = [self.algo]
         parts += [f"{short_count(self.steps)} env steps"] if self.steps else []
         parts += [f"{self.envs:,} envs"] if self.envs else []

@@ -184,12 +184,17 @@ def dense_route(field: str) -> str:
 
 def routes_beside(field: str) -> str:
     """'; also measured: ...' for each bundled field that extends `field` with a measured recipe of its own and
-    differs from it in its physics alone (the same task another way); else ''."""
+    differs from it in its physics alone (the same task another way), but the very runs `field`'s own figure
+    states (the same seeds and data: the field its recipe trains on); else ''."""
     table, said = recipes.read(), ""
     fields = bundled_fields()
+    own = measured_own(lineage(fields[field]), table)
+    runs = None if own is None else (own.recipe.measured.seeds, own.recipe.measured.data)
     for name, path in fields.items():
         names = lineage(path)
         found = measured_own(names, table) if name != field and field in names else None
+        if found is not None and (found.recipe.measured.seeds, found.recipe.measured.data) == runs:
+            continue
         if found is not None and same_task(fields[field], path):
             said += f"; also measured: {name}, {found.recipe.measured.figure}, {found.recipe.measured.seeds}"
     return said

@@ -25,48 +25,54 @@ def test_a_field_of_ones_own_takes_the_recipe_of_the_field_it_extends_and_says_s
     chosen = recipe.choose(spec, None)
     assert chosen.algo == "ppo" and chosen.recipe.field == "v2_wide_goalie_dense"
     assert chosen.line([]) == (
-        "recipe v2_wide_goalie_dense for my_wide, which extends v2_wide_goalie_dense: ppo, 250M env steps, 4,096 "
-        "envs, --set ppo.num_evals=25 --set ppo.spread=global; not measured on "
-        "my_wide yet "
+        "recipe v2_wide_goalie_dense for my_wide, which extends v2_wide_goalie_dense: ppo, 560M env steps, 8,192 "
+        "envs, --set ppo.num_evals=28 --set ppo.spread=global, on sim.backend warp; not measured on my_wide yet "
         "(v2_wide_goalie_dense: "
         f"{chosen.recipe.measured.figure}, {chosen.recipe.measured.seeds})")
     own = recipe.choose(bundled_fields()["v2_wide_goalie_dense"], None)
-    warp = recipe.choose(bundled_fields()["v2_wide_goalie_dense_warp"], None).recipe.measured
-    assert own.line(["--steps"]) == (
-        "recipe v2_wide_goalie_dense: ppo, 250M env steps, 4,096 envs, "
-        "--set ppo.num_evals=25 --set ppo.spread=global; "
-        f"measured: {own.recipe.measured.figure}, three fresh seeds (760-762); also measured: "
-        f"v2_wide_goalie_dense_warp, {warp.figure}, {warp.seeds}; --steps overrides it")
+    assert own.line(["--steps"]) == (  # its physics twin on Warp states the same runs: not again as another route
+        "recipe v2_wide_goalie_dense: ppo, 560M env steps, 8,192 envs, "
+        "--set ppo.num_evals=28 --set ppo.spread=global, on sim.backend warp; "
+        f"measured: {own.recipe.measured.figure}, three fresh seeds (990-992); --steps overrides it")
     assert recipe.choose(spec, None, use=False).recipe is None
     other = recipe.choose(spec, "crl")
     assert other.recipe is None and other.algo == "crl" and "not taken: --algo crl" in other.line([])
 
 
-def test_a_sparse_field_without_a_recipe_of_its_own_points_to_its_dense_twin_as_the_measured_route(tmp_path):
-    fields = bundled_fields()
-    also = "; also measured: v2_wide_goalie_dense_warp, IQM 0.675 [0.583, 0.746] success at 560M env steps"
-    assert also in recipe.choose(fields["v2_wide_goalie_dense"], None).line([])  # its task on other physics
-    assert recipe.dense_route("v2_wide_goalie").startswith(
-        "; the measured route is its dense twin v2_wide_goalie_dense (ppo, 250M env steps")
-    assert also in recipe.dense_route("v2_wide_goalie")
+def test_a_sparse_field_without_a_recipe_of_its_own_points_to_its_dense_twin_as_the_measured_route():
+    route = recipe.dense_route("soccer_v2")
+    assert route.startswith("; the measured route is its dense twin soccer_v2_dense (ppo, 560M env steps, 8,192 "
+                            "envs, --set ppo.num_evals=28 --set ppo.spread=global, on sim.backend warp): IQM 0.668")
+    assert "also measured" not in route and route.endswith("three fresh seeds (1010-1012)")
+    assert recipe.dense_route("point_nav") == ""  # no dense twin bundled
 
 
 def test_a_field_on_other_physics_keeps_its_own_measured_recipe_over_the_one_it_extends():
     chosen = recipe.choose(bundled_fields()["v2_wide_goalie_dense_warp"], None)
     assert (chosen.algo, chosen.recipe.steps, chosen.recipe.envs) == ("ppo", 560_000_000, 8192)
-    assert chosen.recipe.sets == ("ppo.spread=global", "ppo.num_evals=28")  # num_evals replaced, spread kept
+    assert chosen.recipe.sets == ("ppo.num_evals=28", "ppo.spread=global")
     assert chosen.line([]).startswith("recipe v2_wide_goalie_dense_warp: ppo, 560M env steps, 8,192 envs")
     assert "three fresh seeds (990-992)" in chosen.line([]) and "also measured" not in chosen.line([])
 
 
-def test_an_unmeasured_recipe_names_its_task_measured_on_other_physics_and_not_other_tasks_extending_it():
+def test_an_unmeasured_recipe_names_its_task_measured_on_other_physics_and_not_other_tasks_extending_it(
+        tmp_path, monkeypatch):
+    from fieldgen.agents import recipes
+
+    table = tmp_path / "recipes.yaml"  # soccer_v2_dense's recipe before its own figure: its twins measured alone
+    table.write_text("soccer_v2_dense:\n  algo: ppo\n  steps: 250000000\n"
+                     "soccer_v2_dense_warp:\n  extends: soccer_v2_dense\n"
+                     "  measured: {figure: IQM 0.668, seeds: three fresh seeds (1010-1012), data: here}\n"
+                     "v2_wide_goalie_dense:\n  extends: soccer_v2_dense\n"
+                     "  measured: {figure: IQM 0.675, seeds: three fresh seeds (990-992), data: there}\n")
+    monkeypatch.setattr(recipes.read, "__defaults__", (table,))
     said = recipe.choose(bundled_fields()["soccer_v2_dense"], None).line([])
-    assert said.startswith("recipe soccer_v2_dense: ppo, 250M env steps, 4,096 envs")
-    assert "not measured yet; also measured: soccer_v2_dense_warp, IQM 0.668 [0.615, 0.724]" in said
+    assert said == ("recipe soccer_v2_dense: ppo, 250M env steps; not measured yet; also measured: "
+                    "soccer_v2_dense_warp, IQM 0.668, three fresh seeds (1010-1012)")
     assert "v2_wide_goalie" not in said  # extends soccer_v2_dense with another goalie: another task
     sparse = dict((name, route) for name, _, route in recipe.listing())["soccer_v2"]
-    assert sparse.startswith("its dense twin soccer_v2_dense is not measured itself; also measured: "
-                             "soccer_v2_dense_warp")
+    assert sparse == ("its dense twin soccer_v2_dense is not measured itself; also measured: soccer_v2_dense_warp, "
+                      "IQM 0.668, three fresh seeds (1010-1012)")
 
 
 def test_fields_differing_in_physics_alone_set_the_same_task():
@@ -123,23 +129,25 @@ def test_train_prints_the_recipe_its_overrides_and_the_warning_once_and_run_json
 def test_list_shows_each_bundled_fields_recipe_and_measured_figure_with_its_seeds():
     rows = {name: (recipe_text, measured) for name, recipe_text, measured in recipe.listing()}
     assert set(rows) == set(bundled_fields())
-    assert rows["v2_wide_goalie_dense"] == ("ppo, 250M env steps, 4,096 envs, --set ppo.num_evals=25 "
-                                            "--set ppo.spread=global",
-                                            "measured: IQM 0.346 [0.197, 0.427] success at 250M env steps, 1,024 "
-                                            "episodes a seed (0.414, 0.427, 0.197), every seed scoring; three seeds "
-                                            "in one program in 858 s on one H200, three fresh seeds (760-762)")
-    assert rows["soccer_v2_dense"][1] == "not measured yet"
+    assert rows["v2_wide_goalie_dense"][0] == ("ppo, 560M env steps, 8,192 envs, --set ppo.num_evals=28 "
+                                               "--set ppo.spread=global, on sim.backend warp")
+    assert rows["v2_wide_goalie_dense"][1].startswith("measured: IQM 0.675 [0.583, 0.746] success at 560M env "
+                                                      "steps, 1,024 episodes a seed (0.697, 0.746, 0.583), trained "
+                                                      "on v2_wide_goalie_dense_warp")
+    assert rows["v2_wide_goalie_dense"][1].endswith("three fresh seeds (990-992)")
+    assert rows["soccer_v2_dense"][1].startswith("measured: IQM 0.668 [0.615, 0.724]")
     assert rows["ant_nav"][1] == ("measured: IQM 0.923 [0.899, 0.947] success at 14M env steps, 1,024 episodes a "
                                   "seed; five seeds in one program in 414 s on one H200, five fresh seeds (600-604)")
     assert rows["v2_wide_goalie"][0].endswith("on its task's dense reward, on sim.backend warp")
     assert rows["v2_wide_goalie"][1].startswith("measured: IQM 0.675 [0.583, 0.746] success at 560M env steps")
     assert rows["soccer_v2_dense_near"][0].endswith("(the recipe of soccer_v2_dense)")
-    assert rows["soccer_v2_dense_near"][1] == "not measured on soccer_v2_dense_near yet"  # nor is its parent
+    assert rows["soccer_v2_dense_near"][1].startswith("not measured on soccer_v2_dense_near yet (soccer_v2_dense: "
+                                                      "IQM 0.668")  # its parent's figure beside
     assert rows["point_soccer"] == ("crl, --preset cpu", "not measured yet")
     assert rows["point_nav"] == ("none: crl with its defaults", "-")
     shown = runner.invoke(app, ["list", "--recipes"])
     assert shown.exit_code == 0 and all(name in shown.output for name in rows), shown.output
-    assert "0.346" in shown.output and "three fresh seeds (760-762)" in " ".join(shown.output.split())
+    assert "0.675" in shown.output and "three fresh seeds (990-992)" in " ".join(shown.output.split())
 
 
 def test_a_broken_recipes_file_is_one_line_from_train_and_list(tmp_path, monkeypatch):
@@ -236,7 +244,7 @@ def test_the_users_field_trains_on_the_field_its_recipes_figure_was_measured_on(
     assert (chosen.algo, chosen.recipe.reward, chosen.recipe.backend) == ("ppo", "dense", "warp")
     assert (chosen.recipe.steps, chosen.recipe.envs) == (560_000_000, 8192)
     assert "990-992" in chosen.recipe.measured.seeds and chosen.line([]).startswith(
-        "recipe v2_wide_goalie: ppo, 560M env steps, 8,192 envs, --set ppo.spread=global --set ppo.num_evals=28, on "
+        "recipe v2_wide_goalie: ppo, 560M env steps, 8,192 envs, --set ppo.num_evals=28 --set ppo.spread=global, on "
         "its task's dense reward, on sim.backend warp; measured: IQM 0.675 [0.583, 0.746]")
     written = load_spec(fields["v2_wide_goalie"])
     trained, note = recipe.training(written, chosen.recipe, trains_here=False)
