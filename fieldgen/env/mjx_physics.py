@@ -9,6 +9,7 @@ and only flags it, so a field records the flags (`OVERFLOW`) and whoever steps i
 
 from __future__ import annotations
 
+import functools
 import os
 import sys
 import tempfile
@@ -99,6 +100,16 @@ def without_native_line(call, line_start: str):
                 sys.stderr.flush()
 
 
+@functools.cache
+def start_warp() -> None:
+    """Start Warp once per process, quietly: no line per module of kernels loaded, nor the note of a missing
+    NVIDIA driver (NO_CUDA_DRIVER)."""
+    import warp
+
+    warp.config.log_level = max(warp.config.log_level, warp.LOG_WARNING)
+    without_native_line(warp.init, NO_CUDA_DRIVER)
+
+
 def make_data(mj_model, impl: str, device, worlds: int = 1, field: str = "the field"):
     """Fresh data of one environment; Warp's sized for a batch of `worlds` environments (WarpMissing as
     put_model)."""
@@ -107,10 +118,7 @@ def make_data(mj_model, impl: str, device, worlds: int = 1, field: str = "the fi
     if impl != "warp":
         return mjx.make_data(mj_model, device=device, impl=impl)
     require_warp(field)
-    import warp
-
-    warp.config.log_level = max(warp.config.log_level, warp.LOG_WARNING)  # not a line per module of kernels loaded
-    without_native_line(warp.init, NO_CUDA_DRIVER)
+    start_warp()
     contacts, rows = capacities(mj_model)
     return mjx.make_data(mj_model, device=device, impl="warp", naconmax=contacts * worlds, njmax=rows)
 

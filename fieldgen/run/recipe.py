@@ -193,9 +193,9 @@ def routes_beside(field: str) -> str:
     for name, path in fields.items():
         names = lineage(path)
         found = measured_own(names, table) if name != field and field in names else None
-        if found is not None and (found.recipe.measured.seeds, found.recipe.measured.data) == runs:
+        if found is None or (found.recipe.measured.seeds, found.recipe.measured.data) == runs:
             continue
-        if found is not None and same_task(fields[field], path):
+        if same_task(fields[field], path):
             said += f"; also measured: {name}, {found.recipe.measured.figure}, {found.recipe.measured.seeds}"
     return said
 
