@@ -247,6 +247,20 @@ class RunConfig(BaseModel):
         """Env steps of one training iteration, over all environments."""
         return self.num_envs * self.unroll_length
 
+    @property
+    def trained_steps(self) -> int:
+        """The env steps the run ends at: it trains whole iterations, so up to one iteration per evaluation
+        short of total_steps (a progress bar counts to this, not to the steps asked for)."""
+        raise NotImplementedError
+
+    def short_of_asked(self) -> str | None:
+        """One line where the run ends short of total_steps, saying why; None where it trains them all."""
+        if self.trained_steps >= self.total_steps:
+            return None
+        return (f"note: trains {self.trained_steps:,} of the {self.total_steps:,} env steps asked: whole iterations "
+                f"of {self.per_iteration:,} ({self.num_envs:,} envs x {self.unroll_length} steps), as many before "
+                f"each of the {self.num_evals} evaluations")
+
 
 class ReplayConfig(RunConfig):
     """What every trainer with a replay buffer of episode-long windows shares (CRL, SAC, TD3)."""
@@ -262,6 +276,11 @@ class ReplayConfig(RunConfig):
     critic_lr: Rate = 3e-4
     hidden: Hidden = (256, 256)
     layer_norm: StrictBool = False
+
+    @property
+    def trained_steps(self) -> int:
+        prefill_iters, per_eval = iterations(self)
+        return (prefill_iters + self.num_evals * per_eval) * self.per_iteration
 
     def validate_env(self, env: Environment, devices: int = 1, seeds: int = 1) -> None:
         """Also: steps to prefill the buffer and train, room for an episode, a batch's worth of

@@ -308,5 +308,14 @@ def on_files(files, config):
     return files
 
 
+def site_links(markdown: str, depth: int) -> str:
+    """The page's links to bench/results/ as the site has them: a page `depth` folders below docs/ links to
+    `../` * (depth + 1) + `bench/results/`, which resolves in the repository (GitHub, an editor), and the site
+    mirrors that folder as `results/` (on_files)."""
+    return markdown.replace("](" + "../" * (depth + 1) + "bench/results/", "](" + "../" * depth + "results/")
+
+
 def on_page_markdown(markdown, page, config, files):
-    return render(markdown)
+    if page.file.src_uri.startswith("results/"):  # a mirrored results page: its links stay within results/
+        return render(markdown)
+    return site_links(render(markdown), page.file.src_uri.count("/"))

@@ -222,3 +222,27 @@ def test_an_entry_point_left_off_the_api_reference_is_missed():
     assert "fieldgen.run.summary.MetricSummary" in documented(text)
     assert "fieldgen.run.summary.MetricSummary" not in documented(text.replace(", MetricSummary]", "]"))
     assert "fieldgen.env.contract.*" not in documented(text.replace("::: fieldgen.env.contract\n", ""))
+
+
+MARKDOWN_LINK = re.compile(r"\]\(([^)\s]+)(?:\s+\"[^\"]*\")?\)")
+
+
+def test_every_relative_link_resolves_in_the_repository():
+    """README, the docs and the results pages are read on GitHub and in editors as well as on the site: a
+    relative link names a file of the repository (the site's hook maps bench/results/ to its own results/)."""
+    pages = [ROOT / "README.md", *sorted(DOCS.rglob("*.md")), *sorted((ROOT / "bench" / "results").rglob("README.md"))]
+    broken = []
+    for page in pages:
+        text = re.sub(r"```.*?```", "", page.read_text(), flags=re.S)
+        for target in MARKDOWN_LINK.findall(text):
+            path = target.split("#")[0]
+            if path and not re.match(r"[a-z]+:", path) and not (page.parent / path).exists():
+                broken.append(f"{page.relative_to(ROOT)}: {target}")
+    assert not broken, "\n".join(broken)
+
+
+def test_the_site_links_results_where_it_mirrors_them():
+    site_links = hooks().site_links
+    assert site_links("[a](../bench/results/x/README.md)", 0) == "[a](results/x/README.md)"
+    assert site_links("[a](../../bench/results/x/README.md#b)", 1) == "[a](../results/x/README.md#b)"
+    assert site_links("[a](../bench/results/x/README.md)", 1) == "[a](../bench/results/x/README.md)"

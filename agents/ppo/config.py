@@ -61,6 +61,10 @@ class PPOConfig(RunConfig):
         return self.total_steps // self.per_iteration // self.num_evals
 
     @property
+    def trained_steps(self) -> int:
+        return self.iterations_per_eval * self.num_evals * self.per_iteration
+
+    @property
     def updates(self) -> int:
         """Gradient steps over the whole run: its iterations, each of update_epochs passes over num_minibatches
         minibatches."""

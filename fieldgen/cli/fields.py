@@ -344,7 +344,9 @@ def _list_recipes() -> None:
         rows = listing()
     except RecipeError as exc:
         fail(str(exc))
-    table = Table(Column("name", no_wrap=True), "recipe", "measured", box=None)
+    # a long token (a path, a --set) folds onto the next line rather than losing its end to an ellipsis
+    table = Table(Column("name", no_wrap=True), Column("recipe", overflow="fold"), Column("measured", overflow="fold"),
+                  box=None)
     for row in rows:
         table.add_row(*row)
     out.print(table)

@@ -268,7 +268,8 @@ def listing() -> list[tuple[str, str, str]]:
         found = recipes.find(lineage(path), table)
         if found is None:
             route = dense_route(name).removeprefix("; ")
-            rows.append((name, f"none: {DEFAULT_ALGORITHM} with its defaults", route or "-"))
+            trainer = "ppo self-play" if load_spec(path).teams is not None else DEFAULT_ALGORITHM  # as train picks
+            rows.append((name, f"none: {trainer} with its defaults", route or "-"))
             continue
         inherited = f" (the recipe of {found.recipe.field})" if found.inherited else ""
         rows.append((name, found.recipe.summary() + inherited, figure(found, beside=False)))

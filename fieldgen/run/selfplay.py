@@ -230,7 +230,7 @@ def train(run: TeamRun, say=print, deadline: float | None = None, recorder=None)
             if index > 0 and deadline is not None and took and time.monotonic() + max(took) > deadline:
                 last = run.rows[-1]
                 say(f"stopped at the time limit after evaluation {last['eval']} of {c.num_evals} "
-                    f"({last['env_steps']:,} of {c.total_steps:,} env steps): the next chunk with its evaluation "
+                    f"({last['env_steps']:,} of {c.trained_steps:,} env steps): the next chunk with its evaluation "
                     f"and checkpoint (about {max(took):.0f} s) would not have ended in time. Continue with: "
                     f"fieldgen train --resume {run.folder}")
                 return False

@@ -100,7 +100,9 @@ def _train(run: Run, console: Console, videos: bool, logger: str, video_format: 
                                                        **run.config.model_dump()})
     with contextlib.closing(log), display(console) as bar, background.Writer() as writer:
         first = run.rows[-1]["env_steps"] if run.rows else 0
-        task = bar.add_task(run.label, total=config.total_steps, completed=first, rate="compiling...", stats="")
+        if not run.rows and config.short_of_asked():
+            console.print(config.short_of_asked(), soft_wrap=True)
+        task = bar.add_task(run.label, total=config.trained_steps, completed=first, rate="compiling...", stats="")
 
         waited = []  # seconds the last on_eval held the training thread: they fall in the next chunk's time
         skipped = [False]  # whether the last evaluation's whole checkpoint was left out
@@ -150,7 +152,7 @@ def _train(run: Run, console: Console, videos: bool, logger: str, video_format: 
             plot_success(run.folder, run.rows, f"{run.label}: {run.algo}{judged_on(config.eval_actions)}",
                          run.plan.variant_name)
             log.rows(rows)
-            bar.update(task, completed=rows[0]["env_steps"], rate=rate(run.rows, config.total_steps),
+            bar.update(task, completed=rows[0]["env_steps"], rate=rate(run.rows, config.trained_steps),
                        stats=stats(rows, len(run.envs)))
 
         # a run started from another's networks (--init-from) goes on from "evaluation -1": it evaluates them first
@@ -160,7 +162,7 @@ def _train(run: Run, console: Console, videos: bool, logger: str, video_format: 
                             film=EpisodeRecorder.film if videos else None, sampling=run.sampling,
                             stop=deadline.stop, clock=started)
             if not deadline.reached:
-                done = run.rows[-1]["env_steps"]  # whole iterations can stop short of --steps
+                done = run.rows[-1]["env_steps"]
                 bar.update(task, total=done, rate=rate(run.rows, done))
         except PhysicsOverflow as exc:
             raise record.RunError(f"training stopped: {exc}") from None
@@ -178,7 +180,7 @@ def _train(run: Run, console: Console, videos: bool, logger: str, video_format: 
         last = run.rows[-1] if run.rows else {"eval": -1, "env_steps": 0}
         took = "" if deadline.needed is None else f" (about {deadline.needed:.0f} s)"  # a process told by process 0
         console.print(f"stopped at the time limit after evaluation {last['eval']} of {config.num_evals} "
-                      f"({last['env_steps']:,} of {config.total_steps:,} env steps): the next chunk with its "
+                      f"({last['env_steps']:,} of {config.trained_steps:,} env steps): the next chunk with its "
                       f"evaluation and checkpoint{took} would not have ended in time. "
                       f"Continue with: fieldgen train --resume {run.folder}", soft_wrap=True)
     return not deadline.reached

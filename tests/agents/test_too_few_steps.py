@@ -28,3 +28,17 @@ def test_ppo_offers_fewer_envs_that_split_into_its_minibatches_or_fewer_evaluati
 def test_steps_too_few_for_any_envs_offer_nothing_else(tmp_path):
     said = refusal(tmp_path, "--steps", "1000")
     assert "use at least" in said and "keep the steps" not in said
+
+
+def test_a_run_ends_at_the_whole_iterations_its_steps_hold():
+    """trained_steps, which the progress bar counts to, is where a run's last row ends: the tiny CRL run's
+    1,900 steps end at 1,760 (tests/run/test_export.py trains it), 800 of prefill and 2 x 6 iterations of 80."""
+    from tiny_runs import TINY_CRL
+
+    from fieldgen.agents import crl, ppo
+
+    config = crl.CRLConfig(**TINY_CRL)
+    assert config.trained_steps == 1760 and "trains 1,760 of the 1,900 env steps asked" in config.short_of_asked()
+    exact = ppo.PPOConfig(total_steps=2 * 3 * 8 * 20, num_envs=8, unroll_length=20, num_minibatches=4, num_evals=2)
+    assert exact.trained_steps == exact.total_steps and exact.short_of_asked() is None
+    assert ppo.PPOConfig(**{**exact.model_dump(), "total_steps": exact.total_steps + 159}).trained_steps == 960

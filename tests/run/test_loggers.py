@@ -104,7 +104,7 @@ def test_train_logs_to_tensorboard_and_prints_a_line_per_evaluation(tmp_path, ti
     result = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path), "--logger", "tensorboard",
                                  *tiny_crl_args])
     assert result.exit_code == 0, result.output
-    lines = re.findall(r"^point_nav ([\d,]+) of 1,900 steps \(\d+%\)  .*success 0\.\d\d", result.output, re.M)
+    lines = re.findall(r"^point_nav ([\d,]+) of 1,760 steps \(\d+%\)  .*success 0\.\d\d", result.output, re.M)
     assert lines == ["800", "1,280", "1,760"], result.output  # one per evaluation, as they come
     run = tmp_path / "point_nav-crl-0"
     rows = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]

@@ -145,6 +145,7 @@ def test_list_shows_each_bundled_fields_recipe_and_measured_figure_with_its_seed
                                                       "IQM 0.668")  # its parent's figure beside
     assert rows["point_soccer"] == ("crl, --preset cpu", "not measured yet")
     assert rows["point_nav"] == ("none: crl with its defaults", "-")
+    assert rows["soccer_1v1"][0] == "none: ppo self-play with its defaults"  # a match trains by self-play
     shown = runner.invoke(app, ["list", "--recipes"])
     assert shown.exit_code == 0 and all(name in shown.output for name in rows), shown.output
     assert "0.675" in shown.output and "three fresh seeds (990-992)" in " ".join(shown.output.split())

@@ -193,7 +193,10 @@ def test_a_time_limit_stops_at_an_evaluation_and_resume_ends_as_the_run_never_st
     being up it stops there with status 75, that evaluation's whole checkpoint written; a resume whose time is
     up at once trains nothing; one without a limit ends with the metrics and files of a run never stopped."""
     args = ["--no-videos", *tiny_crl_args]
-    assert runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path / "whole"), *args]).exit_code == 0
+    whole = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path / "whole"), *args])
+    assert whole.exit_code == 0, whole.output
+    assert unwrapped("note: trains 1,760 of the 1,900 env steps asked: whole iterations of 80 (8 envs x 10 steps), "
+                     "as many before each of the 2 evaluations") in unwrapped(whole.output)
     reference, run = tmp_path / "whole" / "point_nav-crl-0", tmp_path / "point_nav-crl-0"
 
     def untimed(folder):
@@ -204,7 +207,7 @@ def test_a_time_limit_stops_at_an_evaluation_and_resume_ends_as_the_run_never_st
         result = runner.invoke(app, ["train", *command, "--time-limit", "0.01s"])
         assert result.exit_code == 75, result.output
         said = unwrapped(result.output)
-        assert unwrapped("stopped at the time limit after evaluation 1 of 2 (1,280 of 1,900 env steps)") in said
+        assert unwrapped("stopped at the time limit after evaluation 1 of 2 (1,280 of 1,760 env steps)") in said
         assert unwrapped(f"would not have ended in time. Continue with: fieldgen train --resume {run}") in said
         assert [r["eval"] for r in untimed(run)] == [0, 1] and (run / "checkpoint.msgpack").exists()
     result = runner.invoke(app, ["train", "--resume", str(run)])
@@ -250,7 +253,7 @@ def test_a_curriculum_run_is_named_by_its_curriculum_not_its_last_stage(tmp_path
                      *tiny_crl_args], ["train", "--resume", str(run), "--no-videos"]):
         result = runner.invoke(app, command)
         assert result.exit_code == 130, result.output
-        assert "point_nav_to_far 0 of 1,900 steps (0%) stage 1 of 4 success 0.00" in " ".join(result.output.split())
+        assert "point_nav_to_far 0 of 1,760 steps (0%) stage 1 of 4 success 0.00" in " ".join(result.output.split())
         assert "_s04" not in result.output and titles.pop() == "point_nav_to_far: crl"
 
 
