@@ -6,8 +6,10 @@
 - the results pages, mirrored from bench/results/ (each folder's README and its files), so a reader of the
   site and a reader of the repository see the same record.
 
-A page asks for a generated part with a line `<!-- generated: NAME -->`; tests/test_docs.py checks that
-every key of the schema and every option of the app appears, so the references cannot drift from the code.
+A page holds a generated part between `<!-- generated: NAME -->` and `<!-- end of generated: NAME -->`,
+written there by `python docs/hooks.py` (so the repository shows what the site does) and made anew at every
+build; tests/test_docs.py checks that the written part is the code's own and that every key of the schema and
+every option of the app appears, so the references cannot drift from the code.
 """
 
 from __future__ import annotations
@@ -261,15 +263,33 @@ def _usage(params) -> str:
 
 
 GENERATED = {"dsl-reference": dsl_reference, "cli-reference": cli_reference}
+PAGES = ("reference/dsl.md", "reference/cli.md")  # the pages that hold generated parts
 
 
 def render(markdown: str) -> str:
-    """The page with each `<!-- generated: NAME -->` line replaced by its generated part."""
+    """The page with each generated part made anew: what stands between `<!-- generated: NAME -->` and
+    `<!-- end of generated: NAME -->` (a page may hold a marker alone, to be filled)."""
     for name, make in GENERATED.items():
-        marker = f"<!-- generated: {name} -->"
-        if marker in markdown:
-            markdown = markdown.replace(marker, make())
+        begin, end = f"<!-- generated: {name} -->", f"<!-- end of generated: {name} -->"
+        if begin not in markdown:
+            continue
+        before, rest = markdown.split(begin, 1)
+        after = rest.split(end, 1)[1] if end in rest else rest
+        markdown = f"{before}{begin}\n{make().strip()}\n{end}{after}"
     return markdown
+
+
+def write_pages() -> list[str]:
+    """Each page with generated parts written with them made anew, so that the repository (GitHub, an editor)
+    shows what the site does; the names of the pages that changed."""
+    changed = []
+    for name in PAGES:
+        page = ROOT / "docs" / name
+        text = page.read_text()
+        if render(text) != text:
+            page.write_text(render(text))
+            changed.append(name)
+    return changed
 
 
 # --- MkDocs events -----------------------------------------------------------------------------------
@@ -319,3 +339,7 @@ def on_page_markdown(markdown, page, config, files):
     if page.file.src_uri.startswith("results/"):  # a mirrored results page: its links stay within results/
         return render(markdown)
     return site_links(render(markdown), page.file.src_uri.count("/"))
+
+
+if __name__ == "__main__":  # python docs/hooks.py: the reference pages' generated parts, written in place
+    print("\n".join(f"wrote docs/{name}" for name in write_pages()) or "the reference pages are up to date")
