@@ -81,8 +81,12 @@ class Output:
     option: str = "--out"
     files: tuple[str, ...] = ()  # files it writes one by one into folders (patterns); by default what it is made of
     inside: tuple[str, ...] = ()  # the commands whose folders it writes such files into (eval: a run's)
+    # the keys its record holds (in each row, for a list): a file of the record's name without them is the user's
+    record_keys: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
+        if self.record and not self.record_keys:
+            raise ValueError(f"{self.command}: name the keys of its record {self.record} (record_keys)")
         _KINDS.setdefault(self.command, self)
 
     def own(self, name: str) -> bool:
@@ -100,9 +104,10 @@ EVAL = Output("fieldgen eval", (), "", "--summary", files=("summary.json", "summ
               inside=("fieldgen train",))
 AGGREGATE = Output("fieldgen aggregate", (), "", "--summary")
 RENDER = Output("fieldgen render", (), "", "-o", files=("levels.png",), inside=("fieldgen train",))
-COMPARE = Output("fieldgen compare", (), "compare.json", "-o", files=("compare.json", "compare.png"))
+COMPARE = Output("fieldgen compare", (), "compare.json", "-o", files=("compare.json", "compare.png"),
+                 record_keys=("algo", "success_any"))
 SWEEP = Output("fieldgen sweep", (), "sweep.json", "out: (or --out)",
-               files=("sweep.json", "summary.json", "summary.md", "summary-*.png"))
+               files=("sweep.json", "summary.json", "summary.md", "summary-*.png"), record_keys=("runs",))
 VIDEOS = Output("fieldgen videos", (), "")
 
 
@@ -143,7 +148,7 @@ def claim(folder: Path, output: Output) -> None:
     record = _record(folder)
     if record is not None and "written_by" not in record:
         record = None  # a folder of the user's that fieldgen wrote files into, not one it wrote
-    if record is None and entries and output.record not in entries:
+    if record is None and entries and not holds_record(folder, output):
         raise NotOurs(f"{folder} is not a folder {output.command} wrote (it holds {_some(entries)}); fieldgen "
                       f"replaces only what it wrote itself: move it aside or {where}")
     if record is not None and record.get("written_by") != output.command:
@@ -180,6 +185,27 @@ def parsed_json(text: bytes | str):
         return json.loads(text)
     except RecursionError:
         raise ValueError("nested deeper than any record fieldgen writes") from None
+
+
+def holds_record(folder: Path, kind: Output) -> bool:
+    """Whether `folder` holds `kind`'s own record as that command writes it (a mapping with its keys), which marks a
+    folder written before ownership records were kept: a file of the user's that has only the record's name
+    (a run.json of their own) marks nothing."""
+    path = folder / kind.record
+    if not kind.record or path.is_symlink() or not path.is_file():
+        return False
+    try:
+        text = path.read_bytes()[:MAX_RECORD]
+        if path.suffix in (".yaml", ".yml"):
+            import yaml
+
+            value = yaml.safe_load(text)
+        else:
+            value = parsed_json(text)
+    except Exception:  # unreadable, or not JSON / YAML: not a record fieldgen wrote
+        return False
+    rows = value if isinstance(value, list) and value else [value]
+    return all(isinstance(row, dict) and set(kind.record_keys) <= set(row) for row in rows)
 
 
 def _record(folder: Path) -> dict | None:
@@ -222,7 +248,7 @@ def writer_of(path: Path) -> str | None:
     folder, name = path.parent, path.name
     record = _record(folder)
     if record is None:
-        kind = next((k for k in _KINDS.values() if k.record and (folder / k.record).is_file()), None)
+        kind = next((k for k in _KINDS.values() if holds_record(folder, k)), None)
     else:
         kind = _KINDS.get(record.get("written_by"))
     if kind is not None and kind.own(name):
@@ -306,7 +332,7 @@ def _own(path: Path, output: Output) -> None:
         files = _files(record) if record else None
         if files is None:
             files = {}
-            earlier = record is not None or any(k.record and (folder / k.record).is_file() for k in _KINDS.values())
+            earlier = record is not None or any(holds_record(folder, k) for k in _KINDS.values())
             if earlier:  # a folder an earlier fieldgen wrote: the files it wrote there become listed
                 with contextlib.suppress(OSError):
                     for entry in folder.iterdir():

@@ -29,7 +29,8 @@ from fieldgen.files import Output, replace_folder, write_atomic
 
 DESCRIPTION, PARAMS, ONNX = "policy.json", "params.msgpack", "policy.onnx"
 MAX_DESCRIPTION_BYTES = 10_000_000  # a description names each observation and action: kilobytes
-POLICY = Output("fieldgen export", (DESCRIPTION, PARAMS, ONNX), DESCRIPTION, "-o")
+POLICY = Output("fieldgen export", (DESCRIPTION, PARAMS, ONNX), DESCRIPTION, "-o",
+                record_keys=("observation_names",))
 ACTION = "tanh of each agent's first network outputs, one per action it drives, in order"
 
 

@@ -17,8 +17,9 @@ from fieldgen import files
 from fieldgen.cli import app
 
 runner = CliRunner()
-BUILD = files.Output("fieldgen build", ("scene.xml", "field.json", "preview.png"), "field.json")
-POLICY = files.Output("fieldgen export", ("policy.json", "params.msgpack"), "policy.json", "-o")
+BUILD = files.Output("fieldgen build", ("scene.xml", "field.json", "preview.png"), "field.json", record_keys=("spec",))
+POLICY = files.Output("fieldgen export", ("policy.json", "params.msgpack"), "policy.json", "-o",
+                      record_keys=("observation_names",))
 
 
 def listing(folder: Path) -> dict[str, bytes]:
@@ -39,6 +40,10 @@ def one_line(output: str) -> str:
 
 # -- 1. fieldgen replaces only what it wrote ---------------------------------------------------------------
 
+# the records of folders written before ownership records were kept, as fieldgen wrote them (their keys)
+EARLIER_POLICY = '{"algorithm": "crl", "observation_names": ["x"]}'
+EARLIER_RUN = '{"algo": "crl", "config": {}, "seeds": [0]}'
+
 @pytest.mark.parametrize("make,phrase", [
     (lambda f: (f.mkdir(), (f / "notes.txt").write_text("mine")),
      "is not a folder fieldgen export wrote (it holds notes.txt); fieldgen replaces only what it wrote itself"),
@@ -47,11 +52,14 @@ def one_line(output: str) -> str:
     (lambda f: f.write_text("a file of mine"), "is a file, not a folder fieldgen export wrote"),
     (lambda f: (f.with_name("target").mkdir(), (f.with_name("target") / "x").write_text("x"),
                 f.symlink_to(f.with_name("target"))), "is a link, not a folder fieldgen export wrote"),
-    (lambda f: (f.mkdir(), (f / "policy.json").write_text("{}"), (f / "README.md").write_text("mine")),
+    (lambda f: (f.mkdir(), (f / "policy.json").write_text(EARLIER_POLICY), (f / "README.md").write_text("mine")),
      "holds README.md, which fieldgen export did not write; it replaces the folder whole, so move that out"),
+    (lambda f: (f.mkdir(), (f / "policy.json").write_text('{"mine": 1}')),
+     "is not a folder fieldgen export wrote (it holds policy.json)"),
     (lambda f: (f.mkdir(), files.mark(f, BUILD), (f / "scene.xml").write_text("<mujoco/>")),
      "was written by fieldgen build, not fieldgen export"),
-], ids=["user_folder", "many_files", "file", "link", "added_file", "other_kind"])
+], ids=["user_folder", "many_files", "file", "link", "added_file", "users_file_of_the_records_name",
+        "other_kind"])
 def test_a_folder_fieldgen_did_not_write_is_refused_and_kept(tmp_path, make, phrase):
     folder = tmp_path / "out"
     make(folder)
@@ -66,7 +74,7 @@ def test_a_folder_fieldgen_did_not_write_is_refused_and_kept(tmp_path, make, phr
 @pytest.mark.parametrize("make", [
     lambda f: None,
     lambda f: f.mkdir(),
-    lambda f: (f.mkdir(), (f / "policy.json").write_text("old"), (f / "params.msgpack").write_text("old")),
+    lambda f: (f.mkdir(), (f / "policy.json").write_text(EARLIER_POLICY), (f / "params.msgpack").write_text("old")),
     lambda f: (f.mkdir(), files.mark(f, POLICY), (f / "policy.json").write_text("old")),
 ], ids=["absent", "empty", "written_before_records", "ours"])
 def test_what_fieldgen_wrote_is_replaced_and_marked_as_its_own(tmp_path, make):
@@ -135,7 +143,8 @@ def test_a_single_file_is_replaced_only_where_the_same_command_wrote_it(tmp_path
     (tmp_path / "folder.png").mkdir()
     with pytest.raises(files.NotOurs, match="is a folder, not a file fieldgen render wrote"):
         files.write_file(tmp_path / "folder.png", b"", files.RENDER)
-    files.mark(tmp_path, files.Output("fieldgen build", (), "field.json"))  # a folder marked keeps its files' record
+    # a folder marked keeps its files' record
+    files.mark(tmp_path, files.Output("fieldgen build", (), "field.json", record_keys=("spec",)))
     files.write_file(ours, b"third", files.RENDER)
     assert ours.read_bytes() == b"third" and list(tmp_path.glob(".*.tmp")) == []
 
@@ -171,7 +180,7 @@ def test_files_written_before_records_listed_them_stay_fieldgens(tmp_path):
     for name in ("run.json", "summary.json", "levels.png", "notes.png"):
         (run / name).write_text("earlier")
     for name in ("sweep.json", "summary.json", "summary.md"):
-        (sweep / name).write_text("earlier")
+        (sweep / name).write_text('{"runs": []}' if name == "sweep.json" else "earlier")
     assert [files.writer_of(run / n) for n in ("run.json", "summary.json", "levels.png", "notes.png")] == \
         ["fieldgen train", "fieldgen eval", "fieldgen render", None]
     files.write_file(run / "summary.json", b"{}", files.EVAL)
@@ -182,9 +191,23 @@ def test_files_written_before_records_listed_them_stay_fieldgens(tmp_path):
     oldest = tmp_path / "oldest"  # a run folder from before any record: its run.json tells its kind
     oldest.mkdir()
     for name in ("run.json", "summary.json", "notes.json"):
-        (oldest / name).write_text("earlier")
+        (oldest / name).write_text(EARLIER_RUN if name == "run.json" else "earlier")
     assert [files.writer_of(oldest / n) for n in ("run.json", "summary.json", "notes.json")] == \
         ["fieldgen train", "fieldgen eval", None]
+
+
+@pytest.mark.parametrize("record", ["{}", '{"my": "notes"}', "[]", "not json", '{"algo": "crl"}'])
+def test_a_users_file_of_a_records_name_marks_no_folder_as_fieldgens(tmp_path, record):
+    """A folder without an ownership record counts as an earlier fieldgen's only where its record file holds what
+    that command writes there: a run.json of the user's beside their summary.json leaves the summary theirs."""
+    folder = tmp_path / "project"
+    folder.mkdir()
+    (folder / "run.json").write_text(record)
+    (folder / "summary.json").write_text('{"my": "summary"}')
+    assert files.writer_of(folder / "summary.json") is None and files.writer_of(folder / "run.json") is None
+    with pytest.raises(files.NotOurs, match="summary.json is not a file fieldgen wrote"):
+        files.write_file(folder / "summary.json", b"{}", files.EVAL)
+    assert (folder / "summary.json").read_text() == '{"my": "summary"}' and not (folder / files.OWNER).exists()
 
 
 def test_render_replaces_its_own_image_and_refuses_a_users(tmp_path, monkeypatch):

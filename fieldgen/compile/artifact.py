@@ -32,7 +32,7 @@ from fieldgen.source_imports import imports
 # Bump when field.json or scene.xml change shape in a way loaders must know about.
 ARTIFACT_FORMAT = 2  # 2: field.json holds record_sha256
 SCENE, META, PREVIEW = "scene.xml", "field.json", "preview.png"
-BUILD = Output("fieldgen build", (SCENE, META, PREVIEW), META)
+BUILD = Output("fieldgen build", (SCENE, META, PREVIEW), META, record_keys=("spec",))
 # The compiler: this package, and every module of fieldgen its modules import. Their sources are part of
 # every build's hash, so a change to any of them invalidates cached builds.
 _COMPILER_PACKAGE = "fieldgen.compile"

@@ -20,7 +20,7 @@ from fieldgen.schema.editor import SCHEMA_FILE
 from fieldgen.schema.source import read_yaml
 
 INDEX = "curriculum.yaml"
-CURRICULUM = Output("fieldgen curriculum", (INDEX, "stage_*.yaml"), INDEX, "-o")
+CURRICULUM = Output("fieldgen curriculum", (INDEX, "stage_*.yaml"), INDEX, "-o", record_keys=("stages",))
 
 
 class CurriculumError(Exception):

@@ -28,7 +28,8 @@ from fieldgen.schema.errors import shown_text, shown_value
 RUN, METRICS, CSV, CHECKPOINT, PLOT = "run.json", "metrics.jsonl", "metrics.csv", "checkpoint.msgpack", "success.png"
 LEARNER, INITIAL, VIDEOS = "learner.msgpack", "initial.msgpack", "videos"
 RUN_FOLDER = Output("fieldgen train", (), RUN,  # written into file by file, never replaced whole
-                    files=(RUN, METRICS, CSV, CHECKPOINT, LEARNER, INITIAL, PLOT, VIDEOS, "field", "stages"))
+                    files=(RUN, METRICS, CSV, CHECKPOINT, LEARNER, INITIAL, PLOT, VIDEOS, "field", "stages"),
+                    record_keys=("algo", "config"))
 PARSER_COMPLAINT = 120  # characters of what JSON's parser says of a broken record: its whole sentence and place
 # the metrics that time the run rather than say what it learned: the only ones in which the same run, trained
 # again or over other processes, may differ
