@@ -15,18 +15,28 @@ from typing import Callable
 
 AS_CTRL_C = (signal.SIGTERM, signal.SIGHUP)
 _received = [signal.SIGINT]  # the signal behind the last KeyboardInterrupt
+_pending = [False]  # a stop signal came since the command began
 
 
 def _stop(number: int, frame) -> None:
     _received[0] = signal.Signals(number)
+    _pending[0] = True
     raise KeyboardInterrupt
+
+
+def check() -> None:
+    """Raise KeyboardInterrupt where a stop signal came and the command still runs: its KeyboardInterrupt was
+    raised where Python drops exceptions (a garbage collector's callback, such as JAX's, or a `__del__`), which
+    would have let a run go on to its end. A loop that trains calls this between its chunks."""
+    if _pending[0]:
+        raise KeyboardInterrupt
 
 
 def catch() -> Callable[[], None]:
     """Have SIGTERM and SIGHUP stop this command as Ctrl-C does where they would kill it; a handler someone set
     stays, as does a signal the process was started ignoring (nohup's SIGHUP). Returns what puts the handlers
     back, for whoever called the command (a test, a program running the app) to keep its own."""
-    _received[0] = signal.SIGINT
+    _received[0], _pending[0] = signal.SIGINT, False
     if threading.current_thread() is not threading.main_thread():
         return lambda: None
     default = {signal.SIGINT: signal.default_int_handler, **{sig: signal.SIG_DFL for sig in AS_CTRL_C}}

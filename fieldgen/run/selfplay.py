@@ -24,7 +24,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from fieldgen import files
+from fieldgen import files, stops
 from fieldgen.agents import checkpoint, elo, loop, memory
 from fieldgen.agents.selfplay import RESULTS, SelfPlayConfig, fixed_opponents, make_selfplay
 from fieldgen.compile.artifact import ArtifactError, write_artifact
@@ -227,6 +227,7 @@ def train(run: TeamRun, say=print, deadline: float | None = None, recorder=None)
         else:
             state, first = run.state, run.rows[-1]["eval"] + 1
         for index in range(first, c.num_evals + 1):
+            stops.check()  # a Ctrl-C dropped where it was raised stops the run here, before its next chunk
             if index > 0 and deadline is not None and took and time.monotonic() + max(took) > deadline:
                 last = run.rows[-1]
                 say(f"stopped at the time limit after evaluation {last['eval']} of {c.num_evals} "

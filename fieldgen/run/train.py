@@ -63,6 +63,7 @@ class Deadline:
     def stop(self, longest: float | None) -> bool:
         """loop.run_staged's `stop`: every process of a run takes process 0's answer, so that all stop at
         the same evaluation."""
+        stops.check()  # a Ctrl-C dropped where it was raised stops the run here, before its next chunk
         interval = longest if longest is not None else self.earlier_interval()
         if self.at is not None and interval is not None:
             self.needed = interval + max(self.handing, default=0.0) + max(self.writing, default=0.0)

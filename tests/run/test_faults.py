@@ -222,6 +222,37 @@ def test_a_signal_the_process_was_started_ignoring_stays_ignored():
             signal.signal(sig, handler)
 
 
+def test_a_ctrl_c_that_python_dropped_stops_at_the_next_check(monkeypatch):
+    """A KeyboardInterrupt raised inside a garbage collector's callback or a `__del__` is printed and dropped by
+    Python (a run given Ctrl-C as JAX collected a buffer trained on to its end): the stop it stood for is kept
+    and raised at the next check, which a training loop makes between its chunks."""
+    from fieldgen import stops
+
+    dropped = []
+    monkeypatch.setattr(sys, "unraisablehook", lambda unraisable: dropped.append(unraisable.exc_type))
+    before = signal.getsignal(signal.SIGINT)
+    give_back = stops.catch()
+    try:
+        stops.check()  # no signal came: nothing to raise
+
+        class Collected:
+            def __del__(self):
+                os.kill(os.getpid(), signal.SIGINT)
+                for _ in range(10_000):  # the handler runs between these, inside __del__
+                    pass
+
+        Collected()
+        assert dropped == [KeyboardInterrupt]
+        with pytest.raises(KeyboardInterrupt):
+            stops.check()
+        assert (stops.status(), stops.said()) == (130, "interrupted")
+        stops.catch()  # the next command starts with no stop pending
+        stops.check()
+    finally:
+        give_back()
+        signal.signal(signal.SIGINT, before)
+
+
 # a `fieldgen` command given Ctrl-C a second into the first of XLA's compiles that lasts that long (JAX tells each
 # program's compile start and end as it lowers and compiles it, whichever way it is jitted): "SIGINT at T" on stderr
 INTERRUPTED_COMPILING_IN_XLA = textwrap.dedent("""
