@@ -172,6 +172,24 @@ def test_the_gl_back_end_is_one_the_machine_has():
     assert headless_gl(lambda lib: None) == "disable"  # mujoco still imports; only drawing fails
 
 
+def test_a_mujoco_gl_that_would_break_mujocos_import_is_named_with_what_to_do(monkeypatch):
+    from fieldgen import gl_problem
+
+    egl_only = lambda lib: "libEGL.so.1" if lib == "EGL" else None  # noqa: E731
+    assert gl_problem({}, egl_only, "Linux") is None  # fieldgen picks
+    assert gl_problem({"MUJOCO_GL": "egl"}, egl_only, "Linux") is None
+    assert gl_problem({"MUJOCO_GL": "glfw"}, egl_only, "Linux") is None  # imports; drawing says what is wrong
+    missing = gl_problem({"MUJOCO_GL": "osmesa"}, egl_only, "Linux")
+    assert "names OSMesa, whose library is not installed here" in missing and "apt install libosmesa6" in missing
+    assert "set MUJOCO_GL=egl (installed here)" in missing and "unset MUJOCO_GL" in missing
+    assert "no back end mujoco knows: set it to egl, osmesa, glfw, glx or disable" in gl_problem(
+        {"MUJOCO_GL": "bogus"}, egl_only, "Linux")
+    assert gl_problem({"MUJOCO_GL": "bogus"}, egl_only, "Darwin") is None  # mujoco's own values differ there
+    monkeypatch.setenv("MUJOCO_GL", "bogus")  # a command says so before anything imports mujoco
+    result = runner.invoke(app, ["validate", "point_nav"])
+    assert result.exit_code == 1 and "MUJOCO_GL=bogus is no back end mujoco knows" in " ".join(result.output.split())
+
+
 def test_a_machine_that_cannot_render_is_told_what_to_install(tmp_path, monkeypatch):
     import mujoco
 

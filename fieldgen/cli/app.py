@@ -180,6 +180,11 @@ def main(ctx: typer.Context,
          version: Annotated[bool, typer.Option("--version", callback=_print_version, is_eager=True,
                                                help="print fieldgen's version and exit")] = False) -> None:
     """Robot-soccer fields from YAML specs, compiled to GPU-batched MJX environments."""
+    from fieldgen import gl_problem
+
+    problem = gl_problem()
+    if problem:  # before anything imports mujoco, which would fail with PyOpenGL's traceback
+        fail(problem)
     ctx.call_on_close(files.release_all)  # the folders a command locked are free once it ends
     ctx.call_on_close(stops.catch())  # kill and a closed terminal stop it as Ctrl-C does
     xla_cache.enable()

@@ -159,6 +159,7 @@ def _train(run: Run, console: Console, videos: bool, logger: str, video_format: 
         # a run started from another's networks (--init-from) goes on from "evaluation -1": it evaluates them first
         resume = (run.state, run.rows[-1]["eval"] if run.rows else -1, run.stage) if run.state is not None else None
         try:
+            stops.check()  # a Ctrl-C dropped while the run was opened: nothing to train
             loop.run_staged(trainers, run.seeds, config.num_evals, run.plan.schedule, progress, on_eval, resume,
                             film=EpisodeRecorder.film if videos else None, sampling=run.sampling,
                             stop=deadline.stop, clock=started)
