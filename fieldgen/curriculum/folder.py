@@ -56,9 +56,12 @@ def write(folder: Path, base_ref: str, base: Path, kind: str, variants: list[tup
     claim(folder, CURRICULUM)
     if folder.exists() and not force:
         raise CurriculumError(f"{folder} exists; pass --force to replace it")
-    if not 0.0 < promotion.threshold <= 1.0 or not 1 <= promotion.window <= MAX_STAGES:
-        raise CurriculumError(f"promotion threshold must be in (0, 1] and window from 1 to {MAX_STAGES}, got "
-                              f"{promotion}")
+    if not 0.0 < promotion.threshold <= 1.0:  # NaN included
+        raise CurriculumError(f"promotion threshold (--threshold) {promotion.threshold:g}: the success_any that "
+                              f"promotes a run is a share of episodes, above 0 and at most 1 (such as 0.5)")
+    if not 1 <= promotion.window <= MAX_STAGES:
+        raise CurriculumError(f"promotion window (--window) {promotion.window}: the evaluations averaged for "
+                              f"promotion are a whole number from 1 to {MAX_STAGES}")
     if len(variants) > MAX_STAGES:
         raise CurriculumError(f"{len(variants):,} stages asked for; a curriculum has at most {MAX_STAGES:,}")
     prefix = _slug(folder.name)

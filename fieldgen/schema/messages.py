@@ -29,6 +29,12 @@ def problems(source: Source, errors: list[dict], model: type[BaseModel] = FieldS
     by_value: dict[tuple, list[dict]] = {}
     for err in errors:
         by_value.setdefault(_data_path(source.data, err["loc"], err["type"] == "missing"), []).append(err)
+    # a union's choice of another kind (a whole number, 'auto') refused a list or mapping that a choice of its kind
+    # took and found wrong inside: what is wrong is inside ([-1] is a list, its -1 below 0), so only that is said
+    inside = {parts for parts in by_value for other in by_value
+              if len(other) > len(parts) and other[:len(parts)] == parts}
+    by_value = {parts: errs for parts, errs in by_value.items() if not (
+        parts in inside and all(_expected(e) is not None or e["type"] == "literal_error" for e in errs))}
     return [_problem(source, parts, errs, model) for parts, errs in by_value.items()]
 
 

@@ -306,16 +306,19 @@ def _few_enough(spec: SweepFile, source: Source, found: list[Problem]) -> None:
 def _each_once(spec: SweepFile, names: list[str], source: Source, found: list[Problem]) -> None:
     """Refuse a sweep that would plan one run twice (a seed, an algorithm or a grid value listed twice, or two
     fields of one name, whose runs share folders): trained twice, or counted twice in a summary, it would weigh
-    as two seeds."""
-    lists = [(("seeds",), spec.seed_list if isinstance(spec.seeds, list) else [], "seed"),
-             (("algorithms",), spec.algorithms, "algorithm"),
-             *((("grid", key), [_shown(v) for v in values], "value") for key, values in spec.grid.items())]
-    for where, values, what in lists:
+    as two seeds; and one that lists a GPU twice, which would put two runs on it at a time."""
+    twice = "the same run is planned twice"
+    lists = [(("seeds",), spec.seed_list if isinstance(spec.seeds, list) else [], "seed", twice),
+             (("algorithms",), spec.algorithms, "algorithm", twice),
+             (("local", "gpus"), spec.local.gpus if isinstance(spec.local.gpus, list) else [], "GPU",
+              "two runs at a time share that GPU"),
+             *((("grid", key), [_shown(v) for v in values], "value", twice) for key, values in spec.grid.items())]
+    for where, values, what, otherwise in lists:
         seen: dict = {}
         for i, value in enumerate(values):
             if value in seen:
                 found.append(source.problem((*where, i), f"{what} {value} is listed twice (items {seen[value]} and "
-                                                         f"{i}); list each once, or the same run is planned twice"))
+                                                         f"{i}); list each once, or {otherwise}"))
                 break
             seen[value] = i
     first: dict[str, int] = {}

@@ -353,3 +353,17 @@ def test_refusals_name_the_bundled_fields_that_would_serve(tmp_path):
     assert "soccer_v2" in offered and "point_nav" not in offered and "soccer_v1" not in offered
     with pytest.raises(LevelError, match="bundled fields for the point agent that have both: point_soccer"):
         LevelSpace.of(load_spec(bundled_fields()["point_nav"]))
+
+
+@pytest.mark.parametrize("args,phrase", [
+    (["--threshold", "2"], "promotion threshold (--threshold) 2: the success_any that promotes a run is a share of "
+                           "episodes, above 0 and at most 1"),
+    (["--threshold", "nan"], "promotion threshold (--threshold) nan"),
+    (["--window", "0"], "promotion window (--window) 0: the evaluations averaged for promotion are a whole number "
+                        "from 1 to"),
+])
+def test_a_promotion_out_of_range_names_its_option_and_writes_nothing(tmp_path, args, phrase):
+    out = tmp_path / "c"
+    result = runner.invoke(app, ["curriculum", "point_nav", "--vary", "task.target.radius=1,2", "-o", str(out), *args])
+    said = " ".join(result.output.split())
+    assert result.exit_code == 1 and phrase in said and "Promotion(" not in said and not out.exists(), said

@@ -187,6 +187,8 @@ def test_a_set_key_the_grid_varies_too_is_refused_at_the_key(tmp_path, body, phr
     ("grid:\n  crl.repr_dim: [8, 16, 8]\n", ":7:25: grid.crl.repr_dim[2]: value 8 is listed twice (items 0 and 2)"),
     ("fields: [point_nav, mine.yaml]\n", ":1:21: fields[1]: 'mine.yaml' is the field point_nav, as 'point_nav' "
                                         "(fields[0]) is: their runs would share folders and a summary"),
+    ("local: {gpus: [1, 1]}\n", ":6:19: local.gpus[1]: GPU 1 is listed twice (items 0 and 1); list each once, or "
+                                "two runs at a time share that GPU"),
 ])
 def test_a_sweep_that_would_plan_one_run_twice_is_refused_at_the_key(tmp_path, body, phrase):
     """Two entries that plan the same run folder would train it twice, or count one seed twice in a summary."""
@@ -521,3 +523,18 @@ def test_a_run_a_signal_stopped_says_which_and_how_to_go_on(tmp_path):
     assert launch.why(log, 129) == "stopped by SIGHUP; start the sweep again to continue it"
     assert launch.why(log, 130) == "interrupted (Ctrl-C); start the sweep again to continue it"
     assert launch.why(log, -9) == "stopped by signal 9"
+
+
+@pytest.mark.parametrize("body,phrase", [
+    ("seeds: [-1]\n", "seeds[0]: Input should be greater than or equal to 0 (got -1)"),
+    ("local: {gpus: [-1]}\n", "local.gpus[0]: Input should be greater than or equal to 0 (got -1)"),
+])
+def test_a_list_with_a_wrong_item_is_refused_at_the_item_alone(tmp_path, body, phrase):
+    """seeds takes a number or a list, local.gpus 'auto' or a list: a list with a wrong item is one problem, at the
+    item, not also "expected a whole number (got a list)" from the choice a list is not."""
+    path = tmp_path / "sweep.yaml"
+    path.write_text("fields: [point_nav]\nalgorithms: [crl]\n" + body)
+    result = runner.invoke(app, ["sweep", str(path), "--dry-run", "--out", str(tmp_path / "out")])
+    said = " ".join(result.output.split())
+    assert result.exit_code == 1 and phrase in said and "got a list" not in said and "'auto'" not in said, said
+    assert len(result.output.strip().splitlines()) == 1
