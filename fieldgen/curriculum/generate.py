@@ -115,6 +115,10 @@ def _grid(base: Path, asked: Asked) -> list[tuple[dict, str]]:
 
 @kind("list", "--stage 'KEY=V'", "listed", lambda a: bool(a.listed))
 def _list(base: Path, asked: Asked) -> list[tuple[dict, str]]:
+    empty = [i + 1 for i, s in enumerate(asked.listed) if not s.strip()]
+    if empty:
+        raise CurriculumError(f"--stage number {empty[0]} is empty: each --stage changes the base, as in --stage "
+                              "'goal.distance=12' (a stage that changes nothing is the base field itself)")
     return explicit(base, [parse_assignments(split_assignments(s), "--stage") for s in asked.listed])
 
 
@@ -136,6 +140,9 @@ def interpolate(base: Path, target: Path, stages: int, geometric: tuple[str, ...
     spec_a, spec_b = _spec(base), _spec(target)
     _check_compatible(base, spec_a, target, spec_b)
     a, b = spec_a.model_dump(mode="json"), spec_b.model_dump(mode="json")
+    if not _diff(a, b):
+        raise CurriculumError(f"--to {target}: it is the same field as {base} (nothing but its name differs), so "
+                              f"every stage would be that field; name a field that differs from it")
     switch = switch_at if switch_at is not None else stages // 2 + 1
     if not 1 <= switch <= stages:
         raise CurriculumError(f"--switch-at {switch_at}: choose a stage from 1 to {stages}")
@@ -399,7 +406,12 @@ def parse_axis(item: str) -> tuple[str, list]:
     key, sep, raw = item.partition("=")
     if not sep or not key:
         raise CurriculumError(f"--vary '{item}': write KEY=V1,V2,..., e.g. goal.distance=8,12,16")
-    values = [_yaml_value(v, f"--vary {key.strip()}") for v in raw.split(",") if v.strip()]
-    if not values:
+    raws = raw.split(",")
+    if not raw.replace(",", "").strip():
         raise CurriculumError(f"--vary {key}: the list of values is empty")
+    if any(not v.strip() for v in raws):
+        empty = ", ".join(str(i + 1) for i, v in enumerate(raws) if not v.strip())
+        raise CurriculumError(f"--vary '{item}': value {empty} of {len(raws)} is empty; write KEY=V1,V2,..., each "
+                              f"value once, e.g. goal.distance=8,12,16")
+    values = [_yaml_value(v, f"--vary {key.strip()}") for v in raws]
     return key.strip(), values

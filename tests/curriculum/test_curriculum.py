@@ -367,3 +367,17 @@ def test_a_promotion_out_of_range_names_its_option_and_writes_nothing(tmp_path, 
     result = runner.invoke(app, ["curriculum", "point_nav", "--vary", "task.target.radius=1,2", "-o", str(out), *args])
     said = " ".join(result.output.split())
     assert result.exit_code == 1 and phrase in said and "Promotion(" not in said and not out.exists(), said
+
+
+@pytest.mark.parametrize("args,phrase", [
+    (["--vary", "task.target.radius=1,,2"], "--vary 'task.target.radius=1,,2': value 2 of 3 is empty"),
+    (["--stage", ""], "--stage number 1 is empty: each --stage changes the base"),
+    (["--to", "point_nav"], "--to point_nav: it is the same field as point_nav (nothing but its name differs)"),
+])
+def test_a_curriculum_asked_for_nothing_is_refused_rather_than_written(tmp_path, args, phrase):
+    """An empty value, an empty stage or a target that is the base would write stages that quietly drop what was
+    asked or repeat the base field."""
+    out = tmp_path / "c"
+    result = runner.invoke(app, ["curriculum", "point_nav", "-o", str(out), *args])
+    said = " ".join(result.output.split())
+    assert result.exit_code == 1 and phrase in said and not out.exists(), said
