@@ -476,3 +476,10 @@ def test_a_number_of_thousands_of_digits_in_a_spec_is_refused_at_its_line(write_
         " ".join(result.output.split()) and "Traceback" not in result.output, result.output
     steps = runner.invoke(app, ["train", "point_nav", "--steps", DIGITS, "--prepare"])
     assert steps.exit_code == 2 and "(5,000 characters)' is not a positive whole count" in steps.output, steps.output
+
+
+def test_levels_of_a_field_rather_than_a_run_says_what_it_draws(tmp_path):
+    result = runner.invoke(app, ["render", "point_nav", "--levels", "-o", str(tmp_path / "a.png")])
+    said = " ".join(result.output.split())
+    assert result.exit_code == 1 and "point_nav is a field, not a run folder: fieldgen render RUN --levels" in said
+    assert "is missing" not in said and not (tmp_path / "a.png").exists()

@@ -32,7 +32,7 @@ def player(env_cache):
     return Player(env, lambda obs: jnp.full(env.action_size, 0.5))
 
 
-def test_no_display_is_one_line_naming_render_and_eval(monkeypatch):
+def test_no_display_is_one_line_naming_render_and_eval(monkeypatch, tmp_path):
     monkeypatch.delenv("DISPLAY", raising=False)
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
     monkeypatch.setattr(sys, "platform", "linux")
@@ -40,6 +40,11 @@ def test_no_display_is_one_line_naming_render_and_eval(monkeypatch):
     assert result.exit_code == 1
     assert result.output.count("\n") == 1 and "no display here" in result.output, result.output
     assert f"fieldgen render {FIELD} -o field.png" in result.output and "fieldgen eval RUN" in result.output
+    policy = tmp_path / "policy"  # an exported policy: the render advice names a field, not the policy's folder
+    policy.mkdir()
+    (policy / "policy.json").write_text("{}")
+    said = " ".join(CliRunner().invoke(app, ["view", str(policy)]).output.split())
+    assert "fieldgen render FIELD -o field.png" in said and f"render {policy}" not in said, said
     assert no_display_reason({"DISPLAY": ":1"}, "linux") is None
     assert no_display_reason({"WAYLAND_DISPLAY": "wayland-0"}, "linux") is None
     assert no_display_reason({}, "darwin") is None  # there the viewer itself says why it cannot open

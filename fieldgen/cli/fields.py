@@ -172,6 +172,11 @@ def render(
         from fieldgen.run.favoured import favoured_levels
         from fieldgen.run.record import RunError
 
+        if not Path(spec).is_dir() and (spec in bundled_fields() or Path(spec).is_file()):
+            fail(f"--levels draws the levels a run of the automatic (or mixed) curriculum favours, and {spec} is a "
+                 f"field, not a run folder: fieldgen render RUN --levels (or fieldgen render {spec} -o field.png "
+                 f"for the field)")
+
         output = output or Path(spec) / "levels.png"
         check_file(output, RENDER)  # before reading the run: a file of the user's there is one line now
         try:

@@ -60,8 +60,20 @@ def view(
 
 
 def _no_display(reason: str, source: str) -> None:
-    fail(f"no display here ({reason}), so no viewer opens; `fieldgen render {source} -o field.png` draws a field, "
-         f"`fieldgen eval RUN` writes videos of a run's policy")
+    """No viewer: what draws the same without a display, for what `source` is (a run, an exported policy, a field)."""
+    from fieldgen.policy_folder import DESCRIPTION
+    from fieldgen.run.record import RUN
+
+    folder = Path(source)
+    if (folder / RUN).is_file():
+        instead = f"`fieldgen eval {source}` writes videos of its policy"
+    elif (folder / DESCRIPTION).is_file():
+        instead = ("`fieldgen eval RUN` writes videos of the run it was exported from, and `fieldgen render FIELD "
+                   "-o field.png` draws the field it plays on")
+    else:
+        instead = (f"`fieldgen render {source} -o field.png` draws the field, `fieldgen eval RUN` writes videos of "
+                   "a run's policy")
+    fail(f"no display here ({reason}), so no viewer opens; {instead}")
 
 
 def _playing(source: str, field: str | None, seed: int | None):
