@@ -35,6 +35,21 @@ class Policy:
     per_controller: bool = flax.struct.field(pytree_node=False, default=False)
     clip: float = flax.struct.field(pytree_node=False, default=10.0)
     matmul: str = flax.struct.field(pytree_node=False, default="float32")  # as it trained (networks.MATMULS)
+    # the entries of an observation (its last axis), which a call is checked against; 0 where it was not told
+    observation_size: int = flax.struct.field(pytree_node=False, default=0)
+
+    def check(self, obs: jax.Array) -> None:
+        """Refuse observations a policy would otherwise read wrongly: JAX clamps an index past the end, so a
+        short or long last axis (or a batch given the wrong way round) would act on the wrong entries unsaid."""
+        size = self.observation_size or max(max(o) for o in self.observes) + 1
+        exact = bool(self.observation_size)
+        last = obs.shape[-1] if obs.ndim else None
+        if last is None or (last != size if exact else last < size):
+            raise ValueError(f"observations of shape {tuple(obs.shape)}: this policy reads "
+                             f"{'' if exact else 'at least '}{size} entries a step, the last axis ([..., {size}]; "
+                             f"a batch, if any, before it)")
+        if not (jnp.issubdtype(obs.dtype, jnp.floating) or jnp.issubdtype(obs.dtype, jnp.integer)):
+            raise ValueError(f"observations of dtype {obs.dtype}: this policy reads real numbers (float32)")
 
     @property
     def network(self) -> MLP:
@@ -44,10 +59,13 @@ class Policy:
     def whole(cls, env, params: dict, hidden, outputs: int, **options) -> "Policy":
         """One network that reads every observation entry and drives every action."""
         return cls(params, (tuple(range(env.observation_size)),), (tuple(range(env.action_size)),), tuple(hidden),
-                   outputs, **options)
+                   outputs, observation_size=env.observation_size, **options)
 
     def __call__(self, obs: jax.Array) -> jax.Array:
         """obs [..., observation_size] -> deterministic actions [..., action_size] in [-1, 1]."""
+        obs = jnp.asarray(obs)
+        if obs.ndim <= 2:  # the outermost call, and the 2-D one it comes down to
+            self.check(obs)
         if obs.ndim != 2:
             return jax.vmap(self)(obs) if obs.ndim > 2 else self(obs[None])[0]
         if self.obs_mean is not None:

@@ -204,7 +204,8 @@ def _policy(d: Description, params: dict) -> Policy:
                      obs_std=jnp.asarray(d.normalizer.std, jnp.float32), clip=d.normalizer.clip)
     n = d.network
     return Policy(params, observes, drives, tuple(n.hidden), n.outputs, layer_norm=n.layer_norm,
-                  skip_every=n.skip_every, per_controller=n.per_agent, matmul=n.matmul, **stats)
+                  skip_every=n.skip_every, per_controller=n.per_agent, matmul=n.matmul,
+                  observation_size=len(d.observation_names), **stats)
 
 
 def _check_shapes(policy: Policy, path: Path) -> None:

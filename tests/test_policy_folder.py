@@ -4,6 +4,7 @@ itself and bounded in size, each problem one sentence naming the key."""
 from __future__ import annotations
 
 import json
+import re
 
 import jax
 import jax.numpy as jnp
@@ -30,6 +31,20 @@ def exported(tmp_path):
 def test_an_exported_policy_loads_and_acts(exported):
     actions = np.asarray(fieldgen.load_policy(exported)(jnp.ones((5, 3))))
     assert actions.shape == (5, 2) and np.all(np.abs(actions) <= 1)
+
+
+@pytest.mark.parametrize("obs,phrase", [
+    (jnp.ones(2), "observations of shape (2,): this policy reads 3 entries a step"),  # JAX would clamp the index
+    (jnp.ones(4), "observations of shape (4,): this policy reads 3 entries a step"),  # and drop the 4th
+    (jnp.ones((3, 5)), "observations of shape (3, 5)"),  # a batch the wrong way round
+    (jnp.float32(1.0), "observations of shape ()"),
+    (jnp.ones(3, jnp.complex64), "observations of dtype complex64: this policy reads real numbers"),
+])
+def test_a_loaded_policy_refuses_observations_it_would_read_wrongly(exported, obs, phrase):
+    act = fieldgen.load_policy(exported)
+    with pytest.raises(ValueError, match=re.escape(phrase)):
+        act(obs)
+    assert act([0.1, 0.2, 0.3]).shape == (2,) and jax.jit(act)(jnp.ones((2, 4, 3))).shape == (2, 4, 2)
 
 
 def edited(**changes):

@@ -217,6 +217,6 @@ def make_train(config: CRLConfig, env, team: Team | None = None, shared: bool = 
         observes = tuple(tuple(o) + goal for o in team.observed.tolist())
         return Policy(actor, observes, tuple(map(tuple, team.actions.tolist())), tuple(c.hidden), 2 * own,
                       layer_norm=c.layer_norm, skip_every=c.skip_every, per_controller=per_controller,
-                      matmul=c.matmul)
+                      matmul=c.matmul, observation_size=env.observation_size)
 
     return Trainer(config, env, init, prefill, chunk, act, {"env_state": 0, "buffer": 1}, export)

@@ -259,6 +259,11 @@ class FieldEnv:
         """`step`, and the start of the fresh episode it drew (physics state, obs), which a done step restarts
         from: what an auto-reset wrapper outside should swap in (None without auto_reset). With
         `ends_on_time=False` episodes end only by a fall, a wrapper outside ending them on time."""
+        action = jnp.asarray(action)
+        if action.shape != (self.action_size,):  # else broadcast over the motors, or an error deep in MJX
+            raise ValueError(f"an action of shape {tuple(action.shape)}: {self.spec.name} takes ({self.action_size},) "
+                             f"a step, one entry per motor ({self.action_size} = action_size); step a batch of "
+                             f"environments with jax.vmap(env.step)")
         action = jnp.clip(action, -1.0, 1.0)
         before = state.pipeline_state
         variant = state.info.get("variant", jnp.zeros((), jnp.int32))

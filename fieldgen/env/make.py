@@ -20,9 +20,13 @@ def make(source, backend: str | None = None, **kwargs) -> FieldEnv:
     from fieldgen.compile.artifact import compile_spec, load_artifact
     from fieldgen.schema import FieldSpec, load_spec, resolve_spec_path
 
+    check_options(**kwargs)
     if isinstance(source, FieldSpec):
         spec = source if backend is None else load_spec(source, backend)
         return environment(compile_spec(spec), **kwargs)
+    if not isinstance(source, (str, Path)) or not str(source):
+        raise TypeError(f"fieldgen.make takes a FieldSpec, a YAML file, a bundled field's name or a build folder, "
+                        f"not {source!r}")
     path = Path(source) if isinstance(source, Path) else resolve_spec_path(str(source))
     if path.is_dir():
         artifact = load_artifact(path)
@@ -31,6 +35,19 @@ def make(source, backend: str | None = None, **kwargs) -> FieldEnv:
                              f"sim.backend: {backend}, or make the spec itself with backend={backend!r}")
         return environment(artifact, **kwargs)
     return environment(compile_spec(load_spec(path, backend)), **kwargs)
+
+
+def check_options(episode_length=None, auto_reset=True, **others) -> None:
+    """Refuse an episode length or auto_reset that would be taken as something else (0 read as the spec's length,
+    a negative one ending every step, "no" read as true)."""
+    import numbers
+
+    if episode_length is not None and (isinstance(episode_length, bool)
+                                       or not isinstance(episode_length, numbers.Integral) or episode_length < 1):
+        raise ValueError(f"episode_length={episode_length!r}: give a whole number of control steps, 1 or more, or "
+                         "None for the spec's own (episode.length)")
+    if not isinstance(auto_reset, bool):
+        raise ValueError(f"auto_reset={auto_reset!r}: give True (a done step starts the next episode) or False")
 
 
 def environment(artifacts, **kwargs) -> FieldEnv:

@@ -16,7 +16,7 @@ from pydantic import ValidationError
 
 from fieldgen.schema import messages
 from fieldgen.schema.checks import Among, physics_problems
-from fieldgen.schema.errors import SpecError, shown_text
+from fieldgen.schema.errors import Problem, SpecError, shown_text
 from fieldgen.schema.models import FieldSpec
 from fieldgen.schema.source import Source, read_yaml
 from fieldgen.suggest import did_you_mean
@@ -57,6 +57,14 @@ def resolve_spec_path(ref: str, relative_to: Path | None = None) -> Path:
     return path
 
 
+def _refuse_unknown_name(path: Path) -> None:
+    """A bare name that is neither a file nor a bundled field, with the nearest bundled one (a typo of one)."""
+    if len(path.parts) == 1 and not path.suffix and not path.exists():
+        near = did_you_mean(str(path), bundled_fields()) or "."
+        raise SpecError([Problem(path, None, None, "", f"neither a file nor a bundled field{near} `fieldgen list` "
+                                                       "shows the bundled fields")])
+
+
 def load_spec(path: str | Path | FieldSpec, backend: str | None = None, changes: dict | None = None) -> FieldSpec:
     """Load, merge and validate a field spec; raises SpecError listing every problem. `backend`
     replaces its sim.backend, with that pipeline's defaults for whatever the spec leaves out; `changes`
@@ -64,6 +72,7 @@ def load_spec(path: str | Path | FieldSpec, backend: str | None = None, changes:
     if isinstance(path, FieldSpec):
         source = Source(path.model_dump(mode="json", exclude_unset=True))
     else:
+        _refuse_unknown_name(Path(path))
         source = _load_merged(Path(path), ())
     if backend is not None:
         source = merge(source, Source({"sim": {"backend": backend}}))

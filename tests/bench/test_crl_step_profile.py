@@ -87,7 +87,7 @@ def test_the_loop_of_gradient_steps_is_the_one_whose_trip_count_changed():
 
 
 @pytest.mark.parametrize("options, message", [
-    (["--field", "no_such_field"], "no_such_field: no such file"),
+    (["--field", "no_such_field"], "no_such_field: neither a file nor a bundled field"),
     (["--field", "point_nav", "--set", "crl.batch_size=100000"], "hold fewer transitions than one batch"),
     (["--traced", "0"], "--envs, --traced, --top and --windows are positive"),
 ])

@@ -44,7 +44,7 @@ def test_jax_rows_run_and_warp_rows_say_why_they_are_skipped(tmp_path, monkeypat
 @pytest.mark.parametrize("options, message", [
     (["--envs", "many"], "--envs 'many': write comma-separated whole numbers"),
     (["--impls", "cpp"], "--impls takes jax and/or warp"),
-    (["--fields", "no_such_field"], "no_such_field: no such file"),
+    (["--fields", "no_such_field"], "no_such_field: neither a file nor a bundled field"),
 ])
 def test_bad_input_is_one_clear_line(tmp_path, monkeypatch, capsys, options, message):
     with pytest.raises(SystemExit) as stopped:

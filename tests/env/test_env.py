@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import functools
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -14,7 +15,8 @@ import numpy as np
 import pytest
 
 from backends import compare_backends
-from fieldgen.schema import bundled_fields, load_spec
+import fieldgen
+from fieldgen.schema import SpecError, bundled_fields, load_spec
 
 
 @functools.cache
@@ -228,3 +230,26 @@ def test_a_flipped_ant_with_grace_falls_only_once_it_stays_over(env_cache):
         _, fallen, down = rules.ended(pose, jnp.asarray(1), down)
         fell.append(bool(fallen))
     assert fell == [False, False, False, False, False, True]
+
+
+@pytest.mark.parametrize("action", [jnp.ones(1), jnp.zeros(3), jnp.zeros((4, 2))])
+def test_a_step_refuses_an_action_of_another_shape(env_cache, action):
+    """A short action would be spread over every motor, a batch stepped without vmap fail deep in MJX."""
+    env = env_cache("point_nav")
+    state = env.reset(jax.random.PRNGKey(0))
+    with pytest.raises(ValueError, match=re.escape(f"an action of shape {tuple(action.shape)}: point_nav takes (2,) "
+                                                   "a step")):
+        env.step(state, action)
+
+
+@pytest.mark.parametrize("source,options,phrase", [
+    ("point_nva", {}, "point_nva: neither a file nor a bundled field; did you mean 'point_nav'? `fieldgen list`"),
+    (None, {}, "fieldgen.make takes a FieldSpec, a YAML file, a bundled field's name or a build folder, not None"),
+    ("", {}, "not ''"),
+    ("point_nav", {"episode_length": 0}, "episode_length=0: give a whole number of control steps, 1 or more"),
+    ("point_nav", {"episode_length": 2.5}, "episode_length=2.5"),
+    ("point_nav", {"auto_reset": "no"}, "auto_reset='no': give True"),
+])
+def test_make_refuses_what_it_would_take_for_something_else(source, options, phrase):
+    with pytest.raises((ValueError, TypeError, SpecError), match=re.escape(phrase)):
+        fieldgen.make(source, **options)
