@@ -320,7 +320,10 @@ class Recorded:
     def last_success(self) -> summary.MetricSummary:
         """The run's `metric` at the last evaluation (on the field, `on_field`), each seed's and their IQM with
         its 95% stratified bootstrap interval."""
-        return summary.MetricSummary.of({s: float(on_field(row, self.metric)) for s, row in self.last.items()})
+        per_seed = {s: float(on_field(row, self.metric)) for s, row in self.last.items()}
+        if not np.all(np.isfinite(list(per_seed.values()))):  # a seed's row lacks the metric: NaN, as over_seeds
+            return summary.MetricSummary(per_seed=per_seed, iqm=np.nan, low=np.nan, high=np.nan)
+        return summary.MetricSummary.of(per_seed)
 
 
 def reached_by_every_seed(rows: list[dict], seeds: list[int]) -> list[dict]:

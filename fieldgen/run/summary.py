@@ -30,9 +30,16 @@ CONFIDENCE, RESAMPLES, BOOTSTRAP_SEED = 0.95, 2000, 0  # rliable's default count
 
 
 def _tasks(tasks: Sequence[Sequence[float]]) -> list[np.ndarray]:
-    arrays = [np.asarray(t, dtype=float).ravel() for t in tasks]
+    try:
+        arrays = [np.asarray(t, dtype=float).ravel() for t in tasks]
+    except (TypeError, ValueError):
+        raise ValueError(f"an interquartile mean takes numbers, one per seed for each task, not {list(tasks)!r}") \
+            from None
     if not arrays or any(a.size == 0 for a in arrays):
         raise ValueError("an interquartile mean needs at least one value of every task")
+    if not all(np.isfinite(a).all() for a in arrays):  # None reads as NaN, and NaN would be the answer unsaid
+        raise ValueError("an interquartile mean of values that are not all finite numbers: "
+                         f"{[a.tolist() for a in arrays]}")
     return arrays
 
 
@@ -50,6 +57,13 @@ def interval(*tasks: Sequence[float], confidence: float = CONFIDENCE, resamples:
     """(low, high): the percentile-bootstrap interval of `iqm(*tasks)`, each task's seeds resampled on their
     own (stratified), so that every resample holds as many runs of each task as the data. A task of one
     seed resamples to itself: with one seed in all, the interval is the value."""
+    if not 0 < confidence < 1:
+        raise ValueError(f"confidence={confidence!r}: a share between 0 and 1 (0.95 for a 95% interval)")
+    if not isinstance(resamples, int) or resamples < 1:
+        raise ValueError(f"resamples={resamples!r}: a whole number of bootstrap resamples, 1 or more ({RESAMPLES} "
+                         "by default)")
+    if not isinstance(seed, int) or seed < 0:
+        raise ValueError(f"seed={seed!r}: a whole number, 0 or more, that seeds the bootstrap")
     arrays = _tasks(tasks)
     varied = [a for a in arrays if a.size > 1]
     if not varied:
@@ -77,6 +91,11 @@ class MetricSummary(BaseModel):
 
     @classmethod
     def of(cls, per_seed: dict[int, float]) -> MetricSummary:
+        if not isinstance(per_seed, dict):
+            raise ValueError("MetricSummary.of takes each seed's value, {seed: value}, not "
+                             f"{type(per_seed).__name__}")
+        if not all(isinstance(seed, int) and not isinstance(seed, bool) for seed in per_seed):
+            raise ValueError(f"MetricSummary.of: seeds are whole numbers, not {sorted(map(repr, per_seed))}")
         values = list(per_seed.values())
         low, high = interval(values)
         return cls(per_seed=per_seed, iqm=iqm(values), low=low, high=high)

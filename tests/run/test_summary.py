@@ -40,6 +40,22 @@ def test_no_values_is_refused():
         interval([0.5], [])
 
 
+@pytest.mark.parametrize("call,phrase", [
+    (lambda: iqm([0.5, None, 0.7]), "not all finite numbers: [[0.5, nan, 0.7]]"),  # None reads as NaN
+    (lambda: interval([0.1, float("inf")]), "not all finite numbers"),
+    (lambda: MetricSummary.of({0: float("nan"), 1: 0.3}), "not all finite numbers"),
+    (lambda: interval([0.1, 0.5, 0.9], confidence=95), "confidence=95: a share between 0 and 1"),
+    (lambda: interval([0.1, 0.5, 0.9], resamples=0), "resamples=0: a whole number of bootstrap resamples"),
+    (lambda: interval([0.1, 0.5, 0.9], seed=-1), "seed=-1: a whole number, 0 or more"),
+    (lambda: MetricSummary.of([0.1, 0.2]), "takes each seed's value, {seed: value}, not list"),
+    (lambda: MetricSummary.of({"a": 0.1}), "seeds are whole numbers, not [\"'a'\"]"),
+    (lambda: iqm(["a"]), "takes numbers, one per seed"),
+])
+def test_what_would_give_nan_or_a_library_error_is_refused_in_words(call, phrase):
+    with pytest.raises(ValueError, match=re.escape(phrase)):
+        call()
+
+
 @pytest.mark.parametrize("tasks,expected", [
     ([[0.3]], (0.3, 0.3)),  # one seed: the interval is the value
     ([[0.5, 0.5, 0.5]], (0.5, 0.5)),  # ties: every resample is the same
