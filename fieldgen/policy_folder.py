@@ -95,6 +95,13 @@ class Description(_Strict):
         a spread for each observation."""
         if len({len(a.observes) for a in self.agents}) > 1 or len({len(a.drives) for a in self.agents}) > 1:
             raise ValueError("agents: every agent observes as many entries, and drives as many actions, as the others")
+        driven = [name for a in self.agents for name in a.drives]
+        if sorted(driven) != sorted(self.action_names):  # else an action held at 0, or two outputs fighting for one
+            twice = sorted({n for n in driven if driven.count(n) > 1})
+            left = [n for n in self.action_names if n not in driven]
+            raise ValueError("agents: every action is driven once, by one agent"
+                             + (f"; {', '.join(twice)} more than once" if twice else "")
+                             + (f"; {', '.join(left)} by none" if left else ""))
         if len(self.agents[0].drives) > self.network.outputs:
             raise ValueError(f"agents drive {len(self.agents[0].drives)} actions each, but network.outputs is "
                              f"{self.network.outputs}")

@@ -48,8 +48,20 @@ def require() -> None:
 
 
 def model_bytes(policy: Policy, description) -> bytes:
-    """The serialized ONNX model of `policy`, described by `description` (policy_folder.Description: its sizes,
-    and the metadata the model carries)."""
+    """The serialized ONNX model of `policy` (a Policy, or what fieldgen.load_policy returns), described by
+    `description` (policy_folder.Description: its sizes, and the metadata the model carries)."""
+    import jax
+
+    from fieldgen.agents.actor import Policy
+
+    if isinstance(policy, jax.tree_util.Partial) and policy.args and isinstance(policy.args[0], Policy):
+        policy = policy.args[0]  # load_policy's act: the Policy it calls
+    if not isinstance(policy, Policy):
+        raise TypeError(f"model_bytes takes a policy (fieldgen.load_policy's, or agents.actor.Policy), not "
+                        f"{type(policy).__name__}")
+    if not hasattr(description, "observation_names"):
+        raise TypeError("model_bytes takes the policy's description (fieldgen.policy_folder.read_description("
+                        f"FOLDER)), not {type(description).__name__}")
     graph = _Graph(policy, len(description.observation_names), len(description.action_names))
     return graph.model(metadata(description)).SerializeToString()
 

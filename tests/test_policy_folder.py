@@ -58,6 +58,10 @@ def edited(**changes):
     (edited(agents=lambda d: [d["agents"][0], {"observes": ["a"], "drives": ["x", "y"]}]),
      "agents: every agent observes as many entries, and drives as many actions, as the others"),
     (edited(agents=[{"observes": [], "drives": ["x"]}]), "agents.0.observes: List should have at least 1 item"),
+    (edited(agents=lambda d: [{**d["agents"][0], "drives": ["x", "x"]}]),
+     "agents: every action is driven once, by one agent; x more than once; y by none"),  # y would be held at 0
+    (edited(agents=lambda d: [{**d["agents"][0], "drives": ["x"]}]), "agents: every action is driven once, by one "
+     "agent; y by none"),
     (edited(network=lambda d: {**d["network"], "outputs": 1}), "agents drive 2 actions each, but network.outputs is 1"),
     (edited(network=lambda d: {**d["network"], "hidden": []}), "network.hidden: List should have at least 1 item"),
     (edited(network=lambda d: {**d["network"], "hidden": [0]}), "network.hidden.0: Input should be greater than or "
@@ -74,8 +78,8 @@ def edited(**changes):
     (lambda d: [d], "(the file): Input should be an object"),
     (edited(network=lambda d: {**d["network"], "hidden": [4, 4], "skip_every": 2}), "network: residual blocks of 2 "
      "layers need 1 + a multiple of 2 hidden layers of one width, not [4, 4]"),
-], ids=["no_agents", "uneven_agents", "observes_nothing", "outputs", "no_layers", "empty_layer", "skip", "mean",
-        "std", "clip", "no_observations", "seed", "list", "residual_layout"])
+], ids=["no_agents", "uneven_agents", "observes_nothing", "drives_twice", "drives_short", "outputs", "no_layers",
+        "empty_layer", "skip", "mean", "std", "clip", "no_observations", "seed", "list", "residual_layout"])
 def test_a_damaged_or_edited_policy_json_is_one_sentence(exported, edit, phrase):
     """Before: an empty agent list was an IndexError traceback, a zero std gave infinite actions, a short mean a
     broadcasting error at the first call, residual blocks the hidden layers cannot form a ValueError traceback."""

@@ -122,6 +122,23 @@ def test_bfloat16_products_act_alike_in_onnxruntime_within_a_bfloat16_step(tmp_p
     assert np.median(np.abs(as_float32 - by_jax)) > 100 * np.median(error)  # the rounding is in the graph
 
 
+def test_the_onnx_model_is_made_from_what_load_policy_returns(tmp_path):
+    from fieldgen.policy_folder import read_description
+    from fieldgen.policy_onnx import model_bytes
+
+    folder = tmp_path / "policy"
+    policy = Policy(None, ((0, 1, 2),), ((0, 1),), (4,), 4)
+    policy = policy.replace(params=policy.network.init(jax.random.PRNGKey(0), jnp.zeros((1, 3))))
+    description = describe(policy, ["a", "b", "c"], ["x", "y"], algorithm="crl", field="f", seed=0, env_steps=0)
+    save_policy(policy, description, folder)
+    act = fieldgen.load_policy(folder)
+    assert model_bytes(act, read_description(folder)) == model_bytes(policy, description)
+    with pytest.raises(TypeError, match="takes the policy's description"):
+        model_bytes(act, None)
+    with pytest.raises(TypeError, match="takes a policy"):
+        model_bytes("policy", description)
+
+
 def test_an_export_replaces_policy_onnx_with_the_folder(tmp_path):
     policy = mlp_policy((8,), 2, (tuple(range(3)),), ((0,),))
     description = describe(policy, ["a", "b", "c"], ["x"], algorithm="crl", field="f", seed=0, env_steps=0)
