@@ -20,7 +20,7 @@ import jax.numpy as jnp
 from brax import envs
 
 from fieldgen.env.make import make
-from fieldgen.schema import bundled_fields
+from fieldgen.schema import bundled_fields, resolve_spec_path
 
 if TYPE_CHECKING:
     from fieldgen.env.field import FieldEnv
@@ -65,6 +65,11 @@ class FieldAdapter:
 def reserved(field: FieldEnv) -> FieldEnv:
     """The field, refused on MuJoCo Warp until its capacities are reserved for a batch: another library's wrappers
     vmap it without saying how many environments they step, and Warp's contact buffer is shared by the batch."""
+    from fieldgen.env.field import FieldEnv
+
+    if not isinstance(field, FieldEnv):  # else the first reset fails on an attribute of whatever it was
+        raise TypeError(f"the adapters wrap an environment fieldgen.make returns, not {field!r}: "
+                        "BraxField(fieldgen.make(NAME))")
     if getattr(field, "impl", None) == "warp" and field.worlds < 2:
         raise ValueError(f"{field.name} runs on sim.backend warp, whose contact buffer is shared by every environment "
                          "stepped at once: call field.reserve_worlds(N) with that number before wrapping it, and "
@@ -108,9 +113,17 @@ def register(*specs: str | Path) -> list[str]:
     """Register every bundled field under its name, and each spec path or build folder given under
     the name in its spec; returns the names. Keyword arguments of `get_environment` go to FieldEnv
     (episode_length, auto_reset). Fields are compiled when first made, not here."""
-    named = {name: path for name, path in bundled_fields().items()}
+    bundled = bundled_fields()
+    named = dict(bundled)
     for spec in specs:
-        named[_name_of(Path(spec))] = Path(spec)
+        if spec is None or not str(spec):
+            raise TypeError(f"register takes spec paths, build folders or bundled names, not {spec!r}")
+        path = resolve_spec_path(str(spec)) if isinstance(spec, str) else Path(spec)
+        name = _name_of(path)
+        if name in bundled and path.resolve() != bundled[name].resolve():  # brax would make the other field unsaid
+            raise ValueError(f"{spec} is named {name}, as a bundled field is: registering it would replace that "
+                             f"field under brax's name; give its spec another name")
+        named[name] = path
     for name, source in named.items():
         envs.register_environment(name, lambda source=source, **kwargs: BraxField(make(source, **kwargs)))
     return list(named)

@@ -30,6 +30,10 @@ class PlaygroundField(FieldAdapter, MjxEnv):
     attributes (state_dim, goal_indices, observation_names, goal_reached...) read through."""
 
     def __init__(self, field: FieldEnv | str | Path, episode_length: int | None = None):
+        if isinstance(field, FieldEnv) and episode_length not in (None, field.episode_length):
+            raise ValueError(f"episode_length={episode_length!r} for an environment already made, whose episodes are "
+                             f"{field.episode_length} steps: make it with fieldgen.make(..., episode_length=...), or "
+                             "give PlaygroundField the field's name")
         self.field = field if isinstance(field, FieldEnv) else make(field, episode_length=episode_length)
         self._in_brax_wrappers = BraxField(self.field)
         spec = self.field.spec
