@@ -129,7 +129,10 @@ class FieldEnv:
             self._set_kickoffs(np.asarray(kickoffs, np.float32), kickoff_coordinates)
 
     def _set_kickoffs(self, kickoffs: np.ndarray, coordinates) -> None:
-        coordinates = np.asarray(coordinates, np.float64)
+        coordinates = np.asarray(coordinates if coordinates is not None else np.nan, np.float64)
+        if coordinates.ndim != 2:
+            raise ValueError(f"{self.name}: kickoffs come with kickoff_coordinates, each variant's place of each "
+                             f"point on the kick-off axis ([variants, points]), not {coordinates.shape}")
         shape = (self.variant_count, coordinates.shape[-1], 6)
         if kickoffs.shape != shape or coordinates.shape != shape[:2]:
             raise ValueError(f"{self.name}: kick-off tables of shape {kickoffs.shape} and {coordinates.shape} for "

@@ -249,6 +249,7 @@ def test_a_step_refuses_an_action_of_another_shape(env_cache, action):
     ("point_nav", {"episode_length": 0}, "episode_length=0: give a whole number of control steps, 1 or more"),
     ("point_nav", {"episode_length": 2.5}, "episode_length=2.5"),
     ("point_nav", {"auto_reset": "no"}, "auto_reset='no': give True"),
+    ("point_nav", {"kickoffs": [1, 2, 3]}, "point_nav: kickoffs come with kickoff_coordinates"),
 ])
 def test_make_refuses_what_it_would_take_for_something_else(source, options, phrase):
     with pytest.raises((ValueError, TypeError, SpecError), match=re.escape(phrase)):
