@@ -231,6 +231,7 @@ def test_a_ctrl_c_that_python_dropped_stops_at_the_next_check(monkeypatch):
     dropped = []
     monkeypatch.setattr(sys, "unraisablehook", lambda unraisable: dropped.append(unraisable.exc_type))
     before = signal.getsignal(signal.SIGINT)
+    signal.signal(signal.SIGINT, signal.default_int_handler)  # Ctrl-C's default, even in a job started ignoring it
     give_back = stops.catch()
     try:
         stops.check()  # no signal came: nothing to raise
