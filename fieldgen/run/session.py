@@ -371,7 +371,11 @@ def open_run(folder: Path, load_state: bool = True, to_train: bool = False, lear
         else:  # one written before its sampling was kept holds none: its environments' own counts say it
             run.state, run.sampling = checkpoint.load(path, *checkpoint_template(run))
     except checkpoint.CheckpointError as exc:
-        raise record.RunError(str(exc)) from None
+        said = str(exc)
+        if isinstance(exc, checkpoint.CheckpointDamaged) and not alone and (folder / record.LEARNER).is_file():
+            said += (f"; or move {path.name} aside: fieldgen train --resume {folder} then goes on from "
+                     f"{record.LEARNER} (what the run learned, its replay buffer filled anew)")
+        raise record.RunError(said) from None
     done = int(jax.device_get(run.state.env_steps)[0])
     # a kill between an evaluation's metrics and its checkpoint leaves rows after it; the checkpoint's own is there
     run.rows = [r for r in run.rows if r["env_steps"] <= done]

@@ -104,6 +104,11 @@ def test_a_run_copied_without_its_whole_checkpoint_goes_on_from_what_it_learned(
     interrupt_after_eval(2)
     assert runner.invoke(app, args).exit_code == 130
     interrupt_after_eval(None)
+    whole = (run / "checkpoint.msgpack").read_bytes()
+    (run / "checkpoint.msgpack").write_bytes(whole[:len(whole) // 2])  # cut short: refused, with the way on
+    refused = runner.invoke(app, ["train", "--resume", str(run)])
+    assert refused.exit_code == 1 and unwrapped(f"or move checkpoint.msgpack aside: fieldgen train --resume {run} "
+                                                "then goes on from learner.msgpack") in unwrapped(refused.output)
     (run / "checkpoint.msgpack").unlink()
     result = runner.invoke(app, ["train", "--resume", str(run)])
     assert result.exit_code == 0, result.output
