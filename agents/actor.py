@@ -68,6 +68,8 @@ class Policy:
             self.check(obs)
         if obs.ndim != 2:
             return jax.vmap(self)(obs) if obs.ndim > 2 else self(obs[None])[0]
+        if obs.shape[0] == 0:  # an empty batch acts not at all (the network would divide by its size)
+            return jnp.zeros((0, sum(map(len, self.drives))), jnp.float32)
         if self.obs_mean is not None:
             obs = jnp.clip((obs - self.obs_mean) / self.obs_std, -self.clip, self.clip)
         team = Team(np.array(self.observes), np.array(self.drives), ())

@@ -45,6 +45,7 @@ def test_a_loaded_policy_refuses_observations_it_would_read_wrongly(exported, ob
     with pytest.raises(ValueError, match=re.escape(phrase)):
         act(obs)
     assert act([0.1, 0.2, 0.3]).shape == (2,) and jax.jit(act)(jnp.ones((2, 4, 3))).shape == (2, 4, 2)
+    assert act(jnp.zeros((0, 3))).shape == (0, 2)  # an empty batch: no actions, not JAX's ZeroDivisionError
 
 
 def edited(**changes):
