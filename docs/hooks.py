@@ -286,8 +286,9 @@ def write_pages() -> list[str]:
     for name in PAGES:
         page = ROOT / "docs" / name
         text = page.read_text()
-        if render(text) != text:
-            page.write_text(render(text))
+        made = render(text)
+        if made != text:
+            page.write_text(made)
             changed.append(name)
     return changed
 

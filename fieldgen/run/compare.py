@@ -321,9 +321,8 @@ class Recorded:
         """The run's `metric` at the last evaluation (on the field, `on_field`), each seed's and their IQM with
         its 95% stratified bootstrap interval."""
         per_seed = {s: float(on_field(row, self.metric)) for s, row in self.last.items()}
-        if not np.all(np.isfinite(list(per_seed.values()))):  # a seed's row lacks the metric: NaN, as over_seeds
-            return summary.MetricSummary(per_seed=per_seed, iqm=np.nan, low=np.nan, high=np.nan)
-        return summary.MetricSummary.of(per_seed)
+        value, low, high = over_seeds(list(per_seed.values()))  # NaN where a seed's row lacks the metric
+        return summary.MetricSummary(per_seed=per_seed, iqm=value, low=low, high=high)
 
 
 def reached_by_every_seed(rows: list[dict], seeds: list[int]) -> list[dict]:
