@@ -142,11 +142,13 @@ def same_scale(models: list[mujoco.MjModel], camera: str = "top") -> None:
 
 
 def render_rollout(model: mujoco.MjModel, qpos: np.ndarray, mocap_pos: np.ndarray, camera: str = "follow",
-                   height: int = HEIGHT // 2) -> list[np.ndarray]:
-    """Frames of a recorded rollout: qpos [T, nq] and mocap_pos [T, nmocap, 3]."""
+                   height: int = HEIGHT // 2, width: int | None = None) -> list[np.ndarray]:
+    """Frames of a recorded rollout: qpos [T, nq] and mocap_pos [T, nmocap, 3], `width` pixels wide (default: the
+    camera's own aspect, frame_size)."""
     data = mujoco.MjData(model)
     frames = []
-    with renderer(model, frame_size(model, camera, height)) as r:
+    size = frame_size(model, camera, height) if width is None else (height, width)
+    with renderer(model, size) as r:
         for q, m in zip(qpos, mocap_pos):
             data.qpos[:], data.mocap_pos[:] = q, m
             mujoco.mj_forward(model, data)

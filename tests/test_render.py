@@ -205,3 +205,38 @@ def test_a_curriculum_sheet_draws_its_stages_at_one_scale_with_their_sizes(monke
     lines = [(image.min(axis=-1) > 115) & (np.ptp(image, axis=-1) < 20) for image in drawn["images"]]  # light grey
     spans = [np.ptp(np.nonzero(line.any(axis=0))[0]) for line in lines]
     assert spans[-1] == pytest.approx(4 * spans[0], rel=0.1)  # the white boundary lines, 40 against 10 wide
+
+
+@pytest.fixture(scope="module")
+def point_env():
+    import jax
+
+    from fieldgen.env.field import FieldEnv
+
+    env = FieldEnv(compile_spec(load_spec(bundled_fields()["point_soccer"])))
+    return env, jax.jit(env.reset)(jax.random.PRNGKey(0))
+
+
+def test_environment_renders_a_state_or_a_trajectory_at_the_size_asked(point_env):
+    env, state = point_env
+    assert [f.shape for f in env.render([state, state], height=96, width=128)] == [(96, 128, 3)] * 2
+    (frame,) = env.render(state, camera="top", height=96)  # one state; the top view's own aspect
+    assert frame.shape == (96, *frame_size(env.mj_model, "top", 96)[1:], 3)
+
+
+@pytest.mark.parametrize("kwargs, says", [
+    (dict(trajectory=[]), "given none"),
+    (dict(camera="side"), "cameras top, follow"),
+    (dict(width=5000), "16 to 640 pixels wide"),
+    (dict(height=2.5), "pixels high"),
+    (dict(batched=True), "take environment j of a batch"),
+])
+def test_environment_render_refuses_what_it_cannot_draw_in_a_sentence(point_env, kwargs, says):
+    import jax
+
+    env, state = point_env
+    if kwargs.pop("batched", False):
+        kwargs["trajectory"] = [jax.tree.map(lambda x: x[None].repeat(2, 0), state)]
+    kwargs.setdefault("trajectory", [state])
+    with pytest.raises(ValueError, match=says):
+        env.render(**kwargs)

@@ -23,6 +23,7 @@ import numpy as np
 from brax.envs.base import State
 from mujoco import mjx
 
+from fieldgen import cameras
 from fieldgen.compile.artifact import Artifact
 from fieldgen.compile.layout import observation_layout
 from fieldgen.env import mjx_physics
@@ -94,6 +95,7 @@ class FieldEnv:
         self.artifact = artifacts[-1]  # an environment of several variants is judged on its last
         self.spec = spec = self.artifact.spec
         models = [a.model() for a in artifacts]
+        self.mj_models = models  # one a variant, for drawing its states
         self.mj_model = models[-1]
         self.layout = observation_layout(spec, self.mj_model)
         self.rules = [EpisodeRules(a.spec, m, self.layout, episode_length) for a, m in zip(artifacts, models)]
@@ -157,14 +159,39 @@ class FieldEnv:
         """The mjx.Model stepped (leaves that differ between variants stacked on a leading axis)."""
         return self.sys
 
-    def render(self, trajectory: Sequence[State], camera: str = "follow", height: int = 240,
-               width: int = 320) -> list[np.ndarray]:
-        """RGB frames of a trajectory of unbatched states (fieldgen.render.RenderError where no OpenGL is)."""
+    def render(self, trajectory: Sequence[State], camera: str = cameras.FOLLOW, height: int = 240,
+               width: int | None = None) -> list[np.ndarray]:
+        """RGB frames [height, width, 3] of a trajectory of unbatched states, each drawn in its own variant's
+        field; `width` defaults to the camera's own aspect (fieldgen.render.RenderError where no OpenGL is)."""
         from fieldgen.render import render_rollout
 
-        qpos = np.stack([np.asarray(s.pipeline_state.qpos) for s in trajectory])
-        mocap = np.stack([np.asarray(s.pipeline_state.mocap_pos) for s in trajectory])
-        return render_rollout(self.mj_model, qpos, mocap, camera, (height, width))
+        states = [trajectory] if isinstance(trajectory, State) else list(trajectory)
+        if not states:
+            raise ValueError("render takes a trajectory of one state or more; it was given none")
+        if camera not in cameras.CAMERAS:
+            raise ValueError(f"camera {camera!r}: a field carries the cameras {', '.join(cameras.CAMERAS)}")
+        limit = self.mj_model.vis.global_
+        for name, size, most in (("height", height, limit.offheight), ("width", width, limit.offwidth)):
+            if size is not None and not (isinstance(size, (int, np.integer)) and 16 <= size <= most):
+                raise ValueError(f"{name}={size!r}: frames are 16 to {most} pixels {'high' if name == 'height' else 'wide'}"
+                                 f" (the field's offscreen buffer)")
+        nq = self.mj_model.nq
+        for i, s in enumerate(states):
+            shape = np.shape(s.pipeline_state.qpos)
+            if shape != (nq,):
+                raise ValueError(f"state {i} holds positions of shape {shape}: render draws unbatched states "
+                                 f"({nq},); take environment j of a batch with jax.tree.map(lambda x: x[j], state)")
+        variants = [int(s.info.get("variant", 0)) for s in states]
+        frames = []
+        start = 0
+        for end in range(1, len(states) + 1):  # consecutive states of one variant share a renderer
+            if end == len(states) or variants[end] != variants[start]:
+                run = states[start:end]
+                qpos = np.stack([np.asarray(s.pipeline_state.qpos) for s in run])
+                mocap = np.stack([np.asarray(s.pipeline_state.mocap_pos) for s in run])
+                frames += render_rollout(self.mj_models[variants[start]], qpos, mocap, camera, height, width)
+                start = end
+        return frames
 
     def reserve_worlds(self, worlds: int) -> None:
         """Size the physics for batches of up to `worlds` environments (all a program steps: seeds x envs), before

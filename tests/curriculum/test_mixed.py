@@ -50,6 +50,17 @@ def test_variants_share_one_structure_with_absent_walls_parked(walled):
 
 
 
+def test_render_draws_each_state_in_its_own_variants_field(walled):
+    """A trajectory crossing variants (an auto-reset into another) is drawn field by field: the top view of the
+    6-wide variant is wider than the 4-wide one's, and frames come back in the trajectory's order."""
+    keys = jax.random.split(jax.random.PRNGKey(0), 2)
+    wide, narrow = (walled.reset_variant(k, v) for k, v in zip(keys, (0, 1)))
+    frames = walled.render([wide, narrow, wide], camera="top", height=96)
+    assert [f.shape[0] for f in frames] == [96, 96, 96]
+    assert frames[0].shape[1] > frames[1].shape[1]
+    np.testing.assert_array_equal(frames[0], frames[2])
+
+
 def test_goal_reached_judges_by_each_variants_own_rule(tmp_path):
     """Hindsight scores a state as `step` does: by the variant's own success radius and ball."""
     specs = variants(tmp_path, "point_soccer", [{"task.success": {"kind": "ball_near_target", "radius": 0.5}},

@@ -16,3 +16,14 @@ def test_playground_wrappers_count_each_step_once_and_reset_to_fresh_episodes(en
     assert env.state_dim == env.field.state_dim and env.observation_names == env.field.observation_names
     wrapped = wrapper.wrap_for_brax_training(env, episode_length=env.episode_length)
     assert isinstance(check_wrapped_episodes(wrapped, env.action_size), State)
+
+
+def test_playground_render_draws_its_states_through_fieldgens_renderer(env_cache):
+    """Playground's render(trajectory, height, width) on its own State type, which has `data` where brax's has
+    `pipeline_state`."""
+    import jax
+
+    env = PlaygroundField(env_cache("point_nav"))
+    state = jax.jit(env.reset)(jax.random.PRNGKey(0))
+    frames = env.render([state, jax.jit(env.step)(state, jax.numpy.zeros(env.action_size))], height=64, width=80)
+    assert [f.shape for f in frames] == [(64, 80, 3)] * 2
