@@ -247,11 +247,20 @@ class RunConfig(BaseModel):
         """Env steps of one training iteration, over all environments."""
         return self.num_envs * self.unroll_length
 
+    def steps_at(self, index: int) -> int:
+        """The env steps at evaluation `index` (0: before training) of a run that never refilled its buffer."""
+        raise NotImplementedError
+
     @property
     def trained_steps(self) -> int:
         """The env steps the run ends at: it trains whole iterations, so up to one iteration per evaluation
         short of total_steps (a progress bar counts to this, not to the steps asked for)."""
-        raise NotImplementedError
+        return self.steps_at(self.num_evals)
+
+    def ends_at(self, index: int, env_steps: int) -> int:
+        """The env steps a run at evaluation `index` and `env_steps` ends at: past trained_steps by the steps of
+        each buffer it filled anew on a resume from what it learned alone."""
+        return env_steps + self.trained_steps - self.steps_at(index)
 
     def short_of_asked(self) -> str | None:
         """One line where the run ends short of total_steps, saying why; None where it trains them all."""
@@ -277,10 +286,9 @@ class ReplayConfig(RunConfig):
     hidden: Hidden = (256, 256)
     layer_norm: StrictBool = False
 
-    @property
-    def trained_steps(self) -> int:
+    def steps_at(self, index: int) -> int:
         prefill_iters, per_eval = iterations(self)
-        return (prefill_iters + self.num_evals * per_eval) * self.per_iteration
+        return (prefill_iters + index * per_eval) * self.per_iteration
 
     def validate_env(self, env: Environment, devices: int = 1, seeds: int = 1) -> None:
         """Also: steps to prefill the buffer and train, room for an episode, a batch's worth of

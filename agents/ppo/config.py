@@ -60,9 +60,8 @@ class PPOConfig(RunConfig):
         """The whole iterations between two evaluations, which the trainer scans; a remainder is not run."""
         return self.total_steps // self.per_iteration // self.num_evals
 
-    @property
-    def trained_steps(self) -> int:
-        return self.iterations_per_eval * self.num_evals * self.per_iteration
+    def steps_at(self, index: int) -> int:
+        return self.iterations_per_eval * index * self.per_iteration
 
     @property
     def updates(self) -> int:

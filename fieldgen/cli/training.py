@@ -202,6 +202,7 @@ def train(
     from fieldgen.agents import registry
     from fieldgen.files import FolderError
     from fieldgen.run import distributed, loggers, record, selfplay, session, supervisor
+    from fieldgen.run.train import ends_at
     from fieldgen.run import recipe as recipes
     from fieldgen.agents.config import ConfigError
     from fieldgen.agents.recipes import RecipeError
@@ -237,8 +238,9 @@ def train(
             run = session.open_run(resume, to_train=True)
             if run.refills and run.rows and not run.finished:
                 drawn = "; its episodes drawn as they were (its levels and their counts)" if run.sampling else ""
-                refilled = (" and a replay buffer filled anew by its policy (those env steps count)"
-                            if "buffer" in run.trainers[0].env_axes else "")  # PPO keeps no buffer
+                refill = run.config.steps_at(0)  # PPO keeps no buffer
+                refilled = (f" and a replay buffer filled anew by its policy (its {refill:,} env steps count: the "
+                            f"run ends at {ends_at(run):,})" if refill else "")
                 out.print(f"{resume} holds no {record.CHECKPOINT}: it goes on from {record.LEARNER} with fresh "
                           f"episodes{refilled}{drawn}")
         else:

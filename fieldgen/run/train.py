@@ -103,7 +103,8 @@ def _train(run: Run, console: Console, videos: bool, logger: str, video_format: 
         first = run.rows[-1]["env_steps"] if run.rows else 0
         if not run.rows and config.short_of_asked():
             console.print(config.short_of_asked(), soft_wrap=True)
-        task = bar.add_task(run.label, total=config.trained_steps, completed=first, rate="compiling...", stats="")
+        ending = [ends_at(run)]  # where the run ends, as its rows come in
+        task = bar.add_task(run.label, total=ending[0], completed=first, rate="compiling...", stats="")
 
         waited = []  # seconds the last on_eval held the training thread: they fall in the next chunk's time
         skipped = [False]  # whether the last evaluation's whole checkpoint was left out
@@ -153,7 +154,8 @@ def _train(run: Run, console: Console, videos: bool, logger: str, video_format: 
             plot_success(run.folder, run.rows, f"{run.label}: {run.algo}{judged_on(config.eval_actions)}",
                          run.plan.variant_name)
             log.rows(rows)
-            bar.update(task, completed=rows[0]["env_steps"], rate=rate(run.rows, config.trained_steps),
+            ending[0] = config.ends_at(rows[0]["eval"], rows[0]["env_steps"])
+            bar.update(task, completed=rows[0]["env_steps"], total=ending[0], rate=rate(run.rows, ending[0]),
                        stats=stats(rows, len(run.envs)))
 
         # a run started from another's networks (--init-from) goes on from "evaluation -1": it evaluates them first
@@ -182,10 +184,20 @@ def _train(run: Run, console: Console, videos: bool, logger: str, video_format: 
         last = run.rows[-1] if run.rows else {"eval": -1, "env_steps": 0}
         took = "" if deadline.needed is None else f" (about {deadline.needed:.0f} s)"  # a process told by process 0
         console.print(f"stopped at the time limit after evaluation {last['eval']} of {config.num_evals} "
-                      f"({last['env_steps']:,} of {config.trained_steps:,} env steps): the next chunk with its "
+                      f"({last['env_steps']:,} of {ending[0]:,} env steps): the next chunk with its "
                       f"evaluation and checkpoint{took} would not have ended in time. "
                       f"Continue with: fieldgen train --resume {run.folder}", soft_wrap=True)
     return not deadline.reached
+
+
+def ends_at(run: Run) -> int:
+    """The env steps `run` ends at, from where it stands: past its config's trained_steps by each buffer it filled
+    anew on a resume from what it learned alone, the one about to be filled included."""
+    if not run.rows:
+        return run.config.trained_steps
+    last = run.rows[-1]
+    refill = run.config.steps_at(0) if run.refills and not run.finished else 0  # PPO's: none
+    return run.config.ends_at(last["eval"], last["env_steps"]) + refill
 
 
 def skip_checkpoint(writing: bool, skipped_last: bool, last: bool) -> bool:

@@ -42,3 +42,18 @@ def test_a_run_ends_at_the_whole_iterations_its_steps_hold():
     exact = ppo.PPOConfig(total_steps=2 * 3 * 8 * 20, num_envs=8, unroll_length=20, num_minibatches=4, num_evals=2)
     assert exact.trained_steps == exact.total_steps and exact.short_of_asked() is None
     assert ppo.PPOConfig(**{**exact.model_dump(), "total_steps": exact.total_steps + 159}).trained_steps == 960
+
+
+def test_a_run_that_filled_its_buffer_anew_ends_past_trained_steps_by_the_refill():
+    """A resume from what a run learned alone fills its buffer anew, and those env steps count: a run at
+    evaluation 1 with 1,280 + 800 steps ends 800 past trained_steps; PPO, which keeps no buffer, where it would."""
+    from tiny_runs import TINY_CRL
+
+    from fieldgen.agents import crl, ppo
+
+    config = crl.CRLConfig(**TINY_CRL)
+    assert (config.steps_at(0), config.steps_at(1)) == (800, 1280)
+    assert config.ends_at(1, 1280) == config.trained_steps == 1760
+    assert config.ends_at(2, 1760 + 800) == 1760 + 800
+    run = ppo.PPOConfig(total_steps=960, num_envs=8, unroll_length=20, num_minibatches=4, num_evals=2)
+    assert run.steps_at(0) == 0 and run.ends_at(1, 480) == run.trained_steps == 960

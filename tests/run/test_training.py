@@ -113,7 +113,8 @@ def test_a_run_copied_without_its_whole_checkpoint_goes_on_from_what_it_learned(
     result = runner.invoke(app, ["train", "--resume", str(run)])
     assert result.exit_code == 0, result.output
     assert unwrapped("holds no checkpoint.msgpack: it goes on from learner.msgpack with fresh episodes and a "
-                     "replay buffer filled anew") in unwrapped(result.output)
+                     "replay buffer filled anew by its policy (its 800 env steps count: the run ends at 2,560)") \
+        in unwrapped(result.output)
     rows = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
     assert [r["eval"] for r in rows] == [0, 1, 2] and rows[-1]["env_steps"] == 1280 + 800 + 6 * 80  # refilled
     assert [r.get("refilled_from") for r in rows] == [None, None, 1280]  # and says where from
