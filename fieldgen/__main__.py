@@ -1,5 +1,27 @@
-"""`python -m fieldgen`: the `fieldgen` command."""
+"""`python -m fieldgen` and the installed `fieldgen` script: the command line, which takes seconds to load."""
 
-from fieldgen.cli import app
+import sys
 
-app(prog_name="fieldgen")
+from fieldgen import stops
+
+
+def main() -> None:
+    """Run the `fieldgen` command. A command says where it stands when Ctrl-C stops it; one stopped before it
+    says anything (while its modules load, or before its work begins, where typer turns the KeyboardInterrupt
+    into status 130 without a word) says that it was, rather than an import's traceback or nothing."""
+    try:
+        from fieldgen.cli import app
+    except KeyboardInterrupt:
+        print(f"{stops.said()} while fieldgen loaded; nothing was done", file=sys.stderr)
+        sys.exit(stops.status())
+    try:
+        app(prog_name="fieldgen")
+    except SystemExit as done:
+        if isinstance(getattr(done.__context__, "__cause__", None), KeyboardInterrupt):  # typer's Exit(130)
+            print(stops.said(), file=sys.stderr)
+            sys.exit(stops.status())
+        raise
+
+
+if __name__ == "__main__":
+    main()

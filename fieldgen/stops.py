@@ -10,6 +10,7 @@ status for the signal that stopped it, 128 + its number (130 for Ctrl-C, 143 for
 from __future__ import annotations
 
 import signal
+import sys
 import threading
 from typing import Callable
 
@@ -34,18 +35,30 @@ def check() -> None:
 
 def catch() -> Callable[[], None]:
     """Have SIGTERM and SIGHUP stop this command as Ctrl-C does where they would kill it; a handler someone set
-    stays, as does a signal the process was started ignoring (nohup's SIGHUP). Returns what puts the handlers
-    back, for whoever called the command (a test, a program running the app) to keep its own."""
+    stays, as does a signal the process was started ignoring (nohup's SIGHUP). A stop Python drops (`check`) is
+    kept without the traceback Python prints for it. Returns what puts the handlers back, for whoever called the
+    command (a test, a program running the app) to keep its own."""
     _received[0], _pending[0] = signal.SIGINT, False
     if threading.current_thread() is not threading.main_thread():
         return lambda: None
     default = {signal.SIGINT: signal.default_int_handler, **{sig: signal.SIG_DFL for sig in AS_CTRL_C}}
     taken = {sig: signal.signal(sig, _stop) for sig, handler in default.items() if signal.getsignal(sig) is handler}
+    unraisable = sys.unraisablehook
+
+    def dropped(report) -> None:
+        """A stop raised where Python drops exceptions says nothing: `check` acts on it."""
+        if not (_pending[0] and report.exc_type is KeyboardInterrupt):
+            unraisable(report)
+
+    if taken:
+        sys.unraisablehook = dropped
 
     def give_back() -> None:
         for sig, handler in taken.items():
             if signal.getsignal(sig) is _stop:
                 signal.signal(sig, handler)
+        if sys.unraisablehook is dropped:
+            sys.unraisablehook = unraisable
 
     return give_back
 

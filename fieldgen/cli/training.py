@@ -215,6 +215,7 @@ def train(
         processes = None if where is None else distributed.join(where, coordinator_timeout)
     except record.RunError as exc:
         fail(str(exc))
+    run = None
     try:
         loggers.require(logger)
         if resume is not None:
@@ -299,6 +300,7 @@ def train(
             if levels is not None and curriculum_kind != "auto":
                 fail(f"--levels {levels} sets how many levels --curriculum auto makes; add --curriculum auto")
             sampler = _sampler(samplers) if samplers else None
+            stops.check()  # a Ctrl-C dropped while the field built: no run folder for it
             run = session.new_run(source, algo, range(seed, seed + seeds), algo_config, runs, mixed, init_from,
                                   auto=curriculum_kind == "auto", levels=levels, processes=processes,
                                   trains_here=not prepare, sampler=sampler, recipe=chosen.record(overriding),
@@ -310,6 +312,10 @@ def train(
                       "anew")
     except (SpecError, ConfigError, RecipeError, record.RunError, FolderError) as exc:
         fail(str(exc))
+    except KeyboardInterrupt:
+        way_on = "" if run is None else f"; start it with: fieldgen train --resume {run.folder}"
+        out.print(f"{stops.said()} while setting the run up; nothing was trained{way_on}", soft_wrap=True)
+        _exit_interrupted()
     if prepare:
         out.print(f"prepared {run.folder}; start it with: fieldgen train --resume {run.folder}",
                   soft_wrap=True)  # one line: the command stays whole to copy

@@ -223,13 +223,18 @@ def test_a_signal_the_process_was_started_ignoring_stays_ignored():
 
 
 def test_a_ctrl_c_that_python_dropped_stops_at_the_next_check(monkeypatch):
-    """A KeyboardInterrupt raised inside a garbage collector's callback or a `__del__` is printed and dropped by
-    Python (a run given Ctrl-C as JAX collected a buffer trained on to its end): the stop it stood for is kept
-    and raised at the next check, which a training loop makes between its chunks."""
+    """A KeyboardInterrupt raised inside a garbage collector's callback or a `__del__` is dropped by Python, which
+    prints its traceback (a run given Ctrl-C as JAX collected a buffer trained on to its end): the stop it stood
+    for is kept, without the traceback, and raised at the next check, which a training loop makes between its
+    chunks; other exceptions Python drops are still reported."""
     from fieldgen import stops
 
     dropped = []
-    monkeypatch.setattr(sys, "unraisablehook", lambda unraisable: dropped.append(unraisable.exc_type))
+
+    def reported(unraisable):
+        dropped.append(unraisable.exc_type)
+
+    monkeypatch.setattr(sys, "unraisablehook", reported)
     before = signal.getsignal(signal.SIGINT)
     signal.signal(signal.SIGINT, signal.default_int_handler)  # Ctrl-C's default, even in a job started ignoring it
     give_back = stops.catch()
@@ -242,8 +247,14 @@ def test_a_ctrl_c_that_python_dropped_stops_at_the_next_check(monkeypatch):
                 for _ in range(10_000):  # the handler runs between these, inside __del__
                     pass
 
+        class Broken:
+            def __del__(self):
+                raise ValueError("not a stop")
+
         Collected()
-        assert dropped == [KeyboardInterrupt]
+        assert dropped == []  # kept without a word
+        Broken()
+        assert dropped == [ValueError]
         with pytest.raises(KeyboardInterrupt):
             stops.check()
         assert (stops.status(), stops.said()) == (130, "interrupted")
@@ -252,6 +263,48 @@ def test_a_ctrl_c_that_python_dropped_stops_at_the_next_check(monkeypatch):
     finally:
         give_back()
         signal.signal(signal.SIGINT, before)
+    assert sys.unraisablehook is reported  # given back
+
+
+def test_a_command_stopped_before_it_says_anything_says_that_it_was(monkeypatch, capsys):
+    """typer turns a KeyboardInterrupt that reaches it into status 130 without a word; the `fieldgen` script
+    says "interrupted" (here: Ctrl-C as the command line starts), and leaves every other exit as it was."""
+    from fieldgen import __main__ as script
+    from fieldgen import xla_cache
+
+    def stopped():
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(sys, "argv", ["fieldgen", "validate", "point_nav"])
+    monkeypatch.setattr(xla_cache, "enable", stopped)
+    with pytest.raises(SystemExit) as ended:
+        script.main()
+    assert ended.value.code == 130 and capsys.readouterr().err == "interrupted\n"
+    monkeypatch.undo()
+    monkeypatch.setattr(sys, "argv", ["fieldgen", "validate", "no_such_field"])
+    with pytest.raises(SystemExit) as ended:
+        script.main()
+    assert ended.value.code == 1 and "interrupted" not in capsys.readouterr().err
+
+
+def test_ctrl_c_while_a_run_is_set_up_makes_no_run_folder(tmp_path, monkeypatch, tiny_crl_args):
+    """A Ctrl-C that Python dropped while the field built (`stops.check`) ends the command before the run's
+    folder is made, in a line; one landing in the setup itself says nothing was trained."""
+    from fieldgen import stops
+    from fieldgen.run import recipe, session
+
+    chosen = recipe.training
+
+    def dropped_stop(*args, **kwargs):
+        stops._pending[0] = True  # as stops._stop leaves it where Python drops its KeyboardInterrupt
+        return chosen(*args, **kwargs)
+
+    monkeypatch.setattr(recipe, "training", dropped_stop)
+    made = []
+    monkeypatch.setattr(session, "new_run", lambda *args, **kwargs: made.append(args))
+    result = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path / "runs"), *tiny_crl_args])
+    assert result.exit_code == 130 and made == [] and not (tmp_path / "runs").exists()
+    assert "interrupted while setting the run up; nothing was trained" in result.output
 
 
 # a `fieldgen` command given Ctrl-C a second into the first of XLA's compiles that lasts that long (JAX tells each
