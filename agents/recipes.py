@@ -25,7 +25,7 @@ CURRICULA = ("auto",)  # the curricula a recipe may name, as `fieldgen train --c
 KEYS = ("extends", "algo", "steps", "envs", "set", "preset", "curriculum", "reward", "backend", "measured")
 REWARDS = ("dense",)  # `reward: dense`: a field paid for its success alone trains on its task's dense reward
 BACKENDS = ("mjx", "warp")  # `backend`: the MJX implementation a run trains on where it runs (fieldgen/run/recipe.py)
-MEASURED_KEYS = ("figure", "seeds", "data")
+MEASURED_KEYS = ("figure", "seeds", "data")  # and `detail`, which may be left out
 
 
 class RecipeError(Exception):
@@ -34,14 +34,21 @@ class RecipeError(Exception):
 
 @dataclasses.dataclass(frozen=True)
 class Measured:
-    """A figure the recipe reached on its field, its seeds, and the folder that holds its data and commands."""
+    """A figure the recipe reached on its field (its headline, which a listing shows, and the detail that a
+    figure's full statement adds), its seeds, and the folder that holds its data and commands."""
 
     figure: str
     seeds: str
     data: str
+    detail: str = ""
+
+    @property
+    def stated(self) -> str:
+        """The figure in full: its headline, then its detail."""
+        return f"{self.figure}, {self.detail}" if self.detail else self.figure
 
     def text(self) -> str:
-        return f"{self.figure}, {self.seeds} ({self.data})"
+        return f"{self.stated}, {self.seeds} ({self.data})"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -165,9 +172,9 @@ def _checked(where: str, key: str, value):
         if not isinstance(value, list) or not all(isinstance(item, str) and "=" in item for item in value):
             refuse("must be a list of ALGO.KEY=VALUE items, as --set writes them")
         return tuple(value)
-    if not isinstance(value, dict) or set(value) != set(MEASURED_KEYS) or \
+    if not isinstance(value, dict) or not set(MEASURED_KEYS) <= set(value) <= {*MEASURED_KEYS, "detail"} or \
             not all(isinstance(v, str) and v for v in value.values()):
-        refuse(f"must be a mapping of {', '.join(MEASURED_KEYS)}, each a text")
+        refuse(f"must be a mapping of {', '.join(MEASURED_KEYS)} (and a detail, if any), each a text")
     return Measured(**value)
 
 

@@ -16,6 +16,7 @@ from fieldgen.cli.app import (SpecArg, app, bounded, choice, count, err, fail, f
                               spec_path)
 from fieldgen.cameras import CAMERAS
 from fieldgen.schema import SpecError, bundled_fields, geometry, load_spec
+from fieldgen.suggest import did_you_mean
 
 
 @app.command()
@@ -320,20 +321,29 @@ def _flat_changes(tree: dict, prefix: str = "") -> str:
 
 @app.command("list")
 def list_fields(
+    names: Annotated[Optional[list[str]], typer.Argument(
+        metavar="[FIELD]...", help="bundled fields to list (default: all); with --recipes, each stated in full",
+        show_default=False)] = None,
     recipes: Annotated[bool, typer.Option(
-        "--recipes", help="show each field's recipe (what `fieldgen train FIELD` trains it with) and the figure "
-                          "it measured, with its seeds, in place of the descriptions")] = False,
+        "--recipes", help="show each field's recipe (what `fieldgen train FIELD` trains it with) and the headline "
+                          "of the figure it measured, with its seeds, in place of the descriptions")] = False,
 ) -> None:
     """List the bundled fields, one line each.
 
     Example: fieldgen list
     Example: fieldgen list --recipes
+    Example: fieldgen list --recipes v2_wide_goalie   (its recipe and figure in full, with the page of its runs)
     """
+    fields = bundled_fields()
+    for name in names or []:
+        if name not in fields:
+            fail(f"'{name}' is not a bundled field{did_you_mean(name, fields) or '.'} fieldgen list names them all")
+    chosen = {name: fields[name] for name in names} if names else fields
     if recipes:
-        _list_recipes()
+        _list_recipes(list(chosen) if names else None)
         return
     table = Table("name", "description", box=None)
-    for name, path in bundled_fields().items():
+    for name, path in chosen.items():
         try:
             table.add_row(name, load_spec(path).description)
         except SpecError as exc:
@@ -341,11 +351,16 @@ def list_fields(
     out.print(table)
 
 
-def _list_recipes() -> None:
+def _list_recipes(names: list[str] | None) -> None:
+    """The recipes of every bundled field in a table, or of the fields named, each stated in full."""
     from fieldgen.agents.recipes import RecipeError
-    from fieldgen.run.recipe import listing
+    from fieldgen.run.recipe import listing, statement
 
     try:
+        if names:
+            for name in names:
+                out.print(statement(name), soft_wrap=True)
+            return
         rows = listing()
     except RecipeError as exc:
         fail(str(exc))
@@ -355,6 +370,7 @@ def _list_recipes() -> None:
     for row in rows:
         table.add_row(*row)
     out.print(table)
+    out.print("each figure in full, with the page of its runs: fieldgen list --recipes FIELD", style="dim")
 
 
 @app.command()

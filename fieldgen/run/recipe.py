@@ -157,9 +157,9 @@ def figure(found: Found, beside: bool = True) -> str:
     recipe, field = found.recipe, found.lineage[0]
     measured = recipe.measured
     if measured is not None and not found.inherited:
-        return f"measured: {measured.figure}, {measured.seeds}" + (routes_beside(field) if beside else "")
+        return f"measured: {measured.stated}, {measured.seeds}" + (routes_beside(field) if beside else "")
     said = f"not measured on {field} yet" if found.inherited else "not measured yet"
-    said += f" ({recipe.field}: {measured.figure}, {measured.seeds})" if measured is not None else ""
+    said += f" ({recipe.field}: {measured.stated}, {measured.seeds})" if measured is not None else ""
     return said + dense_route(field) + (routes_beside(field) if beside and not found.inherited else "")
 
 
@@ -178,7 +178,7 @@ def dense_route(field: str) -> str:
         beside = routes_beside(twin) if path is not None else ""
         return f"; its dense twin {twin} is not measured itself{beside}" if beside else ""
     measured = found.recipe.measured
-    return (f"; the measured route is its dense twin {twin} ({found.recipe.summary()}): {measured.figure}, "
+    return (f"; the measured route is its dense twin {twin} ({found.recipe.summary()}): {measured.stated}, "
             f"{measured.seeds}" + routes_beside(twin))
 
 
@@ -196,7 +196,7 @@ def routes_beside(field: str) -> str:
         if found is None or (found.recipe.measured.seeds, found.recipe.measured.data) == runs:
             continue
         if same_task(fields[field], path):
-            said += f"; also measured: {name}, {found.recipe.measured.figure}, {found.recipe.measured.seeds}"
+            said += f"; also measured: {name}, {found.recipe.measured.stated}, {found.recipe.measured.seeds}"
     return said
 
 
@@ -261,16 +261,36 @@ def sparse_warning(spec: FieldSpec, algo: str, reward: str = "dense", set_aside:
 
 
 def listing() -> list[tuple[str, str, str]]:
-    """(field, its recipe, its measured figure) for each bundled field, as `fieldgen list --recipes` shows them."""
+    """(field, its recipe, the headline of its measured figure and its seeds) for each bundled field, as
+    `fieldgen list --recipes` shows them; `statement` gives a field's figure in full."""
     table = recipes.read()
     rows = []
     for name, path in bundled_fields().items():
         found = recipes.find(lineage(path), table)
         if found is None:
-            route = dense_route(name).removeprefix("; ")
             trainer = "ppo self-play" if load_spec(path).teams is not None else DEFAULT_ALGORITHM  # as train picks
-            rows.append((name, f"none: {trainer} with its defaults", route or "-"))
+            twin = DENSE_TWIN.format(name)
+            route = measured_own(lineage(bundled_fields()[twin]), table) if twin in bundled_fields() else None
+            if route is not None:
+                said = f"its dense twin {twin}: {route.recipe.measured.figure}"
+            else:  # measured on other physics alone, or not at all
+                said = f"its dense twin {twin}: measured on other physics" if dense_route(name) else "-"
+            rows.append((name, f"none: {trainer} with its defaults", said))
             continue
         inherited = f" (the recipe of {found.recipe.field})" if found.inherited else ""
-        rows.append((name, found.recipe.summary() + inherited, figure(found, beside=False)))
+        measured = found.recipe.measured
+        said = "not measured yet" if measured is None or found.inherited else f"{measured.figure}; {measured.seeds}"
+        rows.append((name, found.recipe.summary() + inherited, said))
     return rows
+
+
+def statement(name: str) -> str:
+    """A bundled field's recipe and its measured figure in full, with the page of its data and commands (the
+    dense twin's route where the field has no recipe)."""
+    found = recipes.find(lineage(bundled_fields()[name]), recipes.read())
+    if found is None:
+        return f"{name}: no recipe (its trainer's defaults){dense_route(name) or '; no measured route'}"
+    measured = found.recipe.measured
+    page = f"; data and commands: {measured.data}" if measured is not None and not found.inherited else ""
+    inherited = f" (the recipe of {found.recipe.field})" if found.inherited else ""
+    return f"{name}: {found.recipe.summary()}{inherited}; {figure(found)}{page}"

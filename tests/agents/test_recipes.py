@@ -61,6 +61,11 @@ def test_a_recipe_extends_another_keeping_its_own_set_items_and_never_its_figure
     assert (child.algo, child.steps, child.envs, child.reward, child.backend) == ("ppo", 1000, 8, "dense", "mjx")
     assert child.sets == ("ppo.spread=global", "ppo.num_evals=3") and child.measured is None
     assert child.where == f"{path}:8"
+    base = recipes.read(path)["base"].measured
+    assert (base.stated, base.text()) == ("0.5", "0.5, one seed (0) (here)")
+    path.write_text("f:\n  algo: ppo\n  measured: {figure: '0.5', detail: '128 episodes', seeds: one seed (0), "
+                    "data: here}\n")
+    assert recipes.read(path)["f"].measured.stated == "0.5, 128 episodes"  # the headline, then its detail
 
 
 def test_a_field_takes_the_recipe_of_the_nearest_field_it_extends():
@@ -94,7 +99,8 @@ def test_a_recipe_sits_over_the_agents_preset_and_under_every_setting_the_comman
     ("f:\n  extends: g\n", ":2: recipe 'f': extends 'g', which has no recipe. Recipes: f."),
     ("f:\n  extends: g\ng:\n  extends: f\n", "extends forms a cycle: f -> g -> f"),
     ("f:\n  steps: 10\n", ":1: recipe 'f' names no algo; choose one of crl,"),
-    ("f:\n  algo: crl\n  measured: {figure: '0.5'}\n", "measured must be a mapping of figure, seeds, data, each a text"),
+    ("f:\n  algo: crl\n  measured: {figure: '0.5'}\n", "measured must be a mapping of figure, seeds, data (and a detail, if any), each a text"),
+    ("f:\n  algo: crl\n  measured: {figure: '0.5', seeds: s, data: d, detial: x}\n", "measured must be a mapping of"),
     ("f:\n  algo: ppo\n  reward: shaped\n", ":3: recipe 'f': reward must be one of dense, not 'shaped'"),
     ("f:\n  algo: ppo\n  backend: wrap\n", ":3: recipe 'f': backend must be one of mjx, warp (did you mean 'warp'?), "
                                               "not 'wrap'"),

@@ -28,12 +28,12 @@ def test_a_field_of_ones_own_takes_the_recipe_of_the_field_it_extends_and_says_s
         "recipe v2_wide_goalie_dense for my_wide, which extends v2_wide_goalie_dense: ppo, 560M env steps, 8,192 "
         "envs, --set ppo.num_evals=28 --set ppo.spread=global, on sim.backend warp; not measured on my_wide yet "
         "(v2_wide_goalie_dense: "
-        f"{chosen.recipe.measured.figure}, {chosen.recipe.measured.seeds})")
+        f"{chosen.recipe.measured.stated}, {chosen.recipe.measured.seeds})")
     own = recipe.choose(bundled_fields()["v2_wide_goalie_dense"], None)
     assert own.line(["--steps"]) == (  # its physics twin on Warp states the same runs: not again as another route
         "recipe v2_wide_goalie_dense: ppo, 560M env steps, 8,192 envs, "
         "--set ppo.num_evals=28 --set ppo.spread=global, on sim.backend warp; "
-        f"measured: {own.recipe.measured.figure}, three fresh seeds (990-992); --steps overrides it")
+        f"measured: {own.recipe.measured.stated}, three fresh seeds (990-992); --steps overrides it")
     assert recipe.choose(spec, None, use=False).recipe is None
     other = recipe.choose(spec, "crl")
     assert other.recipe is None and other.algo == "crl" and "not taken: --algo crl" in other.line([])
@@ -71,8 +71,10 @@ def test_an_unmeasured_recipe_names_its_task_measured_on_other_physics_and_not_o
                     "soccer_v2_dense_warp, IQM 0.668, three fresh seeds (1010-1012)")
     assert "v2_wide_goalie" not in said  # extends soccer_v2_dense with another goalie: another task
     sparse = dict((name, route) for name, _, route in recipe.listing())["soccer_v2"]
-    assert sparse == ("its dense twin soccer_v2_dense is not measured itself; also measured: soccer_v2_dense_warp, "
-                      "IQM 0.668, three fresh seeds (1010-1012)")
+    assert sparse == "its dense twin soccer_v2_dense: measured on other physics"
+    assert recipe.statement("soccer_v2") == (
+        "soccer_v2: no recipe (its trainer's defaults); its dense twin soccer_v2_dense is not measured itself; "
+        "also measured: soccer_v2_dense_warp, IQM 0.668, three fresh seeds (1010-1012)")
 
 
 def test_fields_differing_in_physics_alone_set_the_same_task():
@@ -126,29 +128,46 @@ def test_train_prints_the_recipe_its_overrides_and_the_warning_once_and_run_json
     assert "recipe" not in saved and saved["config"]["hidden"] == [256, 256]
 
 
-def test_list_shows_each_bundled_fields_recipe_and_measured_figure_with_its_seeds():
+def test_list_shows_each_bundled_fields_recipe_and_the_headline_of_its_figure_with_its_seeds():
     rows = {name: (recipe_text, measured) for name, recipe_text, measured in recipe.listing()}
     assert set(rows) == set(bundled_fields())
-    assert rows["v2_wide_goalie_dense"][0] == ("ppo, 560M env steps, 8,192 envs, --set ppo.num_evals=28 "
-                                               "--set ppo.spread=global, on sim.backend warp")
-    assert rows["v2_wide_goalie_dense"][1].startswith("measured: IQM 0.675 [0.583, 0.746] success at 560M env "
-                                                      "steps, 1,024 episodes a seed (0.697, 0.746, 0.583), trained "
-                                                      "on v2_wide_goalie_dense_warp")
-    assert rows["v2_wide_goalie_dense"][1].endswith("three fresh seeds (990-992)")
-    assert rows["soccer_v2_dense"][1].startswith("measured: IQM 0.668 [0.615, 0.724]")
-    assert rows["ant_nav"][1] == ("measured: IQM 0.923 [0.899, 0.947] success at 14M env steps, 1,024 episodes a "
-                                  "seed; five seeds in one program in 414 s on one H200, five fresh seeds (600-604)")
+    assert rows["v2_wide_goalie_dense"] == ("ppo, 560M env steps, 8,192 envs, --set ppo.num_evals=28 --set "
+                                            "ppo.spread=global, on sim.backend warp", "IQM 0.675 [0.583, 0.746] "
+                                            "success at 560M env steps; three fresh seeds (990-992)")
+    assert rows["soccer_v2_dense"][1].startswith("IQM 0.668 [0.615, 0.724]")
+    assert rows["ant_nav"][1] == "IQM 0.923 [0.899, 0.947] success at 14M env steps; five fresh seeds (600-604)"
     assert rows["v2_wide_goalie"][0].endswith("on its task's dense reward, on sim.backend warp")
-    assert rows["v2_wide_goalie"][1].startswith("measured: IQM 0.675 [0.583, 0.746] success at 560M env steps")
-    assert rows["soccer_v2_dense_near"][0].endswith("(the recipe of soccer_v2_dense)")
-    assert rows["soccer_v2_dense_near"][1].startswith("not measured on soccer_v2_dense_near yet (soccer_v2_dense: "
-                                                      "IQM 0.668")  # its parent's figure beside
+    assert rows["v2_wide_goalie"][1].startswith("IQM 0.675 [0.583, 0.746] success at 560M env steps")
+    assert rows["soccer_v2_dense_near"] == (rows["soccer_v2_dense"][0] + " (the recipe of soccer_v2_dense)",
+                                            "not measured yet")
+    assert rows["soccer_v2"][1] == "its dense twin soccer_v2_dense: IQM 0.668 [0.615, 0.724] success at 560M env steps"
     assert rows["point_soccer"] == ("crl, --preset cpu", "not measured yet")
     assert rows["point_nav"] == ("none: crl with its defaults", "-")
     assert rows["soccer_1v1"][0] == "none: ppo self-play with its defaults"  # a match trains by self-play
     shown = runner.invoke(app, ["list", "--recipes"])
     assert shown.exit_code == 0 and all(name in shown.output for name in rows), shown.output
-    assert "0.675" in shown.output and "three fresh seeds (990-992)" in " ".join(shown.output.split())
+    assert "0.675" in shown.output and "(990-992)" in shown.output
+    assert "fieldgen list --recipes FIELD" in shown.output
+
+
+def test_list_states_the_recipes_of_the_fields_named_in_full_with_the_page_of_their_runs():
+    assert recipe.statement("ant_nav") == (
+        "ant_nav: crl, 14M env steps, --set crl.num_evals=7; measured: IQM 0.923 [0.899, 0.947] success at 14M env "
+        "steps, 1,024 episodes a seed; five seeds in one program in 414 s on one H200, five fresh seeds (600-604); "
+        "data and commands: bench/results/crl_ant_residual_network/README.md")
+    assert recipe.statement("soccer_v2_dense_near").startswith(
+        "soccer_v2_dense_near: ppo, 560M env steps, 8,192 envs, --set ppo.num_evals=28 --set ppo.spread=global, on "
+        "sim.backend warp (the recipe of soccer_v2_dense); not measured on soccer_v2_dense_near yet "
+        "(soccer_v2_dense: IQM 0.668 [0.615, 0.724] success at 560M env steps, 1,024 episodes a seed")
+    assert recipe.statement("point_nav") == "point_nav: no recipe (its trainer's defaults); no measured route"
+    shown = runner.invoke(app, ["list", "--recipes", "soccer_v1", "ant_nav"])
+    said = [" ".join(line.split()) for line in shown.output.splitlines()]
+    assert shown.exit_code == 0 and said == [recipe.statement("soccer_v1"), recipe.statement("ant_nav")]
+    described = runner.invoke(app, ["list", "point_nav"])
+    assert described.exit_code == 0 and "point_nav" in described.output and "ant_nav" not in described.output
+    wrong = runner.invoke(app, ["list", "--recipes", "v2_wide_goali"])
+    assert wrong.exit_code == 1 and "'v2_wide_goali' is not a bundled field; did you mean 'v2_wide_goalie'?" in \
+        " ".join(wrong.output.split())
 
 
 def test_a_broken_recipes_file_is_one_line_from_train_and_list(tmp_path, monkeypatch):
