@@ -50,6 +50,13 @@ class Policy:
                              f"a batch, if any, before it)")
         if not (jnp.issubdtype(obs.dtype, jnp.floating) or jnp.issubdtype(obs.dtype, jnp.integer)):
             raise ValueError(f"observations of dtype {obs.dtype}: this policy reads real numbers (float32)")
+        if not isinstance(obs, jax.core.Tracer):  # values to look at: a call outside jit
+            bad = ~np.isfinite(np.asarray(obs, np.float32)).reshape(-1, last)
+            if bad.any():
+                rows, entries = np.nonzero(bad.any(-1))[0], np.nonzero(bad.any(0))[0]
+                raise ValueError(f"observations hold NaN or infinite values (row{'s' * (len(rows) > 1)} "
+                                 f"{_listed(rows)} of {len(bad)}, entr{'ies' if len(entries) > 1 else 'y'} "
+                                 f"{_listed(entries)}): the actions of a network given them are NaN")
 
     @property
     def network(self) -> MLP:
@@ -76,3 +83,9 @@ class Policy:
         inputs = jnp.moveaxis(obs[:, team.observed], 1, 0)  # [controllers, batch, inputs]
         out = jax.vmap(self.network.apply, in_axes=(0 if self.per_controller else None, 0))(self.params, inputs)
         return team.joint_action(jnp.tanh(out[..., :team.actions.shape[1]]))
+
+
+def _listed(indices, most: int = 5) -> str:
+    """'0, 3, 7' or '0, 3, 7, 8, 9 and 12 more'."""
+    shown = ", ".join(str(int(i)) for i in indices[:most])
+    return shown + (f" and {len(indices) - most} more" if len(indices) > most else "")

@@ -39,6 +39,10 @@ def test_an_exported_policy_loads_and_acts(exported):
     (jnp.ones((3, 5)), "observations of shape (3, 5)"),  # a batch the wrong way round
     (jnp.float32(1.0), "observations of shape ()"),
     (jnp.ones(3, jnp.complex64), "observations of dtype complex64: this policy reads real numbers"),
+    (jnp.array([0.0, jnp.nan, 1.0]), "observations hold NaN or infinite values (row 0 of 1, entry 1): the actions "
+     "of a network given them are NaN"),  # a sensor's NaN would drive the motors with NaN
+    (jnp.ones((9, 3)).at[1:8, 0].set(jnp.inf).at[4, 2].set(jnp.nan), "(rows 1, 2, 3, 4, 5 and 2 more of 9, "
+     "entries 0, 2)"),
 ])
 def test_a_loaded_policy_refuses_observations_it_would_read_wrongly(exported, obs, phrase):
     act = fieldgen.load_policy(exported)
