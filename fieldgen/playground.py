@@ -64,7 +64,7 @@ class PlaygroundField(FieldAdapter, MjxEnv):
     def render(self, trajectory, height: int = 240, width: int = 320, camera: str | None = None, **_):
         """RGB frames through fieldgen's renderer (fieldgen.render.RenderError where no OpenGL is)."""
         states = [BraxState(s.data, s.obs, s.reward, s.done, s.metrics, s.info) for s in trajectory]
-        return self.field.render(states, camera or "follow", height, width)
+        return self.field.render(states, height, width, camera or "follow")
 
 
 def _playground(state: BraxState) -> State:

@@ -220,6 +220,7 @@ def point_env():
 def test_environment_renders_a_state_or_a_trajectory_at_the_size_asked(point_env):
     env, state = point_env
     assert [f.shape for f in env.render([state, state], height=96, width=128)] == [(96, 128, 3)] * 2
+    assert env.render([state], 64, 80)[0].shape == (64, 80, 3)  # brax's order: height, width, camera
     (frame,) = env.render(state, camera="top", height=96)  # one state; the top view's own aspect
     assert frame.shape == (96, *frame_size(env.mj_model, "top", 96)[1:], 3)
 

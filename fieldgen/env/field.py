@@ -159,10 +159,11 @@ class FieldEnv:
         """The mjx.Model stepped (leaves that differ between variants stacked on a leading axis)."""
         return self.sys
 
-    def render(self, trajectory: Sequence[State], camera: str = cameras.FOLLOW, height: int = 240,
-               width: int | None = None) -> list[np.ndarray]:
+    def render(self, trajectory: Sequence[State], height: int = 240, width: int | None = None,
+               camera: str = cameras.FOLLOW) -> list[np.ndarray]:
         """RGB frames [height, width, 3] of a trajectory of unbatched states, each drawn in its own variant's
-        field; `width` defaults to the camera's own aspect (fieldgen.render.RenderError where no OpenGL is)."""
+        field, its arguments in brax's order; `width` defaults to the camera's own aspect
+        (fieldgen.render.RenderError where no OpenGL is)."""
         from fieldgen.render import render_rollout
 
         states = [trajectory] if isinstance(trajectory, State) else list(trajectory)
