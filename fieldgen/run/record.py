@@ -148,9 +148,10 @@ class RunRecord(BaseModel):
 
 
 # what the metrics that figures are computed over can hold: success is a share of episodes, time at the goal a
-# count of steps, a variant's weight its share of new episodes
+# count of steps, a variant's weight its share of new episodes; the timings are drawn, tabled and counted on
+# when a run resumes
 METRIC_RANGES = {"success_any": (0.0, 1.0), "last_stage_success_any": (0.0, 1.0), "time_at_goal": (0.0, math.inf),
-                 "weight": (0.0, 1.0)}
+                 "weight": (0.0, 1.0), **dict.fromkeys(TIMINGS, (0.0, math.inf))}
 
 
 def metric_problem(metric: str, value) -> str | None:
@@ -177,6 +178,7 @@ class MetricsRow(BaseModel):
     model_config = ConfigDict(extra="allow")
     eval: Index
     env_steps: Index
+    seed: Index | None = None  # None: left out, which a reader given the run's seeds refuses
     stage: Index = 0
     promoted_to: Index = 0
 
@@ -262,7 +264,9 @@ def read_metrics(run_dir: Path, seeds: list[int] | None = None) -> list[dict]:
             MetricsRow.model_validate(row if isinstance(row, dict) else {})
         except ValidationError as exc:
             raise RunError(damaged.format(_problems(exc))) from None
-        if seeds is not None and "seed" in row and row["seed"] not in seeds:
+        if seeds is not None and "seed" not in row:
+            raise RunError(damaged.format("it lacks seed"))
+        if seeds is not None and row["seed"] not in seeds:
             raise RunError(damaged.format(f"its seed {shown_value(row['seed'])} is not one of the run's seeds, "
                                           f"{', '.join(map(str, seeds))}"))
         rows.append(row)

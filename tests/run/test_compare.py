@@ -291,6 +291,25 @@ def test_compare_refuses_a_mix_and_folders_that_are_not_runs_in_one_line(tmp_pat
     assert sorted(p.name for p in tmp_path.iterdir()) == ["empty", "point_nav-crl-0", "prepared"]
 
 
+@pytest.mark.parametrize("edit, phrase", [
+    ({"wall_seconds": "x"}, "wall_seconds is 'x', not a number"),
+    ({"steps_per_second": -5.0}, "steps_per_second is -5.0, outside its range"),
+    ({"seed": True}, "seed should be a valid integer"),
+    ({"seed": None}, "it lacks seed")], ids=["wall", "rate", "seed-bool", "no-seed"])
+def test_a_metrics_row_whose_timing_or_seed_is_edited_is_refused_at_its_line(tmp_path, edit, phrase):
+    """Each was a TypeError or KeyError traceback from the plot (a timing that is no number, a last row without its
+    seed), or a row counted as another seed's (true is 1 to Python)."""
+    run = run_folder(tmp_path / "point_nav-crl-0to1", [[0.0, 0.0], [0.5, 0.25]])
+    rows = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
+    rows[-1].update(edit)
+    rows[-1] = {k: v for k, v in rows[-1].items() if v is not None}
+    (run / "metrics.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
+    result = runner.invoke(app, ["compare", str(run), "-o", str(tmp_path / "c.png")], env={"COLUMNS": "400"})
+    assert result.exit_code == 1 and "Traceback" not in result.output, result.output
+    assert f"{run / 'metrics.jsonl'}:4 is not a metrics row ({phrase}" in result.output
+    assert not (tmp_path / "c.png").exists()
+
+
 def test_compare_of_run_folders_writes_compare_png_in_a_folder_dash_o_names(tmp_path):
     run = run_folder(tmp_path / "point_nav-crl-0", [[0.0], [0.5]])
     result = runner.invoke(app, ["compare", str(run), "-o", str(tmp_path)], env={"COLUMNS": "250"})
