@@ -263,6 +263,7 @@ def run_folders(arguments: list[str]) -> list[Path] | None:
     paths = [Path(a) for a in arguments]
     runs = [p for p in paths if (p / record.RUN).is_file()]
     if runs and len(runs) == len(paths):
+        _refuse_twice(runs)
         return runs
 
     def is_field(argument: str, path: Path) -> bool:
@@ -292,6 +293,17 @@ def run_folders(arguments: list[str]) -> list[Path] | None:
         what = "a file" if path.exists() else "missing"
         raise record.RunError(f"{path} is {what}, not a run folder; {RUN_FOLDER_HINT}")
     return None
+
+
+def _refuse_twice(runs: list[Path]) -> None:
+    """A run named twice (as itself, through a link, or a path that leads to it) would be a line and a row twice,
+    weighing as two runs that agree."""
+    seen: dict[Path, Path] = {}
+    for run in runs:
+        first = seen.setdefault(run.resolve(), run)
+        if first is not run:
+            also = "" if str(first) == str(run) else f" (also as {run})"
+            raise record.RunError(f"{first} is named twice{also}: each run is compared once; name it once")
 
 
 @dataclasses.dataclass(frozen=True)

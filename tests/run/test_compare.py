@@ -291,6 +291,18 @@ def test_compare_refuses_a_mix_and_folders_that_are_not_runs_in_one_line(tmp_pat
     assert sorted(p.name for p in tmp_path.iterdir()) == ["empty", "point_nav-crl-0", "prepared"]
 
 
+def test_a_run_named_twice_is_refused_as_itself_or_through_a_link(tmp_path):
+    """Each name was a line and a row of its own, the run weighing as two that agree."""
+    run = run_folder(tmp_path / "point_nav-crl-0", [[0.0], [0.5]])
+    other = run_folder(tmp_path / "point_nav-sac-0", [[0.0], [0.25]], "sac")
+    (tmp_path / "link").symlink_to(run)
+    for args, phrase in [([run, run], f"{run} is named twice:"),
+                         ([run, other, tmp_path / "link"], f"{run} is named twice (also as {tmp_path / 'link'})")]:
+        result = runner.invoke(app, ["compare", *map(str, args), "-o", str(tmp_path / "c.png")], env={"COLUMNS": "400"})
+        assert result.exit_code == 1 and result.output.startswith(f"error: {phrase}"), result.output
+    assert not (tmp_path / "c.png").exists()
+
+
 @pytest.mark.parametrize("edit, phrase", [
     ({"wall_seconds": "x"}, "wall_seconds is 'x', not a number"),
     ({"steps_per_second": -5.0}, "steps_per_second is -5.0, outside its range"),
