@@ -141,6 +141,16 @@ class RunRecord(BaseModel):
     # where its recipe trained it on another form of it (session.JUDGED); None (left out): judged where it trained
     selfplay: StrictBool = False  # a team field's self-play run (fieldgen/run/selfplay.py): judged by matches won
 
+    @model_validator(mode="after")
+    def _config_seed(self):
+        """A record that lists no seeds has its config's one: that must be a seed too, or each metrics row would be
+        blamed for a seed the record lacks."""
+        seed = self.config.get("seed", 0)
+        if not self.seeds and (isinstance(seed, bool) or not isinstance(seed, int) or seed < 0):
+            raise ValueError(f"config.seed, the run's seed where it lists no seeds, should be a whole number from 0 "
+                             f"up, not {shown_value(seed)}")
+        return self
+
     @property
     def every_seed(self) -> list[int]:
         """The run's seeds: the list it records, else its config's one seed (0 where it names none)."""

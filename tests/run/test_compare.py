@@ -291,6 +291,19 @@ def test_compare_refuses_a_mix_and_folders_that_are_not_runs_in_one_line(tmp_pat
     assert sorted(p.name for p in tmp_path.iterdir()) == ["empty", "point_nav-crl-0", "prepared"]
 
 
+def test_a_run_json_without_seeds_whose_config_seed_is_no_seed_is_blamed_not_its_metrics(tmp_path):
+    """The run's seed was then the config's -1, and the first metrics row was refused for not being of it."""
+    run = run_folder(tmp_path / "point_nav-crl-0", [[0.0], [0.5]])
+    saved = json.loads((run / "run.json").read_text())
+    del saved["seeds"]
+    saved["config"]["seed"] = -1
+    (run / "run.json").write_text(json.dumps(saved))
+    result = runner.invoke(app, ["compare", str(run), "-o", str(tmp_path / "c.png")], env={"COLUMNS": "400"})
+    assert result.exit_code == 1 and "Traceback" not in result.output, result.output
+    assert result.output.startswith(f"error: {run / 'run.json'} is not a run record: config.seed, the run's seed "
+                                    "where it lists no seeds, should be a whole number from 0 up, not -1"), result.output
+
+
 def test_a_run_named_twice_is_refused_as_itself_or_through_a_link(tmp_path):
     """Each name was a line and a row of its own, the run weighing as two that agree."""
     run = run_folder(tmp_path / "point_nav-crl-0", [[0.0], [0.5]])
