@@ -345,3 +345,19 @@ def test_compare_refuses_a_run_json_naming_an_algorithm_fieldgen_has_not(prepare
     refused(result, f"{prepared / record.RUN} is not a run record: algo should be one of this fieldgen's algorithms, "
                     "crl, icrl, ppo, sac, td3, not 'foo' (edited or damaged)")
     assert not plot.exists()
+
+
+@pytest.mark.parametrize("blocker", ["file", "loop"])
+def test_export_into_a_folder_a_file_or_a_dead_link_is_in_the_way_of_says_to_move_it(tmp_path, prepared, blocker):
+    """Said as a full disk or a permission once: free some space, fix the folder's permissions."""
+    run = as_if_learned(prepared)
+    (run / record.METRICS).write_text(json.dumps({"eval": 0, "seed": 0, "env_steps": 0}) + "\n")
+    in_the_way = tmp_path / "in the way"
+    if blocker == "file":
+        in_the_way.write_text("mine")
+    else:
+        in_the_way.symlink_to(in_the_way)
+    result = runner.invoke(app, ["export", str(run), "-o", str(in_the_way / "policy")])
+    refused(result, f"move {in_the_way} aside or choose another -o")
+    assert "free some space" not in result.output
+    assert in_the_way.is_symlink() or in_the_way.read_text() == "mine"
