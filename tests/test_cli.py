@@ -54,6 +54,23 @@ def test_commands_turn_xla_fusion_autotuning_off_unless_the_user_sets_it(monkeyp
     assert os.environ["XLA_FLAGS"] == "--xla_gpu_experimental_enable_fusion_autotuner=true"
 
 
+def test_an_xla_flags_file_is_left_as_named_and_one_that_cannot_be_read_is_one_line(tmp_path, monkeypatch):
+    """XLA reads a value that does not start with - as a file of flags: the defaults added to it named another
+    file, and XLA aborted the command as JAX started, as it does where the file is missing."""
+    import os
+
+    flags = tmp_path / "xla flags.txt"
+    flags.write_text("--xla_dump_to=/tmp/x\n")
+    monkeypatch.setenv("XLA_FLAGS", str(flags))
+    assert runner.invoke(app, ["validate", "point_nav"]).exit_code == 0
+    assert os.environ["XLA_FLAGS"] == str(flags)
+    monkeypatch.setenv("XLA_FLAGS", "garbage")
+    result = runner.invoke(app, ["validate", "point_nav"])
+    assert result.exit_code == 1 and os.environ["XLA_FLAGS"] == "garbage"
+    assert result.output.startswith("error: XLA_FLAGS='garbage' does not start with --, so XLA reads it as the name "
+                                    "of a file of flags, and no such file can be read here;"), result.output
+
+
 def test_unknown_field_name_is_a_clear_error():
     result = runner.invoke(app, ["build", "socer_v2"])
     assert result.exit_code == 1

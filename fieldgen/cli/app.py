@@ -185,6 +185,9 @@ def main(ctx: typer.Context,
     problem = gl_problem()
     if problem:  # before anything imports mujoco, which would fail with PyOpenGL's traceback
         fail(problem)
+    problem = xla_flags.problem()
+    if problem:  # else XLA aborts the process once JAX starts, in its own log's words
+        fail(problem)
     ctx.call_on_close(files.release_all)  # the folders a command locked are free once it ends
     ctx.call_on_close(stops.catch())  # kill and a closed terminal stop it as Ctrl-C does
     xla_cache.enable()
