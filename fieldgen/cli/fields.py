@@ -374,6 +374,40 @@ def _list_recipes(names: list[str] | None) -> None:
 
 
 @app.command()
+def doctor(
+    as_json: Annotated[bool, typer.Option("--json", help="print the checks as JSON, for a bug report")] = False,
+) -> None:
+    """Check what this machine can do with fieldgen: JAX and its devices, a field built and stepped, Warp's
+    physics, drawing, videos, the viewer, the optional extras and the compile cache, each with the step that
+    mends it. Exits with status 1 where fieldgen cannot work as it should (no field steps, or an NVIDIA GPU that
+    JAX does not use).
+
+    Example: fieldgen doctor
+    Example: fieldgen doctor --json > machine.json
+    """
+    from fieldgen import doctor as checking
+
+    if not as_json:
+        out.print(f"stepping {checking.STEPPED_FIELD} once to check the physics (seconds, a compile included)...",
+                  style="dim")
+    checks = checking.run_checks()
+    report = checking.report(checks)
+    if as_json:
+        print(json.dumps(report, indent=2))
+    else:
+        styles = {checking.OK: "green", checking.NOTE: "yellow", checking.PROBLEM: "bold red"}
+        table = Table(Column("check", no_wrap=True), "", Column("found", overflow="fold"), box=None)
+        for check in checks:
+            table.add_row(check.name, Text(check.status, style=styles[check.status]), check.detail)
+        out.print(table)
+        for check in checks:
+            if check.remedy:
+                out.print(Text.assemble((f"{check.name}: ", styles[check.status]), check.remedy), soft_wrap=True)
+    if not report["passed"]:
+        raise typer.Exit(1)
+
+
+@app.command()
 def schema() -> None:
     """Print the JSON Schema of a field spec, for editors that check YAML as it is typed.
 
