@@ -71,6 +71,34 @@ def test_an_xla_flags_file_is_left_as_named_and_one_that_cannot_be_read_is_one_l
                                     "of a file of flags, and no such file can be read here;"), result.output
 
 
+def test_a_jax_platform_this_machine_cannot_start_is_one_line_and_sets_nothing_up(tmp_path, monkeypatch):
+    """JAX says so wherever it first starts, mid-command: a RuntimeError, or for CUDA without JAX's plugin an empty
+    AssertionError, each a traceback once."""
+    import os
+    import subprocess
+    import sys
+
+    import jax
+
+    proc = subprocess.run([sys.executable, "-m", "fieldgen", "train", "point_nav", "--prepare", "--out",
+                           str(tmp_path / "runs")], capture_output=True, text=True, timeout=120,
+                          env={**os.environ, "JAX_PLATFORMS": "rocm", "COLUMNS": "400"})
+    assert proc.returncode == 1 and "Traceback" not in proc.stderr, proc.stderr
+    assert proc.stderr.startswith("error: JAX_PLATFORMS=rocm names a platform JAX cannot start here ("), proc.stderr
+    assert "unset JAX_PLATFORMS for JAX to use what this machine has, or set JAX_PLATFORMS=cpu" in proc.stderr
+    assert not (tmp_path / "runs").exists()
+
+    def no_plugin(*args, **kwargs):
+        raise AssertionError
+
+    monkeypatch.setenv("JAX_PLATFORMS", "cuda")
+    monkeypatch.setattr(jax, "devices", no_plugin)
+    monkeypatch.setattr("fieldgen.run.session.field_spec", no_plugin)
+    result = runner.invoke(app, ["train", "point_nav", "--prepare", "--out", str(tmp_path / "runs")])
+    assert result.exit_code == 1 and result.output.startswith(
+        "error: JAX_PLATFORMS=cuda names a platform JAX cannot start here (JAX has no plugin for it here);"), result.output
+
+
 def test_unknown_field_name_is_a_clear_error():
     result = runner.invoke(app, ["build", "socer_v2"])
     assert result.exit_code == 1
