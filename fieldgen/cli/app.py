@@ -4,7 +4,9 @@ resolving a field named on the command line, and failing with one paragraph."""
 from __future__ import annotations
 
 import errno
+import os
 import re
+import sys
 from pathlib import Path
 from typing import Annotated
 
@@ -62,9 +64,6 @@ def platform_problem() -> str | None:
     """Why JAX cannot start the platform JAX_PLATFORMS names (a GPU on a machine without one or without JAX's plugin
     for it: a RuntimeError, or for CUDA without its plugin an empty AssertionError, from wherever JAX first starts),
     in a sentence; None where JAX starts, or has not been loaded."""
-    import os
-    import sys
-
     platforms = os.environ.get("JAX_PLATFORMS", "")
     if not platforms or "jax" not in sys.modules:
         return None
@@ -218,6 +217,17 @@ def main(ctx: typer.Context,
     ctx.call_on_close(stops.catch())  # kill and a closed terminal stop it as Ctrl-C does
     xla_cache.enable()
     xla_flags.apply()
+    _float32()
+
+
+def _float32() -> None:
+    """fieldgen's fields and trainers compute in float32: a JAX_ENABLE_X64 set for other work made a run's programs
+    fail to trace (a scan's carry turned float64), so a command runs with JAX's 64-bit numbers off."""
+    os.environ.pop("JAX_ENABLE_X64", None)  # read as JAX loads, in this process and the ones a command starts
+    if "jax" in sys.modules:
+        import jax
+
+        jax.config.update("jax_enable_x64", False)
 
 
 def video_format(fmt: str | None) -> str:

@@ -361,3 +361,19 @@ def test_export_into_a_folder_a_file_or_a_dead_link_is_in_the_way_of_says_to_mov
     refused(result, f"move {in_the_way} aside or choose another -o")
     assert "free some space" not in result.output
     assert in_the_way.is_symlink() or in_the_way.read_text() == "mine"
+
+
+def test_a_jax_enable_x64_set_for_other_work_leaves_a_commands_programs_in_float32(tmp_path, prepared, monkeypatch):
+    """Tracing the run's trainer with 64-bit numbers on was a TypeError traceback (a scan's carry turned float64)."""
+    import jax
+
+    run = as_if_learned(prepared)
+    (run / record.METRICS).write_text(json.dumps({"eval": 0, "seed": 0, "env_steps": 0}) + "\n")
+    monkeypatch.setenv("JAX_ENABLE_X64", "1")
+    jax.config.update("jax_enable_x64", True)  # as JAX loads where the variable is set
+    try:
+        result = runner.invoke(app, ["export", str(run), "-o", str(tmp_path / "policy")])
+    finally:
+        jax.config.update("jax_enable_x64", False)
+    assert result.exit_code == 0, (result.output, result.exception)
+    assert (tmp_path / "policy" / "params.msgpack").is_file()
