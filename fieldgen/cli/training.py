@@ -459,7 +459,9 @@ def compare(
     Runs train one after another (the seeds of each at once); rerunning the same comparison
     resumes unfinished runs and redraws compare.png and compare.json. Over several seeds, the plot and
     table give the interquartile mean with its 95% bootstrap interval. Given run folders instead (a sweep's,
-    each possibly of several seeds), it tables each run's last evaluation and draws their curves, training nothing.
+    each possibly of several seeds), it tables each run's last evaluation and draws their curves, training nothing,
+    and measures each run against the first named: env steps a second, and success at equal env steps and at equal
+    wall clock, as ratios.
 
     Example: fieldgen compare point_nav --algos crl,icrl,sac --steps 40000 --envs 16 --seeds 2
     Example: fieldgen compare runs/point_nav-crl-0to4 runs/point_nav-sac-0to4 -o compare.png

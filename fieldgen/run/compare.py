@@ -16,6 +16,7 @@ import dataclasses
 import hashlib
 import json
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 from rich.console import Console
@@ -393,6 +394,74 @@ def fields_differ(runs_: list[Recorded]) -> str:
             f"on {named(first)}, " + ", ".join(f"{r.folder} on {named(r)}" for r in others))
 
 
+@dataclasses.dataclass(frozen=True)
+class Against:
+    """A run measured against another (the first named: the code before a change, as a change is measured): env
+    steps a second a seed, and the in-run metric (IQM over seeds) at the env steps both reached and at the wall
+    clock both reached, each run's last evaluation there."""
+
+    steps: int  # the env steps both runs reached
+    seconds: float  # the wall-clock seconds both reached, from each run's start (NaN where a run lacks them)
+    rate: tuple[float, float]  # (this run, the first): env steps a second a seed, the median over its chunks
+    at_steps: tuple[float, float]  # the metric at `steps`
+    at_seconds: tuple[float, float]  # the metric at `seconds`
+
+
+def training_rate(run: Recorded) -> float:
+    """Env steps a second a seed while training: the median over the run's chunks (each evaluation's row holds its
+    chunk's), NaN where no row holds one."""
+    rates = [r["steps_per_second"] for r in run.rows if r["seed"] == run.seeds[0] and "steps_per_second" in r]
+    return float(np.median(rates)) if rates else float("nan")
+
+
+def metric_at(run: Recorded, key: str, limit: float) -> float:
+    """The run's metric (IQM over seeds) at its last evaluation whose `key` (env_steps, wall_seconds) is within
+    `limit`; NaN where none is."""
+    evals = [r["eval"] for r in run.rows if r.get(key, np.nan) <= limit]
+    if not evals:
+        return float("nan")
+    last = max(evals)
+    return over_seeds([on_field(r, run.metric) for r in run.rows if r["eval"] == last])[0]
+
+
+def against(run: Recorded, first: Recorded) -> Against:
+    """`run` beside `first` at equal env steps and at equal wall clock."""
+    def reach(r: Recorded, key: str) -> float:
+        return max(row.get(key, np.nan) for row in r.rows)
+
+    steps = int(min(reach(run, "env_steps"), reach(first, "env_steps")))
+    seconds = min(reach(run, "wall_seconds"), reach(first, "wall_seconds"))
+    return Against(steps, seconds, (training_rate(run), training_rate(first)),
+                   (metric_at(run, "env_steps", steps), metric_at(first, "env_steps", steps)),
+                   (metric_at(run, "wall_seconds", seconds), metric_at(first, "wall_seconds", seconds)))
+
+
+def _ratio(pair: tuple[float, float], shown: Callable[[float], str]) -> str:
+    """'0.693 / 0.544 = 1.27x', or without the ratio where the first is 0 or either is unknown."""
+    this, first = pair
+    if not (np.isfinite(this) and np.isfinite(first)):
+        return "-"
+    said = f"{shown(this)} / {shown(first)}"
+    return said + (f" = {this / first:.2f}x" if first > 0 else "")
+
+
+def report_against_first(runs_: list[Recorded], console: Console) -> None:
+    """Each run after the first beside the first: env steps a second and the in-run metric at equal env steps and
+    at equal wall clock, each as this run's over the first's."""
+    first = runs_[0]
+    table = Table(Column("run", overflow="fold"), "env steps/s a seed", "at equal env steps", "at equal wall clock",
+                  title=f"against the first run, {first.folder}",
+                  caption=f"{first.metric} in-run (IQM over seeds) at the last evaluation within the env steps, or the "
+                          "seconds from the start, that both runs reached; this run / the first")
+    for run in runs_[1:]:
+        measured = against(run, first)
+        clock = (f"at {measured.seconds:,.0f} s: {_ratio(measured.at_seconds, lambda v: f'{v:.3f}')}"
+                 if np.isfinite(measured.seconds) else "-")
+        table.add_row(str(run.folder), _ratio(measured.rate, lambda v: f"{v:,.0f}"),
+                      f"at {measured.steps:,}: {_ratio(measured.at_steps, lambda v: f'{v:.3f}')}", clock)
+    console.print(table)
+
+
 def report_recorded(runs_: list[Recorded], plot_path: Path, console: Console) -> None:
     """The table of runs already trained (one row each: field, algorithm, seeds, env steps at the last evaluation,
     success there as IQM [95% interval] and per seed) and their curves with the bands, at `plot_path`. Self-play runs
@@ -421,6 +490,8 @@ def report_recorded(runs_: list[Recorded], plot_path: Path, console: Console) ->
                       *([", ".join(f"{s}: {row.get('elo', np.nan):,.0f}" for s, row in run.last.items())]
                         if team else []))
     console.print(table)
+    if len(runs_) > 1:
+        report_against_first(runs_, console)
     if differ := fields_differ(runs_):
         console.print(differ, soft_wrap=True)
     names = list(dict.fromkeys(r.field for r in runs_))

@@ -210,8 +210,9 @@ def test_compare_of_run_folders_tables_each_runs_last_evaluation_and_draws_the_b
     printed = io.StringIO()
     compare.report_recorded([compare.recorded(crl), compare.recorded(sac)], tmp_path / "both.png",
                             Console(file=printed, width=400))
+    runs_table = printed.getvalue().split("against the first run")[0]  # the second table measures sac against crl
     lines = {line.split("│")[1].strip(): [cell.strip() for cell in line.split("│")[2:-1]]
-             for line in printed.getvalue().splitlines() if line.count("│") > 3 and "point_nav-" in line}
+             for line in runs_table.splitlines() if line.count("│") > 3 and "point_nav-" in line}
     # five seeds: the IQM is the mean of the middle three, (0.4 + 0.6 + 0.8) / 3; four: of the middle two
     low, high = summary.interval([0.2, 1.0, 0.4, 0.8, 0.6])
     assert lines[str(crl)] == ["point_nav", "crl", "5", "1,000", f"0.600 [{low:.3f}, {high:.3f}]",
@@ -381,3 +382,30 @@ def test_self_play_runs_compare_by_matches_won_and_ratings_and_never_beside_sing
     assert mixed.exit_code == 1 and "Traceback" not in mixed.output, mixed.output
     assert mixed.output.startswith(f"error: {team} is a self-play run on a team field") and str(single) in mixed.output
     assert not (tmp_path / "mixed.png").exists()
+
+
+def test_runs_after_the_first_are_measured_against_it_in_env_steps_a_second_and_at_equal_steps_and_clock(tmp_path):
+    """As a change is measured against the code before it: a run twice as fast a seed, at equal env steps (2,000,
+    the most both reached) 0.9 against 0.5, at equal wall clock (15 s) 1.0 against the first's 0.4 at 10 s."""
+    import io
+
+    from rich.console import Console
+
+    from fieldgen.run import compare
+
+    first = run_folder(tmp_path / "before", [[0.0] * 3, [0.2, 0.4, 0.6], [0.5, 0.5, 0.5]])
+    faster = run_folder(tmp_path / "after", [[0.0] * 3, [0.4, 0.8, 0.6], [0.9, 0.9, 0.9], [1.0, 1.0, 1.0]])
+    rows = [json.loads(line) for line in (faster / "metrics.jsonl").read_text().splitlines()]
+    for row in rows:
+        row.update(wall_seconds=5.0 * row["eval"], steps_per_second=100.0)
+    (faster / "metrics.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
+    measured = compare.against(compare.recorded(faster), compare.recorded(first))
+    assert (measured.steps, measured.seconds, measured.rate) == (2000, 15.0, (100.0, 50.0))
+    assert measured.at_steps == pytest.approx((0.9, 0.5)) and measured.at_seconds == pytest.approx((1.0, 0.4))
+    printed = io.StringIO()
+    compare.report_recorded([compare.recorded(first), compare.recorded(faster)], tmp_path / "both.png",
+                            Console(file=printed, width=300))
+    said = printed.getvalue()
+    assert f"against the first run, {first}" in said and "100 / 50 = 2.00x" in said
+    assert "at 2,000: 0.900 / 0.500 = 1.80x" in said and "at 15 s: 1.000 / 0.400 = 2.50x" in said
+    assert compare._ratio((0.3, 0.0), str) == "0.3 / 0.0" and compare._ratio((0.3, float("nan")), str) == "-"
