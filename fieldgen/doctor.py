@@ -82,8 +82,11 @@ def check_jax(gpu_present: Callable[[], bool] = nvidia_gpu_present) -> Check:
         backend = jax.default_backend()
         devices = jax.devices()
     except Exception as exc:  # noqa: BLE001 - a broken install fails in its own way; say how
-        return Check("JAX", PROBLEM, f"cannot start: {exc}",
-                     "reinstall fieldgen's pins: python -m pip install -c requirements.lock -e .")
+        platforms = os.environ.get("JAX_PLATFORMS")
+        remedy = (f"JAX_PLATFORMS={platforms} names what JAX cannot start: unset it for JAX to use what this machine "
+                  "has, or set JAX_PLATFORMS=cpu" if platforms else
+                  "reinstall fieldgen's pins: python -m pip install -c requirements.lock -e .")
+        return Check("JAX", PROBLEM, f"cannot start: {type(exc).__name__}: {exc}", remedy)
     platforms = os.environ.get("JAX_PLATFORMS")
     detail = f"{jax.__version__}, {backend}: {_device_text(devices)}" + (
         f" (JAX_PLATFORMS={platforms})" if platforms else "")

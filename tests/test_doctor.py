@@ -70,3 +70,16 @@ def test_what_is_missing_is_a_note_with_its_install_line(monkeypatch):
 def test_a_compile_cache_turned_off_is_said(monkeypatch, value):
     monkeypatch.setenv("JAX_ENABLE_COMPILATION_CACHE", value)
     assert doctor.check_cache().status == doctor.NOTE
+
+
+def test_a_jax_that_cannot_start_the_platform_named_says_to_unset_it(monkeypatch):
+    import jax
+
+    def refused():
+        raise RuntimeError("Unknown backend: 'cuda' requested, but no platforms that are instances of cuda are present")
+
+    monkeypatch.setattr(jax, "devices", refused)
+    monkeypatch.setenv("JAX_PLATFORMS", "cuda")
+    found = doctor.check_jax()
+    assert found.status == doctor.PROBLEM and found.detail.startswith("cannot start: RuntimeError: Unknown backend")
+    assert found.remedy.startswith("JAX_PLATFORMS=cuda names what JAX cannot start: unset it")
