@@ -25,7 +25,7 @@ from rich.table import Column, Table
 import fieldgen
 from fieldgen.agents import registry, sharding
 from fieldgen.compile.artifact import ArtifactError
-from fieldgen.files import COMPARE, Output, check_file, write_file
+from fieldgen.files import COMPARE, Output, check_file, kind_of_blocker, write_file
 from fieldgen.run import plots, record, session, summary
 
 PLOT, TABLE = "compare.png", "compare.json"
@@ -291,7 +291,7 @@ def run_folders(arguments: list[str]) -> list[Path] | None:
         if path.is_dir():
             raise record.RunError(f"{path} is not a built field (no {META}) nor a run folder (no {record.RUN}): "
                                   f"compare trains on a field with --algos, or compares run folders; {RUN_FOLDER_HINT}")
-        what = "a file" if path.exists() else "missing"
+        what = kind_of_blocker(path) if path.is_symlink() or path.exists() else "missing"
         raise record.RunError(f"{path} is {what}, not a run folder; {RUN_FOLDER_HINT}")
     return None
 

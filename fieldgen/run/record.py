@@ -22,7 +22,7 @@ from pydantic import (AfterValidator, BaseModel, ConfigDict, Field, StrictBool, 
                       model_validator)
 
 from fieldgen.curriculum.promotion import Promotion
-from fieldgen.files import Output, parsed_json, write_atomic
+from fieldgen.files import Output, kind_of_blocker, parsed_json, write_atomic
 from fieldgen.schema.errors import shown_text, shown_value
 
 RUN, METRICS, CSV, CHECKPOINT, PLOT = "run.json", "metrics.jsonl", "metrics.csv", "checkpoint.msgpack", "success.png"
@@ -223,7 +223,7 @@ def _problems(exc: ValidationError) -> str:
 
 def read_run(run_dir: Path) -> RunRecord:
     if not run_dir.is_dir():
-        what = "a file" if run_dir.exists() else "missing"
+        what = kind_of_blocker(run_dir) if run_dir.is_symlink() or run_dir.exists() else "missing"
         raise RunError(f"{run_dir} is {what}, not a run folder; name the folder fieldgen train wrote "
                        "(runs/<field>-<algo>-<seed>)")
     try:

@@ -377,3 +377,13 @@ def test_a_jax_enable_x64_set_for_other_work_leaves_a_commands_programs_in_float
         jax.config.update("jax_enable_x64", False)
     assert result.exit_code == 0, (result.output, result.exception)
     assert (tmp_path / "policy" / "params.msgpack").is_file()
+
+
+@pytest.mark.parametrize("command", [["train", "--resume"], ["eval", "--no-video"], ["export", "-o", "POLICY"],
+                                     ["videos"], ["compare", "RUN"]], ids=lambda c: c[0])
+def test_a_run_named_by_a_link_that_leads_nowhere_is_called_that_not_missing(tmp_path, prepared, command):
+    loop = tmp_path / "loop"
+    loop.symlink_to(loop)
+    args = [str(tmp_path / "policy") if a == "POLICY" else str(prepared) if a == "RUN" else a for a in command]
+    refused(runner.invoke(app, [*args, str(loop)]),
+            f"{loop} is a link that leads nowhere (a loop of links, or to nothing), not a run folder")
