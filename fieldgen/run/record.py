@@ -255,19 +255,19 @@ def read_metrics(run_dir: Path, seeds: list[int] | None = None) -> list[dict]:
     passes them, so none judges, resumes or plots rows that are not the run's."""
     path = run_dir / METRICS
     try:
-        lines = [line for line in path.read_bytes().splitlines() if line.strip()]
+        lines = [(n, line) for n, line in enumerate(path.read_bytes().splitlines(), 1) if line.strip()]
     except FileNotFoundError:
         return []
     except OSError as exc:
         raise RunError(f"{path} cannot be read ({exc.strerror})") from None
     rows = []
-    for n, line in enumerate(lines, 1):
+    for k, (n, line) in enumerate(lines, 1):  # n: the line in the file, blank lines counted, as an editor shows it
         damaged = (f"{path}:{n} is not a metrics row ({{}}); the file was edited or damaged: restore it from a "
                    "copy, or start the run again in a new folder")
         try:
             row = parsed_json(line)
         except ValueError:  # undecodable bytes as well as broken JSON
-            if n == len(lines):
+            if k == len(lines):
                 break
             raise RunError(damaged.format("not JSON")) from None
         try:

@@ -292,6 +292,17 @@ def test_compare_refuses_a_mix_and_folders_that_are_not_runs_in_one_line(tmp_pat
     assert sorted(p.name for p in tmp_path.iterdir()) == ["empty", "point_nav-crl-0", "prepared"]
 
 
+def test_a_damaged_metrics_row_is_named_by_its_line_in_the_file_blank_lines_counted(tmp_path):
+    """Blank lines were left out of the count, so the line named was another than the one to mend."""
+    run = run_folder(tmp_path / "point_nav-crl-0to1", [[0.0, 0.0], [0.5, 0.25]])
+    rows = (run / "metrics.jsonl").read_text().splitlines()
+    rows[2] = rows[2].replace('"success_any": 0.5', '"success_any": 5')
+    (run / "metrics.jsonl").write_text("\n\n" + "\n".join(rows) + "\n")
+    result = runner.invoke(app, ["compare", str(run), "-o", str(tmp_path / "c.png")], env={"COLUMNS": "400"})
+    assert result.exit_code == 1, result.output
+    assert result.output.startswith(f"error: {run / 'metrics.jsonl'}:5 is not a metrics row (success_any is 5,")
+
+
 def test_a_run_json_without_seeds_whose_config_seed_is_no_seed_is_blamed_not_its_metrics(tmp_path):
     """The run's seed was then the config's -1, and the first metrics row was refused for not being of it."""
     run = run_folder(tmp_path / "point_nav-crl-0", [[0.0], [0.5]])
