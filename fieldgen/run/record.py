@@ -260,7 +260,7 @@ def read_metrics(run_dir: Path, seeds: list[int] | None = None) -> list[dict]:
         return []
     except OSError as exc:
         raise RunError(f"{path} cannot be read ({exc.strerror})") from None
-    rows = []
+    rows, at = [], {}  # (eval, seed) -> its line: a row twice (files joined, a line pasted) would count twice
     for k, (n, line) in enumerate(lines, 1):  # n: the line in the file, blank lines counted, as an editor shows it
         damaged = (f"{path}:{n} is not a metrics row ({{}}); the file was edited or damaged: restore it from a "
                    "copy, or start the run again in a new folder")
@@ -279,6 +279,9 @@ def read_metrics(run_dir: Path, seeds: list[int] | None = None) -> list[dict]:
         if seeds is not None and row["seed"] not in seeds:
             raise RunError(damaged.format(f"its seed {shown_value(row['seed'])} is not one of the run's seeds, "
                                           f"{', '.join(map(str, seeds))}"))
+        if (earlier := at.setdefault((row["eval"], row.get("seed")), n)) != n:
+            raise RunError(damaged.format(f"evaluation {row['eval']} of seed {row.get('seed')} is at line {earlier} "
+                                          "already"))
         rows.append(row)
     return rows
 

@@ -303,6 +303,17 @@ def test_a_damaged_metrics_row_is_named_by_its_line_in_the_file_blank_lines_coun
     assert result.output.startswith(f"error: {run / 'metrics.jsonl'}:5 is not a metrics row (success_any is 5,")
 
 
+def test_a_metrics_row_of_an_evaluation_and_seed_already_read_is_refused_not_counted_twice(tmp_path):
+    """The curve's point was the IQM over three values of two seeds, the table's over two."""
+    run = run_folder(tmp_path / "point_nav-crl-0to1", [[0.0, 0.0], [0.5, 0.25]])
+    rows = (run / "metrics.jsonl").read_text().splitlines()
+    (run / "metrics.jsonl").write_text("\n".join([*rows, rows[-1].replace("0.25", "1.0")]) + "\n")
+    result = runner.invoke(app, ["compare", str(run), "-o", str(tmp_path / "c.png")], env={"COLUMNS": "400"})
+    assert result.exit_code == 1, result.output
+    assert result.output.startswith(f"error: {run / 'metrics.jsonl'}:5 is not a metrics row (evaluation 1 of seed 1 "
+                                    "is at line 4 already)"), result.output
+
+
 def test_a_run_json_without_seeds_whose_config_seed_is_no_seed_is_blamed_not_its_metrics(tmp_path):
     """The run's seed was then the config's -1, and the first metrics row was refused for not being of it."""
     run = run_folder(tmp_path / "point_nav-crl-0", [[0.0], [0.5]])
