@@ -590,6 +590,16 @@ def kind_of_blocker(blocker: Path) -> str:
     return "a link that leads nowhere (a loop of links, or to nothing)" if blocker.is_symlink() else "a file"
 
 
+def way_on(folder: Path, flag: str, why: str | None = None) -> str:
+    """How to go on where `folder` could not be written: move aside what stands where a folder should
+    (file_in_the_way), for which no space or permission helps; else, after the system's `why` if given, free some
+    space or fix the permissions; or choose another place with `flag` (--out, -o)."""
+    blocker = file_in_the_way(folder)
+    if blocker is not None:  # the system's words are about a path below it: "Not a directory"
+        return f"{blocker} is {kind_of_blocker(blocker)}, not a folder; move it aside or choose another {flag}"
+    return f"{why + '; ' if why else ''}free some space, fix the folder's permissions or choose another {flag}"
+
+
 def _umask() -> int:
     umask = os.umask(0)
     os.umask(umask)

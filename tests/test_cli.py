@@ -165,6 +165,15 @@ def test_build_reports_then_hits_cache(tmp_path):
     assert "cache hit point_soccer" in second.output
 
 
+
+def test_build_where_a_file_stands_in_the_way_of_out_names_it_rather_than_space_or_permissions(tmp_path):
+    (tmp_path / "afile").write_text("mine")
+    result = runner.invoke(app, ["build", "point_nav", "--out", str(tmp_path / "afile" / "x"), "--no-preview"])
+    said = " ".join(result.output.split())
+    assert result.exit_code == 1 and f"{tmp_path / 'afile'} is a file, not a folder; move it aside or choose another " \
+        "--out" in said and "free some space" not in said
+    assert (tmp_path / "afile").read_text() == "mine"
+
 def test_list_names_every_bundled_field():
     result = runner.invoke(app, ["list"])
     assert result.exit_code == 0

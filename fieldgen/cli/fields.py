@@ -11,7 +11,7 @@ import typer
 from rich.table import Column, Table
 from rich.text import Text
 
-from fieldgen import limits
+from fieldgen import files, limits
 from fieldgen.cli.app import (SpecArg, app, bounded, choice, count, err, fail, field_source, os_problem, out,
                               spec_path)
 from fieldgen.cameras import CAMERAS
@@ -87,8 +87,7 @@ def build(
         except FolderError as exc:
             fail(str(exc))
         except OSError as exc:
-            fail(f"{os_problem(exc)}; any earlier build there is unchanged: free some space, fix the folder's "
-                 "permissions or choose another --out")
+            fail(f"{os_problem(exc)}; any earlier build there is unchanged: {files.way_on(out_dir, '--out')}")
         _report(result)
     if failed:
         raise typer.Exit(1)

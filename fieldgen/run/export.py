@@ -10,7 +10,7 @@ import jax
 
 from fieldgen.agents import loop
 from fieldgen.agents.actor import Policy
-from fieldgen.files import WriteError, file_in_the_way
+from fieldgen.files import WriteError, way_on
 from fieldgen.policy_folder import Description, describe, save_policy
 from fieldgen.run import record, selfplay, session
 
@@ -38,10 +38,8 @@ def export(run_dir: Path, out: Path, seed: int | None = None, fmt: str = "flax")
                            seed=seed, env_steps=int(jax.device_get(state.env_steps)))
     try:
         save_policy(policy, description, out, fmt)
-    except WriteError as exc:  # a file in the way of -o's folder is moved aside: no space or permission helps
-        blocker = file_in_the_way(out.parent)
-        way = "free some space, fix the folder's permissions" if blocker is None else f"move {blocker} aside"
-        raise record.RunError(f"{exc}; {way} or choose another -o") from None
+    except WriteError as exc:
+        raise record.RunError(f"{exc}; {way_on(out.parent, '-o')}") from None
     return Exported(out, description)
 
 

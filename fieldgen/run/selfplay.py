@@ -125,8 +125,8 @@ def new_run(source: Path, config: SelfPlayConfig, out: Path, seeds: list[int], c
         record.write_run(folder, env.spec.model_dump(mode="json"), config.algo, config, env.layout.to_json(),
                          seeds, {"fields": [FIELD], "selfplay": True, **({"recipe": recipe} if recipe else {})})
     except OSError as exc:
-        raise record.RunError(f"cannot set up the run folder {folder}: {exc.strerror}; free some space, fix the "
-                              "folder's permissions or choose another --out") from None
+        raise record.RunError(f"cannot set up the run folder {folder}: "
+                              f"{files.way_on(folder.parent, '--out', exc.strerror)}") from None
     return TeamRun(folder, config, env, seeds, [])
 
 

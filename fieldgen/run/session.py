@@ -166,13 +166,8 @@ def new_run(source: Path, algo: str, seeds: Sequence[int], config, out: Path, mi
                                  **({"judged": JUDGED} if judged is not None else {}),
                                  **({"processes": processes} if processes else {})})
     except OSError as exc:
-        blocker = files.file_in_the_way(folder.parent)
-        if blocker is not None:  # where a folder above the run's should be: no space or permission makes it one
-            raise record.RunError(f"cannot set up the run folder {folder}: {blocker} is "
-                                  f"{files.kind_of_blocker(blocker)}, not a folder; move "
-                                  "it aside or choose another --out") from None
-        raise record.RunError(f"cannot set up the run folder {folder}: {exc.strerror}; free some space, fix the "
-                              "folder's permissions or choose another --out") from None
+        raise record.RunError(f"cannot set up the run folder {folder}: "
+                              f"{files.way_on(folder.parent, '--out', exc.strerror)}") from None
     return run
 
 

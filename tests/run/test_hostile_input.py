@@ -358,7 +358,8 @@ def test_export_into_a_folder_a_file_or_a_dead_link_is_in_the_way_of_says_to_mov
     else:
         in_the_way.symlink_to(in_the_way)
     result = runner.invoke(app, ["export", str(run), "-o", str(in_the_way / "policy")])
-    refused(result, f"move {in_the_way} aside or choose another -o")
+    what = "a file" if blocker == "file" else "a link that leads nowhere (a loop of links, or to nothing)"
+    refused(result, f"{in_the_way} is {what}, not a folder; move it aside or choose another -o")
     assert "free some space" not in result.output
     assert in_the_way.is_symlink() or in_the_way.read_text() == "mine"
 
