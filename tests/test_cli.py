@@ -116,7 +116,7 @@ def test_settings_after_one_set_are_answered_with_a_set_each():
 
 def test_a_mistyped_path_or_a_curriculum_index_is_answered_with_what_was_meant(tmp_path, monkeypatch):
     """A path to a file that is not there gets the nearest file of its folder; a curriculum's curriculum.yaml,
-    which reads as a field with five unknown keys, gets its folder."""
+    which reads as a field with five unknown keys, gets its folder; so do a run's and a build's records."""
     import shutil
     from pathlib import Path
 
@@ -130,7 +130,16 @@ def test_a_mistyped_path_or_a_curriculum_index_is_answered_with_what_was_meant(t
         (["build", "to_far/curriculum.yaml"], "to_far/curriculum.yaml lists the stages of a curriculum, not a "
                                               "field: give the curriculum's folder, to_far, to validate, build"),
         (["train", "to_far/curriculum.yaml"], "give the curriculum's folder, to_far"),
+        # the records fieldgen writes beside a run and a build, which read as a spec with some 25 unknown keys
+        (["render", "runs/r/run.json"], "runs/r/run.json is the record of a run, not a field spec: its field is "
+                                        "built in runs/r/field; fieldgen render runs/r draws it"),
+        (["validate", "b/point_nav/field.json"], "b/point_nav/field.json is the record of a built field, not a field "
+                                                 "spec: give its folder, b/point_nav"),
     ]
+    (tmp_path / "runs" / "r").mkdir(parents=True)
+    (tmp_path / "runs" / "r" / "run.json").write_text("{}")
+    (tmp_path / "b" / "point_nav").mkdir(parents=True)
+    (tmp_path / "b" / "point_nav" / "field.json").write_text("{}")
     for args, phrase in cases:
         result = runner.invoke(app, args)
         message = " ".join(result.output.split())

@@ -177,6 +177,9 @@ def spec_path(ref: str) -> Path:
     if path.name == INDEX and is_curriculum(path.parent):
         fail(f"{ref} lists the stages of a curriculum, not a field: give the curriculum's folder, {path.parent}, "
              "to validate, build, render or train")
+    record = _record_of(path)
+    if record:
+        fail(f"{ref} is the record of {record[0]}, not a field spec: {record[1]}")
     if path.exists():
         return path
     if path == Path(ref) and ("/" in ref or path.suffix):  # a path, not a bundled name
@@ -187,6 +190,22 @@ def spec_path(ref: str) -> Path:
         fail(f"'{ref}' is not a file{did_you_mean(path.stem, files, files) or '.'}")
     fail(f"'{ref}' is neither a file nor a bundled field{did_you_mean(ref, bundled_fields()) or '.'} "
          "`fieldgen list` shows the bundled fields.")
+
+
+def _record_of(path: Path) -> tuple[str, str] | None:
+    """What a JSON record that fieldgen writes beside a build or a run records, and which folder to give instead,
+    where `path` is one; None for anything else."""
+    if path.suffix != ".json" or not path.is_file():
+        return None
+    from fieldgen.compile.artifact import META  # loads mujoco: only for a JSON file
+    from fieldgen.run.record import RUN
+
+    if path.name == RUN:
+        return ("a run", f"its field is built in {path.parent / 'field'}; fieldgen render {path.parent} draws it, "
+                         f"fieldgen train --resume {path.parent} trains on")
+    if path.name == META:
+        return "a built field", f"give its folder, {path.parent}"
+    return None
 
 
 def field_source(ref: str) -> Path:

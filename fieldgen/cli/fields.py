@@ -213,7 +213,7 @@ def render(
             write_file(output, built_sheet(built, view, level_captions(Path(spec), len(built))), RENDER)
         except (ArtifactError, RenderError, OSError) as exc:
             fail(str(exc))
-        out.print(f"wrote {output}: {len(built)} built fields of {spec}, camera {view}")
+        out.print(f"wrote {output}: {len(built)} built field{'s' * (len(built) != 1)} of {spec}, camera {view}")
         return
     try:
         path = Path(spec)
