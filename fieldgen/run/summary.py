@@ -122,15 +122,15 @@ class SeedSummary(BaseModel):
     algo: str
     runs: list[str]  # the run folders the seeds come from
     episodes: Count  # evaluation episodes per seed
-    env_steps: dict[int, int]  # seed -> env steps its checkpoint had trained
+    env_steps: dict[int, Annotated[int, Field(ge=0)]]  # seed -> env steps its checkpoint had trained
     # seed -> env steps its networks had trained before its run began (--init-from, and the runs before that):
     # with env_steps, what a chain of runs took from nothing learned; empty where every run started from nothing
-    env_steps_before: dict[int, int] = {}
+    env_steps_before: dict[int, Annotated[int, Field(ge=0)]] = {}
     success_any: MetricSummary
     time_at_goal: MetricSummary
     # the actions the episodes took: the policy's mean ("mean"), or drawn from it as in training ("sampled")
     actions: Actions = "mean"
-    confidence: float = CONFIDENCE
+    confidence: Annotated[float, Field(gt=0, lt=1)] = CONFIDENCE
     command: str  # the command line that produced it
 
     @model_validator(mode="after")
@@ -149,6 +149,9 @@ class SeedSummary(BaseModel):
             if sorted(per_seed := getattr(self, metric).per_seed) != seeds:
                 raise ValueError(f"{metric}.per_seed holds seeds {_seed_list(per_seed)} where env_steps holds "
                                  f"{_seed_list(self.env_steps)}: every seed has a value of each")
+        if stray := sorted(set(self.env_steps_before) - set(seeds)):
+            raise ValueError(f"env_steps_before holds seed {stray[0]}, which env_steps does not: it records the "
+                             "seeds judged, and what each had trained before")
         if self.field_digests and len(self.field_digests) != len(self.fields):
             raise ValueError(f"field_digests holds {len(self.field_digests)} digests for {len(self.fields)} fields")
         return self

@@ -282,3 +282,21 @@ def test_a_summary_key_of_any_length_is_quoted_by_its_start(tmp_path):
         read(paths[0])
     assert "success_any.per_seed.111" in str(caught.value) and "(5,027 characters)" in str(caught.value)
     assert len(str(caught.value)) < 300 + len(str(paths[0]))
+
+
+@pytest.mark.parametrize("edit,phrase", [
+    (lambda d: d["env_steps"].update({"4": -5}), "env_steps.4: Input should be greater than or equal to 0"),
+    (lambda d: d.update(confidence=2), "confidence: Input should be less than 1"),
+    (lambda d: d.update(env_steps_before={"9": 10}), "env_steps_before holds seed 9, which env_steps does not"),
+])
+def test_a_summary_edited_past_what_eval_writes_is_refused_at_its_key(tmp_path, edit, phrase):
+    """Before: a negative env_steps, a confidence of 2 and the env steps before a seed the summary lacks were read
+    and pooled."""
+    from fieldgen.run.summary import SummaryError, read
+
+    paths, _, _ = one_seed_each(tmp_path)
+    edited = json.loads(paths[4].read_text())
+    edit(edited)
+    paths[4].write_text(json.dumps(edited))
+    with pytest.raises(SummaryError, match=re.escape(f"{paths[4]} is not a summary of fieldgen eval: {phrase}")):
+        read(paths[4])
