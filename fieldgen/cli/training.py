@@ -48,6 +48,13 @@ def _read_config(config: Path | None) -> None:
             raise ConfigError(f"{config} is not a config file: " + "; ".join(map(str, exc.problems))) from None
 
 
+def _json_named(flag: str, path: Path | None) -> None:
+    """Refuse a file for JSON named otherwise (summary.png), which every reader would take for what it is not."""
+    if path is not None and path.suffix.lower() != ".json":
+        fail(f"{flag} {path}: fieldgen writes a summary as JSON; give the file the .json ending, such as "
+             f"{path.with_suffix('.json')}")
+
+
 def _exit_interrupted() -> NoReturn:
     """Exit with the status of the signal that stopped the command (130 for Ctrl-C, fieldgen.stops) at once:
     leaving a compile or program under way unfinished (XLA takes no signal mid-compile or mid-program, and
@@ -577,6 +584,7 @@ def evaluate(
 
     if summary_file is not None and summary_file.is_dir():
         fail(f"--summary {summary_file} is a folder; name the file to write, such as {summary_file / summary.SUMMARY}")
+    _json_named("--summary", summary_file)
     if summary_file is not None:
         files.check_file(summary_file, files.EVAL)  # a file in its folder's place, or a folder it may not write
     if summary_file is not None and not summary_file.parent.is_dir():
@@ -765,6 +773,7 @@ def aggregate(
 
     if summary_file is not None and (summary_file.is_dir() or not summary_file.parent.is_dir()):
         fail(f"--summary {summary_file}: name a file in an existing folder, such as {Path(summary.SUMMARY)}")
+    _json_named("--summary", summary_file)
     if summary_file is not None:
         check_file(summary_file, AGGREGATE)
     try:

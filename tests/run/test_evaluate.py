@@ -203,6 +203,8 @@ def test_bad_evaluations_are_one_line_and_write_nothing(tmp_path):
         ([str(nav), str(nav)], f"seed 1 is in both {nav} and {nav}: each seed counts once"),
         ([str(nav), "--summary", str(tmp_path / "no" / "s.json")], f"there is no folder {tmp_path / 'no'}"),
         ([str(nav), "--summary", str(tmp_path)], f"--summary {tmp_path} is a folder"),
+        ([str(nav), "--summary", str(tmp_path / "s.png")], f"--summary {tmp_path / 's.png'}: fieldgen writes a "
+                                                            "summary as JSON; give the file the .json ending"),
         ([str(nav), "--actions", "random"], "unknown actions 'random'. Choose one of: mean, sampled."),
     ]
     for args, phrase in cases:
