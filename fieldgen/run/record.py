@@ -71,6 +71,16 @@ def write_run(run_dir: Path, field: dict, algo: str, config, layout: dict, seeds
 
 
 Index = Annotated[StrictInt, Field(ge=0)]
+Rating = Annotated[float, Field(strict=True, allow_inf_nan=False)]  # an Elo rating: any finite number
+
+
+class Games(BaseModel):
+    """A self-play snapshot's games against one opponent, as a league of a metrics row counts them."""
+
+    model_config = ConfigDict(extra="forbid")
+    win: Index
+    draw: Index
+    loss: Index
 
 
 def _inside(name: str) -> str:
@@ -191,6 +201,10 @@ class MetricsRow(BaseModel):
     seed: Index | None = None  # None: left out, which a reader given the run's seeds refuses
     stage: Index = 0
     promoted_to: Index = 0
+    # a self-play row's league (games by opponent) and ratings, where present: read as numbers by eval and compare
+    league: dict[StrictStr, Games] | None = None
+    elo: Rating | None = None
+    ratings: dict[StrictStr, Rating] | None = None
 
     @model_validator(mode="after")
     def _in_range(self):

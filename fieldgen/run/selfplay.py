@@ -158,7 +158,7 @@ def open_run(folder: Path, load_state: bool = True, to_train: bool = False) -> T
     except ConfigError as exc:
         raise record.RunError(f"{folder / record.RUN} holds no usable self-play config ({exc})") from None
     seeds = saved.seeds or [config.seed]
-    run = TeamRun(folder, config, env, seeds, record.read_metrics(folder, seeds))
+    run = TeamRun(folder, config, env, seeds, _league_rows(folder, seeds))
     if to_train and not run.finished:
         try:
             fits_memory(config, env, len(run.seeds))
@@ -176,6 +176,19 @@ def open_run(folder: Path, load_state: bool = True, to_train: bool = False) -> T
             raise record.RunError(f"{folder / record.METRICS} lacks evaluation {last}, which its checkpoint "
                                   "holds; restore the run from a copy, or start it again in a new folder")
     return run
+
+
+def _league_rows(folder: Path, seeds: list[int]) -> list[dict]:
+    """The run's rows, each with its league, rating and ratings (record.MetricsRow checks their types where
+    present): a resumed run rates its new snapshots from the leagues before, and eval reports the ratings."""
+    rows = record.read_metrics(folder, seeds)
+    for row in rows:
+        lacks = [key for key in ("league", "elo", "ratings") if key not in row]
+        if lacks:
+            raise record.RunError(f"{folder / record.METRICS}: evaluation {row['eval']} of seed {row['seed']} lacks "
+                                  f"{', '.join(lacks)}, which every row of a self-play run holds (edited or damaged); "
+                                  "restore the file from a copy, or start the run again in a new folder")
+    return rows
 
 
 def opponents_of(index: int, count: int) -> jax.Array:

@@ -148,6 +148,30 @@ def test_each_seed_is_rated_in_a_league_of_its_own(tmp_path):
     assert (tmp_path / selfplay.RATINGS_PLOT).stat().st_size > 0
 
 
+def test_a_league_or_rating_edited_in_a_self_play_row_is_refused_at_its_line(tmp_path):
+    """compare reads each seed's Elo rating as a number, eval its ratings, a resumed run rates its new snapshots
+    from the leagues before: a row whose league, elo or ratings were edited to another type, or left out, is
+    refused in one line naming the file, not a traceback."""
+    result = runner.invoke(app, ["train", "soccer_1v1", "--prepare", "--out", str(tmp_path), *TINY])
+    assert result.exit_code == 0, result.output
+    run = tmp_path / "soccer_1v1-ppo-0"
+    played = selfplay.TeamRun(run, SelfPlayConfig(league_opponents=2, eval_envs=8), None, [0], [])
+    for index in range(2):
+        results = {"random": np.asarray([1, 6, 1]), "earlier": np.asarray([[2, 4, 2]] * 2)}
+        played.rows.append(selfplay.seed_row(played, index, 0, {}, results, 800 * index))
+    for key, value, said in (("elo", "high", "elo should be a valid number, not 'high'"),
+                             ("ratings", [1], "ratings should be a valid dictionary, not [1]"),
+                             ("league", {"random": {"win": 1}}, "it lacks league.random.draw, league.random.loss")):
+        record.write_metrics(run, [*played.rows[:1], {**played.rows[1], key: value}])
+        for command in (["compare", str(run), "-o", str(tmp_path / "c.png")], ["eval", str(run)]):
+            result = runner.invoke(app, command)
+            assert result.exit_code == 1 and "Traceback" not in result.output, result.output
+            assert f"{run / record.METRICS}:2 is not a metrics row ({said})" in " ".join(result.output.split())
+    record.write_metrics(run, [played.rows[0], {k: v for k, v in played.rows[1].items() if k != "ratings"}])
+    with pytest.raises(record.RunError, match="evaluation 1 of seed 0 lacks ratings, which every row of a self-play"):
+        selfplay.open_run(run, load_state=False)
+
+
 def without_timings(rows: list[dict]) -> list[dict]:
     return [{k: v for k, v in row.items() if k not in record.TIMINGS} for row in rows]
 
