@@ -61,6 +61,15 @@ def field_copy_error(copy: Path, problem: str) -> RunError:
     return RunError(f"{problem}; {copy} is the run's own copy of its field: {SET_UP_AGAIN}")
 
 
+def check_field_copy(copy: Path) -> None:
+    """Refuse a run whose own copy of its field (`copy`, a folder of the run) is missing or a file: read as a
+    field, it would be a spec file that is not there."""
+    if not copy.is_dir():
+        what = "is a file, not a folder" if copy.exists() else "is missing"
+        raise RunError(f"{copy} {what}: the run's own copy of its field (a setup cut short, or a copy of the run "
+                       f"that left it out); {SET_UP_AGAIN}")
+
+
 def write_run(run_dir: Path, field: dict, algo: str, config, layout: dict, seeds: list[int], extra: dict) -> None:
     """run.json: the resolved field spec (a curriculum's last stage), the algorithm, its full config,
     the observation layout, the seeds, and `extra` (where the run keeps its fields, the promotion rule)."""

@@ -149,6 +149,7 @@ def open_run(folder: Path, load_state: bool = True, to_train: bool = False) -> T
     from fieldgen.agents.config import ConfigError
 
     saved = record.read_run(folder)
+    record.check_field_copy(folder / FIELD)
     try:
         env = _team_env(folder / FIELD)
     except ArtifactError as exc:

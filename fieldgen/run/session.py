@@ -286,10 +286,7 @@ def open_run(folder: Path, load_state: bool = True, to_train: bool = False, lear
     saved = record.read_run(folder)
     envs = []
     for sub in saved.fields or [FIELD]:
-        if not (folder / sub).is_dir():
-            what = "is a file, not a folder" if (folder / sub).exists() else "is missing"
-            raise record.RunError(f"{folder / sub} {what}: the run's own copy of its field (a setup cut short, or "
-                                  f"a copy of the run that left it out); {record.SET_UP_AGAIN}")
+        record.check_field_copy(folder / sub)
         try:
             envs.append(fieldgen.FieldEnv(load_artifact(folder / sub)))
         except ArtifactError as exc:

@@ -172,6 +172,22 @@ def test_a_league_or_rating_edited_in_a_self_play_row_is_refused_at_its_line(tmp
         selfplay.open_run(run, load_state=False)
 
 
+def test_a_self_play_run_without_its_field_copy_is_refused_in_one_line(tmp_path):
+    """The run's field/ removed (a copy of the run that left it out): eval, export and resume say so, where they
+    read the missing folder as a spec file and ended in a traceback."""
+    import shutil
+
+    result = runner.invoke(app, ["train", "soccer_1v1", "--prepare", "--out", str(tmp_path), *TINY])
+    assert result.exit_code == 0, result.output
+    run = tmp_path / "soccer_1v1-ppo-0"
+    shutil.rmtree(run / selfplay.FIELD)
+    for command in (["eval", str(run), "--no-video"], ["export", str(run), "-o", str(tmp_path / "p")],
+                    ["train", "--resume", str(run)]):
+        result = runner.invoke(app, command)
+        assert result.exit_code == 1 and "Traceback" not in result.output, result.output
+        assert f"{run / selfplay.FIELD} is missing: the run's own copy of its field" in " ".join(result.output.split())
+
+
 def without_timings(rows: list[dict]) -> list[dict]:
     return [{k: v for k, v in row.items() if k not in record.TIMINGS} for row in rows]
 
