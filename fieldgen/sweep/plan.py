@@ -14,6 +14,7 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import json
+import os
 import shlex
 from pathlib import Path
 from typing import Annotated, Any, Literal, Union
@@ -234,7 +235,29 @@ def load(path: Path, out: Path | None = None, **overrides) -> Sweep:
                              "--videos" if spec.videos else "--no-videos")
                     runs.append(PlannedRun(str(run_folder.relative_to(folder)), run_folder, name, algo, seed, point,
                                            start, spec.videos))
+    if (too_long := _names_too_long(runs, folder, source)) is not None:
+        raise SweepError([too_long])
     return Sweep(path, spec, folder, runs)
+
+
+NAME_BYTES = 255  # of one file or folder name, as file systems allow
+
+
+def _names_too_long(runs: list[PlannedRun], folder: Path, source: Source) -> Problem | None:
+    """A problem at `grid` where a run's folder or log would get a name longer than a file system allows: a grid
+    point's folder is named after each of its axes and values, so a grid of many axes names folders no run can be
+    set up in, found otherwise once the sweep has started."""
+    from fieldgen.sweep.launch import log_path
+
+    for run in runs:
+        names = [*run.folder.relative_to(folder).parts, log_path(folder, run, ".started").name]  # its longest log
+        longest = max(len(os.fsencode(name)) for name in names)
+        if longest > NAME_BYTES:
+            return source.problem(("grid",), f"names a folder or log of run {shown_text(run.id, 60)} with "
+                                             f"{longest:,} bytes, and a file system holds names of at most "
+                                             f"{NAME_BYTES}: vary fewer keys in grid (a key of one value goes in "
+                                             "set:), or shorter values")
+    return None
 
 
 def _options(values: dict) -> list[str]:

@@ -149,6 +149,9 @@ def test_dry_run_on_the_command_line_shows_each_command_and_the_backend(tmp_path
     ("backend: slurm\nslurm: {requeues: 99999999999}\n", "slurm.requeues: Input should be less than or equal to 1000"),
     ("seeds: 1000000000\n", "seeds: Input should be less than or equal to 65536"),
     (f"steps: {'9' * 5000}\n", ":4:8: a number of 5,000 digits; a number here has at most 100"),
+    # the point's folder name fits, the log named after it and the run does not
+    (f"grid:\n  crl.hidden: [[{','.join(['32'] * 80)}]]\n", ":6:1: grid: names a folder or log of run "
+                                                         "crl.hidden=_32,32,32,"),
 ])
 def test_bad_sweep_files_are_one_line_at_the_key(tmp_path, body, phrase):
     path = tmp_path / "sweep.yaml"
