@@ -78,6 +78,9 @@ class Plan:
             raise PlanError(f"{where} holds kick-off points that do not fit its {stages} levels (as many points for "
                             "each, at least 2, the last its own); it was edited or damaged: start the run again in a "
                             "new folder")
+        if saved.levels and len(saved.levels) != stages:
+            raise PlanError(f"{where} holds the coordinates of {len(saved.levels)} levels, and the run has {stages}; "
+                            "it was edited or damaged: restore it, or start the run again in a new folder")
         sampler = None
         if saved.sampler:
             from fieldgen.curriculum.levels import LevelError

@@ -147,7 +147,8 @@ class RunRecord(BaseModel):
     promotion: Promotion = Promotion()
     mixed: StrictBool = False
     schedule: Annotated[StrictStr, AfterValidator(_schedule)] | None = None  # None (older runs): staged, or mixed
-    levels: list[dict] = []  # an automatic curriculum's levels: each stage's coordinates on the named axes
+    # an automatic curriculum's levels: each stage's coordinates on the named axes, from 0 (the easy end) to 1 (the spec)
+    levels: list[dict[StrictStr, Annotated[float, Field(strict=True, ge=0, le=1)]]] = []
     # and each level's kick-off points (curriculum.auto.kickoff_tables): [coordinate, ball spawn x0, y0, x1, y1,
     # agent start x, y], null where the point is not played
     kickoffs: list[list[Annotated[list[Annotated[float, Field(allow_inf_nan=False)]], Field(min_length=7, max_length=7)]

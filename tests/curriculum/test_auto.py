@@ -230,6 +230,30 @@ def test_a_run_whose_schedule_or_levels_results_were_edited_is_refused_where_it_
     assert not (tmp_path / "l.png").exists()
 
 
+def test_a_run_json_whose_level_coordinates_were_edited_is_refused_where_render_levels_reads_them(tmp_path):
+    """render --levels titles each level with its coordinates from run.json: a level left out, or a coordinate
+    edited to text, ended in an IndexError or a format traceback."""
+    prepared = runner.invoke(app, ["train", "point_soccer", "--curriculum", "auto", "--levels", "3", "--steps", "20000",
+                                   "--envs", "8", "--prepare", "--out", str(tmp_path)])
+    assert prepared.exit_code == 0, prepared.output
+    run = next(p for p in tmp_path.iterdir() if p.is_dir())
+    saved = json.loads((run / record.RUN).read_text())
+    count = len(saved["fields"])
+    row = {"eval": 1, "seed": 0, "env_steps": 800, "success_any": 0.5, "time_at_goal": 1.0,
+           "variants": {"success_any": [0.5] * count, "weight": [1 / count] * count}}
+    (run / record.METRICS).write_text(json.dumps(row) + "\n")
+    axis = next(iter(saved["levels"][0]))
+    for levels, phrase in ((saved["levels"][1:], f"holds the coordinates of {count - 1} levels, and the run has "
+                                                 f"{count}"),
+                           ([{axis: "far"}, *saved["levels"][1:]], f"levels.0.{axis} should be a valid number")):
+        (run / record.RUN).write_text(json.dumps({**saved, "levels": levels}))
+        result = runner.invoke(app, ["render", str(run), "--levels", "-o", str(tmp_path / "l.png")])
+        message = " ".join(result.output.split())
+        assert result.exit_code == 1 and "Traceback" not in message and phrase in message, result.output
+        assert message.startswith(f"error: {run / record.RUN}")
+    assert not (tmp_path / "l.png").exists()
+
+
 @pytest.mark.slow
 def test_an_auto_run_killed_and_resumed_continues_its_levels_exactly(tmp_path, interrupt_after_eval, monkeypatch):
     """The level buffer's sampling (its weights and counts) is checkpointed beside the training state, so a run
