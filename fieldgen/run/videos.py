@@ -83,7 +83,8 @@ def _check_episode(path: Path, episode: dict, model, camera: str) -> None:
         problem = f"qpos should be [frames, {model.nq}] with 1 to {MAX_FRAMES} frames, not {list(qpos.shape)}"
     elif mocap.shape != (len(qpos), model.nmocap, 3):
         problem = f"mocap_pos should be {[len(qpos), model.nmocap, 3]}, not {list(mocap.shape)}"
-    elif not (np.issubdtype(qpos.dtype, np.floating) and np.isfinite(qpos).all() and np.isfinite(mocap).all()):
+    elif not (all(np.issubdtype(a.dtype, np.floating) for a in (qpos, mocap)) and np.isfinite(qpos).all()
+              and np.isfinite(mocap).all()):
         problem = "its positions are not all finite numbers"
     elif fps.shape != () or not np.issubdtype(fps.dtype, np.number) or not 0 < float(fps) < 1e4:
         problem = f"fps should be one number above 0, not {fps.tolist()!r}"

@@ -65,10 +65,11 @@ def kept(run, pack=np.savez, **changes) -> None:
     ({"qpos": lambda m: np.zeros((0, m.nq))}, "with 1 to 100000 frames"),
     ({"mocap_pos": np.zeros((29, 1, 3))}, "mocap_pos should be [30, "),
     ({"qpos": lambda m: np.full((30, m.nq), np.nan)}, "its positions are not all finite numbers"),
+    ({"mocap_pos": lambda m: np.full((30, m.nmocap, 3), "x")}, "its positions are not all finite numbers"),
     ({"fps": 0.0}, "fps should be one number above 0, not 0.0"),
     ({"fps": np.array([1.0, 2.0])}, "fps should be one number above 0, not [1.0, 2.0]"),
     ({"camera": "overhead"}, "camera should be one of"),
-], ids=["width", "no_qpos", "no_frames", "mocap", "nan", "fps", "fps_list", "camera"])
+], ids=["width", "no_qpos", "no_frames", "mocap", "nan", "mocap_text", "fps", "fps_list", "camera"])
 def test_a_damaged_kept_episode_is_named_not_drawn(prepared, changes, phrase):
     """Before: a wrong width or frame count was an error from inside the renderer, a NaN a video of nothing."""
     kept(prepared, **changes)
