@@ -163,12 +163,15 @@ def check_rendering() -> Check:
 
 
 def check_videos() -> Check:
-    from fieldgen.video import encoder_installed
+    from fieldgen.video import FORMATS, VideoError, choose
 
-    if encoder_installed():
-        return Check("Videos", OK, "mp4 (imageio-ffmpeg's encoder) and gif")
-    return Check("Videos", NOTE, "gif only: imageio-ffmpeg's encoder is not installed",
-                 "pip install imageio-ffmpeg==0.8.1 (fieldgen's own dependencies include it)")
+    default = choose(None)  # the richest this machine writes
+    for fmt in FORMATS:
+        try:
+            choose(fmt)
+        except VideoError as exc:
+            return Check("Videos", NOTE, f"{default} only: {fmt} cannot be written here", str(exc))
+    return Check("Videos", OK, f"{', '.join(FORMATS)}; {default} by default")
 
 
 def check_viewer() -> Check:

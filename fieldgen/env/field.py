@@ -23,7 +23,7 @@ import numpy as np
 from brax.envs.base import State
 from mujoco import mjx
 
-from fieldgen import cameras
+from fieldgen.cameras import CAMERAS, FOLLOW
 from fieldgen.compile.artifact import Artifact
 from fieldgen.compile.layout import observation_layout
 from fieldgen.env import mjx_physics
@@ -160,7 +160,7 @@ class FieldEnv:
         return self.sys
 
     def render(self, trajectory: Sequence[State], height: int = 240, width: int | None = None,
-               camera: str = cameras.FOLLOW) -> list[np.ndarray]:
+               camera: str = FOLLOW) -> list[np.ndarray]:
         """RGB frames [height, width, 3] of a trajectory of unbatched states, each drawn in its own variant's
         field, its arguments in brax's order; `width` defaults to the camera's own aspect
         (fieldgen.render.RenderError where no OpenGL is)."""
@@ -169,8 +169,8 @@ class FieldEnv:
         states = [trajectory] if isinstance(trajectory, State) else list(trajectory)
         if not states:
             raise ValueError("render takes a trajectory of one state or more; it was given none")
-        if camera not in cameras.CAMERAS:
-            raise ValueError(f"camera {camera!r}: a field carries the cameras {', '.join(cameras.CAMERAS)}")
+        if camera not in CAMERAS:
+            raise ValueError(f"camera {camera!r}: a field carries the cameras {', '.join(CAMERAS)}")
         limit = self.mj_model.vis.global_
         for name, size, most in (("height", height, limit.offheight), ("width", width, limit.offwidth)):
             if size is not None and not (isinstance(size, (int, np.integer)) and 16 <= size <= most):

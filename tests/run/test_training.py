@@ -249,8 +249,8 @@ def test_a_curriculum_run_is_named_by_its_curriculum_not_its_last_stage(tmp_path
     titles = []
     monkeypatch.setattr(training, "plot_success", lambda folder, rows, title, *_: titles.append(title))
 
-    def one_evaluation(trainers, seeds, num_evals, schedule, progress, *args, **kwargs):
-        progress(0, [{"eval": 0, "seed": 0, "env_steps": 0, "stage": 0, "success_any": 0.0, "time_at_goal": 0.0}])
+    def one_evaluation(trainers, seeds, num_evals, schedule, progress, *args, **kwargs):  # its prefill, 800 steps
+        progress(0, [{"eval": 0, "seed": 0, "env_steps": 800, "stage": 0, "success_any": 0.0, "time_at_goal": 0.0}])
         raise KeyboardInterrupt
 
     monkeypatch.setattr(loop, "run_staged", one_evaluation)
@@ -259,7 +259,7 @@ def test_a_curriculum_run_is_named_by_its_curriculum_not_its_last_stage(tmp_path
                      *tiny_crl_args], ["train", "--resume", str(run), "--no-videos"]):
         result = runner.invoke(app, command)
         assert result.exit_code == 130, result.output
-        assert "point_nav_to_far 0 of 1,760 steps (0%) stage 1 of 4 success 0.00" in " ".join(result.output.split())
+        assert "point_nav_to_far 800 of 1,760 steps (45%) stage 1 of 4 success 0.00" in " ".join(result.output.split())
         assert "_s04" not in result.output and titles.pop() == "point_nav_to_far: crl"
 
 
