@@ -89,6 +89,9 @@ class Run:
 def field_spec(source: Path) -> FieldSpec:
     """The field a field, build folder or curriculum folder (its first stage) trains on, read before anything
     compiles: its kind of agent picks the trainer's preset (agents/presets), its reward what to warn of."""
+    if (source / record.RUN).is_file():  # read as a build folder, it would be one whose field.json is missing
+        raise record.RunError(f"{source} is a run folder, not a field: continue it with fieldgen train --resume "
+                              f"{source}, or train its field anew from the run's own copy, {source / _last_copy(source)}")
     try:
         if curriculum.is_curriculum(source):
             return curriculum.load(source).specs()[0]
@@ -415,13 +418,9 @@ def refuse_folder_of_fields(source: Path) -> None:
     """Refuse a run folder or a curriculum folder named where one field is asked for, saying what it is and the
     field to name instead: read as a build folder, either would be called one whose field.json is missing."""
     if (source / record.RUN).is_file():
-        try:
-            copy = (record.read_run(source).fields or [FIELD])[-1]
-        except record.RunError:  # a damaged record: the copy a plain run keeps
-            copy = FIELD
         raise record.RunError(f"{source} is a run folder, not a field: --field takes one field (a YAML file, "
                               f"bundled name or build folder); the field that run trained on is its copy "
-                              f"{source / copy}")
+                              f"{source / _last_copy(source)}")
     if curriculum.is_curriculum(source):
         try:
             last = f", e.g. its last stage, {curriculum.load(source).spec_paths()[-1]}"
@@ -429,6 +428,14 @@ def refuse_folder_of_fields(source: Path) -> None:
             last = ""
         raise record.RunError(f"{source} is a curriculum folder: --field takes one field, such as one of its "
                               f"stages (a stage's spec or its build folder){last}")
+
+
+def _last_copy(run_dir: Path) -> str:
+    """The run's own copy of the field it is judged on (a curriculum's last stage), within its folder."""
+    try:
+        return (record.read_run(run_dir).fields or [FIELD])[-1]
+    except record.RunError:  # a damaged record: the copy a plain run keeps
+        return FIELD
 
 
 def interface_difference(env, other) -> str:

@@ -119,6 +119,15 @@ def test_a_run_json_whose_settings_build_no_trainer_is_refused_as_a_new_runs_are
             f"{prepared / record.RUN} holds no usable config (100 env steps (--steps or crl.total_steps) are too few:")
 
 
+def test_a_run_folder_given_to_train_as_its_field_says_to_resume_it(tmp_path, prepared):
+    """Read as a build folder, a run folder named as the field to train was one whose field.json is missing, with
+    `fieldgen build` to run on its spec."""
+    result = runner.invoke(app, ["train", str(prepared), "--prepare", "--out", str(tmp_path / "again")])
+    refused(result, f"{prepared} is a run folder, not a field: continue it with fieldgen train --resume {prepared}, "
+                    f"or train its field anew from the run's own copy, {prepared / 'field'}")
+    assert not (tmp_path / "again").exists()
+
+
 def test_a_trained_run_whose_settings_build_no_trainer_cannot_be_exported_or_viewed(tmp_path, monkeypatch, prepared):
     """What reads a trained run's policy (export, view, eval) builds its trainer: refused where it opens. The run
     has learned as far as export and view can tell (tiny_runs.as_if_learned): the refusal comes from its record,
