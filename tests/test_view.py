@@ -161,7 +161,9 @@ def test_a_self_play_run_plays_every_agent_of_both_sides_on_its_own_field(tmp_pa
     state = jax.tree.map(lambda x: np.zeros(x.shape, x.dtype), template)
     files.write_atomic(folder / record.CHECKPOINT, checkpoint.pieces(state))
     (folder / record.METRICS).write_text(json.dumps({"eval": 0, "seed": 0, "env_steps": 0, "win_vs_random": 0.0,
-                                                     "success_any": 0.0, "elo": 1000.0}) + "\n")
+                                                     "success_any": 0.0, "elo": 1000.0,
+                                                     "league": {"random": {"win": 0, "draw": 8, "loss": 0}},
+                                                     "ratings": {"random": 1000.0, "0": 1000.0}}) + "\n")
     shown = viewed(monkeypatch, folder)
     (env, act), = shown
     agents = len(env.agent_names)
