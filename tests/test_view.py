@@ -107,6 +107,22 @@ def viewed(monkeypatch, source) -> list:
     return shown
 
 
+@pytest.mark.parametrize("args,phrase", [
+    (["point_nv"], "'point_nv' is neither a file nor a bundled field; did you mean 'point_nav'?"),
+    ([FIELD, "--seed", "3"], f"--seed picks one of a run's seeds; {FIELD} is not a run folder"),
+    ([FIELD, "--field", "point_nav"], f"--field names the field a policy plays on; {FIELD} is a field itself"),
+], ids=["no_such_field", "seed_of_a_field", "field_of_a_field"])
+def test_without_a_display_a_mistaken_argument_is_said_rather_than_advice_to_render_it(monkeypatch, args, phrase):
+    """The display was looked for first: a field that is not there got advice to render it, an option the source
+    does not take went unsaid."""
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    monkeypatch.setattr(sys, "platform", "linux")
+    result = CliRunner().invoke(app, ["view", *args])
+    assert result.exit_code == 1 and phrase in " ".join(result.output.split()), result.output
+    assert "no display here" not in result.output
+
+
 def test_an_exported_policy_plays_on_the_field_it_names_and_no_other(tmp_path, monkeypatch, env_cache):
     from fieldgen.agents.actor import Policy
     from fieldgen.policy_folder import describe, save_policy

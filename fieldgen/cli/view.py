@@ -39,6 +39,7 @@ def view(
     """
     from fieldgen.view import no_display_reason
 
+    _check_arguments(source, field, seed)
     reason = no_display_reason()
     if reason is not None:  # said before anything loads
         _no_display(reason, source)
@@ -57,6 +58,25 @@ def view(
     except KeyboardInterrupt:
         handle.close()
         raise typer.Exit(stops.status()) from None
+
+
+def _check_arguments(source: str, field: str | None, seed: int | None) -> None:
+    """Refuse a source that names nothing, or an option it does not take, before the display is looked for:
+    without one, advice to draw what `source` names would hide the mistake."""
+    from fieldgen.policy_folder import DESCRIPTION
+    from fieldgen.run.record import RUN
+
+    folder = Path(source)
+    if (folder / RUN).is_file():
+        return
+    if seed is not None:
+        fail(f"--seed picks one of a run's seeds; {source} is not a run folder (it holds no {RUN})")
+    if (folder / DESCRIPTION).is_file():
+        return
+    if field is not None:
+        fail(f"--field names the field a policy plays on; {source} is a field itself (no {RUN} or {DESCRIPTION} in "
+             "it)")
+    field_source(source)  # a field that is there, else refused with the nearest names
 
 
 def _no_display(reason: str, source: str) -> None:
@@ -102,8 +122,6 @@ def _playing(source: str, field: str | None, seed: int | None):
                 run = session.on_field(run, field_source(field) if field is not None else run.judged)
             _, policy, _ = learned_policy(run, seed)
             return run.env, jax.tree_util.Partial(type(policy).__call__, policy)
-        if seed is not None:
-            fail(f"--seed picks one of a run's seeds; {source} is not a run folder (it holds no {record.RUN})")
         if (folder / DESCRIPTION).is_file():
             about = read_description(folder)
             if field is None and about.field not in bundled_fields():
@@ -116,9 +134,6 @@ def _playing(source: str, field: str | None, seed: int | None):
                      f"observations and {len(about.action_names)} actions against {env.observation_size} and "
                      f"{env.action_size}, or other names); a policy plays only on a field of its layout: --field SPEC")
             return env, act
-        if field is not None:
-            fail(f"--field names the field a policy plays on; {source} is a field itself (no {record.RUN} or "
-                 f"{DESCRIPTION} in it)")
-        return fieldgen.make(field_source(source)), None
+        return fieldgen.make(field_source(source)), None  # _check_arguments refused any --field or --seed
     except (SpecError, ArtifactError, ConfigError, record.RunError, PolicyError) as exc:
         fail(str(exc))
