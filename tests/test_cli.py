@@ -532,6 +532,23 @@ def test_every_number_is_checked_against_its_stated_range_before_work_starts(tmp
     assert not any(tmp_path.iterdir())  # nothing written
 
 
+def test_bench_of_a_curriculum_or_run_folder_names_what_it_is_and_the_field_to_give(tmp_path):
+    """Read as a build folder, either was one whose field.json is missing, to be built with `fieldgen build`."""
+    made = runner.invoke(app, ["curriculum", "point_nav", "--vary", "field.length=10,12", "-o", str(tmp_path / "c")])
+    assert made.exit_code == 0, made.output
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "run.json").write_text("{}")
+    for folder, phrase in ((tmp_path / "c", f"{tmp_path / 'c'} is a curriculum folder: fieldgen bench takes one field, "
+                                            f"such as one of its stages"),
+                           (run, f"{run} is a run folder, not a field: fieldgen bench takes one field (a YAML file, "
+                                 f"bundled name or build folder); the field that run trained on is its copy {run / 'field'}")):
+        result = runner.invoke(app, ["bench", str(folder)])
+        message = " ".join(result.output.split())
+        assert result.exit_code == 1 and message.startswith(f"error: {phrase}"), result.output
+        assert "fieldgen build" not in message
+
+
 def test_a_number_of_thousands_of_digits_in_a_spec_is_refused_at_its_line(write_spec):
     spec = write_spec(f"extends: point_nav\nname: big\nfield: {{length: {DIGITS}}}\n")
     result = runner.invoke(app, ["validate", str(spec)])

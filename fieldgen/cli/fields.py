@@ -434,12 +434,15 @@ def bench(
     from fieldgen.agents.config import ConfigError
     from fieldgen.compile.artifact import ArtifactError
     from fieldgen.env.throughput import measure
+    from fieldgen.run.record import RunError
+    from fieldgen.run.session import refuse_folder_of_fields
 
     try:
+        refuse_folder_of_fields(Path(spec), "fieldgen bench")
         env = fieldgen.make(field_source(spec))
         for n in envs or []:
             memory.check(memory.episodes(env, n), f"benchmarking {n:,} envs", {memory.EPISODES: "--envs"})
-    except (SpecError, ArtifactError, ConfigError) as exc:
+    except (SpecError, ArtifactError, ConfigError, RunError) as exc:
         fail(str(exc))
     table = Table("envs", "steps/s", "seconds per rollout", title=f"{env.spec.name}, {steps}-step rollouts")
     for n in envs or [64]:

@@ -414,11 +414,12 @@ def on_field(run: Run, source: Path) -> Run:
     return dataclasses.replace(run, envs=[env], plan=run.plan.on_one_field(), stage=0)
 
 
-def refuse_folder_of_fields(source: Path) -> None:
-    """Refuse a run folder or a curriculum folder named where one field is asked for, saying what it is and the
-    field to name instead: read as a build folder, either would be called one whose field.json is missing."""
+def refuse_folder_of_fields(source: Path, taker: str = "--field") -> None:
+    """Refuse a run folder or a curriculum folder named where one field is asked for (by `taker`, an option or a
+    command), saying what it is and the field to name instead: read as a build folder, either would be called one
+    whose field.json is missing."""
     if (source / record.RUN).is_file():
-        raise record.RunError(f"{source} is a run folder, not a field: --field takes one field (a YAML file, "
+        raise record.RunError(f"{source} is a run folder, not a field: {taker} takes one field (a YAML file, "
                               f"bundled name or build folder); the field that run trained on is its copy "
                               f"{source / _last_copy(source)}")
     if curriculum.is_curriculum(source):
@@ -426,7 +427,7 @@ def refuse_folder_of_fields(source: Path) -> None:
             last = f", e.g. its last stage, {curriculum.load(source).spec_paths()[-1]}"
         except curriculum.CurriculumError:
             last = ""
-        raise record.RunError(f"{source} is a curriculum folder: --field takes one field, such as one of its "
+        raise record.RunError(f"{source} is a curriculum folder: {taker} takes one field, such as one of its "
                               f"stages (a stage's spec or its build folder){last}")
 
 
