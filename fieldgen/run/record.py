@@ -171,6 +171,16 @@ class RunRecord(BaseModel):
                              f"up, not {shown_value(seed)}")
         return self
 
+    @model_validator(mode="after")
+    def _config_counts(self):
+        """The counts a sweep reads from the config as they are, without the trainer's config class: whether a run
+        is finished (the evaluation its last row must reach) and the episodes each of its figures is over."""
+        for key, least in (("num_evals", 0), ("eval_envs", 1)):
+            value = self.config.get(key, least)
+            if isinstance(value, bool) or not isinstance(value, int) or value < least:
+                raise ValueError(f"config.{key} should be a whole number from {least} up, not {shown_value(value)}")
+        return self
+
     @property
     def every_seed(self) -> list[int]:
         """The run's seeds: the list it records, else its config's one seed (0 where it names none)."""

@@ -228,6 +228,29 @@ def test_status_computes_no_summary_over_a_seed_whose_success_cannot_be_a_rate(t
     assert not (sweep.folder / status.SUMMARY).exists() and not (sweep.folder / status.TABLE).exists()
 
 
+@pytest.mark.parametrize("key,value,least", [("num_evals", "2", 0), ("eval_envs", 0, 1)])
+def test_a_run_json_whose_evaluation_counts_were_edited_fails_its_run_in_status_and_dry_run(tmp_path, key, value,
+                                                                                           least):
+    """A sweep reads whether a run is finished, and the episodes its figures are over, from run.json's config as
+    it is: a count edited to text ended --status and --dry-run in a TypeError traceback, one of no episodes was
+    summarized."""
+    path = sweep_file(tmp_path, seeds=2)
+    sweep = plan.load(path)
+    for run in sweep.runs:
+        hand_made(run, 2, 0.5)
+    saved = json.loads((sweep.runs[1].folder / "run.json").read_text())
+    saved["config"][key] = value
+    (sweep.runs[1].folder / "run.json").write_text(json.dumps(saved))
+    result = runner.invoke(app, ["sweep", str(path), "--status"])
+    message = " ".join(result.output.split())
+    assert result.exit_code == 1 and "Traceback" not in message, result.output
+    assert f"{sweep.runs[1].folder / 'run.json'} is not a run record: config.{key} should be a whole number from " \
+           f"{least} up, not {value!r}" in message
+    assert not (sweep.folder / status.SUMMARY).exists()
+    result = runner.invoke(app, ["sweep", str(path), "--dry-run"])
+    assert result.exit_code == 0 and result.output.splitlines()[-1].startswith("fieldgen train --resume"), result.output
+
+
 def test_status_does_not_pool_seeds_of_a_field_edited_between_their_runs(tmp_path):
     """Seeds are pooled by their field's digest, not its name: a field file edited between two seeds' runs
     gives two fields of one name."""
