@@ -370,6 +370,9 @@ def open_run(folder: Path, load_state: bool = True, to_train: bool = False, lear
         if isinstance(exc, checkpoint.CheckpointDamaged) and not alone and (folder / record.LEARNER).is_file():
             said += (f"; or move {path.name} aside: fieldgen train --resume {folder} then goes on from "
                      f"{record.LEARNER} (what the run learned, its replay buffer filled anew)")
+        elif isinstance(exc, checkpoint.CheckpointDamaged) and alone and (folder / record.CHECKPOINT).is_file():
+            said += (f"; or move {path.name} aside: what the run learned is then read from {record.CHECKPOINT}, "
+                     "which holds its whole state")
         raise record.RunError(said) from None
     done = int(jax.device_get(run.state.env_steps)[0])
     # a kill between an evaluation's metrics and its checkpoint leaves rows after it; the checkpoint's own is there

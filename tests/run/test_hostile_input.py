@@ -141,6 +141,20 @@ def test_a_trained_run_whose_settings_build_no_trainer_cannot_be_exported_or_vie
     assert not (tmp_path / "policy").exists()
 
 
+def test_a_damaged_learner_beside_a_whole_checkpoint_says_to_move_it_aside(tmp_path, prepared):
+    """eval and export read what a run learned from learner.msgpack where it is there; cut short, it was to be
+    restored or the run started again, though checkpoint.msgpack beside it holds the whole state."""
+    run = as_if_learned(prepared)
+    learner = (run / record.LEARNER).read_bytes()
+    (run / record.LEARNER).write_bytes(learner[:len(learner) // 2])
+    (run / record.CHECKPOINT).write_bytes(b"the whole state")  # never read: the learner is, and is refused
+    (run / record.METRICS).write_text(json.dumps({"eval": 0, "seed": 0, "env_steps": 0, "success_any": 0.0}) + "\n")
+    refused(runner.invoke(app, ["export", str(run), "-o", str(tmp_path / "policy")]),
+            "or move learner.msgpack aside: what the run learned is then read from checkpoint.msgpack, which holds its "
+            "whole state")
+    assert not (tmp_path / "policy").exists()
+
+
 def test_evaluation_episodes_the_machine_cannot_hold_are_refused_before_training(tmp_path, tiny_crl_args):
     """Training checked its own state's memory, not its evaluations': eval_envs=1e12 compiled, trained a chunk and
     died in an OverflowError traceback at the first evaluation."""
