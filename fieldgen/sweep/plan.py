@@ -440,12 +440,26 @@ def read_plan(folder: Path) -> PlanRecord | None:
                                                         f"damaged); {aside}")]) from None
 
 
+def _another_file(recorded: str, path: Path) -> bool:
+    """Whether the sweep file a plan records is another one that is still there (a file moved since is this one)."""
+    try:
+        other = Path(recorded)
+        return other.is_file() and not other.samefile(path)
+    except (OSError, ValueError):  # a name the system refuses: no file of the user's
+        return False
+
+
 def check_plan(sweep: Sweep) -> None:
     """Refuse to go on in a folder whose runs were planned otherwise (the sweep file edited since): a run
     would resume with the settings it started with, not those the file now gives."""
     recorded = read_plan(sweep.folder)
     if recorded is None:
         return
+    if _another_file(recorded.file, sweep.path):
+        raise SweepError([Problem(sweep.path, None, None, "", f"{sweep.folder} holds the sweep of {recorded.file}, "
+                                  "another sweep file (two files of one name take the same default folder): the two "
+                                  "would share its logs and replace each other's summary; give this sweep a folder "
+                                  "of its own (out: in the file, or --out)")])
     before = recorded.runs
     for run in sweep.runs:
         if run.id in before and before[run.id] != list(run.start) and (run.folder / "run.json").is_file():

@@ -424,6 +424,26 @@ def test_a_sweep_file_changed_under_started_runs_is_refused(tmp_path):
     assert "--steps 1900" in result.output and "now plans" in result.output
 
 
+def test_two_sweep_files_of_one_name_are_refused_one_folder_unless_the_file_was_moved(tmp_path, monkeypatch):
+    """sweeps/nav/sweep.yaml and sweeps/soccer/sweep.yaml both take runs/sweep-sweep: the second merged its runs
+    into the first's plan, logs and summary, each --status replacing the other's summary.json."""
+    monkeypatch.chdir(tmp_path)
+    first, second = tmp_path / "nav" / "sweep.yaml", tmp_path / "soccer" / "sweep.yaml"
+    for path, field in ((first, "point_nav"), (second, "point_soccer")):
+        path.parent.mkdir()
+        path.write_text(f"fields: [{field}]\nalgorithms: [crl]\nseeds: 1\nsteps: 1900\nenvs: 8\n")
+    launch.record_plan(plan.load(first))
+    result = runner.invoke(app, ["sweep", str(second), "--dry-run"])
+    message = " ".join(result.output.split())
+    assert result.exit_code == 1 and message.startswith(f"error: {second}: {tmp_path / 'runs' / 'sweep-sweep'} holds "
+                                                        f"the sweep of {first.absolute()}, another sweep file"), message
+    moved = tmp_path / "moved" / "sweep.yaml"  # the first file itself, moved: its sweep goes on
+    moved.parent.mkdir()
+    first.rename(moved)
+    result = runner.invoke(app, ["sweep", str(moved), "--dry-run"])
+    assert result.exit_code == 0 and "fieldgen train point_nav" in result.output, result.output
+
+
 @pytest.mark.parametrize("edit,phrase", [
     (lambda plan_: {**plan_, "runs": []}, "runs: Input should be an object"),
     (lambda plan_: {**plan_, "runs": {"point_nav-crl-0": "fieldgen train"}}, "runs.point_nav-crl-0: Input should be a "
