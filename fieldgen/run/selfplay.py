@@ -360,6 +360,9 @@ def evaluate(run: TeamRun, episodes: int | None = None, seed: int = 0, actions: 
     against each with its 95% bootstrap interval (fieldgen.run.summary). With `film` (a place in `run.seeds`),
     also one more match of that seed's two (the last snapshot at home) filmed for a video
     (EpisodeRecorder.episode's input), else None."""
+    if episodes and episodes % 2:  # else refused below as the run's own ppo.eval_envs, which the user did not give
+        raise record.RunError(f"--episodes {episodes} is odd: the last snapshot plays half its episodes on each side; "
+                              f"give an even number, such as {episodes + 1:,}")
     config = run.config.model_copy(update={"eval_envs": episodes or run.config.eval_envs,
                                            "eval_actions": actions or run.config.eval_actions})
     from fieldgen.agents.config import ConfigError

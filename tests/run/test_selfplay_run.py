@@ -188,6 +188,16 @@ def test_a_self_play_run_without_its_field_copy_is_refused_in_one_line(tmp_path)
         assert f"{run / selfplay.FIELD} is missing: the run's own copy of its field" in " ".join(result.output.split())
 
 
+def test_an_odd_number_of_evaluation_episodes_is_refused_as_the_option_given(tmp_path):
+    """Before: `fieldgen eval RUN --episodes 3` was refused as "ppo.eval_envs 3 is odd", a key the user never set."""
+    result = runner.invoke(app, ["train", "soccer_1v1", "--prepare", "--out", str(tmp_path), *TINY])
+    assert result.exit_code == 0, result.output
+    run = selfplay.open_run(tmp_path / "soccer_1v1-ppo-0")
+    with pytest.raises(record.RunError, match=r"^--episodes 3 is odd: the last snapshot plays half its episodes on "
+                                              r"each side; give an even number, such as 4$"):
+        selfplay.evaluate(run, episodes=3)
+
+
 def without_timings(rows: list[dict]) -> list[dict]:
     return [{k: v for k, v in row.items() if k not in record.TIMINGS} for row in rows]
 
