@@ -532,6 +532,15 @@ def test_every_number_is_checked_against_its_stated_range_before_work_starts(tmp
     assert not any(tmp_path.iterdir())  # nothing written
 
 
+
+def test_a_number_a_launchers_variable_holds_is_named_by_the_variable(tmp_path, monkeypatch):
+    """FIELDGEN_NUM_PROCESSES=abc, which a job script set, was said as --num-processes abc, a flag never typed."""
+    monkeypatch.chdir(tmp_path)
+    result = runner.invoke(app, ["train", "point_nav", "--prepare"], env={"FIELDGEN_NUM_PROCESSES": "abc"})
+    assert result.exit_code == 1 and "FIELDGEN_NUM_PROCESSES=abc (--num-processes): the processes of one run is a " \
+        "whole number" in " ".join(result.output.split()), result.output
+    assert not any(tmp_path.iterdir())
+
 def test_bench_of_a_curriculum_or_run_folder_names_what_it_is_and_the_field_to_give(tmp_path):
     """Read as a build folder, either was one whose field.json is missing, to be built with `fieldgen build`."""
     made = runner.invoke(app, ["curriculum", "point_nav", "--vary", "field.length=10,12", "-o", str(tmp_path / "c")])

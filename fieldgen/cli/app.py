@@ -120,15 +120,19 @@ def choice(what: str, choices: tuple[str, ...]) -> dict:
     return {"metavar": "|".join(choices), "callback": check, "autocompletion": complete}
 
 
-def bounded(option: str, allowed: limits.Range):
+def bounded(option: str, allowed: limits.Range, envvar: str | None = None):
     """A typer parser for a number in `allowed` (fieldgen.limits): read as people write it (2e6 too), and one
-    line stating the range where it is out of it or no number, before anything loads."""
+    line stating the range where it is out of it or no number, before anything loads; naming the environment
+    variable `envvar` where the value is the one it holds (a launcher's, not one typed)."""
 
     def parse(text: str | int | float) -> int | float:
         value = limits.number(text, allowed.whole)
         said = allowed.problem(value)  # None, for no number, is out of every range
         if said is not None:
-            fail(f"{option} {shown_text(str(text))}: {said}; give one in that range")
+            shown = shown_text(str(text))
+            given = (f"{envvar}={shown} ({option})" if envvar and os.environ.get(envvar) == str(text)
+                     else f"{option} {shown}")
+            fail(f"{given}: {said}; give one in that range")
         return value
 
     return parse

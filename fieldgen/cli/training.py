@@ -171,11 +171,11 @@ def train(
         help="process 0's host and a free port: every process started with it joins one run over all their "
              "devices (under srun or mpirun this and the two below come from the launcher)")] = None,
     num_processes: Annotated[Optional[int], typer.Option(
-        parser=bounded("--num-processes", limits.PROCESSES), metavar="N", envvar="FIELDGEN_NUM_PROCESSES",
+        parser=bounded("--num-processes", limits.PROCESSES, "FIELDGEN_NUM_PROCESSES"), metavar="N", envvar="FIELDGEN_NUM_PROCESSES",
         rich_help_panel="One run over several processes",
         help="how many processes the run has")] = None,
     process_id: Annotated[Optional[int], typer.Option(
-        parser=bounded("--process-id", limits.PROCESS_ID), metavar="I", envvar="FIELDGEN_PROCESS_ID",
+        parser=bounded("--process-id", limits.PROCESS_ID, "FIELDGEN_PROCESS_ID"), metavar="I", envvar="FIELDGEN_PROCESS_ID",
         rich_help_panel="One run over several processes",
         help="this process's id, 0 to N-1; process 0 writes the run folder")] = None,
     coordinator_timeout: Annotated[int, typer.Option(
