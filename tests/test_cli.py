@@ -136,6 +136,9 @@ def test_a_mistyped_path_or_a_curriculum_index_is_answered_with_what_was_meant(t
         (["validate", "b/point_nav/field.json"], "b/point_nav/field.json is the record of a built field, not a field "
                                                  "spec: give its folder, b/point_nav"),
     ]
+    cases += [(["validate", "runs/r"], "runs/r is a run folder, not a field (a YAML file, bundled name or build "
+                                       "folder); the field that run trained on is its copy runs/r/field"),
+              (["build", "runs/r"], "runs/r is a run folder, not a field")]
     (tmp_path / "runs" / "r").mkdir(parents=True)
     (tmp_path / "runs" / "r" / "run.json").write_text("{}")
     (tmp_path / "b" / "point_nav").mkdir(parents=True)

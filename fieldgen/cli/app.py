@@ -184,6 +184,8 @@ def spec_path(ref: str) -> Path:
     record = _record_of(path)
     if record:
         fail(f"{ref} is the record of {record[0]}, not a field spec: {record[1]}")
+    if path.is_dir():
+        _refuse_run_folder(path)
     if path.exists():
         return path
     if path == Path(ref) and ("/" in ref or path.suffix):  # a path, not a bundled name
@@ -194,6 +196,20 @@ def spec_path(ref: str) -> Path:
         fail(f"'{ref}' is not a file{did_you_mean(path.stem, files, files) or '.'}")
     fail(f"'{ref}' is neither a file nor a bundled field{did_you_mean(ref, bundled_fields()) or '.'} "
          "`fieldgen list` shows the bundled fields.")
+
+
+def _refuse_run_folder(path: Path) -> None:
+    """A run's folder named where a field spec is asked for: what it is, and its copy of the field (session)."""
+    from fieldgen.run.record import RUN, RunError
+
+    if not (path / RUN).is_file():
+        return
+    from fieldgen.run import session  # loads the trainers: only for a run's folder
+
+    try:
+        session.refuse_folder_of_fields(path, None)
+    except RunError as exc:
+        fail(str(exc))
 
 
 def _record_of(path: Path) -> tuple[str, str] | None:

@@ -417,14 +417,14 @@ def on_field(run: Run, source: Path) -> Run:
     return dataclasses.replace(run, envs=[env], plan=run.plan.on_one_field(), stage=0)
 
 
-def refuse_folder_of_fields(source: Path, taker: str = "--field") -> None:
+def refuse_folder_of_fields(source: Path, taker: str | None = "--field") -> None:
     """Refuse a run folder or a curriculum folder named where one field is asked for (by `taker`, an option or a
-    command), saying what it is and the field to name instead: read as a build folder, either would be called one
-    whose field.json is missing."""
+    command; None: where a field spec is), saying what it is and the field to name instead: read as a build
+    folder, either would be called one whose field.json is missing."""
     if (source / record.RUN).is_file():
-        raise record.RunError(f"{source} is a run folder, not a field: {taker} takes one field (a YAML file, "
-                              f"bundled name or build folder); the field that run trained on is its copy "
-                              f"{source / _last_copy(source)}")
+        takes = f": {taker} takes one field (" if taker else " ("
+        raise record.RunError(f"{source} is a run folder, not a field{takes}a YAML file, bundled name or build "
+                              f"folder); the field that run trained on is its copy {source / _last_copy(source)}")
     if curriculum.is_curriculum(source):
         try:
             last = f", e.g. its last stage, {curriculum.load(source).spec_paths()[-1]}"
