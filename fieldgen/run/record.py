@@ -179,6 +179,12 @@ class RunRecord(BaseModel):
             value = self.config.get(key, least)
             if isinstance(value, bool) or not isinstance(value, int) or value < least:
                 raise ValueError(f"config.{key} should be a whole number from {least} up, not {shown_value(value)}")
+        from fieldgen.agents.choices import EVAL_ACTIONS
+
+        actions = self.config.get("eval_actions", EVAL_ACTIONS[0])  # how every figure of the run was judged
+        if actions not in EVAL_ACTIONS:
+            raise ValueError(f"config.eval_actions should be one of {', '.join(EVAL_ACTIONS)}, not "
+                             f"{shown_value(actions)}")
         return self
 
     @property

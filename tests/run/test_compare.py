@@ -431,3 +431,14 @@ def test_runs_after_the_first_are_measured_against_it_in_env_steps_a_second_and_
     assert f"against the first run, {first}" in said and "100 / 50 = 2.00x" in said
     assert "at 2,000: 0.900 / 0.500 = 1.80x" in said and "at 15 s: 1.000 / 0.400 = 2.50x" in said
     assert compare._ratio((0.3, 0.0), str) == "0.3 / 0.0" and compare._ratio((0.3, float("nan")), str) == "-"
+
+
+def test_a_run_json_whose_evaluation_actions_were_edited_is_refused_not_read_as_mean(tmp_path):
+    """Before: an eval_actions fieldgen never writes was tabled as a run judged on its mean actions."""
+    run = run_folder(tmp_path / "point_nav-crl-0", [[0.0], [0.5]])
+    saved = json.loads((run / "run.json").read_text())
+    saved["config"]["eval_actions"] = "weird"
+    (run / "run.json").write_text(json.dumps(saved))
+    result = runner.invoke(app, ["compare", str(run)])
+    assert result.exit_code == 1 and f"{run / 'run.json'} is not a run record: config.eval_actions should be one " \
+        "of mean, sampled, not 'weird'" in " ".join(result.output.split()), result.output
