@@ -323,7 +323,23 @@ def read_metrics(run_dir: Path, seeds: list[int] | None = None) -> list[dict]:
             raise RunError(damaged.format(f"evaluation {row['eval']} of seed {row.get('seed')} is at line {earlier} "
                                           "already"))
         rows.append(row)
+    _refuse_steps_back(path, rows, at)
     return rows
+
+
+def _refuse_steps_back(path: Path, rows: list[dict], at: dict) -> None:
+    """Refuse a seed whose env steps fall from one evaluation to the next (rows of two runs joined, a number edited):
+    a run only ever adds env steps, and its curves and ratios read them as a clock."""
+    last: dict = {}  # seed -> (eval, env_steps) of its evaluation before
+    for row in sorted(rows, key=lambda r: r["eval"]):
+        seed = row.get("seed")
+        before = last.get(seed)
+        if before is not None and row["env_steps"] < before[1]:
+            raise RunError(f"{path}:{at[(row['eval'], seed)]} is not a metrics row (evaluation {row['eval']} of seed "
+                           f"{seed} is at {row['env_steps']:,} env steps, fewer than evaluation {before[0]}'s "
+                           f"{before[1]:,}); the file was edited or damaged: restore it from a copy, or start the run "
+                           "again in a new folder")
+        last[seed] = (row["eval"], row["env_steps"])
 
 
 def write_metrics(run_dir: Path, rows: list[dict]) -> None:

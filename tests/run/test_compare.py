@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -442,3 +443,17 @@ def test_a_run_json_whose_evaluation_actions_were_edited_is_refused_not_read_as_
     result = runner.invoke(app, ["compare", str(run)])
     assert result.exit_code == 1 and f"{run / 'run.json'} is not a run record: config.eval_actions should be one " \
         "of mean, sampled, not 'weird'" in " ".join(result.output.split()), result.output
+
+
+def test_a_seed_whose_env_steps_fall_between_evaluations_is_refused_at_the_later_row(tmp_path):
+    """Before: rows of two runs joined, or a number edited, were drawn as a curve running back on itself."""
+    from fieldgen.run import record
+
+    run = run_folder(tmp_path / "point_nav-crl-0to1", [[0.0, 0.0], [0.5, 0.5], [0.6, 0.6]])
+    rows = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
+    rows[5]["env_steps"] = 500  # seed 1's evaluation 2, below its evaluation 1's 1,000
+    (run / "metrics.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
+    with pytest.raises(record.RunError, match=re.escape(f"{run / 'metrics.jsonl'}:6 is not a metrics row (evaluation 2 "
+                                                        "of seed 1 is at 500 env steps, fewer than evaluation 1's "
+                                                        "1,000)")):
+        record.read_metrics(run, [0, 1])
