@@ -214,6 +214,11 @@ def render(
         except (ArtifactError, RenderError, OSError) as exc:
             fail(str(exc))
         out.print(f"wrote {output}: {len(built)} built field{'s' * (len(built) != 1)} of {spec}, camera {view}")
+        missing = _missing_copies(Path(spec))
+        if missing:
+            out.print(Text(f"note: the run's {', '.join(missing)} {'is' if len(missing) == 1 else 'are'} missing: the "
+                           "sheet shows the fields that are there, numbered in order, and no level's place",
+                           style="yellow"), soft_wrap=True)
         return
     try:
         path = Path(spec)
@@ -370,6 +375,19 @@ def _list_recipes(names: list[str] | None) -> None:
         table.add_row(*row)
     out.print(table)
     out.print("each figure in full, with the page of its runs: fieldgen list --recipes FIELD", style="dim")
+
+
+def _missing_copies(folder: Path) -> list[str]:
+    """The copies of its fields a run folder's run.json lists that are not there (a run copied in part); [] for
+    any other folder."""
+    from fieldgen.compile.artifact import META
+    from fieldgen.run.record import RunError, read_run
+
+    try:
+        listed = read_run(folder).fields
+    except RunError:
+        return []
+    return [name for name in listed if not (folder / name / META).is_file()]
 
 
 @app.command()

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pytest
@@ -275,6 +276,11 @@ def test_a_folder_of_built_fields_renders_as_a_sheet_of_them(tmp_path):
     assert level_captions(tmp_path / "build", 2) is None  # no run: each field's size under it
     one = runner.invoke(app, ["render", str(tmp_path / "build" / "point_nav"), "-o", str(tmp_path / "one.png")])
     assert one.exit_code == 0 and "camera top" in one.output and "built fields" not in one.output
+    record = {"field": {}, "algo": "crl", "observation": {}, "seeds": [0], "config": {"seed": 0},
+              "fields": ["stages/point_nav", "stages/point_soccer", "stages/gone"]}  # a run copied in part
+    (tmp_path / "run" / "run.json").write_text(json.dumps(record))
+    part = runner.invoke(app, ["render", str(tmp_path / "run"), "-o", str(tmp_path / "part.png")])
+    assert part.exit_code == 0 and "note: the run's stages/gone is missing" in " ".join(part.output.split())
     assert runner.invoke(app, ["build", "point_nav", "--out", str(tmp_path / "single"), "--no-preview"]).exit_code == 0
     alone = runner.invoke(app, ["render", str(tmp_path / "single"), "-o", str(tmp_path / "single.png")])
     assert alone.exit_code == 0 and "1 built field of" in " ".join(alone.output.split()), alone.output
