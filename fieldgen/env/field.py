@@ -174,8 +174,9 @@ class FieldEnv:
         limit = self.mj_model.vis.global_
         for name, size, most in (("height", height, limit.offheight), ("width", width, limit.offwidth)):
             if size is not None and not (isinstance(size, (int, np.integer)) and 16 <= size <= most):
-                raise ValueError(f"{name}={size!r}: frames are 16 to {most} pixels {'high' if name == 'height' else 'wide'}"
-                                 f" (the field's offscreen buffer)")
+                across = "high" if name == "height" else "wide"
+                raise ValueError(f"{name}={size!r}: frames are 16 to {most} pixels {across} (the field's offscreen "
+                                 f"buffer)")
         nq = self.mj_model.nq
         for i, s in enumerate(states):
             shape = np.shape(s.pipeline_state.qpos)
@@ -295,6 +296,10 @@ class FieldEnv:
             raise ValueError(f"an action of shape {tuple(action.shape)}: {self.spec.name} takes ({self.action_size},) "
                              f"a step, one entry per motor ({self.action_size} = action_size); step a batch of "
                              f"environments with jax.vmap(env.step)")
+        if not isinstance(action, jax.core.Tracer) and not bool(jnp.all(jnp.isfinite(action))):  # a call outside jit
+            motors = ", ".join(self.action_names[i] for i in np.flatnonzero(~np.isfinite(np.asarray(action))))
+            raise ValueError(f"an action holding NaN or infinite values (for {motors}): the physics would blow up, "
+                             f"and the episode end as a fall")
         action = jnp.clip(action, -1.0, 1.0)
         before = state.pipeline_state
         variant = state.info.get("variant", jnp.zeros((), jnp.int32))

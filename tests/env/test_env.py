@@ -242,6 +242,18 @@ def test_a_step_refuses_an_action_of_another_shape(env_cache, action):
         env.step(state, action)
 
 
+
+def test_a_step_outside_jit_refuses_an_action_holding_nan_naming_its_motors(env_cache):
+    """Before: the physics blew up and the episode ended as a fall, unsaid; under jit it still does (the divergence
+    guard), where no value can be looked at."""
+    env = env_cache("point_nav")
+    state = env.reset(jax.random.PRNGKey(0))
+    with pytest.raises(ValueError, match=re.escape(f"an action holding NaN or infinite values (for "
+                                                   f"{env.action_names[1]}): the physics would blow up")):
+        env.step(state, jnp.array([0.0, jnp.nan]))
+    stepped = jax.jit(env.step)(state, jnp.array([0.0, jnp.nan]))  # traced: ended as a fall, as documented
+    assert bool(stepped.done)
+
 @pytest.mark.parametrize("source,options,phrase", [
     ("point_nva", {}, "point_nva: neither a file nor a bundled field; did you mean 'point_nav'? `fieldgen list`"),
     (None, {}, "fieldgen.make takes a FieldSpec, a YAML file, a bundled field's name or a build folder, not None"),
