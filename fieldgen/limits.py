@@ -73,3 +73,6 @@ def number(text: str | int | float, whole: bool = True) -> int | float | None:
     if whole:
         return int(value) if value == value.to_integral_value() else float(value)
     return float(value)
+
+NAME_BYTES = 255  # of one file or folder name, as file systems allow
+PATH_BYTES = 4096  # of a whole path (Linux's PATH_MAX)

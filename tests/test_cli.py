@@ -131,8 +131,9 @@ def test_a_mistyped_path_or_a_curriculum_index_is_answered_with_what_was_meant(t
                                               "field: give the curriculum's folder, to_far, to validate, build"),
         (["train", "to_far/curriculum.yaml"], "give the curriculum's folder, to_far"),
         # the records fieldgen writes beside a run and a build, which read as a spec with some 25 unknown keys
-        (["render", "runs/r/run.json"], "runs/r/run.json is the record of a run, not a field spec: its field is "
-                                        "built in runs/r/field; fieldgen render runs/r draws it"),
+        (["render", "runs/r/run.json"], "runs/r/run.json is the record of a run, not a field spec; runs/r is a run "
+                                        "folder, not a field (a YAML file, bundled name or build folder); the field "
+                                        "that run trained on is its copy runs/r/field"),
         (["validate", "b/point_nav/field.json"], "b/point_nav/field.json is the record of a built field, not a field "
                                                  "spec: give its folder, b/point_nav"),
     ]

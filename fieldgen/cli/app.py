@@ -87,7 +87,8 @@ def os_problem(exc: OSError) -> str:
         return str(exc)  # its own words: "cannot write PATH: why"
     said = exc.strerror or str(exc)
     if exc.errno == errno.ENAMETOOLONG:  # the system's words name no limit and no way on
-        said += "; a folder's or file's name holds at most 255 bytes and a path 4,096: choose a shorter one"
+        said += (f"; a folder's or file's name holds at most {limits.NAME_BYTES} bytes and a path "
+                 f"{limits.PATH_BYTES:,}: choose a shorter one")
     return said if exc.filename is None else f"{shown_text(str(exc.filename), PATH_CHARACTERS)}: {said}"
 
 
@@ -181,11 +182,10 @@ def spec_path(ref: str) -> Path:
     if path.name == INDEX and is_curriculum(path.parent):
         fail(f"{ref} lists the stages of a curriculum, not a field: give the curriculum's folder, {path.parent}, "
              "to validate, build, render or train")
-    record = _record_of(path)
-    if record:
-        fail(f"{ref} is the record of {record[0]}, not a field spec: {record[1]}")
     if path.is_dir():
         _refuse_run_folder(path)
+    elif path.suffix == ".json" and path.is_file():
+        _refuse_record(ref, path)
     if path.exists():
         return path
     if path == Path(ref) and ("/" in ref or path.suffix):  # a path, not a bundled name
@@ -198,34 +198,30 @@ def spec_path(ref: str) -> Path:
          "`fieldgen list` shows the bundled fields.")
 
 
-def _refuse_run_folder(path: Path) -> None:
-    """A run's folder named where a field spec is asked for: what it is, and its copy of the field (session)."""
+def _refuse_run_folder(folder: Path, named: str | None = None) -> None:
+    """A run's folder (or its record, `named`) given where a field spec is asked for: what it is, and the run's own
+    copy of its field (session.refuse_folder_of_fields)."""
     from fieldgen.run.record import RUN, RunError
 
-    if not (path / RUN).is_file():
+    if not (folder / RUN).is_file():
         return
     from fieldgen.run import session  # loads the trainers: only for a run's folder
 
     try:
-        session.refuse_folder_of_fields(path, None)
+        session.refuse_folder_of_fields(folder, None)
     except RunError as exc:
-        fail(str(exc))
+        fail(f"{named} is the record of a run, not a field spec; {exc}" if named else str(exc))
 
 
-def _record_of(path: Path) -> tuple[str, str] | None:
-    """What a JSON record that fieldgen writes beside a build or a run records, and which folder to give instead,
-    where `path` is one; None for anything else."""
-    if path.suffix != ".json" or not path.is_file():
-        return None
+def _refuse_record(ref: str, path: Path) -> None:
+    """The records fieldgen writes beside a run or a build, which read as a spec of some 25 unknown keys."""
     from fieldgen.compile.artifact import META  # loads mujoco: only for a JSON file
     from fieldgen.run.record import RUN
 
     if path.name == RUN:
-        return ("a run", f"its field is built in {path.parent / 'field'}; fieldgen render {path.parent} draws it, "
-                         f"fieldgen train --resume {path.parent} trains on")
-    if path.name == META:
-        return "a built field", f"give its folder, {path.parent}"
-    return None
+        _refuse_run_folder(path.parent, ref)
+    elif path.name == META:
+        fail(f"{ref} is the record of a built field, not a field spec: give its folder, {path.parent}")
 
 
 def field_source(ref: str) -> Path:

@@ -91,7 +91,8 @@ def field_spec(source: Path) -> FieldSpec:
     compiles: its kind of agent picks the trainer's preset (agents/presets), its reward what to warn of."""
     if (source / record.RUN).is_file():  # read as a build folder, it would be one whose field.json is missing
         raise record.RunError(f"{source} is a run folder, not a field: continue it with fieldgen train --resume "
-                              f"{source}, or train its field anew from the run's own copy, {source / _last_copy(source)}")
+                              f"{source}, or train its field anew from the run's own copy, "
+                              f"{source / _last_copy(source)}")
     try:
         if curriculum.is_curriculum(source):
             return curriculum.load(source).specs()[0]
@@ -430,8 +431,9 @@ def refuse_folder_of_fields(source: Path, taker: str | None = "--field") -> None
             last = f", e.g. its last stage, {curriculum.load(source).spec_paths()[-1]}"
         except curriculum.CurriculumError:
             last = ""
-        raise record.RunError(f"{source} is a curriculum folder: {taker} takes one field, such as one of its "
-                              f"stages (a stage's spec or its build folder){last}")
+        takes = f"{taker} takes" if taker else "a field spec is"
+        raise record.RunError(f"{source} is a curriculum folder: {takes} one field, such as one of its stages (a "
+                              f"stage's spec or its build folder){last}")
 
 
 def _last_copy(run_dir: Path) -> str:

@@ -240,9 +240,6 @@ def load(path: Path, out: Path | None = None, **overrides) -> Sweep:
     return Sweep(path, spec, folder, runs)
 
 
-NAME_BYTES = 255  # of one file or folder name, as file systems allow
-
-
 def _names_too_long(runs: list[PlannedRun], folder: Path, source: Source) -> Problem | None:
     """A problem at `grid` where a run's folder or log would get a name longer than a file system allows: a grid
     point's folder is named after each of its axes and values, so a grid of many axes names folders no run can be
@@ -252,11 +249,11 @@ def _names_too_long(runs: list[PlannedRun], folder: Path, source: Source) -> Pro
     for run in runs:
         names = [*run.folder.relative_to(folder).parts, log_path(folder, run, ".started").name]  # its longest log
         longest = max(len(os.fsencode(name)) for name in names)
-        if longest > NAME_BYTES:
+        if longest > limits.NAME_BYTES:
             return source.problem(("grid",), f"names a folder or log of run {shown_text(run.id, 60)} with "
                                              f"{longest:,} bytes, and a file system holds names of at most "
-                                             f"{NAME_BYTES}: vary fewer keys in grid (a key of one value goes in "
-                                             "set:), or shorter values")
+                                             f"{limits.NAME_BYTES}: vary fewer keys in grid (a key of one value goes "
+                                             "in set:), or shorter values")
     return None
 
 
