@@ -13,6 +13,7 @@ blown-up simulation never reaches a learner's batch.
 
 from __future__ import annotations
 
+import itertools
 from typing import Sequence
 
 import fieldgen.env.quiet  # noqa: F401  (before MJX and brax)
@@ -183,16 +184,13 @@ class FieldEnv:
             if shape != (nq,):
                 raise ValueError(f"state {i} holds positions of shape {shape}: render draws unbatched states "
                                  f"({nq},); take environment j of a batch with jax.tree.map(lambda x: x[j], state)")
-        variants = [int(s.info.get("variant", 0)) for s in states]
         frames = []
-        start = 0
-        for end in range(1, len(states) + 1):  # consecutive states of one variant share a renderer
-            if end == len(states) or variants[end] != variants[start]:
-                run = states[start:end]
-                qpos = np.stack([np.asarray(s.pipeline_state.qpos) for s in run])
-                mocap = np.stack([np.asarray(s.pipeline_state.mocap_pos) for s in run])
-                frames += render_rollout(self.mj_models[variants[start]], qpos, mocap, camera, height, width)
-                start = end
+        # consecutive states of one variant share a renderer
+        for variant, run in itertools.groupby(states, key=lambda s: int(s.info.get("variant", 0))):
+            run = list(run)
+            qpos = np.stack([np.asarray(s.pipeline_state.qpos) for s in run])
+            mocap = np.stack([np.asarray(s.pipeline_state.mocap_pos) for s in run])
+            frames += render_rollout(self.mj_models[variant], qpos, mocap, camera, height, width)
         return frames
 
     def reserve_worlds(self, worlds: int) -> None:
