@@ -28,6 +28,7 @@ EXTRAS = {
     "playground": ("mujoco_playground", "playground", "fieldgen.playground (MuJoCo Playground's MjxEnv)"),
     "slurm": ("submitit", "submitit", "fieldgen sweep with backend slurm"),
 }
+REINSTALL = "reinstall fieldgen's pins: python -m pip install -c requirements.lock -e ."
 STEPPED_FIELD = "point_nav"  # the smallest bundled field: compiles and steps in seconds on a CPU
 
 
@@ -52,6 +53,24 @@ def version(distribution: str) -> str | None:
 def nvidia_gpu_present() -> bool:
     """Whether the machine has an NVIDIA GPU with its driver loaded, whatever JAX uses."""
     return Path("/proc/driver/nvidia/gpus").is_dir() or shutil.which("nvidia-smi") is not None
+
+
+def platform_problem() -> str | None:
+    """Why JAX cannot start the platform JAX_PLATFORMS names (a GPU on a machine without one or without JAX's plugin
+    for it: a RuntimeError, or for CUDA without its plugin an empty AssertionError, from wherever JAX first starts),
+    in a sentence; None where JAX starts, or has not been loaded."""
+    platforms = os.environ.get("JAX_PLATFORMS", "")
+    if not platforms or "jax" not in sys.modules:
+        return None
+    import jax
+
+    try:
+        jax.devices()
+    except (RuntimeError, AssertionError) as exc:
+        said = str(exc).split(" (set JAX_PLATFORMS")[0] or "JAX has no plugin for it here"
+        return (f"JAX_PLATFORMS={platforms} names a platform JAX cannot start here ({said}); unset JAX_PLATFORMS for "
+                "JAX to use what this machine has, or set JAX_PLATFORMS=cpu")
+    return None
 
 
 def check_fieldgen() -> Check:
@@ -82,11 +101,7 @@ def check_jax(gpu_present: Callable[[], bool] = nvidia_gpu_present) -> Check:
         backend = jax.default_backend()
         devices = jax.devices()
     except Exception as exc:  # noqa: BLE001 - a broken install fails in its own way; say how
-        platforms = os.environ.get("JAX_PLATFORMS")
-        remedy = (f"JAX_PLATFORMS={platforms} names what JAX cannot start: unset it for JAX to use what this machine "
-                  "has, or set JAX_PLATFORMS=cpu" if platforms else
-                  "reinstall fieldgen's pins: python -m pip install -c requirements.lock -e .")
-        return Check("JAX", PROBLEM, f"cannot start: {type(exc).__name__}: {exc}", remedy)
+        return Check("JAX", PROBLEM, f"cannot start: {type(exc).__name__}: {exc}", platform_problem() or REINSTALL)
     platforms = os.environ.get("JAX_PLATFORMS")
     detail = f"{jax.__version__}, {backend}: {_device_text(devices)}" + (
         f" (JAX_PLATFORMS={platforms})" if platforms else "")
@@ -116,25 +131,21 @@ def check_physics(field: str = STEPPED_FIELD) -> Check:
         jax.block_until_ready(state.obs)
     except Exception as exc:  # noqa: BLE001 - whatever stops it is the finding
         return Check("MuJoCo and MJX", PROBLEM, f"{field} could not be built and stepped: {type(exc).__name__}: "
-                                                f"{exc}", "reinstall fieldgen's pins: python -m pip install -c "
-                                                          "requirements.lock -e .")
+                                                f"{exc}", REINSTALL)
     return Check("MuJoCo and MJX", OK, f"mujoco {mujoco.__version__}, mujoco-mjx {version('mujoco-mjx')}, "
                                        f"dm_control {version('dm-control')}; {field} built and stepped on "
                                        f"{jax.default_backend()}")
 
 
-def check_warp(cuda: Callable[[], bool] | None = None) -> Check:
+def check_warp() -> Check:
     installed = version("warp-lang")
     if installed is None:
         return Check("Warp physics", NOTE, "warp-lang is not installed: fields on sim.backend: warp are refused, and "
                                            "the dense fields' recipes train on MJX's JAX physics instead",
                      "pip install -c requirements.lock -e '.[warp]' (or pip install 'fieldgen[warp]')")
-    if cuda is None:
-        def cuda() -> bool:
-            import jax
+    from fieldgen.run.recipe import warp_runs_here  # what a recipe naming Warp goes by
 
-            return jax.default_backend() == "gpu"
-    if not cuda():
+    if not warp_runs_here():
         return Check("Warp physics", NOTE, f"warp-lang {installed}, no CUDA GPU for JAX: sim.backend: warp runs "
                                            "Warp's CPU kernels, slowly; the recipes that name it keep MJX's physics")
     return Check("Warp physics", OK, f"warp-lang {installed} on the GPU")
@@ -211,15 +222,13 @@ def check_cache() -> Check:
     return Check("Compile cache", OK, str(folder))
 
 
-def run_checks(physics: bool = True) -> list[Check]:
+def run_checks() -> list[Check]:
     """Every check, in the order a reader follows: what runs, then what draws, then what is optional. The
     compile cache is pointed where fieldgen's commands point it (fieldgen.xla_cache) before JAX loads."""
     from fieldgen import xla_cache
 
     xla_cache.enable()
-    checks = [check_fieldgen(), check_jax()]
-    if physics:
-        checks.append(check_physics())
+    checks = [check_fieldgen(), check_jax(), check_physics()]
     checks += [check_warp(), check_rendering(), check_videos(), check_viewer(), *check_extras(), check_cache()]
     return checks
 

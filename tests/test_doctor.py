@@ -82,4 +82,5 @@ def test_a_jax_that_cannot_start_the_platform_named_says_to_unset_it(monkeypatch
     monkeypatch.setenv("JAX_PLATFORMS", "cuda")
     found = doctor.check_jax()
     assert found.status == doctor.PROBLEM and found.detail.startswith("cannot start: RuntimeError: Unknown backend")
-    assert found.remedy.startswith("JAX_PLATFORMS=cuda names what JAX cannot start: unset it")
+    assert found.remedy.startswith("JAX_PLATFORMS=cuda names a platform JAX cannot start here (Unknown backend")
+    assert found.remedy.endswith("unset JAX_PLATFORMS for JAX to use what this machine has, or set JAX_PLATFORMS=cpu")

@@ -54,28 +54,12 @@ class Command(ReadableCommand):
         except files.FolderError as exc:  # a file or folder of the user's where fieldgen would write
             fail(str(exc))
         except (RuntimeError, AssertionError):
+            from fieldgen.doctor import platform_problem
+
             said = platform_problem()
             if said is None:
                 raise
             fail(said)
-
-
-def platform_problem() -> str | None:
-    """Why JAX cannot start the platform JAX_PLATFORMS names (a GPU on a machine without one or without JAX's plugin
-    for it: a RuntimeError, or for CUDA without its plugin an empty AssertionError, from wherever JAX first starts),
-    in a sentence; None where JAX starts, or has not been loaded."""
-    platforms = os.environ.get("JAX_PLATFORMS", "")
-    if not platforms or "jax" not in sys.modules:
-        return None
-    import jax
-
-    try:
-        jax.devices()
-    except (RuntimeError, AssertionError) as exc:
-        said = str(exc).split(" (set JAX_PLATFORMS")[0] or "JAX has no plugin for it here"
-        return (f"JAX_PLATFORMS={platforms} names a platform JAX cannot start here ({said}); unset JAX_PLATFORMS for "
-                "JAX to use what this machine has, or set JAX_PLATFORMS=cpu")
-    return None
 
 
 PATH_CHARACTERS = 300  # of a path echoed in a message: any real one, not one the system refuses as too long
