@@ -1,12 +1,13 @@
 """Recipes: what learns a field (an algorithm, env steps, environments, config overrides, a named preset, a
-curriculum, and what the run trains on in the field's place: its task's dense reward, another physics),
-keyed by the field's name in presets/recipes.yaml, beside the presets they layer over.
+curriculum, and what the run trains on in the field's place: its task's dense reward, another physics, a fall
+rule that ends its episodes), keyed by the field's name in presets/recipes.yaml, beside the presets they layer over.
 
 A recipe writes a trainer's settings only as `--set` writes them (`steps` and `envs` are total_steps and
 num_envs), so the configs and the presets stay the one owner of what a setting means and allows:
 `RunConfig.layered` checks a recipe's settings as it checks --set's, each at its line of the recipes file.
 `measured` is what README.md and bench/results report of the recipe on its field, and nothing else; it is
-never inherited, so a field that takes another's recipe says it is not measured yet.
+never inherited, so a field that takes another's recipe says it is not measured yet. `fall` is read and said as a
+spec's episode.fall is (fieldgen.schema), so a spec and a recipe allow the same fall rules in the same words.
 """
 
 from __future__ import annotations
@@ -22,7 +23,8 @@ from .choices import ALGORITHMS, PRESETS
 
 RECIPES = Path(__file__).with_name("presets") / "recipes.yaml"
 CURRICULA = ("auto",)  # the curricula a recipe may name, as `fieldgen train --curriculum` does
-KEYS = ("extends", "algo", "steps", "envs", "set", "preset", "curriculum", "reward", "backend", "measured")
+KEYS = ("extends", "algo", "steps", "envs", "set", "preset", "curriculum", "reward", "backend", "fall", "measured")
+INHERITED = ("algo", "steps", "envs", "preset", "curriculum", "reward", "backend", "fall")  # and `set`, item by item
 REWARDS = ("dense",)  # `reward: dense`: a field paid for its success alone trains on its task's dense reward
 BACKENDS = ("mjx", "warp")  # `backend`: the MJX implementation a run trains on where it runs (fieldgen/run/recipe.py)
 MEASURED_KEYS = ("figure", "seeds", "data")  # and `detail`, which may be left out
@@ -62,6 +64,9 @@ class Recipe:
     curriculum: str | None = None
     reward: str | None = None  # dense: where the field's reward is its success alone, its task's dense reward
     backend: str | None = None  # the physics (sim.backend) the run trains on in the field's own place
+    # the fall rule (as a spec's episode.fall writes it) that ends the run's episodes where the field has none; a
+    # mapping, left out of the hash that a frozen dataclass gives
+    fall: dict | None = dataclasses.field(default=None, hash=False)
     measured: Measured | None = None
     where: str = ""  # file:line of the recipe, for messages about its settings
 
@@ -81,14 +86,22 @@ class Recipe:
         parts += [f"--curriculum {self.curriculum}"] if self.curriculum else []
         parts += [f"on its task's {self.reward} reward"] if self.reward else []
         parts += [f"on sim.backend {self.backend}"] if self.backend else []
+        parts += [f"on episodes ending {fall_rule(self.fall).ends()}"] if self.fall else []
         return ", ".join(parts) if len(parts) > 1 else f"{self.algo} with its defaults"
 
     def record(self) -> dict:
         """The recipe as run.json keeps it."""
         kept = {"field": self.field, "algo": self.algo, "steps": self.steps, "envs": self.envs,
                 "set": list(self.sets), "preset": self.preset, "curriculum": self.curriculum,
-                "reward": self.reward, "backend": self.backend}
+                "reward": self.reward, "backend": self.backend, "fall": self.fall}
         return {key: value for key, value in kept.items() if value not in (None, [])}
+
+
+def fall_rule(fall: dict):
+    """A recipe's `fall` as the spec's model of a fall rule (fieldgen.schema.models.Fall), which says it in words."""
+    from fieldgen.schema.models import EpisodeSection
+
+    return EpisodeSection.model_validate({"fall": fall}).fall
 
 
 def short_count(value: int) -> str:
@@ -164,6 +177,10 @@ def _checked(where: str, key: str, value):
             refuse(f"must be {'one of ' + ', '.join(choices) if choices else 'the name of a field with a recipe'}"
                    + (f" ({near.removeprefix('; ')})" if near else ""))
         return value
+    if key == "fall":
+        if not isinstance(value, dict):
+            refuse("must be a mapping, as a spec's episode.fall writes it ({kind: flipped, grace_steps: 50})")
+        return _fall_checked(where, value)
     if key in ("steps", "envs"):
         if isinstance(value, bool) or not isinstance(value, int) or value < 1:
             refuse("must be a whole count above 0")
@@ -176,6 +193,23 @@ def _checked(where: str, key: str, value):
             not all(isinstance(v, str) and v for v in value.values()):
         refuse(f"must be a mapping of {', '.join(MEASURED_KEYS)} (and a detail, if any), each a text")
     return Measured(**value)
+
+
+def _fall_checked(where: str, value: dict) -> dict:
+    """A recipe's `fall` mapping as written, where a spec's episode.fall would take it; else a RecipeError in the
+    words of a spec's problem (the kinds, or a kind's keys, that are allowed)."""
+    from pydantic import ValidationError
+
+    from fieldgen.schema.messages import problems
+    from fieldgen.schema.models import EpisodeSection
+    from fieldgen.schema.source import Source
+
+    try:
+        fall_rule(value)
+    except ValidationError as exc:
+        found = problems(Source({"fall": value}), exc.errors(), EpisodeSection)
+        raise RecipeError(f"{where}: " + "; ".join(f"{p.path}: {p.message}" for p in found)) from None
+    return dict(value)
 
 
 def _resolved(path: Path, name: str, entries: dict, chain: tuple[str, ...]) -> Recipe:
@@ -194,7 +228,7 @@ def _resolved(path: Path, name: str, entries: dict, chain: tuple[str, ...]) -> R
         base = dataclasses.asdict(_resolved(path, parent, entries, chain + (name,)))
         own = {item.partition("=")[0] for item in values.get("set", ())}
         sets = tuple(item for item in base["sets"] if item.partition("=")[0] not in own) + values.pop("set", ())
-        inherited = {key: base[key] for key in ("algo", "steps", "envs", "preset", "curriculum", "reward", "backend")}
+        inherited = {key: base[key] for key in INHERITED}
         values = {**inherited, **values, "set": sets}
     if values.get("algo") is None:
         raise RecipeError(f"{entry['where']}: recipe '{name}' names no algo; choose one of {', '.join(ALGORITHMS)}")

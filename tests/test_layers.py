@@ -61,6 +61,9 @@ RULES = [  # (folder or file, the fieldgen modules it may import, modules outsid
                           "fieldgen.schema.errors", "fieldgen.counts"), (),
      "the settings read a --set value as a spec's values are read, a count as the command line's, and echo it as a "
      "spec's problems do"),
+    ("agents/recipes.py", ("fieldgen.agents", "fieldgen.suggest", "fieldgen.schema.models", "fieldgen.schema.messages",
+                           "fieldgen.schema.source"), (),
+     "a recipe's fall rule is read, refused and said as a spec's episode.fall is"),
     ("fieldgen/sweep", FIELDGEN + BELOW_CURRICULA + ("fieldgen.curriculum", "fieldgen.agents", "fieldgen.run",
                                                "fieldgen.counts", "fieldgen.stops"), (),
      "a sweep runs the command, and is below the command line"),

@@ -1,5 +1,6 @@
 """Which recipe (fieldgen.agents.recipes) sets up a new run on a field, what the run trains on where the recipe
-trains it on its task's dense reward or another physics (judged on the field as written all the same), and what
+trains it on its task's dense reward, another physics or episodes ended by a fall rule (judged on the field as
+written all the same), and what
 `fieldgen train` and `fieldgen list --recipes` say of it: the recipe, why it was chosen, its measured figure, and
 the dense route where a field's reward is its success alone."""
 
@@ -9,11 +10,13 @@ import dataclasses
 import importlib.util
 from pathlib import Path
 
+import yaml
+
 from fieldgen import curriculum
 from fieldgen.agents import recipes
 from fieldgen.agents.recipes import Found, Recipe, RecipeError
 from fieldgen.agents.registry import DEFAULT_ALGORITHM
-from fieldgen.schema import FieldSpec, bundled_fields, load_spec
+from fieldgen.schema import FieldSpec, SpecError, bundled_fields, load_spec
 from fieldgen.schema.backends import BACKENDS
 from fieldgen.schema.loader import lineage
 from fieldgen.schema.terms import DENSE_REWARDS, MATCH_TERMS, TERMS
@@ -60,7 +63,7 @@ class Choice:
         recipe = self.recipe
         why = (f"recipe {recipe.field} for {self.field}, which extends {' -> '.join(self.found.lineage[1:])}"
                if self.found.inherited else f"recipe {recipe.field}")
-        flags = ", ".join(overriding[:-1]) + " and " * (len(overriding) > 1) + "".join(overriding[-1:])
+        flags = listed(overriding)
         overrides = f"; {flags} override{'s' * (len(overriding) == 1)} it" if overriding else ""
         return f"{why}: {recipe.summary()}; {figure(self.found)}{overrides}"
 
@@ -82,8 +85,9 @@ def choose(source: Path, algo: str | None, use: bool = True) -> Choice:
 
 
 def trained_form(trained: FieldSpec, written: FieldSpec, detail: bool = False) -> str:
-    """How the field a run trains on differs from the field as written, in words: 'its task's dense reward and
-    sim.backend warp'; with `detail`, the dense reward's terms and what the backend is."""
+    """How the field a run trains on differs from the field as written, in words: 'its task's dense reward,
+    sim.backend warp and episodes ending once the ant has lain turned over for 50 control steps in a row (2.5 s)';
+    with `detail`, the dense reward's terms, what the backend is and the fall rule as a spec writes it."""
     parts = []
     if trained.task.reward != written.task.reward:
         dense = load_spec(written, changes={"task": {"reward": "dense"}}).task.reward == trained.task.reward
@@ -93,7 +97,24 @@ def trained_form(trained: FieldSpec, written: FieldSpec, detail: bool = False) -
     if trained.sim.backend != written.sim.backend:
         backend = trained.sim.backend
         parts.append(f"sim.backend {backend}" + (f" ({BACKENDS[backend].description})" if detail else ""))
-    return " and ".join(parts) or "the field as written"
+    fall = trained.episode.fall
+    if fall != written.episode.fall:
+        said = fall.ends(trained.episode.control_dt)
+        written_as = f"episode: {{fall: {one_line(fall.model_dump(mode='json', exclude_unset=True))}}}"
+        if detail:  # beside the seconds, where the words give them
+            said = f"{said.removesuffix(')')}; {written_as})" if said.endswith(")") else f"{said} ({written_as})"
+        parts.append(f"episodes ending {said}")
+    return listed(parts) or "the field as written"
+
+
+def listed(items: list[str]) -> str:
+    """'a', 'a and b', 'a, b and c'."""
+    return ", ".join(items[:-1]) + " and " * (len(items) > 1) + "".join(items[-1:])
+
+
+def one_line(data: dict) -> str:
+    """A mapping as a spec writes it on one line: {kind: flipped, grace_steps: 50}."""
+    return yaml.safe_dump(data, default_flow_style=True, sort_keys=False, width=10**6).strip()
 
 
 def training_line(trained: FieldSpec, written: FieldSpec) -> str:
@@ -115,12 +136,15 @@ def warp_runs_here() -> bool:
 def training(written: FieldSpec, recipe: Recipe | None, trains_here: bool = True,
              batched: bool = False) -> tuple[FieldSpec | None, str | None]:
     """The field a new run on `written` trains on as `recipe` says (None: the field as written; else the same field,
-    of the same name, with its task's dense reward or on another of MJX's implementations), and a line where the
-    recipe's physics is left aside here. `reward: dense` applies to a field paid for its success alone (a field with
-    reward terms of its own trains on them); `backend` replaces one of MJX's implementations with another, Warp only
-    where it runs (`warp_runs_here`), or anywhere for a run prepared to train elsewhere (not `trains_here`), and
-    never for a run that batches variants of the field in one model (`batched`: --curriculum auto's levels).
-    RecipeError where the field's task has no dense reward."""
+    of the same name, with its task's dense reward, on another of MJX's implementations or with the recipe's fall
+    rule), and a line where the recipe's physics or fall rule is left aside. `reward: dense` applies to a field paid
+    for its success alone (a field with reward terms of its own trains on them); `backend` replaces one of MJX's
+    implementations with another, Warp only where it runs (`warp_runs_here`), or anywhere for a run prepared to train
+    elsewhere (not `trains_here`), and never for a run that batches variants of the field in one model (`batched`:
+    --curriculum auto's levels); `fall` becomes the episode.fall of an ant's field whose episodes end on time alone
+    (`never`: a field with a fall rule of its own keeps it; a point agent never falls, and its field is left as
+    written with a note). RecipeError where the field's task has no dense reward, or the field refuses the recipe's
+    fall rule."""
     if recipe is None or written.teams is not None:
         return None, None
     changes, note = {}, None
@@ -146,9 +170,24 @@ def training(written: FieldSpec, recipe: Recipe | None, trains_here: bool = True
                     f"(pip install -c requirements.lock -e '.[warp]'), and this machine has not both")
         else:
             changes["sim"] = {"backend": backend}
+    if recipe.fall is not None and written.episode.fall.kind == "never" and recipe.fall["kind"] != "never":
+        if written.agent.kind == "ant":
+            changes["episode"] = {"fall": recipe.fall}
+        else:
+            aside = (f"{written.name} trains with its own episode.fall never: its recipe's fall rule ends an ant's "
+                     f"episodes, and its {written.agent.kind} agent never falls")
+            note = aside if note is None else f"{note}; {aside}"
     if not changes:
         return None, note
-    return load_spec(written, changes=changes), note
+    try:
+        return load_spec(written, changes=changes), note
+    except SpecError as exc:
+        if "episode" not in changes:
+            raise
+        said = "; ".join(f"{p.path}: {p.message}" for p in exc.problems)
+        raise RecipeError(f"{recipe.where}: recipe '{recipe.field}' trains {written.name} with episode.fall "
+                          f"{one_line(recipe.fall)}, which it refuses: {said}; write another fall rule in the "
+                          f"recipe, or train with the defaults: --no-recipe") from None
 
 
 def figure(found: Found, beside: bool = True) -> str:

@@ -366,15 +366,33 @@ class FallFlipped(Section):
     grace_steps: int = Field(0, ge=0, le=100_000, description="control steps the ant may stay turned over, "
                              "free to right itself, before it counts as fallen")
 
+    def ends(self, control_dt: float | None = None) -> str:
+        """When the rule ends an episode, in words: 'once the ant has lain turned over for 50 control steps in a
+        row'; `control_dt` (seconds a control step) adds how long that is: ' (2.5 s)'."""
+        lying = "turned over" if self.tilt_deg == 90 else f"tilted more than {self.tilt_deg:g} degrees from vertical"
+        if not self.grace_steps:
+            return f"once the ant lies {lying}"
+        seconds = f" ({self.grace_steps * control_dt:g} s)" if control_dt else ""
+        return (f"once the ant has lain {lying} for {self.grace_steps:,} control step{'s' * (self.grace_steps != 1)} "
+                f"in a row{seconds}")
+
 
 class FallHeightBand(Section):
     kind: Literal["height_band"] = Field(description="the ant has fallen once its torso leaves a height band "
                                          "(the soccer study's and the CRL reference's ant, tuned on brax's spring physics)")
     band: Span = Field((0.2, 1.0), description="torso heights (z of its centre) that count as standing")
 
+    def ends(self, control_dt: float | None = None) -> str:
+        """When the rule ends an episode, in words (as FallFlipped.ends)."""
+        return f"once the ant's torso leaves heights {self.band[0]:g} to {self.band[1]:g} m"
+
 
 class FallNever(Section):
     kind: Literal["never"] = Field(description="episodes end only when time runs out (OGBench's ant soccer)")
+
+    def ends(self, control_dt: float | None = None) -> str:
+        """When the rule ends an episode, in words (as FallFlipped.ends)."""
+        return "on time alone"
 
 
 Fall = Annotated[Union[FallFlipped, FallHeightBand, FallNever], Field(discriminator="kind")]

@@ -68,6 +68,23 @@ def test_a_recipe_extends_another_keeping_its_own_set_items_and_never_its_figure
     assert recipes.read(path)["f"].measured.stated == "0.5, 128 episodes"  # the headline, then its detail
 
 
+def test_a_recipe_names_a_fall_rule_as_a_spec_writes_it_and_passes_it_on_through_extends(tmp_path):
+    path = tmp_path / "recipes.yaml"
+    path.write_text("base:\n  algo: ppo\n  backend: warp\n  fall: {kind: flipped, grace_steps: 50}\n"
+                    "child:\n  extends: base\n  envs: 8\n"
+                    "own:\n  extends: base\n  fall: {kind: height_band, band: [0.3, 1.2]}\n")
+    table = recipes.read(path)
+    assert table["base"].fall == table["child"].fall == {"kind": "flipped", "grace_steps": 50}
+    assert table["own"].fall == {"kind": "height_band", "band": [0.3, 1.2]}
+    assert table["child"].record() == {"field": "child", "algo": "ppo", "envs": 8, "backend": "warp",
+                                       "fall": {"kind": "flipped", "grace_steps": 50}}
+    assert table["child"].summary() == ("ppo, 8 envs, on sim.backend warp, on episodes ending once the ant has lain "
+                                        "turned over for 50 control steps in a row")
+    assert table["own"].summary().endswith("on episodes ending once the ant's torso leaves heights 0.3 to 1.2 m")
+    assert table["child"] != table["own"] and len({table["base"], table["child"]}) == 2  # compared, and hashable
+    assert recipes.read()["v2_wide_goalie"].fall is None  # no bundled recipe names one yet
+
+
 def test_a_field_takes_the_recipe_of_the_nearest_field_it_extends():
     table = recipes.read()
     found = recipes.find(["my_wide", "v2_wide_goalie_dense", "soccer_v2_dense", "soccer_v2"], table)
@@ -104,13 +121,24 @@ def test_a_recipe_sits_over_the_agents_preset_and_under_every_setting_the_comman
     ("f:\n  algo: ppo\n  reward: shaped\n", ":3: recipe 'f': reward must be one of dense, not 'shaped'"),
     ("f:\n  algo: ppo\n  backend: wrap\n", ":3: recipe 'f': backend must be one of mjx, warp (did you mean 'warp'?), "
                                               "not 'wrap'"),
+    ("f:\n  algo: ppo\n  fall: flipped\n", ":3: recipe 'f': fall must be a mapping, as a spec's episode.fall writes "
+                                             "it ({kind: flipped, grace_steps: 50}), not 'flipped'"),
+    ("f:\n  algo: ppo\n  fall: {kind: flip, grace_steps: 50}\n",
+     ":3: recipe 'f': fall.kind: unknown kind 'flip': one of 'flipped', 'height_band', 'never'; did you mean 'flipped'?"),
+    ("f:\n  algo: ppo\n  fall: {grace_steps: 50}\n",
+     ":3: recipe 'f': fall: the key 'kind' is required here: one of 'flipped', 'height_band', 'never'"),
+    ("f:\n  algo: ppo\n  fall: {kind: flipped, grace: 50}\n", ":3: recipe 'f': fall.grace: unknown key 'grace'; did you "
+                                                               "mean 'grace_steps'? Allowed keys here: kind, tilt_deg, "
+                                                               "grace_steps."),
+    ("f:\n  algo: ppo\n\n  fall: {kind: flipped, grace_steps: '50'}\n",
+     ":4: recipe 'f': fall.grace_steps: '50' is text, not a number"),
 ])
 def test_a_wrong_recipe_is_one_sentence_at_its_line(tmp_path, text, phrase):
     path = tmp_path / "recipes.yaml"
     path.write_text(text)
     with pytest.raises(RecipeError) as caught:
         recipes.read(path)
-    assert phrase in str(caught.value) and str(caught.value).startswith(str(path))
+    assert phrase in str(caught.value) and str(caught.value).startswith(str(path)) and "\n" not in str(caught.value)
 
 
 def test_a_recipe_setting_its_trainer_refuses_is_reported_at_the_recipe(tmp_path):

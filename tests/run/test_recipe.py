@@ -4,6 +4,7 @@ the PPO-on-sparse warning, `fieldgen list --recipes`, and run.json keeping the r
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import pytest
 from typer.testing import CliRunner
@@ -254,11 +255,22 @@ def spec_keys(data: dict) -> dict:
     return {k: v for k, v in data.items() if k not in ("name", "description", "extends")}
 
 
+def assert_builds_alike(trained, twin):
+    """The field a recipe trains on builds to the same field.json and scene as `twin`, but for what names it."""
+    from fieldgen.compile.artifact import compile_spec
+
+    ours, theirs = compile_spec(trained), compile_spec(twin)
+    named = (f'<mujoco model="{trained.name}">', f'<mujoco model="{twin.name}">')
+    assert ours.xml.replace(*named) == theirs.xml  # the scene: the same but for the model's name
+    digests = ("name", "hash", "scene_sha256", "record_sha256")  # each over the name too
+    alike = [{**{k: v for k, v in meta.items() if k not in digests}, "spec": spec_keys(meta["spec"])}
+             for meta in (ours.metadata(), theirs.metadata())]
+    assert alike[0] == alike[1] and ours.metadata()["name"] == trained.name
+
+
 def test_the_users_field_trains_on_the_field_its_recipes_figure_was_measured_on():
     """v2_wide_goalie's recipe trains it on its task's dense reward on Warp's physics: the very field
     v2_wide_goalie_dense_warp builds to but for its name, which is why that field's figure is the recipe's."""
-    from fieldgen.compile.artifact import compile_spec
-
     fields = bundled_fields()
     chosen = recipe.choose(fields["v2_wide_goalie"], None)
     assert (chosen.algo, chosen.recipe.reward, chosen.recipe.backend) == ("ppo", "dense", "warp")
@@ -270,13 +282,7 @@ def test_the_users_field_trains_on_the_field_its_recipes_figure_was_measured_on(
     trained, note = recipe.training(written, chosen.recipe, trains_here=False)
     assert note is None and changed_keys(trained, written) == {"task.reward", "sim.backend"}
     assert trained.sim.backend == "warp" and trained.name == "v2_wide_goalie"
-    ours, twin = (compile_spec(spec) for spec in (trained, load_spec(fields["v2_wide_goalie_dense_warp"])))
-    named = ('<mujoco model="v2_wide_goalie">', '<mujoco model="v2_wide_goalie_dense_warp">')
-    assert ours.xml.replace(*named) == twin.xml  # the scene: the same but for the model's name
-    digests = ("name", "hash", "scene_sha256", "record_sha256")  # each over the name too
-    alike = [{**{k: v for k, v in meta.items() if k not in digests}, "spec": spec_keys(meta["spec"])}
-             for meta in (ours.metadata(), twin.metadata())]
-    assert alike[0] == alike[1] and ours.metadata()["name"] == "v2_wide_goalie"
+    assert_builds_alike(trained, load_spec(fields["v2_wide_goalie_dense_warp"]))
     assert recipe.trained_form(trained, written) == "its task's dense reward and sim.backend warp"
     assert recipe.training_line(trained, written) == (
         "trains v2_wide_goalie on its task's dense reward (task: {reward: dense}: ball_path_progress, "
@@ -397,3 +403,95 @@ def test_ppo_on_the_users_field_without_its_recipe_is_warned_to_leave_out_no_rec
     assert lines_with(result.output, "warning: PPO learns nothing")[0].endswith(
         "v2_wide_goalie's reward is its success; its recipe (v2_wide_goalie) trains it on its task's dense reward: "
         "leave out --no-recipe")
+
+
+FLIP = {"kind": "flipped", "grace_steps": 50}
+FLIP_WARP = Path(__file__).parents[2] / "bench" / "fields" / "v2_wide_goalie_dense_flip_warp.yaml"
+
+
+def flip_recipes(tmp_path, monkeypatch) -> dict:
+    """A recipes file, read as the bundled one is, whose v2_wide_goalie_dense trains with PPO on its task's dense
+    reward on Warp's physics and on episodes that end once the ant has lain turned over 50 control steps in a row;
+    v2_wide_goalie extends it."""
+    from fieldgen.agents import recipes
+
+    path = tmp_path / "recipes.yaml"
+    path.write_text("v2_wide_goalie_dense:\n  algo: ppo\n  reward: dense\n  backend: warp\n"
+                    "  fall: {kind: flipped, grace_steps: 50}\nv2_wide_goalie:\n  extends: v2_wide_goalie_dense\n")
+    monkeypatch.setattr(recipes.read, "__defaults__", (path,))
+    return recipes.read(path)
+
+
+@pytest.mark.parametrize("name,form", [
+    ("v2_wide_goalie_dense", "sim.backend warp and episodes ending once the ant has lain turned over for 50 control "
+                             "steps in a row (2.5 s)"),
+    ("v2_wide_goalie", "its task's dense reward, sim.backend warp and episodes ending once the ant has lain turned "
+                       "over for 50 control steps in a row (2.5 s)"),
+])
+def test_a_fall_recipe_trains_the_field_on_the_twin_whose_episodes_end_once_the_ant_lies_turned_over(
+        tmp_path, monkeypatch, name, form):
+    """The recipe that bench/fields/v2_wide_goalie_dense_flip_warp.yaml's tuning runs say: the field it trains on
+    builds to that field but for its name, from the dense field (whose reward terms are its own) and from the
+    field paid for its success alone alike."""
+    flip_recipes(tmp_path, monkeypatch)
+    chosen = recipe.choose(bundled_fields()[name], None)
+    assert chosen.recipe.fall == FLIP and chosen.line([]).startswith(
+        f"recipe {name}: ppo, on its task's dense reward, on sim.backend warp, on episodes ending once the ant has "
+        "lain turned over for 50 control steps in a row; not measured yet")
+    written = load_spec(bundled_fields()[name])
+    trained, note = recipe.training(written, chosen.recipe, trains_here=False)
+    assert note is None and trained.name == name and trained.episode.fall.model_dump() == {**FLIP, "tilt_deg": 90.0}
+    assert_builds_alike(trained, load_spec(FLIP_WARP))
+    assert recipe.trained_form(trained, written) == form
+    assert recipe.training_line(trained, written).startswith(f"trains {name} on ") and \
+        " and episodes ending once the ant has lain turned over for 50 control steps in a row (2.5 s; episode: " \
+        "{fall: {kind: flipped, grace_steps: 50}}), as its recipe says; the run keeps the field as written" in \
+        recipe.training_line(trained, written)
+
+
+def test_a_field_with_a_fall_rule_of_its_own_keeps_it_and_a_point_agent_is_left_as_written(tmp_path, monkeypatch):
+    from fieldgen.agents.recipes import Recipe
+
+    table = flip_recipes(tmp_path, monkeypatch)
+    banded = tmp_path / "banded.yaml"
+    banded.write_text("extends: v2_wide_goalie_dense\nname: banded\nepisode: {fall: {kind: height_band}}\n")
+    trained, note = recipe.training(load_spec(banded), table["v2_wide_goalie_dense"], trains_here=False)
+    assert changed_keys(trained, load_spec(banded)) == {"sim.backend"} and trained.episode.fall.kind == "height_band"
+    assert recipe.training(load_spec(FLIP_WARP), table["v2_wide_goalie_dense"]) == (None, None)  # all its own already
+    point = Recipe(field="point_nav", algo="crl", fall=FLIP, where="recipes.yaml:1")
+    assert recipe.training(load_spec(bundled_fields()["point_nav"]), point) == (
+        None, "point_nav trains with its own episode.fall never: its recipe's fall rule ends an ant's episodes, and "
+              "its point agent never falls")
+
+
+def test_a_fall_rule_the_field_refuses_is_one_line_at_the_recipe(tmp_path, monkeypatch):
+    from fieldgen.schema import loader
+
+    table = flip_recipes(tmp_path, monkeypatch)
+    checked = loader.physics_problems
+    monkeypatch.setattr(loader, "physics_problems", lambda spec: checked(spec) + [
+        (("episode", "fall", "kind"), "not on this field")] * (spec.episode.fall.kind == "flipped"))
+    with pytest.raises(recipe.RecipeError) as caught:
+        recipe.training(load_spec(bundled_fields()["v2_wide_goalie_dense"]), table["v2_wide_goalie_dense"],
+                        trains_here=False)
+    assert str(caught.value) == (
+        f"{tmp_path / 'recipes.yaml'}:1: recipe 'v2_wide_goalie_dense' trains v2_wide_goalie_dense with episode.fall "
+        "{kind: flipped, grace_steps: 50}, which it refuses: episode.fall.kind: not on this field; write another fall "
+        "rule in the recipe, or train with the defaults: --no-recipe")
+
+
+def test_run_json_keeps_a_recipes_fall_rule_and_the_run_the_field_as_written(tmp_path, monkeypatch):
+    flip_recipes(tmp_path, monkeypatch)
+    result = runner.invoke(app, ["train", str(bundled_fields()["v2_wide_goalie"]), "--envs", "16", "--prepare",
+                                 "--out", str(tmp_path / "runs")])
+    assert result.exit_code == 0, result.output
+    said = " ".join(result.output.split())
+    assert "sim.backend warp (MuJoCo Warp through MJX: NVIDIA GPUs; on a CPU Warp's CPU kernels, slow) and episodes " \
+           "ending once the ant has lain turned over for 50 control steps in a row (2.5 s; episode: {fall: {kind: " \
+           "flipped, grace_steps: 50}}), as its recipe says" in said
+    run = tmp_path / "runs" / "v2_wide_goalie-ppo-0"
+    saved = json.loads((run / "run.json").read_text())
+    assert saved["recipe"] == {"field": "v2_wide_goalie", "algo": "ppo", "reward": "dense", "backend": "warp",
+                               "fall": FLIP, "overridden_by": ["--envs"]}
+    trained, written = (json.loads((run / sub / "field.json").read_text())["spec"] for sub in ("field", "judged"))
+    assert trained["episode"]["fall"] == {**FLIP, "tilt_deg": 90.0} and written["episode"]["fall"] == {"kind": "never"}
