@@ -30,12 +30,13 @@ def endings(policy: Path, field: str, episodes: int, seed: int) -> list[dict]:
     import jax.numpy as jnp
 
     import fieldgen
-    from fieldgen.env.contract import torso_entries, up_axis_z
+    from fieldgen.env.contract import OVERFLOW, torso_entries, up_axis_z
 
     names = json.loads((policy / "policy.json").read_text())["observation_names"]
     if "ball.x" not in names:
         raise SystemExit(f"{policy}: its policy observes no ball (a field without one): nothing to follow")
     env = fieldgen.make(field)
+    env.reserve_worlds(episodes)  # Warp's contact buffer is shared by the batch: sized for every episode at once
     act = jax.vmap(fieldgen.load_policy(policy))
     ball = [names.index("ball.x"), names.index("ball.y")]
     goal = [names.index("goal.x"), names.index("goal.y")]
@@ -47,7 +48,8 @@ def endings(policy: Path, field: str, episodes: int, seed: int) -> list[dict]:
         level = jnp.ones(state.obs.shape[0])  # a point: always upright, at no height
         up = up_axis_z(state.obs[:, torso].T) if torso else level  # below 0: upside down
         z = state.obs[:, height] if height is not None else 0.0 * level
-        return state, (state.obs[:, ball], state.obs[:, goal], state.metrics["success"], up, z)
+        overflow = state.info.get(OVERFLOW, jnp.zeros(episodes, jnp.int32))
+        return state, (state.obs[:, ball], state.obs[:, goal], state.metrics["success"], up, z, overflow)
 
     @jax.jit
     def play(key):
@@ -56,7 +58,8 @@ def endings(policy: Path, field: str, episodes: int, seed: int) -> list[dict]:
         _, trace = jax.lax.scan(step, state, None, length=env.episode_length - 1)
         return trace
 
-    ball_xy, goal_xy, success, up, z = (np.asarray(x) for x in play(jax.random.PRNGKey(seed)))
+    ball_xy, goal_xy, success, up, z, overflow = (np.asarray(x) for x in play(jax.random.PRNGKey(seed)))
+    env.check_physics(overflow)
     distance = np.linalg.norm(ball_xy - goal_xy, axis=-1)
     moved = np.linalg.norm(ball_xy - ball_xy[:1], axis=-1) > MOVED
     return [{"episode": i, "scored": bool(success[:, i].max() > 0), "closest": float(distance[:, i].min()),

@@ -14,7 +14,7 @@ blown-up simulation never reaches a learner's batch.
 from __future__ import annotations
 
 import itertools
-from typing import Sequence
+from typing import Callable, Sequence
 
 import fieldgen.env.quiet  # noqa: F401  (before MJX and brax)
 import jax
@@ -54,11 +54,14 @@ def diverged(data: mjx.Data) -> jax.Array:
              & jnp.all(jnp.abs(data.xpos) < MAX_DISTANCE))
 
 
-def advance(sys, data: mjx.Data, ctrl: jax.Array, substeps: int, impl: str) -> tuple[mjx.Data, jax.Array | None]:
-    """The physics steps of one control step, and Warp's overflow flags they raised (None on JAX's)."""
-    data = data.replace(ctrl=ctrl)
+def advance(sys, data: mjx.Data, ctrl: jax.Array, substeps: int, impl: str,
+            guard: Callable | None = None) -> tuple[mjx.Data, jax.Array | None]:
+    """The physics steps of one control step, and Warp's overflow flags they raised (None on JAX's). On Warp the
+    control passes `guard` (mjx_physics.batch_guard), which refuses a batch larger than the physics was sized for."""
     if impl != "warp":
+        data = data.replace(ctrl=ctrl)
         return jax.lax.fori_loop(0, substeps, lambda _, d: mjx.step(sys, d), data), None
+    data = data.replace(ctrl=ctrl if guard is None else guard(ctrl))
 
     def one(_, carry):
         d, bits = carry
@@ -104,6 +107,7 @@ class FieldEnv:
         self.task = self.rules[-1].task
         self.impl = self.rules[-1].impl  # MJX's implementation (sim.backend mjx: jax, warp: warp)
         self.worlds = 1  # environments one batch may step: Warp's data is sized for them (`reserve_worlds`)
+        self._guard = mjx_physics.batch_guard(spec.name, lambda: self.worlds)
         self.sys, self._varying = batched_model(models, [a.spec.name for a in artifacts], self.impl)
         self.episode_length = max(r.episode_length for r in self.rules)
         self._ball_radii = jnp.asarray([r.spec.ball.radius for r in self.rules])
@@ -382,7 +386,7 @@ class FieldEnv:
         return {"succeeded": jnp.where(done, 0.0, succeeded), "level_counts": counts}
 
     def _advance(self, sys, data: mjx.Data, action: jax.Array) -> tuple[mjx.Data, jax.Array | None]:
-        return advance(sys, data, action, self.n_substeps, self.impl)
+        return advance(sys, data, action, self.n_substeps, self.impl, self._guard)
 
     def _restart(self, done: jax.Array, fresh: mjx.Data, data: mjx.Data) -> mjx.Data:
         return restart(done, fresh, data)

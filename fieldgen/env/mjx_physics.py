@@ -10,9 +10,11 @@ and only flags it, so a field records the flags (`OVERFLOW`) and whoever steps i
 from __future__ import annotations
 
 import functools
+import math
 import os
 import sys
 import tempfile
+from typing import Callable
 
 import jax
 
@@ -121,6 +123,37 @@ def make_data(mj_model, impl: str, device, worlds: int = 1, field: str = "the fi
     start_warp()
     contacts, rows = capacities(mj_model)
     return mjx.make_data(mj_model, device=device, impl="warp", naconmax=contacts * worlds, njmax=rows)
+
+
+class UnreservedBatch(ValueError):
+    """A program steps more environments of a Warp field at once than its physics was sized for: Warp would leave
+    contacts out of every step and only flag it."""
+
+
+def batch_guard(field: str, reserved: Callable[[], int]) -> Callable:
+    """An identity on a step's control that refuses, as a program is traced, a batch of more environments than
+    `reserved()` (FieldEnv.reserve_worlds): Warp's contact buffer is shared by the batch, and vmap hides its size
+    from the step. Under nested vmaps (seeds x environments) the outermost sees the product."""
+    from jax.custom_batching import custom_vmap
+
+    @custom_vmap
+    def guard(ctrl):
+        return ctrl
+
+    @guard.def_vmap
+    def _batched(axis_size, in_batched, ctrl):
+        if not in_batched[0]:
+            ctrl = jax.numpy.broadcast_to(ctrl, (axis_size, *ctrl.shape))
+        worlds = math.prod(ctrl.shape[:-1])  # a control is a vector: every axis before it is a batch's
+        if worlds > reserved():
+            raise UnreservedBatch(
+                f"{field} runs on sim.backend warp, whose contact buffer is shared by every environment stepped at "
+                f"once, and this program steps {worlds} at once where {reserved()} were reserved: Warp would leave "
+                f"contacts out of their steps. Call env.reserve_worlds({worlds}) before the program is traced "
+                f"(fieldgen's trainers and commands do), or use sim.backend: mjx")
+        return guard(ctrl), True
+
+    return guard
 
 
 def overflow_bits(data) -> jax.Array:

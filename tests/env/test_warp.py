@@ -182,3 +182,28 @@ def test_making_a_warp_field_on_a_machine_without_nvidia_s_driver_says_nothing_o
     said = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path, check=False)
     assert said.returncode == 0 and said.stdout.strip() == "made", said.stderr
     assert "Warp CUDA warning" not in said.stderr
+
+
+def test_a_batch_larger_than_reserved_is_refused_as_its_program_is_traced():
+    """Before: a vmap over more environments than reserved stepped them with Warp's contacts left out, flagged in
+    their info alone (a replay of 64 kick-offs scored in 8 of them where 56 of 64 was the policy's due)."""
+    env = make("point_nav", backend="warp")
+    states = jax.vmap(env.reset)(jax.random.split(jax.random.PRNGKey(0), 6))
+    actions = jnp.zeros((6, env.action_size))
+    with pytest.raises(mjx_physics.UnreservedBatch) as refused:
+        jax.jit(jax.vmap(env.step))(states, actions)
+    message = str(refused.value)
+    assert "\n" not in message and message.startswith("point_nav runs on sim.backend warp")
+    assert "steps 6 at once where 1 were reserved" in message and "env.reserve_worlds(6)" in message
+    def nested():  # seeds x environments, their data sized for the batch reserved
+        keys = jax.random.split(jax.random.PRNGKey(1), 6).reshape(2, 3, -1)
+        return jax.vmap(jax.vmap(env.reset))(keys), jnp.zeros((2, 3, env.action_size))
+
+    env.reserve_worlds(4)
+    with pytest.raises(mjx_physics.UnreservedBatch, match=r"steps 6 at once where 4 were reserved"):
+        jax.jit(jax.vmap(jax.vmap(env.step)))(*nested())  # the product of the two counts
+    env.reserve_worlds(6)
+    stepped = jax.jit(jax.vmap(jax.vmap(env.step)))(*nested())
+    env.check_physics(stepped.info[mjx_physics.OVERFLOW])
+    one = jax.jit(env.step)(env.reset(jax.random.PRNGKey(2)), actions[0])  # no batch: nothing to refuse
+    assert one.obs.shape == (env.observation_size,)
