@@ -83,6 +83,8 @@ def field_env(build: Path, name: str, backend: str | None):
 def compile_seconds(env, n_envs: int) -> float:
     """Wall time of the first reset + step call at this batch size (compilation dominates)."""
     keys = jax.random.split(jax.random.PRNGKey(0), n_envs)
+    if hasattr(env, "reserve_worlds"):  # Warp's capacities, for the batch
+        env.reserve_worlds(n_envs)
     t0 = time.perf_counter()
     state = jax.jit(jax.vmap(env.reset))(keys)
     action = jax.numpy.zeros((n_envs, *action_shape(env)))
