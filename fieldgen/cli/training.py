@@ -83,12 +83,11 @@ def _train(run, videos: bool, logger: str, fmt: str | None = None, deadline: flo
     def another_stopped(sentence: str) -> None:
         err.print(Text.assemble(("error:", "bold red"), " " + and_how_to_go_on(sentence)), highlight=False)
 
-    distributed.watch(another_stopped)
     import jax
 
-    if jax.process_count() > 1:
-        supervisor.leave_words(and_how_to_go_on(f"process 0 of {jax.process_count()} (the run's coordinator) "
-                                                f"stopped, so this one (process {jax.process_index()}) stops too"))
+    if jax.process_count() > 1:  # what this process's watcher says too, should it notice first
+        supervisor.leave_words(and_how_to_go_on(distributed.stopped([0], jax.process_index(), jax.process_count())))
+    distributed.watch(another_stopped)
     try:
         complete = train_run(run, out, videos, logger, fmt, deadline)
     except KeyboardInterrupt:
@@ -218,7 +217,8 @@ def train(
         where = distributed.layout(coordinator, num_processes, process_id)
         if where is not None and supervisor.needed(where.process_id):
             distributed.reach(where, coordinator_timeout)  # one line here if it never answers
-            raise typer.Exit(supervisor.supervise())  # the same command trains in a child of this process
+            # the same command trains in a child of this process
+            raise typer.Exit(supervisor.supervise(where.process_id, where.num_processes))
         processes = None if where is None else distributed.join(where, coordinator_timeout)
     except record.RunError as exc:
         fail(str(exc))

@@ -314,11 +314,23 @@ def _stop(say: Callable[[str], None], gone: list[int], me: int, count: int) -> N
     with _stopping:
         if _finished.is_set():
             return
-        who = f"process{'es' if len(gone) > 1 else ''} {', '.join(map(str, gone))} of {count}"
-        say(f"{who} stopped, so this one (process {me}) stops too")
+        say(stopped(gone, me, count))
         sys.stdout.flush()
         sys.stderr.flush()
         os._exit(1)
+
+
+def stopped(gone: Sequence[int], me: int | None = None, count: int | None = None) -> str:
+    """The sentence that says processes of the run stopped, so this one (`me`, of `count`, where known) stops
+    too: the one wording of it, whoever notices first (`watch`, `stop_if_another_stopped`, or the parent of a
+    supervised process that JAX ended as process 0 stopped: fieldgen.run.supervisor). Process 0 is named the
+    run's coordinator, the process every other one needs."""
+    who = f"process{'es' if len(gone) > 1 else ''} {', '.join(map(str, gone))}"
+    if count is not None:
+        who += f" of {count}"
+    if 0 in gone:
+        who += " (the run's coordinator)" if len(gone) == 1 else " (process 0 is the run's coordinator)"
+    return f"{who} stopped, so this one{'' if me is None else f' (process {me})'} stops too"
 
 
 def _leave_last(count: int) -> None:

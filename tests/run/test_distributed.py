@@ -207,6 +207,48 @@ def test_a_process_gone_ends_this_one_with_one_sentence_naming_it(monkeypatch):
     assert said == ["processes 1, 3 of 4 stopped, so this one (process 0) stops too"] and exits == [1]
     distributed.stop_if_another_stopped(RuntimeError("Gloo AllGather failed"), said.append)  # one process: no other
     assert len(said) == 1
+    distributed._stop(said.append, [0], 1, 2)
+    assert said[1:] == ["process 0 of 2 (the run's coordinator) stopped, so this one (process 1) stops too"] \
+        == [distributed.stopped([0], 1, 2)]  # the words a supervised process's parent says for it (below)
+
+
+def test_a_stopped_process_is_worded_once_naming_the_coordinator_where_it_is_process_0():
+    assert distributed.stopped([2], 0, 3) == "process 2 of 3 stopped, so this one (process 0) stops too"
+    assert distributed.stopped([0, 2], 1, 4) == \
+        "processes 0, 2 of 4 (process 0 is the run's coordinator) stopped, so this one (process 1) stops too"
+    assert distributed.stopped([0]) == "process 0 (the run's coordinator) stopped, so this one stops too"
+
+
+STOP_LINE = "process 0 of 2 (the run's coordinator) stopped, so this one (process 1) stops too. Start every process again"
+CHILD = f"""import os, signal, sys
+for step in sys.argv[1:]:
+    if step == "words":  # as fieldgen.cli.training leaves them once it knows its run
+        open(os.environ["FIELDGEN_WORDS_IF_COORDINATOR_LOST"], "w").write({STOP_LINE!r})
+    elif step == "watcher":  # its watcher noticed process 0 gone
+        print("error: " + {STOP_LINE!r}, file=sys.stderr, flush=True)
+    elif step == "jax":  # JAX's client noticed it, and ends the process with a stack trace
+        print("F0000 Terminating process because the JAX distributed service detected fatal errors", file=sys.stderr)
+        print("*** Check failure stack trace: ***", file=sys.stderr, flush=True)
+if "jax" in sys.argv:
+    os.kill(os.getpid(), signal.SIGKILL)
+sys.exit(1)
+"""  # a supervised child as process 0 stops: who notices it, in which order
+
+
+@pytest.mark.parametrize("steps, line", [
+    (["words", "watcher", "jax"], STOP_LINE),  # the watcher first, and JAX before the child has ended
+    (["words", "jax", "watcher"], STOP_LINE),  # JAX first, the watcher still in time to print
+    (["words", "jax"], STOP_LINE),
+    (["words", "watcher"], STOP_LINE),
+    (["jax"], "process 0 of 2 (the run's coordinator) stopped, so this one (process 1) stops too"),  # no words yet
+], ids=["watcher-then-jax", "jax-then-watcher", "jax", "watcher", "jax-before-words"])
+def test_a_supervised_process_says_process_0_stopped_once_whoever_notices_first(monkeypatch, capsys, steps, line):
+    from fieldgen.run import supervisor
+
+    monkeypatch.setattr(supervisor, "fieldgen_command", lambda *args: [sys.executable, "-c", CHILD, *steps])
+    assert supervisor.supervise(1, 2) == 1
+    said = capsys.readouterr().err
+    assert said.splitlines() == [f"error: {line}"], said  # once, in the one wording, and no stack trace
 
 # Two `fieldgen train` processes on the CPU, one device each, train as one run over both (their collectives go
 # through gloo); the same run in one process over two devices is what they must reproduce.
@@ -343,10 +385,10 @@ def test_the_coordinator_killed_stops_the_other_with_one_line_naming_it(tmp_path
     processes[0].kill()
     assert processes[1].wait(distributed.HEARTBEAT_SECONDS + 60) == 1, (tmp_path / "process1.log").read_text()
     log = (tmp_path / "process1.log").read_text()
-    errors = [line for line in log.splitlines() if line.startswith("error")]
-    assert errors == [f"error: process 0 of 2 (the run's coordinator) stopped, so this one (process 1) stops too. "
-                      f"Start every process again with --resume {run} to continue from its last checkpoint"], log
-    assert "stack trace" not in log and "Traceback" not in log
+    told = [line for line in log.splitlines() if line.startswith("error") or "stopped" in line]
+    assert told == [f"error: process 0 of 2 (the run's coordinator) stopped, so this one (process 1) stops too. "
+                    f"Start every process again with --resume {run} to continue from its last checkpoint"], log
+    assert "stack trace" not in log and "Traceback" not in log and "Terminating process" not in log, log
 
 
 def test_only_processes_other_than_the_coordinator_train_in_a_supervised_child(monkeypatch):
