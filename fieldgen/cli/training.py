@@ -353,10 +353,11 @@ def _team_run(source: Path, field, algo: str | None, seeds: int, config: Path | 
         fail(f"{field.name} is a team field: it trains by self-play, whose learner is {SelfPlayConfig.algo}; "
              f"give --algo {SelfPlayConfig.algo} or leave --algo out")
     chosen = recipes.choose(source, SelfPlayConfig.algo, use_recipe)
-    if chosen.recipe is not None and (chosen.recipe.reward or chosen.recipe.backend):
-        fail(f"{chosen.recipe.where}: recipe '{chosen.recipe.field}' names reward or backend, which a team field's "
-             f"recipe cannot: a match trains on its own terms and physics (docs/teams.md); leave them out, or "
-             f"train with --no-recipe")
+    named = [key for key in ("reward", "backend", "fall") if chosen.recipe is not None and getattr(chosen.recipe, key)]
+    if named:
+        fail(f"{chosen.recipe.where}: recipe '{chosen.recipe.field}' names {recipes.listed(named)}, which a team "
+             f"field's recipe cannot: a match trains on its own terms, physics and episode rules (docs/teams.md); "
+             f"leave {'it' if len(named) == 1 else 'them'} out, or train with --no-recipe")
     settings = SelfPlayConfig.layered(config, sets or [], agent=field.agent.kind, preset=preset,
                                       recipe=chosen.recipe, total_steps=steps, num_envs=envs, seed=seed)
     overriding = _overriding(steps, envs, sets, config, preset)

@@ -495,3 +495,22 @@ def test_run_json_keeps_a_recipes_fall_rule_and_the_run_the_field_as_written(tmp
                                "fall": FLIP, "overridden_by": ["--envs"]}
     trained, written = (json.loads((run / sub / "field.json").read_text())["spec"] for sub in ("field", "judged"))
     assert trained["episode"]["fall"] == {**FLIP, "tilt_deg": 90.0} and written["episode"]["fall"] == {"kind": "never"}
+
+
+@pytest.mark.parametrize("keys, named", [("  reward: dense\n", "names reward, which"),
+                                         ("  fall: {kind: flipped, grace_steps: 50}\n", "names fall, which"),
+                                         ("  backend: warp\n  fall: {kind: flipped}\n", "names backend and fall, which")])
+def test_a_team_field_s_recipe_naming_what_a_match_keeps_its_own_is_refused_before_a_folder(tmp_path, monkeypatch,
+                                                                                          keys, named):
+    """A match trains on its own terms, physics and episode rules: a recipe's reward, backend or fall would be
+    dropped without a word (a fall rule was, before), so each is refused, named, at the recipe's line."""
+    from fieldgen.agents import recipes
+
+    path = tmp_path / "recipes.yaml"
+    path.write_text("soccer_1v1:\n  algo: ppo\n" + keys)
+    monkeypatch.setattr(recipes.read, "__defaults__", (path,))
+    result = runner.invoke(app, ["train", "soccer_1v1", "--prepare", "--out", str(tmp_path / "runs")])
+    said = " ".join(result.output.split())
+    assert result.exit_code == 1 and "Traceback" not in result.output, result.output
+    assert f"{path}:1: recipe 'soccer_1v1' {named} a team field's recipe cannot" in said
+    assert "leave" in said and "--no-recipe" in said and not (tmp_path / "runs").exists()
