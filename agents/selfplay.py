@@ -36,6 +36,7 @@ import numpy as np
 import optax
 from pydantic import Field
 
+from ..env.contract import OVERFLOW, merged_overflow
 from .actor import Policy
 from .choices import EVAL_ACTIONS
 from .config import ConfigError, Count, Float, Rate, Share, Unknown
@@ -156,7 +157,9 @@ class SelfPlay:
     act: Callable  # (actor, obs [..., agents, n], key=None) -> actions: an actor's, mean or sampled
     current: Callable  # state -> the learner as an actor (policy, obs_mean, obs_std)
     snapshot: Callable  # (state, index) -> an actor: snapshot index
-    match: Callable  # (actor a, actor b or None for random, key) -> [3] a's wins, draws, losses over eval_envs
+    # (actor a, actor b or None for random, key) -> ([3] a's wins, draws, losses over eval_envs, the physics'
+    # overflow flags of its matches merged, or None on physics without them)
+    match: Callable
     controls: Callable  # (opponent [envs], learner_side [envs]) -> [envs, agents]: the agents the learner drives
     film: Callable  # (actor a, actor b or None, key) -> one match, a at home, filmed: ((qpos, mocap_pos), done) a step
     export: Callable  # state -> the learner as one agent's Policy (agents/actor.py), either side's
@@ -323,8 +326,9 @@ def make_selfplay(config: SelfPlayConfig, env) -> SelfPlay:
         return ts, jax.tree.map(jnp.mean, metrics)
 
     def match(a, b, key):
-        """[3]: a's wins, draws and losses over eval_envs episodes against b (None: a random policy), a on the
-        home side in the even environments and the away side in the odd."""
+        """([3]: a's wins, draws and losses over eval_envs episodes against b (None: a random policy), a on the
+        home side in the even environments and the away side in the odd; the physics' overflow flags of those
+        matches merged, None where the physics has none)."""
         n = c.eval_envs
         k_reset, k_play = jax.random.split(key)
         env_state = jax.vmap(env.reset)(jax.random.split(k_reset, n))
@@ -347,9 +351,10 @@ def make_selfplay(config: SelfPlayConfig, env) -> SelfPlay:
             return (nxt, alive * (1 - nxt.done.astype(jnp.int32)), outcome), None
 
         start = batched_with(key, (env_state, jnp.ones(n, jnp.int32), jnp.zeros(n, jnp.int32)))
-        (_, _, outcome), _ = jax.lax.scan(step, start, jax.random.split(k_play, env.episode_length))
+        (last, _, outcome), _ = jax.lax.scan(step, start, jax.random.split(k_play, env.episode_length))
         wins, losses = jnp.sum(outcome > 0), jnp.sum(outcome < 0)
-        return jnp.stack([wins, n - wins - losses, losses])
+        flags = merged_overflow(last.info[OVERFLOW]) if OVERFLOW in last.info else None
+        return jnp.stack([wins, n - wins - losses, losses]), flags
 
     def film(a, b, key):
         """One match, a on the home side against b (None: a random policy) on the away side, acting as in the
@@ -374,7 +379,7 @@ def make_selfplay(config: SelfPlayConfig, env) -> SelfPlay:
     def judge(ts: SelfPlayState, index, opponents, key):
         """The state with snapshot `index` taken (the current policy; every environment's opponent drawn anew)
         and its results: {"random": [3], "earlier": [league_opponents, 3]} (rows of an opponent id below 0
-        are zeros: no match)."""
+        are zeros: no match), and on physics of fixed capacities OVERFLOW, the flags of every match merged."""
         league = jax.tree.map(lambda all_, one: all_.at[index].set(one), ts.league, current(ts))
         taken = ts.taken.at[index].set(True)
         wins, games = ts.wins.at[index].set(0.0), ts.games.at[index].set(0.0)
@@ -383,16 +388,19 @@ def make_selfplay(config: SelfPlayConfig, env) -> SelfPlay:
         ts = ts.replace(league=league, taken=taken, newest=jnp.asarray(index, jnp.int32), wins=wins, games=games,
                         opponent=opponent, learner_side=side, key=key_next)
         me = current(ts)
-        vs_random = match(me, None, jax.random.fold_in(key, 0))
+        vs_random, flags = match(me, None, jax.random.fold_in(key, 0))
+        nothing = jax.tree.map(lambda x: jnp.zeros(x.shape, x.dtype), (vs_random, flags))  # no match played
 
         def against(item):
             j, k = item
-            return jax.lax.cond(j >= 0, lambda: match(me, snapshot(ts, jnp.maximum(j, 0)), k),
-                                lambda: jnp.zeros(3, jnp.int32))
+            return jax.lax.cond(j >= 0, lambda: match(me, snapshot(ts, jnp.maximum(j, 0)), k), lambda: nothing)
 
         keys = jax.vmap(lambda i: jax.random.fold_in(key, i))(jnp.arange(1, c.league_opponents + 1))
-        earlier = jax.lax.map(against, (opponents, keys))
-        return ts, {"random": vs_random, "earlier": earlier}
+        earlier, earlier_flags = jax.lax.map(against, (opponents, keys))
+        results = {"random": vs_random, "earlier": earlier}
+        if flags is not None:
+            results[OVERFLOW] = flags | merged_overflow(earlier_flags)
+        return ts, results
 
     def export(ts: SelfPlayState) -> Policy:
         """The learner as one agent's policy: it reads an agent's observation in its own side's frame."""

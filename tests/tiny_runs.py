@@ -7,6 +7,12 @@ has its own conftest, so `from conftest import ...` would find the nearest one, 
 TINY_CRL = {"total_steps": 1900, "num_envs": 8, "unroll_length": 10, "batch_size": 32, "min_replay_rows": 100,
             "max_replay_rows": 400, "hidden": (32, 32), "repr_dim": 8, "num_evals": 2, "eval_envs": 8}
 
+# The smallest self-play run on a team field, as `fieldgen train` options: a few thousand env steps, 3 evaluations
+# of 10 iterations of 8 matches x 10 steps.
+TINY_SELFPLAY = ["--steps", "2400", "--envs", "8", "--set", "ppo.unroll_length=10", "--set", "ppo.num_minibatches=4",
+                 "--set", "ppo.hidden=[32,32]", "--set", "ppo.num_evals=3", "--set", "ppo.eval_envs=8",
+                 "--set", "ppo.update_epochs=2", "--set", "ppo.pool_size=2"]
+
 
 def as_if_learned(run):
     """A run folder set up with `fieldgen train --prepare` given a learner.msgpack of exactly the shapes its

@@ -76,7 +76,7 @@ def restart(done: jax.Array, fresh: mjx.Data, data: mjx.Data) -> mjx.Data:
     return data.replace(**{f: jnp.where(done, getattr(fresh, f), getattr(data, f)) for f in _STATE_FIELDS})
 
 
-class FieldEnv:
+class FieldEnv(mjx_physics.SizedForBatch):
     """A goal-conditioned environment: obs = concat(state, goal).
 
     Given several variants of a field (built to one structure by fieldgen.compile.variants),
@@ -106,8 +106,6 @@ class FieldEnv:
         check_compatible(self.rules, models, self.layout)
         self.task = self.rules[-1].task
         self.impl = self.rules[-1].impl  # MJX's implementation (sim.backend mjx: jax, warp: warp)
-        self.worlds = 1  # environments one batch may step: Warp's data is sized for them (`reserve_worlds`)
-        self._guard = mjx_physics.batch_guard(spec.name, lambda: self.worlds)
         self.sys, self._varying = batched_model(models, [a.spec.name for a in artifacts], self.impl)
         self.episode_length = max(r.episode_length for r in self.rules)
         self._ball_radii = jnp.asarray([r.spec.ball.radius for r in self.rules])
@@ -197,18 +195,9 @@ class FieldEnv:
             frames += render_rollout(self.mj_models[variant], qpos, mocap, camera, height, width)
         return frames
 
-    def reserve_worlds(self, worlds: int) -> None:
-        """Size the physics for batches of up to `worlds` environments (all a program steps: seeds x envs), before
-        the programs that step them are traced: Warp's contact buffer is shared by a batch; JAX's needs nothing."""
-        if self.impl == "warp" and worlds > self.worlds:
-            self.worlds = worlds
-            for rules in self.rules:
-                rules.reserve(worlds)
-
-    def check_physics(self, overflow) -> None:
-        """Raise mjx_physics.PhysicsOverflow where `overflow` (info[mjx_physics.OVERFLOW] of any number of environments)
-        says one outgrew Warp's capacities."""
-        mjx_physics.check(self.name, int(np.bitwise_or.reduce(np.asarray(overflow).ravel())), self.mj_model, self.worlds)
+    def _size_for(self, worlds: int) -> None:
+        for rules in self.rules:
+            rules.reserve(worlds)
 
     @property
     def variant_count(self) -> int:

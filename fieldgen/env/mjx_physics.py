@@ -17,6 +17,7 @@ import tempfile
 from typing import Callable
 
 import jax
+import numpy as np
 
 # OVERFLOW: Warp's flags since reset, kept over auto-resets
 from fieldgen.env.contract import OVERFLOW, merged_overflow  # noqa: F401
@@ -125,6 +126,11 @@ def make_data(mj_model, impl: str, device, worlds: int = 1, field: str = "the fi
     return mjx.make_data(mj_model, device=device, impl="warp", naconmax=contacts * worlds, njmax=rows)
 
 
+def home_data(mj_model, impl: str, device, worlds: int = 1, field: str = "the field"):
+    """make_data's data at the model's `home` keyframe, where every episode starts from."""
+    return make_data(mj_model, impl, device, worlds, field).replace(qpos=jax.numpy.asarray(mj_model.key("home").qpos))
+
+
 class UnreservedBatch(ValueError):
     """A program steps more environments of a Warp field at once than its physics was sized for: Warp would leave
     contacts out of every step and only flag it."""
@@ -132,7 +138,7 @@ class UnreservedBatch(ValueError):
 
 def batch_guard(field: str, reserved: Callable[[], int]) -> Callable:
     """An identity on a step's control that refuses, as a program is traced, a batch of more environments than
-    `reserved()` (FieldEnv.reserve_worlds): Warp's contact buffer is shared by the batch, and vmap hides its size
+    `reserved()` (SizedForBatch.reserve_worlds): Warp's contact buffer is shared by the batch, and vmap hides its size
     from the step. Under nested vmaps (seeds x environments) the outermost sees the product."""
     from jax.custom_batching import custom_vmap
 
@@ -154,6 +160,34 @@ def batch_guard(field: str, reserved: Callable[[], int]) -> Callable:
         return guard(ctrl), True
 
     return guard
+
+
+class SizedForBatch:
+    """A field stepped on MJX whose physics is sized for the batch that steps it: `reserve_worlds` before a
+    program is traced, `_guard` (batch_guard) in each step's control to refuse a batch beyond it as the program is
+    traced, and `check_physics` on the flags after. The field has `name`, `impl` and `mj_model`, and makes its data
+    anew for a batch in `_size_for` (Warp's alone: JAX's needs nothing)."""
+
+    worlds = 1  # environments one batch may step: Warp's data is sized for them
+
+    def _size_for(self, worlds: int) -> None:
+        raise NotImplementedError
+
+    @functools.cached_property
+    def _guard(self) -> Callable:
+        return batch_guard(self.name, lambda: self.worlds)
+
+    def reserve_worlds(self, worlds: int) -> None:
+        """Size the physics for batches of up to `worlds` environments (all a program steps: seeds x envs), before
+        the programs that step them are traced: Warp's contact buffer is shared by a batch; JAX's needs nothing."""
+        if self.impl == "warp" and worlds > self.worlds:
+            self.worlds = worlds
+            self._size_for(worlds)
+
+    def check_physics(self, overflow) -> None:
+        """Raise PhysicsOverflow where `overflow` (info[OVERFLOW] of any number of environments, or merged_overflow
+        of it) says one outgrew Warp's capacities."""
+        check(self.name, int(np.bitwise_or.reduce(np.asarray(overflow).ravel())), self.mj_model, self.worlds)
 
 
 def overflow_bits(data) -> jax.Array:
@@ -178,4 +212,4 @@ def check(field: str, bits: int, mj_model, worlds: int) -> None:
         f"{field}: an environment outgrew MuJoCo Warp's capacity ({', '.join(names)}; {contacts} contacts per "
         f"environment x {worlds} environments reserved, {rows} constraint rows per environment), so its physics "
         f"left contacts or constraints out; step it in batches of at most {worlds} environments "
-        f"(FieldEnv.reserve_worlds reserves more), or use sim.backend: mjx")
+        f"(env.reserve_worlds reserves more), or use sim.backend: mjx")

@@ -35,8 +35,7 @@ class EpisodeRules:
 
     def reserve(self, worlds: int) -> None:
         """Episodes start from data sized for batches of `worlds` environments (Warp's capacities)."""
-        self.data0 = mjx_physics.make_data(self.mj_model, self.impl, own_device(), worlds,
-                                             field=self.spec.name).replace(qpos=self.home_qpos)
+        self.data0 = mjx_physics.home_data(self.mj_model, self.impl, own_device(), worlds, self.spec.name)
 
     def fresh_episode(self, key: jax.Array, kickoff: jax.Array | None = None):
         """Agent pose noise, target and ball spawn: new draws from `key`. With `kickoff` (the ball's spawn

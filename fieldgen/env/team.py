@@ -66,9 +66,10 @@ def turned_xy(p: jax.Array) -> jax.Array:
     return p.at[..., :2].multiply(-1.0)
 
 
-class TeamFieldEnv:
+class TeamFieldEnv(mjx_physics.SizedForBatch):
     """A match on a team field: observations [agents, observation_size], actions [agents, action_size], reward,
-    success and terms per side [home, away]."""
+    success and terms per side [home, away]. On Warp's physics its batches are reserved and its flags read as a
+    single-agent field's (`reserve_worlds`, `check_physics`)."""
 
     backend = "mjx"
 
@@ -81,8 +82,7 @@ class TeamFieldEnv:
         self.impl = mjx_impl(spec)
         self.sys = mjx_physics.put_model(self.mj_model, self.impl, own_device(), field=self.name)
         self.home_qpos = jnp.asarray(self.mj_model.key("home").qpos)
-        self.data0 = mjx_physics.make_data(self.mj_model, self.impl, own_device(),
-                                             field=self.name).replace(qpos=self.home_qpos)
+        self.data0 = mjx_physics.home_data(self.mj_model, self.impl, own_device(), field=self.name)
         self.episode_length = episode_length or spec.episode.length
         self.auto_reset = auto_reset
         self.n_substeps, self.dt = spec.episode.substeps, spec.episode.control_dt
@@ -121,6 +121,9 @@ class TeamFieldEnv:
     def unwrapped(self) -> "TeamFieldEnv":
         return self
 
+    def _size_for(self, worlds: int) -> None:
+        self.data0 = mjx_physics.home_data(self.mj_model, self.impl, own_device(), worlds, self.name)
+
     # -- reset -------------------------------------------------------------
 
     def reset(self, rng: jax.Array) -> State:
@@ -158,7 +161,7 @@ class TeamFieldEnv:
         ctrl = jnp.zeros(self.mj_model.nu).at[jnp.asarray(self.layout.actuators)].set(
             jnp.where(self._turned[:, None], actions * self.frame.action_sign, actions))
         with jax.default_matmul_precision(self.spec.sim.precision):
-            data, overflow = advance(self.sys, before, ctrl, self.n_substeps, self.impl)
+            data, overflow = advance(self.sys, before, ctrl, self.n_substeps, self.impl, self._guard)
         metrics, reward, scored = self.score(before, data, actions)
         steps = state.info["episode_step"] + 1
         truncated = steps >= self.episode_length

@@ -40,7 +40,8 @@ class TeamState(Protocol):
     @property
     def info(self) -> Mapping[str, Any]:
         """Holds at least `rng`, `truncation` (1.0 where the episode ended because time ran out), `episode`
-        (episodes ended so far) and `episode_step`."""
+        (episodes ended so far) and `episode_step`; on physics of fixed capacities also contract.py's `OVERFLOW`,
+        the flags of what it left out since it was reset."""
 
     def replace(self, **changes: Any) -> TeamState:
         """The state with the named fields changed."""
@@ -91,6 +92,15 @@ class TeamEnvironment(Protocol):
     @property
     def zero_sum_terms(self) -> Sequence[str]:
         """The reward terms whose values for the two sides sum to zero on every step."""
+
+    def reserve_worlds(self, worlds: int) -> None:
+        """Size the physics for batches of up to `worlds` matches (all that one program steps at once: seeds x
+        matches), before the programs that step them are traced, as a single-agent environment's
+        (contract.Environment.reserve_worlds)."""
+
+    def check_physics(self, overflow: Any) -> None:
+        """Raise where `overflow` (`TeamState.info[OVERFLOW]` of any number of matches, or `merged_overflow` of it)
+        says a match outgrew the physics' capacities, as a single-agent environment's."""
 
 
 def refuse_team(env: Any, what: str) -> None:

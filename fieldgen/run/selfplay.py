@@ -26,9 +26,11 @@ import numpy as np
 
 from fieldgen import files, stops
 from fieldgen.agents import checkpoint, elo, loop, memory
+from fieldgen.agents.programs import reserve_worlds
 from fieldgen.agents.selfplay import RESULTS, SelfPlayConfig, fixed_opponents, make_selfplay
 from fieldgen.compile.artifact import ArtifactError, write_artifact
-from fieldgen.env.contract import DIVERGED
+from fieldgen.env.contract import DIVERGED, OVERFLOW
+from fieldgen.env.mjx_physics import PhysicsOverflow
 from fieldgen.run import record
 from fieldgen.run.videos import video_name
 
@@ -58,24 +60,28 @@ class TeamRun:
 
     @property
     def algorithm(self):
-        return programs(self.config, self.env)[0]
+        return programs(self.config, self.env, len(self.seeds))[0]
 
 
 _compiled: dict = {}  # (config but its seed, the field's spec) -> programs(...)
 
 
-def programs(config: SelfPlayConfig, env) -> tuple:
+def programs(config: SelfPlayConfig, env, seeds: int) -> tuple:
     """(SelfPlay, jitted init, chunk, judge, film) for `config` on `env`'s field, made once in a process: a resume
     or other seeds of the same settings in the same process reuse them instead of compiling again. init, chunk
     and judge run every seed at once, vmapped over the state's leading seed axis (init over seed keys, judge over
     the state and each seed's evaluation key; the snapshot's index and opponents are every seed's). `film(state,
-    j, key)` films a match of one seed's policy (home) against its snapshot j (away)."""
+    j, key)` films a match of one seed's policy (home) against its snapshot j (away). The field they step is
+    sized first for the matches of `seeds` seeds stepped at once (reserve_worlds: seeds x the larger of num_envs
+    and eval_envs; a film steps one), before any of them, a checkpoint's template or a memory estimate is
+    traced."""
     key = (config.model_copy(update={"seed": 0}), json.dumps(env.spec.model_dump(mode="json"), sort_keys=True))
     if key not in _compiled:
         sp = make_selfplay(config, env)
         _compiled[key] = (sp, jax.jit(jax.vmap(sp.init)), jax.jit(jax.vmap(sp.chunk), donate_argnums=0),
                           jax.jit(jax.vmap(sp.judge, in_axes=(0, None, None, 0)), donate_argnums=0),
                           jax.jit(lambda ts, j, k: sp.film(sp.current(ts), sp.snapshot(ts, j), k)))
+    reserve_worlds(_compiled[key][0], seeds)  # the field the programs step, which may be an earlier run's copy
     return _compiled[key]
 
 
@@ -137,7 +143,7 @@ def fits_memory(config: SelfPlayConfig, env, seeds: int) -> None:
     lower = {memory.EPISODES: f"--envs{more}", memory.BATCH: f"--envs or ppo.unroll_length{more}",
              memory.NETWORKS: f"ppo.hidden or ppo.num_evals (a snapshot is kept at every evaluation){more}",
              memory.BUFFER: f"--envs{more}"}
-    memory.check(memory.training(programs(config, env)[0], seeds),  # the SelfPlay training will use
+    memory.check(memory.training(programs(config, env, seeds)[0], seeds),  # the SelfPlay training will use
                  f"training {seeds:,} seed{'s' * (seeds > 1)} of self-play {config.algo} with {config.num_envs:,} "
                  "matches", lower)
 
@@ -230,7 +236,7 @@ def train(run: TeamRun, say=print, deadline: float | None = None, recorder=None)
         say(f"{run.folder} is already complete ({run.rows[-1]['env_steps']:,} env steps)")
         return True
     took: list[float] = []  # seconds each chunk with its evaluation and checkpoint took in this command
-    _, init, chunk, judge, film = programs(c, run.env)
+    sp, init, chunk, judge, film = programs(c, run.env, len(run.seeds))
     keys = loop.seed_keys(run.seeds)
     clock = time.perf_counter() - (run.rows[-1].get("wall_seconds", 0.0) if run.rows else 0.0)
     with files.locked(run.folder):
@@ -253,10 +259,12 @@ def train(run: TeamRun, say=print, deadline: float | None = None, recorder=None)
             metrics = {}
             if index > 0:
                 state, metrics = chunk(state)
+                stop_if_overflowed(sp.env, jax.device_get(state.env_state.info.get(OVERFLOW)), "training")
                 metrics.update(loop.diverged_episodes(jax.device_get(state.env_state.info[DIVERGED]), len(run.seeds)))
             state, results = judge(state, index, opponents_of(index, c.league_opponents),
                                    jax.vmap(loop.eval_key, in_axes=(0, None))(keys, index))
             metrics, results, steps = jax.device_get((metrics, results, state.env_steps))
+            stop_if_overflowed(sp.env, results.pop(OVERFLOW, None), "training")
             steps, seconds = int(steps[0]), time.perf_counter() - began
             rows = [seed_row(run, index, seed, {k: v[i] for k, v in metrics.items()}, loop.seed_slice(results, i),
                              steps) for i, seed in enumerate(run.seeds)]
@@ -294,6 +302,16 @@ def seed_row(run: TeamRun, index: int, seed: int, metrics: dict, results: dict, 
     rated = ratings(of_seed(run.rows, seed) + [row], run.config.elo_k)
     row["elo"], row["ratings"] = rated[str(index)], rated
     return row
+
+
+def stop_if_overflowed(env, overflow, what: str) -> None:
+    """Stop `what` (training, evaluation) in one line (record.RunError) where `overflow`, the physics' overflow
+    flags of its matches (None: physics without them), says a match outgrew Warp's capacities
+    (agents.loop.stop_on_overflow)."""
+    try:
+        loop.stop_on_overflow(env, overflow)
+    except PhysicsOverflow as exc:
+        raise record.RunError(f"{what} stopped: {exc}") from None
 
 
 def stop_if_diverged(run: TeamRun, row: dict) -> None:
@@ -373,6 +391,7 @@ def evaluate(run: TeamRun, episodes: int | None = None, seed: int = 0, actions: 
     except ConfigError as exc:
         raise record.RunError(str(exc)) from None
     sp = make_selfplay(config, run.env)
+    reserve_worlds(sp, len(run.seeds))
     state, earlier = run.state, earlier_snapshot(run)
     newest = int(state.newest[0])
     key = jax.random.PRNGKey(seed)
@@ -383,7 +402,8 @@ def evaluate(run: TeamRun, episodes: int | None = None, seed: int = 0, actions: 
                 sp.match(me, sp.snapshot(state, earlier), jax.random.fold_in(key, 1)))
 
     keys = jnp.broadcast_to(key, (len(run.seeds),) + key.shape)  # one key a seed, so that the matches batch at once
-    vs_random, vs_earlier = jax.device_get(jax.jit(jax.vmap(both))(state, keys))
+    (vs_random, flags), (vs_earlier, earlier_flags) = jax.device_get(jax.jit(jax.vmap(both))(state, keys))
+    stop_if_overflowed(run.env, None if flags is None else flags | earlier_flags, "evaluation")
     filmed = jax.jit(lambda state, key: sp.film(sp.snapshot(state, newest), sp.snapshot(state, earlier), key))(
         loop.seed_slice(state, film), jax.random.fold_in(key, FILMED)) if film is not None else None
     at = {"snapshot": earlier, "env_steps": next(r["env_steps"] for r in run.rows if r["eval"] == earlier)}

@@ -133,7 +133,8 @@ def no_physics(monkeypatch):
     compile on two CPU cores; the slow tests below step it)."""
     from fieldgen.env import team
 
-    monkeypatch.setattr(team, "advance", lambda sys, data, ctrl, substeps, impl: (data.replace(ctrl=ctrl), None))
+    monkeypatch.setattr(team, "advance",
+                        lambda sys, data, ctrl, substeps, impl, guard=None: (data.replace(ctrl=ctrl), None))
 
 
 @pytest.mark.parametrize("side", [0, 1])

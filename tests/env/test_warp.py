@@ -207,3 +207,109 @@ def test_a_batch_larger_than_reserved_is_refused_as_its_program_is_traced():
     env.check_physics(stepped.info[mjx_physics.OVERFLOW])
     one = jax.jit(env.step)(env.reset(jax.random.PRNGKey(2)), actions[0])  # no batch: nothing to refuse
     assert one.obs.shape == (env.observation_size,)
+
+
+# -- team fields: matches reserved and flagged as a single-agent field's batches ------------------------------
+
+def test_a_team_field_on_warp_refuses_a_batch_of_matches_larger_than_reserved():
+    """Before: a match had no reservation, its data sized for one, and a vmap of matches stepped them all with
+    Warp's contacts left out, flagged in their info alone."""
+    env = make("soccer_1v1", backend="warp")
+    keys = jax.random.split(jax.random.PRNGKey(0), 6)
+    actions = jax.ShapeDtypeStruct((6, len(env.agent_names), env.action_size), jnp.float32)
+
+    def traced():  # six matches stepped once: traced, never run
+        return jax.eval_shape(jax.vmap(env.step), jax.eval_shape(jax.vmap(env.reset), keys), actions)
+
+    with pytest.raises(mjx_physics.UnreservedBatch) as refused:
+        traced()
+    message = str(refused.value)
+    assert "\n" not in message and message.startswith("soccer_1v1 runs on sim.backend warp")
+    assert "steps 6 at once where 1 were reserved" in message and "env.reserve_worlds(6)" in message
+    env.reserve_worlds(6)
+    assert env.worlds == 6 and env.data0._impl.naconmax == 6 * mjx_physics.capacities(env.mj_model)[0]
+    assert mjx_physics.OVERFLOW in traced().info
+    assert make("soccer_1v1").worlds == 1  # JAX's physics reserves nothing
+
+
+def test_team_matches_reserved_on_warp_keep_their_contacts():
+    """Before: 8 matches of soccer_1v1 on Warp shared the contacts of one, and once their agents reached the
+    ball (25 control steps) every match's flags said contacts were left out (BROADPHASE)."""
+    env = make("soccer_1v1", backend="warp")
+    n = 8
+    env.reserve_worlds(n)
+    state = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(0), n))
+
+    def chase(state, key):  # random actions meet nothing in tens of steps: each agent runs at the ball, jittered
+        obs = state.obs  # [matches, agents, n]: own x, y first, the ball's x, y at 4:6, each in its side's frame
+        toward = jnp.clip(3.0 * (obs[..., 4:6] - obs[..., 0:2]), -1.0, 1.0)
+        return jax.vmap(env.step)(state, toward + jax.random.uniform(key, toward.shape, minval=-0.3, maxval=0.3))
+
+    step = jax.jit(chase)
+    for key in jax.random.split(jax.random.PRNGKey(1), 32):
+        state = step(state, key)
+    env.check_physics(state.info[mjx_physics.OVERFLOW])
+    ball = np.asarray(state.pipeline_state.qpos)[:, np.asarray(env.layout.ball_qpos[:2])]
+    assert np.sum(np.linalg.norm(ball, axis=1) > 0.05) >= n // 2  # struck off the centre spot: contacts were made
+
+
+def test_self_play_s_programs_reserve_every_team_match_they_step_before_any_is_traced():
+    """Training steps seeds x num_envs matches at once, an evaluation seeds x eval_envs: reserved for one seed's
+    alone, two seeds' training is refused as it is traced; fieldgen.run.selfplay.programs reserves the larger of
+    the two for every seed (all traced, none run)."""
+    from fieldgen.agents.selfplay import SelfPlayConfig, make_selfplay
+    from fieldgen.run import selfplay
+
+    config = SelfPlayConfig(total_steps=1600, num_envs=4, unroll_length=10, num_minibatches=4, num_evals=2,
+                            hidden=(8,), eval_envs=6)
+    keys = loop.seed_keys([0, 1])
+    short = make_selfplay(config, make("soccer_1v1", backend="warp"))
+    short.env.reserve_worlds(config.num_envs)
+    with pytest.raises(mjx_physics.UnreservedBatch, match="this program steps 8 at once where 4 were reserved"):
+        jax.eval_shape(jax.vmap(short.chunk), jax.eval_shape(jax.vmap(short.init), keys))
+    sp, init, chunk, judge, _ = selfplay.programs(config, make("soccer_1v1", backend="warp"), 2)
+    assert sp.env.worlds == 2 * 6
+    state = jax.eval_shape(init, keys)
+    jax.eval_shape(chunk, state)
+    _, results = jax.eval_shape(judge, state, 1, selfplay.opponents_of(1, config.league_opponents), keys)
+    assert results[mjx_physics.OVERFLOW].shape == (2,)  # each seed's matches' flags, read after the evaluation
+
+
+def test_a_team_match_that_outgrew_warp_s_capacity_stops_self_play_in_one_line():
+    """What self-play does with the flags it reads after a chunk or an evaluation (no match stepped here)."""
+    from fieldgen.run import record, selfplay
+
+    env = make("soccer_1v1", backend="warp")
+    selfplay.stop_if_overflowed(env, np.array([0, ITERATIONS]), "training")  # the solver's limit: the step is whole
+    selfplay.stop_if_overflowed(make("soccer_1v1"), None, "training")  # JAX's physics flags nothing
+    with pytest.raises(record.RunError) as stopped:
+        selfplay.stop_if_overflowed(env, np.array([[0, NARROWPHASE], [0, 0]]), "evaluation")
+    message = str(stopped.value)
+    assert "\n" not in message and message.startswith("evaluation stopped: soccer_1v1: an environment outgrew MuJoCo "
+                                                      "Warp's capacity (NARROWPHASE; ")
+    assert message.endswith("or use sim.backend: mjx")
+
+
+@pytest.mark.slow
+def test_a_team_field_on_warp_trains_by_self_play_and_is_judged_with_every_match_s_contacts(tmp_path):
+    """Two seeds of the tiny self-play run (matches of 40 steps: Warp's CPU kernels are slow), each program's
+    matches reserved (seeds x matches) and their flags read after every chunk and evaluation, then judged: the run
+    ends, its matches' flags clear. Before: the matches shared one match's contacts, and training went on without
+    a word."""
+    from typer.testing import CliRunner
+
+    from fieldgen.cli import app
+    from fieldgen.run import selfplay
+    from tiny_runs import TINY_SELFPLAY
+
+    spec = tmp_path / "soccer_1v1_warp.yaml"
+    spec.write_text("extends: soccer_1v1\nname: soccer_1v1_warp\nsim: {backend: warp}\nepisode: {length: 40}\n")
+    result = CliRunner().invoke(app, ["train", str(spec), "--seeds", "2", "--no-videos",
+                                      "--out", str(tmp_path / "runs"), *TINY_SELFPLAY])
+    assert result.exit_code == 0, result.output
+    run = selfplay.open_run(tmp_path / "runs" / "soccer_1v1_warp-ppo-0to1")
+    assert [(r["eval"], r["seed"]) for r in run.rows] == [(i, s) for i in range(4) for s in (0, 1)]
+    assert run.algorithm.env.worlds == 2 * 8  # seeds x the larger of training's and evaluation's matches
+    run.env.check_physics(run.state.env_state.info[mjx_physics.OVERFLOW])  # every training match's, kept
+    result = CliRunner().invoke(app, ["eval", str(run.folder), "--no-video"])
+    assert result.exit_code == 0 and "Elo ratings" in result.output, result.output

@@ -18,12 +18,9 @@ from fieldgen.agents.selfplay import SelfPlayConfig
 from fieldgen.cli import app
 from fieldgen.command import TIME_LIMIT_STATUS
 from fieldgen.run import record, selfplay
+from tiny_runs import TINY_SELFPLAY as TINY  # a few thousand env steps
 
 runner = CliRunner()
-# a few thousand env steps: 3 evaluations of 10 iterations of 8 envs x 10 steps
-TINY = ["--steps", "2400", "--envs", "8", "--set", "ppo.unroll_length=10", "--set", "ppo.num_minibatches=4",
-        "--set", "ppo.hidden=[32,32]", "--set", "ppo.num_evals=3", "--set", "ppo.eval_envs=8",
-        "--set", "ppo.update_epochs=2", "--set", "ppo.pool_size=2"]
 
 
 def test_a_team_field_trains_by_self_play_with_ppo_alone(tmp_path):
@@ -300,7 +297,7 @@ def test_several_seeds_train_in_one_program_as_each_would_alone(tmp_path, interr
     assert sorted(p.stem for p in (run / record.VIDEOS).iterdir()) == ["eval_000", "eval_001", "eval_002", "eval_003"]
 
     opened = selfplay.open_run(run)
-    init = selfplay.programs(opened.config, opened.env)[1]
+    init = selfplay.programs(opened.config, opened.env, len(opened.seeds))[1]
     together, single = init(loop.seed_keys([0, 1])), init(loop.seed_keys([1]))
     for a, b in zip(jax.tree.leaves(loop.seed_slice(together, 1)), jax.tree.leaves(loop.seed_slice(single, 0))):
         np.testing.assert_array_equal(a, b)
