@@ -6,7 +6,9 @@ solver iteration limit in --iterations; for every pair (Warp against JAX at one 
 implementation against itself at the first and last limit) it prints, after each count of control steps in
 --steps, the median, 90th percentile and largest over environments of the largest |qpos difference| in an
 environment. Where Warp and JAX agree at a converged limit and part at the field's own, the parting is the
-unconverged solve, not different physics.
+unconverged solve, not different physics. Warp starts its solve where MuJoCo does (fieldgen.env.warp_start);
+--warp-start warp measures its own start instead, and --no-warm-start starts both from the unconstrained
+acceleration.
 
     python bench/warp_agreement.py --fields ant_nav --envs 32 --iterations 1,8 --steps 1,3,10 --warp-on-cpu
 """
@@ -19,7 +21,10 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from fieldgen.env.mjx_physics import capacities
+import mujoco
+
+from fieldgen.env import warp_start
+from fieldgen.env.mjx_physics import capacities, start_warp
 from fieldgen.env.throughput import append_jsonl
 from warp_vs_jax import DEFAULT_FIELDS, Implementation, load_field, physics_model, warp_unavailable
 
@@ -29,6 +34,13 @@ def final_qpos(env, model, impl: str, reset, n: int, steps: int) -> np.ndarray:
     contacts, rows = capacities(model)
     run = Implementation(env, model, impl, None, contacts, rows)
     return np.asarray(run.rollout(n, steps)(run.start(reset, n), jax.random.PRNGKey(2))[0].qpos)
+
+
+def started(model, cold: bool):
+    """The model, its solves started from the unconstrained acceleration where `cold`."""
+    if cold:
+        model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_WARMSTART
+    return model
 
 
 def spread(a: np.ndarray, b: np.ndarray) -> dict[str, float]:
@@ -56,6 +68,10 @@ def main() -> None:
                         "the last")
     parser.add_argument("--steps", default="1,3,10", help="control steps after which positions are compared")
     parser.add_argument("--warp-on-cpu", action="store_true", help="Warp's CPU kernels where no CUDA device is")
+    parser.add_argument("--warp-start", choices=("mujoco", "warp"), default="mujoco",
+                        help="where Warp starts its solve: MuJoCo's choice (fieldgen's) or Warp's own")
+    parser.add_argument("--no-warm-start", action="store_true", help="start both solves from the unconstrained "
+                        "acceleration (MuJoCo's disable flag warmstart)")
     parser.add_argument("--json", type=Path, help="append results here, one JSON object per line")
     args = parser.parse_args()
     limits = integers(args.iterations, "--iterations", parser)
@@ -65,12 +81,18 @@ def main() -> None:
     why_not = warp_unavailable(args.warp_on_cpu)
     if why_not:
         raise SystemExit(f"error: Warp cannot run here: {why_not}")
-    print(f"device: {jax.devices()[0].device_kind} ({jax.default_backend()}), {args.envs} envs; per-env largest "
-          f"|qpos gap|: median / 90% / largest")
+    start_warp()
+    if args.warp_start == "warp":
+        warp_start.remove()
+    start = ("the unconstrained acceleration (warm start off)" if args.no_warm_start
+             else {"mujoco": "MuJoCo's choice", "warp": "Warp's own start"}[args.warp_start])
+    print(f"device: {jax.devices()[0].device_kind} ({jax.default_backend()}), {args.envs} envs, Warp's solve from "
+          f"{start}; per-env largest |qpos gap|: median / 90% / largest")
     for name in args.fields.split(","):
         env = load_field(args.build, name)
         reset = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(0), args.envs))
-        qpos = {(limit, impl, steps): final_qpos(env, physics_model(env, limit, None), impl, reset, args.envs, steps)
+        qpos = {(limit, impl, steps): final_qpos(env, started(physics_model(env, limit, None), args.no_warm_start),
+                                                 impl, reset, args.envs, steps)
                 for limit in limits for impl in ("jax", "warp") for steps in counts}
         pairs = [(f"warp vs jax, {limit} iterations", (limit, "warp"), (limit, "jax")) for limit in limits]
         if len(limits) > 1:
@@ -82,6 +104,7 @@ def main() -> None:
                 print(f"{env.name:>16s} {steps:>3d} steps  {label:<30s} {s['median']:.2e} / {s['p90']:.2e} / "
                       f"{s['max']:.2e}", flush=True)
                 append_jsonl(args.json, {"field": env.name, "envs": args.envs, "steps": steps, "pair": label,
+                                         "warp_start": "none" if args.no_warm_start else args.warp_start,
                                          **s, "backend": jax.default_backend()})
 
 

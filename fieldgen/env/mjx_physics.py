@@ -19,6 +19,7 @@ from typing import Callable
 import jax
 import numpy as np
 
+from fieldgen.env import warp_start
 # OVERFLOW: Warp's flags since reset, kept over auto-resets
 from fieldgen.env.contract import OVERFLOW, merged_overflow  # noqa: F401
 from fieldgen.schema.errors import Problem, SpecError
@@ -62,6 +63,7 @@ def put_model(mj_model, impl: str, device=None, field: str = "the field", **opti
 
     if impl == "warp":
         require_warp(field)
+        start_warp()
 
     model = mjx.put_model(mj_model, device=device, impl=impl, **options)
     if impl == "warp":  # the flags are read (`overflow_bits`); a warning printed per world and step would flood
@@ -105,12 +107,13 @@ def without_native_line(call, line_start: str):
 
 @functools.cache
 def start_warp() -> None:
-    """Start Warp once per process, quietly: no line per module of kernels loaded, nor the note of a missing
-    NVIDIA driver (NO_CUDA_DRIVER)."""
+    """Start Warp once per process, quietly (no line per module of kernels loaded, nor the note of a missing
+    NVIDIA driver: NO_CUDA_DRIVER), its solve starting where MuJoCo's does (warp_start)."""
     import warp
 
     warp.config.log_level = max(warp.config.log_level, warp.LOG_WARNING)
     without_native_line(warp.init, NO_CUDA_DRIVER)
+    warp_start.install()
 
 
 def make_data(mj_model, impl: str, device, worlds: int = 1, field: str = "the field"):
