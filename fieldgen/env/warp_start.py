@@ -7,14 +7,12 @@ the warm start wherever the step has constraints, a choice its authors made for 
 mujoco_warp#5). Solved to convergence the start makes no difference; at the fields' one solver iteration it is
 the whole difference between the two implementations, so a policy trained on Warp's physics and judged on the
 field's own met another physics there. `install` puts MuJoCo's choice in front of Warp's solve: the two costs
-(MJX's `Context.create`: the Gauss term and each constraint row's) per world, and the cheaper start handed to
-Warp's solve as its warm start. Applied where MuJoCo's cost is this simple: pyramidal cones (every bundled
-field's), no sleeping, not the discrete integrator; elsewhere Warp keeps its own start (`covers`).
+(MJX's `Context.create`: the Gauss term and each constraint row's, pyramidal or elliptic cones) per world, and the
+cheaper start handed to Warp's solve as its warm start. Not with sleeping or the discrete integrator, whose solves
+change the metric; there Warp keeps its own start (`covers`).
 """
 
-from __future__ import annotations
-
-import dataclasses
+import dataclasses  # no postponed annotations: Warp reads its kernels' annotations as they are defined
 import functools
 
 PATCHED = "_fieldgen_mujoco_start"  # the attribute that marks Warp's solve as already wrapped
@@ -24,53 +22,89 @@ def covers(m) -> bool:
     """Whether MuJoCo's start is put in front of Warp's solve for the Warp model `m` (its options are static)."""
     from mujoco.mjx.third_party.mujoco_warp._src import types
 
-    return (not m.opt.disableflags & types.DisableBit.WARMSTART and m.opt.cone == types.ConeType.PYRAMIDAL
-            and m.opt.integrator != types.IntegratorType.DISCRETE and not m.opt.enableflags & types.EnableBit.SLEEP)
+    return (not m.opt.disableflags & types.DisableBit.WARMSTART and m.opt.integrator != types.IntegratorType.DISCRETE
+            and not m.opt.enableflags & types.EnableBit.SLEEP)
 
 
 @functools.cache
 def _kernels(is_sparse: bool, nv: int):
-    """Warp kernels of MuJoCo's choice: the Gauss term's share of (cost of the warm start - cost of the
-    unconstrained acceleration) a thread per world and dof, each constraint row's a thread per world and row (MJX's
-    `Context.create` costs, pyramidal cones), and the start, the warm start where that excess is below zero (the
-    unconstrained acceleration on a tie, as MJX)."""
+    """Two Warp kernels of MuJoCo's choice. `excess`, a thread per world and constraint row: the row's share of the
+    warm start's cost less the unconstrained acceleration's (MJX's `Context.create` costs: each row's quadratic or
+    friction-loss cost, an elliptic contact's cone cost on its first row, the Gauss term on row 0). `choose`, a
+    thread per world and dof: the warm start where that excess is below zero, else the unconstrained acceleration
+    (on a tie too, as MJX)."""
     import warp as wp
     from mujoco.mjx.third_party.mujoco_warp._src import types
 
     always_active_below = int(types.ConstraintType.LIMIT_JOINT)  # equality and friction rows: active either side
     friction_dof, friction_tendon = int(types.ConstraintType.FRICTION_DOF), int(types.ConstraintType.FRICTION_TENDON)
+    elliptic = int(types.ConstraintType.CONTACT_ELLIPTIC)
     minval = float(types.MJ_MINVAL)
 
     @wp.func
-    def row_cost(kind: int, jaref: float, efc_d: float, floss: float) -> float:
+    def jaref(world: int, row: int, x: wp.array2d(dtype=float), rownnz: wp.array2d(dtype=int),
+              rowadr: wp.array2d(dtype=int), colind: wp.array3d(dtype=int), jac: wp.array3d(dtype=float),
+              aref: wp.array2d(dtype=float)) -> float:
+        value = -aref[world, row]
+        if wp.static(is_sparse):
+            adr = rowadr[world, row]
+            for k in range(rownnz[world, row]):
+                value += jac[world, 0, adr + k] * x[world, colind[world, 0, adr + k]]
+        else:
+            for i in range(wp.static(nv)):
+                value += jac[world, row, i] * x[world, i]
+        return value
+
+    @wp.func
+    def row_cost(kind: int, jr: float, efc_d: float, floss: float) -> float:
         if floss > 0.0 and (kind == wp.static(friction_dof) or kind == wp.static(friction_tendon)):
             r = 1.0 / wp.static(minval)
             if efc_d != 0.0:
                 r = 1.0 / efc_d
-            if jaref <= -r * floss:
-                return -0.5 * r * floss * floss - floss * jaref
-            if jaref >= r * floss:
-                return -0.5 * r * floss * floss + floss * jaref
-        if kind < wp.static(always_active_below) or jaref < 0.0:
-            return 0.5 * efc_d * jaref * jaref
+            if jr <= -r * floss:
+                return -0.5 * r * floss * floss - floss * jr
+            if jr >= r * floss:
+                return -0.5 * r * floss * floss + floss * jr
+        if kind < wp.static(always_active_below) or jr < 0.0:
+            return 0.5 * efc_d * jr * jr
+        return 0.0
+
+    @wp.func
+    def cone_cost(world: int, con: int, mu: float, x: wp.array2d(dtype=float), rownnz: wp.array2d(dtype=int),
+                  rowadr: wp.array2d(dtype=int), colind: wp.array3d(dtype=int), jac: wp.array3d(dtype=float),
+                  aref: wp.array2d(dtype=float), efc_d: wp.array2d(dtype=float), dim: wp.array(dtype=int),
+                  friction: wp.array(dtype=types.vec5), address: wp.array2d(dtype=int)) -> float:
+        first = address[con, 0]
+        normal = jaref(world, first, x, rownnz, rowadr, colind, jac, aref)
+        quadratic = 0.5 * efc_d[world, first] * normal * normal
+        tangent = float(0.0)
+        for j in range(1, dim[con]):
+            row = address[con, j]
+            if row < 0:
+                return 0.0  # a contact Warp leaves out of the solve
+            jr = jaref(world, row, x, rownnz, rowadr, colind, jac, aref)
+            u = jr * friction[con][j - 1]
+            tangent += u * u
+            quadratic += 0.5 * efc_d[world, row] * jr * jr
+        n = normal * mu
+        t = wp.sqrt(tangent)
+        if (t <= 0.0 and n < 0.0) or (t > 0.0 and mu * n + t <= 0.0):
+            return quadratic  # bottom zone
+        if t > 0.0 and n < mu * t and mu * n + t > 0.0:  # middle zone
+            dm = efc_d[world, first] / wp.max(mu * mu * (1.0 + mu * mu), wp.static(minval))
+            return 0.5 * dm * (n - mu * t) * (n - mu * t)
         return 0.0
 
     @wp.kernel(module="unique", enable_backward=False)
-    def gauss(
-        ma_warmstart_in: wp.array2d(dtype=float),
-        qfrc_smooth_in: wp.array2d(dtype=float),
-        qacc_warmstart_in: wp.array2d(dtype=float),
-        qacc_smooth_in: wp.array2d(dtype=float),
-        excess_out: wp.array(dtype=float),
-    ):
-        world, dof = wp.tid()
-        wp.atomic_add(excess_out, world, 0.5 * (ma_warmstart_in[world, dof] - qfrc_smooth_in[world, dof])
-                      * (qacc_warmstart_in[world, dof] - qacc_smooth_in[world, dof]))
-
-    @wp.kernel(module="unique", enable_backward=False)
-    def rows(
+    def excess(
+        impratio_invsqrt: wp.array(dtype=float),
         nefc_in: wp.array(dtype=int),
+        nacon_in: wp.array(dtype=int),
+        contact_dim_in: wp.array(dtype=int),
+        contact_friction_in: wp.array(dtype=types.vec5),
+        contact_efc_address_in: wp.array2d(dtype=int),
         efc_type_in: wp.array2d(dtype=int),
+        efc_id_in: wp.array2d(dtype=int),
         efc_J_rownnz_in: wp.array2d(dtype=int),
         efc_J_rowadr_in: wp.array2d(dtype=int),
         efc_J_colind_in: wp.array3d(dtype=int),
@@ -80,29 +114,37 @@ def _kernels(is_sparse: bool, nv: int):
         efc_frictionloss_in: wp.array2d(dtype=float),
         qacc_warmstart_in: wp.array2d(dtype=float),
         qacc_smooth_in: wp.array2d(dtype=float),
+        qfrc_smooth_in: wp.array2d(dtype=float),
+        ma_warmstart_in: wp.array2d(dtype=float),
         excess_out: wp.array(dtype=float),
     ):
         world, row = wp.tid()
         if row >= nefc_in[world]:
             return
-        jw = -efc_aref_in[world, row]
-        js = -efc_aref_in[world, row]
-        if wp.static(is_sparse):
-            adr = efc_J_rowadr_in[world, row]
-            for k in range(efc_J_rownnz_in[world, row]):
-                col = efc_J_colind_in[world, 0, adr + k]
-                jac = efc_J_in[world, 0, adr + k]
-                jw += jac * qacc_warmstart_in[world, col]
-                js += jac * qacc_smooth_in[world, col]
-        else:
+        share = float(0.0)
+        if row == 0:  # the Gauss term: zero at the unconstrained acceleration
             for i in range(wp.static(nv)):
-                jac = efc_J_in[world, row, i]
-                jw += jac * qacc_warmstart_in[world, i]
-                js += jac * qacc_smooth_in[world, i]
+                share += 0.5 * (ma_warmstart_in[world, i] - qfrc_smooth_in[world, i]) * (
+                    qacc_warmstart_in[world, i] - qacc_smooth_in[world, i])
         kind = efc_type_in[world, row]
-        efc_d = efc_D_in[world, row]
-        floss = efc_frictionloss_in[world, row]
-        wp.atomic_add(excess_out, world, row_cost(kind, jw, efc_d, floss) - row_cost(kind, js, efc_d, floss))
+        if kind == wp.static(elliptic):
+            con = efc_id_in[world, row]
+            if con < nacon_in[0] and contact_efc_address_in[con, 0] == row:  # a contact's cost on its first row
+                mu = contact_friction_in[con][0] * impratio_invsqrt[world % impratio_invsqrt.shape[0]]
+                share += cone_cost(world, con, mu, qacc_warmstart_in, efc_J_rownnz_in, efc_J_rowadr_in,
+                                   efc_J_colind_in, efc_J_in, efc_aref_in, efc_D_in, contact_dim_in,
+                                   contact_friction_in, contact_efc_address_in)
+                share -= cone_cost(world, con, mu, qacc_smooth_in, efc_J_rownnz_in, efc_J_rowadr_in,
+                                   efc_J_colind_in, efc_J_in, efc_aref_in, efc_D_in, contact_dim_in,
+                                   contact_friction_in, contact_efc_address_in)
+        else:
+            efc_d = efc_D_in[world, row]
+            floss = efc_frictionloss_in[world, row]
+            share += row_cost(kind, jaref(world, row, qacc_warmstart_in, efc_J_rownnz_in, efc_J_rowadr_in,
+                                          efc_J_colind_in, efc_J_in, efc_aref_in), efc_d, floss)
+            share -= row_cost(kind, jaref(world, row, qacc_smooth_in, efc_J_rownnz_in, efc_J_rowadr_in,
+                                          efc_J_colind_in, efc_J_in, efc_aref_in), efc_d, floss)
+        wp.atomic_add(excess_out, world, share)
 
     @wp.kernel(module="unique", enable_backward=False)
     def choose(
@@ -117,7 +159,7 @@ def _kernels(is_sparse: bool, nv: int):
         else:
             start_out[world, dof] = qacc_smooth_in[world, dof]
 
-    return gauss, rows, choose
+    return excess, choose
 
 
 def mujoco_start(m, d):
@@ -125,17 +167,17 @@ def mujoco_start(m, d):
     import warp as wp
     from mujoco.mjx.third_party.mujoco_warp._src import support
 
-    gauss, rows, choose = _kernels(bool(m.is_sparse), int(m.nv))
+    excess, choose = _kernels(bool(m.is_sparse), int(m.nv))
     ma_warmstart = wp.zeros_like(d.qacc_warmstart)
     support.mul_m(m, d, ma_warmstart, d.qacc_warmstart)
-    excess = wp.zeros(d.nworld, dtype=float, device=d.qacc.device)
-    wp.launch(gauss, dim=(d.nworld, m.nv), inputs=[ma_warmstart, d.qfrc_smooth, d.qacc_warmstart, d.qacc_smooth],
-              outputs=[excess])
-    wp.launch(rows, dim=(d.nworld, d.njmax),
-              inputs=[d.nefc, d.efc.type, d.efc.J_rownnz, d.efc.J_rowadr, d.efc.J_colind, d.efc.J, d.efc.aref,
-                      d.efc.D, d.efc.frictionloss, d.qacc_warmstart, d.qacc_smooth], outputs=[excess])
+    excess_cost = wp.zeros(d.nworld, dtype=float, device=d.qacc.device)
+    wp.launch(excess, dim=(d.nworld, d.njmax),
+              inputs=[m.opt.impratio_invsqrt, d.nefc, d.nacon, d.contact.dim, d.contact.friction,
+                      d.contact.efc_address, d.efc.type, d.efc.id, d.efc.J_rownnz, d.efc.J_rowadr, d.efc.J_colind,
+                      d.efc.J, d.efc.aref, d.efc.D, d.efc.frictionloss, d.qacc_warmstart, d.qacc_smooth,
+                      d.qfrc_smooth, ma_warmstart], outputs=[excess_cost])
     start = wp.zeros_like(d.qacc_warmstart)
-    wp.launch(choose, dim=(d.nworld, m.nv), inputs=[excess, d.qacc_warmstart, d.qacc_smooth], outputs=[start])
+    wp.launch(choose, dim=(d.nworld, m.nv), inputs=[excess_cost, d.qacc_warmstart, d.qacc_smooth], outputs=[start])
     return dataclasses.replace(d, qacc_warmstart=start)
 
 

@@ -35,10 +35,14 @@ def rollout(env, steps: int, n: int = 2):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("field", ["point_nav", "ant_nav"])
-def test_warp_steps_the_field_s_own_physics_beside_jax(field):
+@pytest.mark.parametrize("field", ["point_nav", "ant_nav", "ant_nav with elliptic cones"])
+def test_warp_steps_the_field_s_own_physics_beside_jax(field, tmp_path):
     """At the fields' one solver iteration, where Warp's own start of the solve left the ant 0.1-0.5 away in some
     position after 10 control steps (bench/warp_agreement.py), the two agree to float32's rounding."""
+    if field.endswith("elliptic cones"):
+        field = tmp_path / "ant_nav_elliptic.yaml"
+        field.write_text("extends: ant_nav\nname: ant_nav_elliptic\nsim: {cone: elliptic}\n")
+        field = str(field)
     warp, jax_ = make(field, backend="warp"), make(field, backend="mjx")
     assert (warp.impl, jax_.impl) == ("warp", "jax") and warp.mj_model.opt.iterations == 1
     stepped, reference = rollout(warp, 10), rollout(jax_, 10)
@@ -324,7 +328,8 @@ def test_a_team_field_on_warp_trains_by_self_play_and_is_judged_with_every_match
     assert result.exit_code == 0 and "Elo ratings" in result.output, result.output
 
 
-def test_warp_s_solve_starts_from_the_cheaper_of_the_warm_start_and_the_unconstrained_acceleration():
+@pytest.mark.parametrize("cone", ["pyramidal", "elliptic"])
+def test_warp_s_solve_starts_from_the_cheaper_of_the_warm_start_and_the_unconstrained_acceleration(cone):
     """MuJoCo's choice (fieldgen.env.warp_start): a warm start at the converged solution is kept, one far from it
     gives way to the unconstrained acceleration, world by world."""
     import mujoco
@@ -333,6 +338,7 @@ def test_warp_s_solve_starts_from_the_cheaper_of_the_warm_start_and_the_unconstr
     from fieldgen.env import warp_start
 
     mjm = make("ant_nav", backend="warp").mj_model
+    mjm.opt.cone = {"pyramidal": mujoco.mjtCone.mjCONE_PYRAMIDAL, "elliptic": mujoco.mjtCone.mjCONE_ELLIPTIC}[cone]
     mjd = mujoco.MjData(mjm)
     mjd.qpos[:] = mjm.key("home").qpos
     mjd.qpos[2] -= 0.05  # pressed into the floor: contacts push back
