@@ -8,10 +8,12 @@ import typing
 from typing import Iterable, Mapping
 
 
-def did_you_mean(word: str, choices: Iterable[str], shown: Mapping[str, object] | None = None) -> str:
-    """"; did you mean 'x'?" for the choice closest to `word`, or "" when none is close; `shown` gives what to
-    write for a choice where it differs (a file's path, for its name matched without the folder)."""
-    near = difflib.get_close_matches(word, list(choices), n=1)
+def did_you_mean(word: str, choices: Iterable[str], shown: Mapping[str, object] | None = None,
+                 cutoff: float = 0.6) -> str:
+    """"; did you mean 'x'?" for the choice closest to `word`, or "" when none is as close as `cutoff` (difflib's
+    ratio); `shown` gives what to write for a choice where it differs (a file's path, for its name matched without
+    the folder)."""
+    near = difflib.get_close_matches(word, list(choices), n=1, cutoff=cutoff)
     return f"; did you mean '{(shown or {}).get(near[0], near[0])}'?" if near else ""
 
 

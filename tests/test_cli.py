@@ -71,6 +71,30 @@ def test_an_xla_flags_file_is_left_as_named_and_one_that_cannot_be_read_is_one_l
                                     "of a file of flags, and no such file can be read here;"), result.output
 
 
+@pytest.mark.parametrize("flags, said", [
+    ("--xla_gpu_autotune_levl=0", "XLA_FLAGS names --xla_gpu_autotune_levl=0 (did you mean "
+                                  "'--xla_gpu_autotune_level'?), which XLA does not know. Correct or drop it,"),
+    ("--xla_dump_to=/tmp/x --xla_no_such_flag --xla_nor_this=1", "XLA_FLAGS names --xla_no_such_flag, "
+                                                                  "--xla_nor_this=1, which XLA does not know."),
+    ("--xla_gpu_autotune_level=abc", "XLA_FLAGS names --xla_gpu_autotune_level=abc, a value XLA cannot read as that "
+                                     "flag's kind. Correct it,"),
+    ("FILE", "the file of flags that XLA_FLAGS names (FILE) holds --xla_no_such_flag, which XLA does not know."),
+])
+def test_flags_xla_would_refuse_are_one_paragraph_before_anything_is_written(tmp_path, monkeypatch, flags, said):
+    """XLA ends the process that names a flag it does not know, or a value it cannot read, as JAX starts: one line of
+    its log, mid-command. Asked of XLA in a process of its own first, the command says which and stops."""
+    file = tmp_path / "flags.txt"
+    file.write_text("--xla_no_such_flag\n")
+    monkeypatch.setenv("XLA_FLAGS", flags.replace("FILE", str(file)))
+    monkeypatch.chdir(tmp_path)
+    result = runner.invoke(app, ["train", "point_nav", "--steps", "2000000", "--out", "runs"])
+    assert result.exit_code == 1 and not (tmp_path / "runs").exists()
+    assert result.output.startswith("error: XLA would end the command as JAX starts: "), result.output
+    assert said.replace("FILE", str(file)) in " ".join(result.output.split()), result.output
+    assert "(XLA_FLAGS=--help python -c 'import jax; jax.devices()' lists the flags XLA knows" in " ".join(
+        result.output.split())
+
+
 def test_a_jax_platform_this_machine_cannot_start_is_one_line_and_sets_nothing_up(tmp_path, monkeypatch):
     """JAX says so wherever it first starts, mid-command: a RuntimeError, or for CUDA without JAX's plugin an empty
     AssertionError, each a traceback once."""
