@@ -23,10 +23,10 @@ import numpy as np
 
 import mujoco
 
-from fieldgen.env import warp_start
-from fieldgen.env.mjx_physics import capacities, start_warp
+from fieldgen.env.mjx_physics import capacities
 from fieldgen.env.throughput import append_jsonl
-from warp_vs_jax import DEFAULT_FIELDS, Implementation, load_field, physics_model, warp_unavailable
+from warp_vs_jax import (DEFAULT_FIELDS, Implementation, add_warp_start, load_field, physics_model, use_warp_start,
+                         warp_unavailable)
 
 
 def final_qpos(env, model, impl: str, reset, n: int, steps: int) -> np.ndarray:
@@ -68,8 +68,7 @@ def main() -> None:
                         "the last")
     parser.add_argument("--steps", default="1,3,10", help="control steps after which positions are compared")
     parser.add_argument("--warp-on-cpu", action="store_true", help="Warp's CPU kernels where no CUDA device is")
-    parser.add_argument("--warp-start", choices=("mujoco", "warp"), default="mujoco",
-                        help="where Warp starts its solve: MuJoCo's choice (fieldgen's) or Warp's own")
+    add_warp_start(parser)
     parser.add_argument("--no-warm-start", action="store_true", help="start both solves from the unconstrained "
                         "acceleration (MuJoCo's disable flag warmstart)")
     parser.add_argument("--json", type=Path, help="append results here, one JSON object per line")
@@ -81,9 +80,7 @@ def main() -> None:
     why_not = warp_unavailable(args.warp_on_cpu)
     if why_not:
         raise SystemExit(f"error: Warp cannot run here: {why_not}")
-    start_warp()
-    if args.warp_start == "warp":
-        warp_start.remove()
+    use_warp_start(args.warp_start)
     start = ("the unconstrained acceleration (warm start off)" if args.no_warm_start
              else {"mujoco": "MuJoCo's choice", "warp": "Warp's own start"}[args.warp_start])
     print(f"device: {jax.devices()[0].device_kind} ({jax.default_backend()}), {args.envs} envs, Warp's solve from "

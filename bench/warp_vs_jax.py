@@ -18,7 +18,11 @@ Warp's contact capacity (naconmax) is shared by all environments of a batch: --n
 environment and defaults to every contact the JAX implementation allocates, --njmax (constraint rows
 per environment) to the rows the JAX implementation allocates. Without warp-lang or a CUDA device the
 Warp rows are skipped with the reason and the JAX rows still run; --warp-on-cpu runs Warp's CPU
-kernels instead, to check the script and the agreement, not to time them.
+kernels instead, to check the script and the agreement, not to time them. Warp starts its solve where MuJoCo
+does (fieldgen.env.warp_start); --warp-start warp times its own start, in a process of its own:
+
+    python bench/warp_vs_jax.py --fields v2_wide_goalie_dense --envs 8192 --impls warp --warp-start warp
+    python bench/warp_vs_jax.py --fields v2_wide_goalie_dense --envs 8192 --impls warp
 """
 
 from __future__ import annotations
@@ -32,7 +36,8 @@ import jax
 import jax.numpy as jnp
 
 from env_throughput import field_env
-from fieldgen.env.mjx_physics import capacities, overflow_bits, overflow_names, put_model
+from fieldgen.env import warp_start
+from fieldgen.env.mjx_physics import capacities, overflow_bits, overflow_names, put_model, start_warp
 from fieldgen.env.throughput import append_jsonl
 from fieldgen.schema import SpecError
 from fieldgen.schema.backends import BACKENDS
@@ -63,6 +68,19 @@ def warp_unavailable(on_cpu: bool) -> str | None:
     if jax.default_backend() != "gpu" and not on_cpu:
         return f"no CUDA device (JAX's backend is {jax.default_backend()}); --warp-on-cpu runs Warp's CPU kernels"
     return None
+
+
+def add_warp_start(parser) -> None:
+    """--warp-start: where Warp starts its constraint solve in this process (fieldgen.env.warp_start)."""
+    parser.add_argument("--warp-start", choices=("mujoco", "warp"), default="mujoco",
+                        help="MuJoCo's choice of start (fieldgen's) or Warp's own: each process steps one")
+
+
+def use_warp_start(which: str) -> None:
+    """Start Warp with the solve's start `which` (as --warp-start names it) before any Warp program is traced."""
+    start_warp()
+    if which == "warp":
+        warp_start.remove()
 
 
 def graph_mode(name: str):
@@ -175,6 +193,7 @@ def main() -> None:
     parser.add_argument("--njmax", type=int, help="Warp's constraint rows per environment (default: JAX's count)")
     parser.add_argument("--warp-on-cpu", action="store_true", help="run the Warp rows on Warp's CPU kernels "
                         "where no CUDA device is (a check of the script, not a timing)")
+    add_warp_start(parser)
     parser.add_argument("--json", type=Path, help="append results here, one JSON object per line")
     args = parser.parse_args()
     try:
@@ -187,6 +206,7 @@ def main() -> None:
     why_not = warp_unavailable(args.warp_on_cpu) if "warp" in impls else None
     modes = []  # None: MJX's own choice
     if "warp" in impls and not why_not:
+        use_warp_start(args.warp_start)
         modes = [graph_mode(name) for name in args.graph_modes.split(",")] if args.graph_modes else [None]
     print(f"device: {jax.devices()[0].device_kind} ({jax.default_backend()}), jax {jax.__version__}, "
           f"{args.steps}-step calls, agreement after {args.agree_steps} steps")
@@ -230,6 +250,7 @@ def main() -> None:
                       f"{ratio:5.2f}x jax{warp_part}; non-finite envs {nonfinite}", flush=True)
                 append_jsonl(args.json, {
                     "field": env.name, "impl": run.impl, "graph_mode": run.mode_name, "envs": n,
+                    "warp_start": args.warp_start if run.impl == "warp" else None,
                     "steps": args.steps, "env_steps_per_second": sps, "ratio_to_jax": ratio,
                     "agree_steps": args.agree_steps, "max_qpos_difference": drift,
                     "overflow": flags if run.impl == "warp" else None,
