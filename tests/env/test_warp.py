@@ -355,3 +355,25 @@ def test_warp_s_solve_starts_from_the_cheaper_of_the_warm_start_and_the_unconstr
     start = warp_start.mujoco_start(m, d).qacc_warmstart.numpy()
     np.testing.assert_array_equal(start[0], solved.astype(np.float32))
     np.testing.assert_array_equal(start[1], d.qacc_smooth.numpy()[1])
+
+
+def test_warp_s_solve_is_wrapped_once_a_process_and_can_be_given_back():
+    """Starting Warp wraps its solve once however often a field starts it; `remove` gives Warp's own start back (the
+    benches' --warp-start warp) and `install` wraps it again."""
+    from mujoco.mjx.third_party.mujoco_warp._src import solver
+
+    from fieldgen.env import warp_start
+
+    mjx_physics.start_warp()
+    wrapped = solver._solve
+    assert getattr(wrapped, warp_start.PATCHED) and not getattr(wrapped.__wrapped__, warp_start.PATCHED, False)
+    warp_start.install()
+    assert solver._solve is wrapped
+    try:
+        warp_start.remove()
+        assert solver._solve is wrapped.__wrapped__
+        warp_start.remove()
+        assert solver._solve is wrapped.__wrapped__
+    finally:
+        warp_start.install()
+    assert getattr(solver._solve, warp_start.PATCHED) and solver._solve.__wrapped__ is wrapped.__wrapped__
