@@ -194,7 +194,7 @@ def train(
     promotion rule is met and reports which stage it reached, when, and success on the last stage;
     with --mixed it trains on every stage at once, favouring those being learnt (success neither 0 nor 1).
 
-    Example: fieldgen train soccer_v2_dense   (its recipe: ppo, 560M env steps, 8,192 envs, on Warp)
+    Example: fieldgen train soccer_v2_dense   (its recipe: ppo, 300M env steps, 8,192 envs, on Warp)
     Example: fieldgen train point_nav --algo crl --steps 40000 --envs 16 --set 'crl.hidden=[64,64]'
     Example: fieldgen train point_nav --logger tensorboard, then: tensorboard --logdir runs
     Example: fieldgen train soccer_v2 --init-from runs/soccer_v1-crl-0 --seed 1

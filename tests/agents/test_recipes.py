@@ -30,10 +30,11 @@ def test_the_measured_recipes_are_the_commands_their_figures_came_from():
     table = recipes.read()
     dense = table["soccer_v2_dense"]  # as its twin on Warp's physics, soccer_v2_dense_warp, was measured
     assert (dense.algo, dense.steps, dense.envs, dense.backend, dense.sets) == (
-        "ppo", 560_000_000, 8192, "warp", ("ppo.num_evals=28", "ppo.spread=global"))
-    assert dense.measured.figure.startswith("IQM 0.668 [0.615, 0.724]") and "1010-1012" in dense.measured.seeds
+        "ppo", 300_000_000, 8192, "warp", ("ppo.num_evals=15", "ppo.spread=global"))
+    assert dense.fall == {"kind": "flipped", "grace_steps": 50}  # as bench/fields/soccer_v2_dense_flip_warp.yaml
+    assert dense.measured.figure.startswith("IQM 0.851 [0.812, 0.897]") and "1030-1032" in dense.measured.seeds
     near = table["soccer_v1_dense"]
-    assert (near.steps, near.envs, near.backend) == (350_000_000, 4096, "warp")
+    assert (near.steps, near.envs, near.backend, near.fall) == (350_000_000, 4096, "warp", {"kind": "never"})
     assert near.sets == ("ppo.spread=global", "ppo.num_evals=25", "ppo.policy_out_scale=1.0")
     assert near.measured.figure.startswith("IQM 0.624 [0.458, 0.782]") and "960-962" in near.measured.seeds
     ant = table["ant_nav"]
@@ -41,18 +42,18 @@ def test_the_measured_recipes_are_the_commands_their_figures_came_from():
     assert ant.measured.figure.startswith("IQM 0.923 [0.899, 0.947]") and "600-604" in ant.measured.seeds
     wide_goalie = table["v2_wide_goalie"]  # the field as written trains as its dense twin on Warp did
     assert (wide_goalie.algo, wide_goalie.steps, wide_goalie.envs, wide_goalie.reward, wide_goalie.backend) == (
-        "ppo", 560_000_000, 8192, "dense", "warp")
+        "ppo", 300_000_000, 8192, "dense", "warp")
     for name in ("v2_wide_goalie", "v2_wide_goalie_dense", "v2_wide_goalie_dense_warp"):
-        assert table[name].sets == dense.sets and table[name].backend == "warp"
-        assert table[name].measured.figure.startswith("IQM 0.675 [0.583, 0.746]")
-        assert "990-992" in table[name].measured.seeds
+        assert table[name].sets == dense.sets and table[name].backend == "warp" and table[name].fall == dense.fall
+        assert table[name].measured.figure.startswith("IQM 0.885 [0.857, 0.913]")
+        assert "1020-1022" in table[name].measured.seeds
 
 
 def test_a_recipe_extends_another_keeping_its_own_set_items_and_never_its_figure(tmp_path):
     table = recipes.read()
     wide, dense = table["v2_wide_goalie_dense"], table["soccer_v2_dense"]
     assert (wide.algo, wide.steps, wide.envs, wide.sets) == (dense.algo, dense.steps, dense.envs, dense.sets)
-    assert "1010-1012" in dense.measured.seeds and "990-992" in wide.measured.seeds  # each its own runs
+    assert "1030-1032" in dense.measured.seeds and "1020-1022" in wide.measured.seeds  # each its own runs
     path = tmp_path / "recipes.yaml"
     path.write_text("base:\n  algo: ppo\n  steps: 1000\n  set: [ppo.num_evals=2, ppo.spread=global]\n"
                     "  measured: {figure: '0.5', seeds: one seed (0), data: here}\n  reward: dense\n  backend: warp\n"
@@ -82,7 +83,7 @@ def test_a_recipe_names_a_fall_rule_as_a_spec_writes_it_and_passes_it_on_through
                                         "turned over for 50 control steps in a row")
     assert table["own"].summary().endswith("on episodes ending once the ant's torso leaves heights 0.3 to 1.2 m")
     assert table["child"] != table["own"] and len({table["base"], table["child"]}) == 2  # compared, and hashable
-    assert recipes.read()["v2_wide_goalie"].fall is None  # no bundled recipe names one yet
+    assert recipes.read()["soccer_v1_dense"].fall == {"kind": "never"}  # a child may keep the rule off
 
 
 def test_a_field_takes_the_recipe_of_the_nearest_field_it_extends():
@@ -98,7 +99,7 @@ def test_a_field_takes_the_recipe_of_the_nearest_field_it_extends():
 def test_a_recipe_sits_over_the_agents_preset_and_under_every_setting_the_command_line_gives():
     recipe = recipes.read()["soccer_v2_dense"]
     config = PPOConfig.layered(recipe=recipe)
-    assert (config.total_steps, config.num_envs, config.num_evals, config.spread) == (560_000_000, 8192, 28, "global")
+    assert (config.total_steps, config.num_envs, config.num_evals, config.spread) == (300_000_000, 8192, 15, "global")
     mine = PPOConfig.layered(sets=["ppo.num_evals=3"], recipe=recipe, total_steps=40_000)
     assert (mine.total_steps, mine.num_envs, mine.num_evals, mine.spread) == (40_000, 8192, 3, "global")
     cpu = PPOConfig.layered(recipe=recipe, preset="cpu")  # a machine's preset sizes the recipe down

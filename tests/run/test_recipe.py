@@ -16,6 +16,11 @@ from fieldgen.schema import bundled_fields, load_spec
 runner = CliRunner()
 
 
+FALL = ", on episodes ending once the ant has lain turned over for 50 control steps in a row"
+FALL_KEYS = ("episode.fall.kind", "episode.fall.grace_steps", "episode.fall.tilt_deg")  # never -> flipped, 50 steps
+BENCH_FIELDS = Path(__file__).resolve().parents[2] / "bench" / "fields"
+
+
 def lines_with(output: str, phrase: str) -> list[str]:
     return [line for line in output.splitlines() if phrase in line]
 
@@ -26,15 +31,16 @@ def test_a_field_of_ones_own_takes_the_recipe_of_the_field_it_extends_and_says_s
     chosen = recipe.choose(spec, None)
     assert chosen.algo == "ppo" and chosen.recipe.field == "v2_wide_goalie_dense"
     assert chosen.line([]) == (
-        "recipe v2_wide_goalie_dense for my_wide, which extends v2_wide_goalie_dense: ppo, 560M env steps, 8,192 "
-        "envs, --set ppo.num_evals=28 --set ppo.spread=global, on sim.backend warp; not measured on my_wide yet "
+        "recipe v2_wide_goalie_dense for my_wide, which extends v2_wide_goalie_dense: ppo, 300M env steps, 8,192 "
+        "envs, --set ppo.num_evals=15 --set ppo.spread=global, on sim.backend warp, on episodes ending once the ant "
+        "has lain turned over for 50 control steps in a row; not measured on my_wide yet "
         "(v2_wide_goalie_dense: "
         f"{chosen.recipe.measured.stated}, {chosen.recipe.measured.seeds})")
     own = recipe.choose(bundled_fields()["v2_wide_goalie_dense"], None)
     assert own.line(["--steps"]) == (  # its physics twin on Warp states the same runs: not again as another route
-        "recipe v2_wide_goalie_dense: ppo, 560M env steps, 8,192 envs, "
-        "--set ppo.num_evals=28 --set ppo.spread=global, on sim.backend warp; "
-        f"measured: {own.recipe.measured.stated}, three fresh seeds (990-992); --steps overrides it")
+        "recipe v2_wide_goalie_dense: ppo, 300M env steps, 8,192 envs, --set ppo.num_evals=15 --set "
+        "ppo.spread=global, on sim.backend warp, on episodes ending once the ant has lain turned over for 50 control "
+        f"steps in a row; measured: {own.recipe.measured.stated}, three fresh seeds (1020-1022); --steps overrides it")
     assert recipe.choose(spec, None, use=False).recipe is None
     other = recipe.choose(spec, "crl")
     assert other.recipe is None and other.algo == "crl" and "not taken: --algo crl" in other.line([])
@@ -42,18 +48,19 @@ def test_a_field_of_ones_own_takes_the_recipe_of_the_field_it_extends_and_says_s
 
 def test_a_sparse_field_without_a_recipe_of_its_own_points_to_its_dense_twin_as_the_measured_route():
     route = recipe.dense_route("soccer_v2")
-    assert route.startswith("; the measured route is its dense twin soccer_v2_dense (ppo, 560M env steps, 8,192 "
-                            "envs, --set ppo.num_evals=28 --set ppo.spread=global, on sim.backend warp): IQM 0.668")
-    assert "also measured" not in route and route.endswith("three fresh seeds (1010-1012)")
+    assert route.startswith("; the measured route is its dense twin soccer_v2_dense (ppo, 300M env steps, 8,192 "
+                            "envs, --set ppo.num_evals=15 --set ppo.spread=global, on sim.backend warp, on episodes "
+                            "ending once the ant has lain turned over for 50 control steps in a row): IQM 0.851")
+    assert "also measured" not in route and route.endswith("three fresh seeds (1030-1032)")
     assert recipe.dense_route("point_nav") == ""  # no dense twin bundled
 
 
 def test_a_field_on_other_physics_keeps_its_own_measured_recipe_over_the_one_it_extends():
     chosen = recipe.choose(bundled_fields()["v2_wide_goalie_dense_warp"], None)
-    assert (chosen.algo, chosen.recipe.steps, chosen.recipe.envs) == ("ppo", 560_000_000, 8192)
-    assert chosen.recipe.sets == ("ppo.num_evals=28", "ppo.spread=global")
-    assert chosen.line([]).startswith("recipe v2_wide_goalie_dense_warp: ppo, 560M env steps, 8,192 envs")
-    assert "three fresh seeds (990-992)" in chosen.line([]) and "also measured" not in chosen.line([])
+    assert (chosen.algo, chosen.recipe.steps, chosen.recipe.envs) == ("ppo", 300_000_000, 8192)
+    assert chosen.recipe.sets == ("ppo.num_evals=15", "ppo.spread=global")
+    assert chosen.line([]).startswith("recipe v2_wide_goalie_dense_warp: ppo, 300M env steps, 8,192 envs")
+    assert "three fresh seeds (1020-1022)" in chosen.line([]) and "also measured" not in chosen.line([])
 
 
 def test_an_unmeasured_recipe_names_its_task_measured_on_other_physics_and_not_other_tasks_extending_it(
@@ -132,22 +139,22 @@ def test_train_prints_the_recipe_its_overrides_and_the_warning_once_and_run_json
 def test_list_shows_each_bundled_fields_recipe_and_the_headline_of_its_figure_with_its_seeds():
     rows = {name: (recipe_text, measured) for name, recipe_text, measured in recipe.listing()}
     assert set(rows) == set(bundled_fields())
-    assert rows["v2_wide_goalie_dense"] == ("ppo, 560M env steps, 8,192 envs, --set ppo.num_evals=28 --set "
-                                            "ppo.spread=global, on sim.backend warp", "IQM 0.675 [0.583, 0.746] "
-                                            "success at 560M env steps; three fresh seeds (990-992)")
-    assert rows["soccer_v2_dense"][1].startswith("IQM 0.668 [0.615, 0.724]")
+    assert rows["v2_wide_goalie_dense"] == ("ppo, 300M env steps, 8,192 envs, --set ppo.num_evals=15 --set "
+                                            "ppo.spread=global, on sim.backend warp" + FALL, "IQM 0.885 "
+                                            "[0.857, 0.913] success at 300M env steps; three fresh seeds (1020-1022)")
+    assert rows["soccer_v2_dense"][1].startswith("IQM 0.851 [0.812, 0.897]")
     assert rows["ant_nav"][1] == "IQM 0.923 [0.899, 0.947] success at 14M env steps; five fresh seeds (600-604)"
-    assert rows["v2_wide_goalie"][0].endswith("on its task's dense reward, on sim.backend warp")
-    assert rows["v2_wide_goalie"][1].startswith("IQM 0.675 [0.583, 0.746] success at 560M env steps")
+    assert rows["v2_wide_goalie"][0].endswith("on its task's dense reward, on sim.backend warp" + FALL)
+    assert rows["v2_wide_goalie"][1].startswith("IQM 0.885 [0.857, 0.913] success at 300M env steps")
     assert rows["soccer_v2_dense_near"] == (rows["soccer_v2_dense"][0] + " (the recipe of soccer_v2_dense)",
                                             "not measured yet")
-    assert rows["soccer_v2"][1] == "its dense twin soccer_v2_dense: IQM 0.668 [0.615, 0.724] success at 560M env steps"
+    assert rows["soccer_v2"][1] == "its dense twin soccer_v2_dense: IQM 0.851 [0.812, 0.897] success at 300M env steps"
     assert rows["point_soccer"] == ("crl, --preset cpu", "not measured yet")
     assert rows["point_nav"] == ("none: crl with its defaults", "-")
     assert rows["soccer_1v1"][0] == "none: ppo self-play with its defaults"  # a match trains by self-play
     shown = runner.invoke(app, ["list", "--recipes"])
     assert shown.exit_code == 0 and all(name in shown.output for name in rows), shown.output
-    assert "0.675" in shown.output and "(990-992)" in shown.output
+    assert "0.885" in shown.output and "(1020-1022)" in shown.output
     assert "fieldgen list --recipes FIELD" in shown.output
 
 
@@ -157,9 +164,9 @@ def test_list_states_the_recipes_of_the_fields_named_in_full_with_the_page_of_th
         "steps, 1,024 episodes a seed; five seeds in one program in 414 s on one H200, five fresh seeds (600-604); "
         "data and commands: bench/results/crl_ant_residual_network/README.md")
     assert recipe.statement("soccer_v2_dense_near").startswith(
-        "soccer_v2_dense_near: ppo, 560M env steps, 8,192 envs, --set ppo.num_evals=28 --set ppo.spread=global, on "
-        "sim.backend warp (the recipe of soccer_v2_dense); not measured on soccer_v2_dense_near yet "
-        "(soccer_v2_dense: IQM 0.668 [0.615, 0.724] success at 560M env steps, 1,024 episodes a seed")
+        "soccer_v2_dense_near: ppo, 300M env steps, 8,192 envs, --set ppo.num_evals=15 --set ppo.spread=global, on "
+        "sim.backend warp" + FALL + " (the recipe of soccer_v2_dense); not measured on soccer_v2_dense_near yet "
+        "(soccer_v2_dense: IQM 0.851 [0.812, 0.897] success at 300M env steps, 1,024 episodes a seed")
     assert recipe.statement("point_nav") == "point_nav: no recipe (its trainer's defaults); no measured route"
     shown = runner.invoke(app, ["list", "--recipes", "soccer_v1", "ant_nav"])
     said = [" ".join(line.split()) for line in shown.output.splitlines()]
@@ -269,26 +276,30 @@ def assert_builds_alike(trained, twin):
 
 
 def test_the_users_field_trains_on_the_field_its_recipes_figure_was_measured_on():
-    """v2_wide_goalie's recipe trains it on its task's dense reward on Warp's physics: the very field
-    v2_wide_goalie_dense_warp builds to but for its name, which is why that field's figure is the recipe's."""
+    """v2_wide_goalie's recipe trains it on its task's dense reward on Warp's physics, its episodes ending once
+    the ant lies turned over: the very field bench/fields/v2_wide_goalie_dense_flip_warp.yaml builds to but for
+    its name, which is why that field's figure is the recipe's."""
     fields = bundled_fields()
     chosen = recipe.choose(fields["v2_wide_goalie"], None)
     assert (chosen.algo, chosen.recipe.reward, chosen.recipe.backend) == ("ppo", "dense", "warp")
-    assert (chosen.recipe.steps, chosen.recipe.envs) == (560_000_000, 8192)
-    assert "990-992" in chosen.recipe.measured.seeds and chosen.line([]).startswith(
-        "recipe v2_wide_goalie: ppo, 560M env steps, 8,192 envs, --set ppo.num_evals=28 --set ppo.spread=global, on "
-        "its task's dense reward, on sim.backend warp; measured: IQM 0.675 [0.583, 0.746]")
+    assert (chosen.recipe.steps, chosen.recipe.envs) == (300_000_000, 8192)
+    assert "1020-1022" in chosen.recipe.measured.seeds and chosen.line([]).startswith(
+        "recipe v2_wide_goalie: ppo, 300M env steps, 8,192 envs, --set ppo.num_evals=15 --set ppo.spread=global, on "
+        "its task's dense reward, on sim.backend warp" + FALL + "; measured: IQM 0.885 [0.857, 0.913]")
     written = load_spec(fields["v2_wide_goalie"])
     trained, note = recipe.training(written, chosen.recipe, trains_here=False)
-    assert note is None and changed_keys(trained, written) == {"task.reward", "sim.backend"}
+    assert note is None and changed_keys(trained, written) == {"task.reward", "sim.backend", *FALL_KEYS}
     assert trained.sim.backend == "warp" and trained.name == "v2_wide_goalie"
-    assert_builds_alike(trained, load_spec(fields["v2_wide_goalie_dense_warp"]))
-    assert recipe.trained_form(trained, written) == "its task's dense reward and sim.backend warp"
+    assert_builds_alike(trained, load_spec(BENCH_FIELDS / "v2_wide_goalie_dense_flip_warp.yaml"))
+    assert recipe.trained_form(trained, written) == (
+        "its task's dense reward, sim.backend warp and episodes ending once the ant has lain turned over for 50 "
+        "control steps in a row (2.5 s)")
     assert recipe.training_line(trained, written) == (
         "trains v2_wide_goalie on its task's dense reward (task: {reward: dense}: ball_path_progress, "
-        "agent_behind_ball, success, upright, control_cost) and sim.backend warp (MuJoCo Warp through MJX: NVIDIA "
-        "GPUs; on a CPU Warp's CPU kernels, slow), as its recipe says; the run keeps the field as written, and "
-        "fieldgen eval judges it there (the same success)")
+        "agent_behind_ball, success, upright, control_cost), sim.backend warp (MuJoCo Warp through MJX: NVIDIA "
+        "GPUs; on a CPU Warp's CPU kernels, slow) and episodes ending once the ant has lain turned over for 50 "
+        "control steps in a row (2.5 s; episode: {fall: {kind: flipped, grace_steps: 50}}), as its recipe says; the "
+        "run keeps the field as written, and fieldgen eval judges it there (the same success)")
 
 
 def test_where_warp_does_not_run_the_recipe_trains_on_the_fields_own_physics_and_says_why(monkeypatch):
@@ -296,7 +307,7 @@ def test_where_warp_does_not_run_the_recipe_trains_on_the_fields_own_physics_and
     written = load_spec(bundled_fields()["v2_wide_goalie"])
     wide = recipe.choose(bundled_fields()["v2_wide_goalie"], None).recipe
     trained, note = recipe.training(written, wide)
-    assert changed_keys(trained, written) == {"task.reward"} and trained.sim.backend == "mjx"
+    assert changed_keys(trained, written) == {"task.reward", *FALL_KEYS} and trained.sim.backend == "mjx"
     assert note.startswith("v2_wide_goalie trains on its own sim.backend mjx here: its recipe's backend warp")
     prepared, note = recipe.training(written, wide, trains_here=False)  # set up here, trained on a GPU elsewhere
     assert prepared.sim.backend == "warp" and note is None
@@ -310,7 +321,7 @@ def test_a_field_with_reward_terms_of_its_own_keeps_them_under_a_dense_recipe(tm
                    "task: {reward: [{term: success, weight: 1.0}, {term: ball_progress, weight: 5.0}]}\n")
     written = load_spec(own)
     trained, _ = recipe.training(written, recipe.choose(own, None).recipe, trains_here=False)
-    assert changed_keys(trained, written) == {"sim.backend"} and trained.sim.backend == "warp"
+    assert changed_keys(trained, written) == {"sim.backend", *FALL_KEYS} and trained.sim.backend == "warp"
     nowhere = tmp_path / "to_the_goal.yaml"  # the agent to a goal mouth: a task with no dense reward
     nowhere.write_text("extends: v2_wide_goalie\nname: to_the_goal\ntask: {success: {kind: ball_in_goal}}\n")
     with pytest.raises(recipe.RecipeError) as caught:
