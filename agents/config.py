@@ -210,7 +210,8 @@ class RunConfig(BaseModel):
                 raise ConfigError(f"{where}: {unknown.message.format(value)}") from None
             listed = f"; write it as a list, [{value}]" if isinstance(value, str) and "," in value else ""
             past = isinstance(value, float) and math.isinf(value) and written is not None
-            shown = shown_text(written) if past else shown_value(value)
+            # YAML's null (crl.x=, `x:` with nothing after it, ~) is said as left empty: Python's None was not written
+            shown = "left empty" if value is None else shown_text(written) if past else shown_value(value)
             raise ConfigError(f"{where}: {cls.algo}.{key} {allowed(exc.errors()[0], fields[key])}, "
                               f"not {shown}{listed}") from None
 

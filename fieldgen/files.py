@@ -216,6 +216,14 @@ def _record(folder: Path) -> dict | None:
     return record if isinstance(record, dict) else None
 
 
+def written_by(folder: Path) -> str | None:
+    """The command that wrote `folder` by its ownership record (`fieldgen export`, `fieldgen build`...); None where
+    it has none: a folder of the user's, or one kept before records were."""
+    record = _record(folder)
+    writer = record.get("written_by") if record else None
+    return writer if isinstance(writer, str) else None
+
+
 def _files(record: dict) -> dict[str, str] | None:
     """The files a record lists (name -> the command that wrote it); None in one kept before it listed them."""
     files = record.get("files")

@@ -190,12 +190,16 @@ def read_description(folder: Path) -> Description:
     except OSError as exc:
         raise PolicyError(f"cannot read {path}: {exc.strerror}; is {folder} a folder written by fieldgen export?") \
             from None
-    except ValidationError as exc:
+    except ValidationError as exc:  # each told the way on: the folder is remade whole from its run
         problem = exc.errors()[0]
+        again = f"it was edited or damaged: export the policy again (fieldgen export RUN -o {folder})"
+        if problem["type"] == "json_invalid":  # cut short in a copy, or not JSON: pydantic names the line
+            raise PolicyError(f"{path} is not JSON ({problem['msg'].removeprefix('Invalid JSON: ')}); {again}") \
+                from None
         where = ".".join(str(p) for p in problem["loc"]) or "(the file)"
         if problem["type"] == "value_error" and not problem["loc"]:  # the file's parts disagree: it says which
-            raise PolicyError(f"{path}: {problem['msg'].removeprefix('Value error, ')}") from None
-        raise PolicyError(f"{path}: {where}: {problem['msg']}") from None
+            raise PolicyError(f"{path}: {problem['msg'].removeprefix('Value error, ')}; {again}") from None
+        raise PolicyError(f"{path}: {where}: {problem['msg']}; {again}") from None
 
 
 def _policy(d: Description, params: dict) -> Policy:

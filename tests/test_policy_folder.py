@@ -96,6 +96,19 @@ def test_a_damaged_or_edited_policy_json_is_one_sentence(exported, edit, phrase)
     assert "\n" not in str(caught.value)
 
 
+@pytest.mark.parametrize("cut", [0, 100], ids=["empty", "cut_short"])
+def test_a_policy_json_cut_short_says_it_is_not_json_and_to_export_again(exported, cut):
+    """Before: "policy.json: (the file): Invalid JSON: EOF while parsing ...", with no way on; every refusal of the
+    description now ends with one."""
+    path = exported / DESCRIPTION
+    path.write_bytes(path.read_bytes()[:cut])
+    with pytest.raises(PolicyError) as caught:
+        fieldgen.load_policy(exported)
+    said = str(caught.value)
+    assert said.startswith(f"{path} is not JSON (EOF while parsing") and " at line " in said
+    assert said.endswith(f"; it was edited or damaged: export the policy again (fieldgen export RUN -o {exported})")
+
+
 def test_a_policy_json_too_large_to_be_one_is_refused_unread(exported):
     path = exported / DESCRIPTION
     with path.open("ab") as f:

@@ -135,13 +135,17 @@ DURATION = re.compile(r"(?:(\d+(?:\.\d*)?)h)?(?:(\d+(?:\.\d*)?)m)?(?:(\d+(?:\.\d
 
 
 def duration(text: str | float) -> float:
-    """Seconds as people write a time limit: 570, 570s, 9m30s, 45m, 1.5h or 2h30m."""
+    """Seconds as people write a time limit: 570, 570s, 9m30s, 45m, 1.5h or 2h30m; a time read but out of range
+    (0s, a century) is told the range, not that it is no time."""
     match = DURATION.fullmatch(str(text).strip().lower().replace(" ", ""))
-    hours, minutes, seconds = (float(part or 0) for part in match.groups()) if match and any(match.groups()) \
-        else (0.0, 0.0, 0.0)
+    how = "write it as 570 (seconds), 9m30s, 45m or 1.5h"
+    if not (match and any(match.groups())):
+        raise typer.BadParameter(f"'{text}' is not a length of time; {how}")
+    hours, minutes, seconds = (float(part or 0) for part in match.groups())
     total = hours * 3600 + minutes * 60 + seconds
     if not 0 < total < limits.TIME_LIMIT_SECONDS:
-        raise typer.BadParameter(f"'{text}' is not a length of time; write it as 570 (seconds), 9m30s, 45m or 1.5h")
+        raise typer.BadParameter(f"'{text}' is out of range: a time limit is above 0 and under "
+                                 f"{limits.TIME_LIMIT_SECONDS:,} seconds (some thirty years); {how}")
     return total
 
 

@@ -117,8 +117,8 @@ class Sampler(BaseModel):
                 raise LevelError(f"{where} {setting}: write KEY=VALUE, e.g. {where} replaced=8; keys: "
                                  f"{', '.join(cls.model_fields)}")
             if key not in cls.model_fields:
-                raise LevelError(f"{where} {setting}: unknown key '{key}'{did_you_mean(key, list(cls.model_fields))} "
-                                 f"Keys: {', '.join(cls.model_fields)}")
+                near = did_you_mean(key, list(cls.model_fields)) or "."
+                raise LevelError(f"{where} {setting}: unknown key '{key}'{near} Keys: {', '.join(cls.model_fields)}")
             try:
                 values[key] = yaml.safe_load(text) if len(text) <= limits.MAX_DIGITS else text
             except (yaml.YAMLError, ValueError):  # ValueError: an integer of more digits than Python converts

@@ -22,7 +22,7 @@ from pydantic import (AfterValidator, BaseModel, ConfigDict, Field, StrictBool, 
                       model_validator)
 
 from fieldgen.curriculum.promotion import Promotion
-from fieldgen.files import Output, kind_of_blocker, parsed_json, write_atomic
+from fieldgen.files import Output, kind_of_blocker, parsed_json, write_atomic, written_by
 from fieldgen.schema.errors import shown_text, shown_value
 
 RUN, METRICS, CSV, CHECKPOINT, PLOT = "run.json", "metrics.jsonl", "metrics.csv", "checkpoint.msgpack", "success.png"
@@ -255,10 +255,20 @@ def _problems(exc: ValidationError) -> str:
     said = [f"it lacks {', '.join(missing)}"] if missing else []
     for e in errors:
         if e["type"] != "missing":
-            what = str(e["ctx"]["error"]) if e["type"] == "value_error" else e["msg"].removeprefix("Input ")
+            what = _should(e)
             where = ".".join(shown_text(str(part)) for part in e["loc"])
             said.append(f"{where} {what}, not {shown_value(e['input'])}" if where else what)  # a whole row's check says its key
     return "; ".join(said)
+
+
+def _should(error: dict) -> str:
+    """What a value should be, by one pydantic complaint (not pydantic's "List should have at least 1 item after
+    validation, not 0", which reads wrongly after the key and before the value)."""
+    if error["type"] in ("too_short", "too_long"):
+        short = error["type"] == "too_short"
+        bound = error["ctx"]["min_length" if short else "max_length"]
+        return f"should hold {'at least' if short else 'at most'} {bound:,} item{'s' * (bound != 1)}"
+    return str(error["ctx"]["error"]) if error["type"] == "value_error" else error["msg"].removeprefix("Input ")
 
 
 def read_run(run_dir: Path) -> RunRecord:
@@ -269,6 +279,10 @@ def read_run(run_dir: Path) -> RunRecord:
     try:
         text = (run_dir / RUN).read_bytes()
     except FileNotFoundError:
+        other = written_by(run_dir)
+        if other is not None and other != RUN_FOLDER.command:  # a policy or a build named where a run goes
+            raise RunError(f"{run_dir} was written by {shown_text(other)}, not fieldgen train: it is no training "
+                           "run; name the folder fieldgen train wrote (runs/<field>-<algo>-<seed>)") from None
         raise RunError(f"{run_dir} is not a training run: {RUN} is missing; name the folder fieldgen train "
                        "wrote (runs/<field>-<algo>-<seed>); one whose setup was cut short is set up again by the "
                        "same fieldgen train command") from None

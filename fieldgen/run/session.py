@@ -23,6 +23,7 @@ from fieldgen.env.team_contract import refuse_team
 from fieldgen.curriculum.contract import start_sampling
 from fieldgen.run import record
 from fieldgen.schema import FieldSpec, load_spec
+from fieldgen.schema.errors import shown_text, shown_value
 
 FIELD, STAGES = "field", "stages"  # the run's own copies of its built fields: resuming needs no compiler
 JUDGED = "judged"  # the field as written, where a recipe trains the run on another (fieldgen.run.recipe.training)
@@ -280,6 +281,20 @@ def started_from(run: Run, source: Path) -> tuple[object, dict]:
                    "before": other.learned_before}
 
 
+def _check_observation(folder: Path, saved: dict, given: dict, sub: str) -> None:
+    """The observation layout run.json records is the one the run's copy of its field `sub` gives: else the policy
+    would read its inputs from the wrong entries. Refused naming the first key that differs, both values, and the
+    way on."""
+    if saved == given:
+        return
+    key = next(k for k in sorted(saved.keys() | given.keys(), key=str) if saved.get(k) != given.get(k))
+    held, gives = (shown_value(layout[key]) if key in layout else "nothing" for layout in (saved, given))
+    raise record.RunError(f"{folder / record.RUN} records observation.{shown_text(str(key))} as {held}, where the "
+                          f"run's own copy of its field, {folder / sub}, gives {gives}: the run "
+                          "was trained on another observation layout than its field gives (an edit, or a copy put "
+                          "together from two runs); restore the run from a copy, or start it again in a new folder")
+
+
 def open_run(folder: Path, load_state: bool = True, to_train: bool = False, learned: bool = False) -> Run:
     """A run folder with its fields loaded from the run's own copies and (with load_state) its last
     checkpoint; without, the run's record and metrics alone, enough to report on a finished run. To train it
@@ -299,8 +314,8 @@ def open_run(folder: Path, load_state: bool = True, to_train: bool = False, lear
         raise record.RunError(f"{folder / saved.judged} is missing: the run's own copy of the field as written, which "
                               f"its figures are judged on (a copy of the run that left it out); restore it from the "
                               f"run's copy, or judge it on that field by name: fieldgen eval {folder} --field FIELD")
-    if any(saved.observation != env.layout.to_json() for env in envs):
-        raise record.RunError(f"{folder} was trained on a different observation layout than its fields give now")
+    for env, sub in zip(envs, saved.fields or [FIELD]):
+        _check_observation(folder, saved.observation, env.layout.to_json(), sub)
     try:
         described = FieldSpec.model_validate(saved.field).model_dump(mode="json")
     except ValidationError:

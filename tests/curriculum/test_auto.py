@@ -513,6 +513,7 @@ def test_a_sampler_of_its_own_shares_and_replaces_as_it_says():
 @pytest.mark.parametrize(("setting", "says"), [
     ("replaced=-1", "--sampler replaced=-1: replaced must be at least 0 (of the buffer's levels, replaced after"),
     ("repalced=8", "unknown key 'repalced'; did you mean 'replaced'?"),
+    ("nope=1", "--sampler nope=1: unknown key 'nope'. Keys: target_share, "),  # with no near key, a sentence ends
     ("floor=0.8", "floor 0.8 and frontier_share 0.3 together pass 1"),
     ("hardest_share=0.99", "floor 0.05 and hardest_share 0.99 together pass 1"),
     ("target_share", "write KEY=VALUE, e.g. --sampler replaced=8"),

@@ -457,6 +457,10 @@ TORN = '{"eval": 1, "se'
     (lambda run: (run / "run.json").write_text("[]"), "run.json is not a run record: it lacks algo, config, observation"),
     (lambda run: edit_record(run, config=[]), "run.json is not a run record: config should be a valid dictionary, not []"),
     (lambda run: edit_record(run, seeds="x"), "run.json is not a run record: seeds should be a valid list, not 'x'"),
+    (lambda run: edit_record(run, seeds=[]), "run.json is not a run record: seeds should hold at least 1 item, not [] "
+     "(edited or damaged)"),  # before: "seeds List should have at least 1 item after validation, not 0, not []"
+    (lambda run: edit_record(run, observation={**json.loads((run / "run.json").read_text())["observation"], "size": 7}),
+     "run.json records observation.size as 7, where the run's own copy of its field, "),  # before: no key, no way on
     (lambda run: edit_record(run, seeds=[0, -1], mixed="yes"), "run.json is not a run record: seeds.1 should be "
      "greater than or equal to 0, not -1; mixed should be a valid boolean, not 'yes' (edited or damaged); start the "
      "run again in a new folder"),
@@ -498,7 +502,8 @@ TORN = '{"eval": 1, "se'
     (lambda run: (run / "run.json").unlink(), "point_nav-crl-0 is not a training run: run.json is missing; name the "
      "folder fieldgen train wrote (runs/<field>-<algo>-<seed>); one whose setup was cut short is set up again by the "
      "same fieldgen train command"),
-], ids=["file", "empty", "list", "config", "seeds", "seeds_mixed", "fields", "promotion", "middle", "bytes",
+], ids=["file", "empty", "list", "config", "seeds", "seeds_empty", "observation", "seeds_mixed", "fields", "promotion",
+        "middle", "bytes",
         "eval_text", "stage", "no_rows", "folder", "field", "other_field", "field_text", "no_field", "field_missing",
         "judged_outside", "judged_missing", "record_missing"])
 def test_damaged_run_folders_are_clear_errors(tmp_path, damage, phrase, tiny_crl_args):

@@ -411,3 +411,23 @@ def test_a_run_named_by_a_link_that_leads_nowhere_is_called_that_not_missing(tmp
     args = [str(tmp_path / "policy") if a == "POLICY" else str(prepared) if a == "RUN" else a for a in command]
     refused(runner.invoke(app, [*args, str(loop)]),
             f"{loop} is a link that leads nowhere (a loop of links, or to nothing), not a run folder")
+
+
+@pytest.mark.parametrize("command", [["eval", "--no-video"], ["export", "-o", "POLICY"], ["train", "--resume"],
+                                     ["videos"]], ids=lambda c: c[0])
+def test_a_policy_or_a_build_named_as_a_run_says_which_command_wrote_it(tmp_path, command):
+    """Before: an exported policy's folder (or a build's) named where a run goes was 'not a training run: run.json is
+    missing', with a setup cut short to set up again: as if it were a run, not another command's folder."""
+    from fieldgen.policy_folder import POLICY
+
+    policy = tmp_path / "policies" / "point_nav"
+    policy.mkdir(parents=True)
+    files.mark(policy, POLICY)
+    built = runner.invoke(app, ["build", "point_nav", "--out", str(tmp_path / "build")])
+    assert built.exit_code == 0, built.output
+    for folder, writer in ((policy, "fieldgen export"), (tmp_path / "build" / "point_nav", "fieldgen build")):
+        arguments = [str(tmp_path / "exported") if word == "POLICY" else word for word in command]
+        refused(runner.invoke(app, [*arguments, str(folder)]),
+                f"{folder} was written by {writer}, not fieldgen train: it is no training run; name the folder "
+                "fieldgen train wrote (runs/<field>-<algo>-<seed>)")
+    assert not (tmp_path / "exported").exists()

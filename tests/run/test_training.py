@@ -185,12 +185,21 @@ def test_the_deadline_weighs_the_longest_chunk_and_checkpoint_and_lets_an_unmeas
     assert not training.Deadline(1031.0, rows).stop(None) and training.Deadline(1029.0, rows).stop(None)
 
 
-@pytest.mark.parametrize("limit", ["0", "9x", "-5", "m"])
+@pytest.mark.parametrize("limit", ["9x", "-5", "m"])
 def test_a_time_limit_that_is_no_length_of_time_is_one_line(tmp_path, limit):
     result = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path), "--time-limit", limit])
     said = " ".join(result.output.replace("│", " ").split())  # the words of the error's box
     assert result.exit_code == 2 and f"'{limit}' is not a length of time; write it as 570 (seconds), 9m30s, 45m or " \
         "1.5h" in said and "Traceback" not in result.output
+
+
+@pytest.mark.parametrize("limit", ["0", "0s", "0h0m", "300000h"])
+def test_a_time_limit_out_of_range_is_told_the_range(tmp_path, limit):
+    """Before: 0s and a limit of centuries were each 'not a length of time', which they are; the range was unsaid."""
+    result = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path), "--time-limit", limit])
+    said = " ".join(result.output.replace("│", " ").split())
+    assert result.exit_code == 2 and f"'{limit}' is out of range: a time limit is above 0 and under 1,000,000,000 " \
+        "seconds (some thirty years); write it as 570 (seconds), 9m30s" in said and "Traceback" not in result.output
 
 
 @pytest.mark.slow
@@ -437,6 +446,8 @@ def test_bundled_config_files_hold_only_known_keys(path):
     (["--set", "crl.layer_norm=maybe"], "crl.layer_norm must be true or false, not 'maybe'"),
     (["--set", "crl.batch_size=true"], "crl.batch_size must be a whole number, not True"),
     (["--set", "crl.batch_size=0"], "crl.batch_size must be greater than 0, not 0"),
+    (["--set", "crl.batch_size="], "--set crl.batch_size=: crl.batch_size must be a whole number, not left empty"),
+    (["--set", "crl.actor_lr=~"], "crl.actor_lr must be a number, not left empty"),  # YAML's null, once "not None"
     (["--set", "crl.batch_size=-64"], "crl.batch_size must be greater than 0, not -64"),
     (["--set", "crl.num_evals=0"], "crl.num_evals must be greater than 0, not 0"),
     (["--set", "crl.eval_envs=0"], "crl.eval_envs must be greater than 0, not 0"),
