@@ -608,7 +608,8 @@ def evaluate(
             filmed_run, filmed_place = judging.filmed(runs, film_seed)
         except (SpecError, ConfigError, record.RunError) as exc:
             fail(str(exc))
-        path = summary_file or judging.summary_path(run_dirs, runs[0], field is not None)
+        path, kept = (summary_file, None) if summary_file else judging.summary_path(run_dirs, runs[0], field is not None,
+                                                                                      episodes)
         video_name = judging.video_path(run_dirs[filmed_run], None if field is None else runs[0].env.spec.name,
                                         film_seed)
         files.check_file(path, files.EVAL)  # before evaluating: a file it may not replace is one line now
@@ -667,7 +668,8 @@ def evaluate(
             summary_written = True
         except WriteError as exc:
             fail(str(exc))
-        out.print(f"summary: {path}")
+        out.print(f"summary: {path}" + (f" ({kept}, of {summary.read(kept).episodes:,} episodes, kept)" if kept else ""),
+                  soft_wrap=True)
         if video:  # the filmed seed's first evaluation episode
             drawn = EpisodeRecorder(runs[filmed_run].env, camera, fmt).save(
                 run_dirs[filmed_run], video_name, evaluations[filmed_run].episode, err, files.EVAL)

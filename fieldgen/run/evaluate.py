@@ -140,11 +140,18 @@ def judged_copy(folders: list[Path], copies: list[Path | None]) -> Path | None:
     return copies[0]
 
 
-def summary_path(folders: list[Path], run: Run, other_field: bool) -> Path:
+def summary_path(folders: list[Path], run: Run, other_field: bool, episodes: int) -> tuple[Path, Path | None]:
     """Where a summary goes by default: into the run folder for one run, beside the first for several;
-    summary_<field>.json on another field, as its video is eval_<field>."""
+    summary_<field>.json on another field, as its video is eval_<field>. A summary there of more episodes is
+    kept, and this one goes beside it named with its episodes (summary_4.json), so that a quick look, such as a
+    filmed episode or four, never replaces a figure of 1,024 episodes; the second path is the one kept."""
     name = summary.SUMMARY if not other_field else f"summary_{run.env.spec.name}.json"
-    return (folders[0] if len(folders) == 1 else folders[0].absolute().parent) / name
+    path = (folders[0] if len(folders) == 1 else folders[0].absolute().parent) / name
+    try:
+        held = summary.read(path).episodes
+    except (summary.SummaryError, OSError):  # none there, or no summary of eval's: the writer's checks decide
+        return path, None
+    return (path, None) if held <= episodes else (path.with_name(f"{path.stem}_{episodes}.json"), path)
 
 
 def summarize(runs: list[Run], evaluations: list[Evaluation], episodes: int, command: str,

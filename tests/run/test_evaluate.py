@@ -335,3 +335,27 @@ def test_the_table_says_how_long_an_agent_with_a_torso_lay_turned_over_and_nothi
         result = runner.invoke(app, ["eval", str(run), "--no-video", "--summary", str(tmp_path / f"s{column}.json")])
         assert result.exit_code == 0, result.output
         assert ("turned" in result.output) == column and "0.25" in result.output  # a narrow cell splits its title
+
+
+def test_a_quick_evaluation_keeps_the_summary_of_more_episodes_and_writes_its_own_beside_it(tmp_path):
+    """Filming four episodes after the 1,024-episode figure leaves that figure where it was."""
+    from types import SimpleNamespace
+
+    from fieldgen.run import evaluate as judging
+    from fieldgen.run import summary
+
+    run = SimpleNamespace(env=SimpleNamespace(spec=SimpleNamespace(name="soccer_v2_dense")))
+    folder = tmp_path / "run"
+    folder.mkdir()
+    assert judging.summary_path([folder], run, False, 4) == (folder / "summary.json", None)  # none there yet
+    values = {metric: {0: 0.5, 1: 0.75} for metric in summary.METRICS}
+    for name in ("summary.json", "summary_soccer_v2_dense.json"):
+        summary.write(summary.summarize(["point_nav"], "ppo", [folder], 1024, {0: 10, 1: 10}, values, "eval"),
+                      folder / name)
+    assert judging.summary_path([folder], run, False, 4) == (folder / "summary_4.json", folder / "summary.json")
+    assert judging.summary_path([folder], run, True, 16) == (folder / "summary_soccer_v2_dense_16.json",
+                                                              folder / "summary_soccer_v2_dense.json")
+    for as_many_or_more in (1024, 2048):  # a re-evaluation as large replaces it, as before
+        assert judging.summary_path([folder], run, False, as_many_or_more) == (folder / "summary.json", None)
+    (folder / "summary.json").write_text("{}")  # not a summary of eval's: the writer refuses or replaces it
+    assert judging.summary_path([folder], run, False, 4) == (folder / "summary.json", None)
