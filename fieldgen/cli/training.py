@@ -668,8 +668,7 @@ def evaluate(
             summary_written = True
         except WriteError as exc:
             fail(str(exc))
-        out.print(f"summary: {path}" + (f" ({kept}, of {summary.read(kept).episodes:,} episodes, kept)" if kept else ""),
-                  soft_wrap=True)
+        out.print(f"summary: {path}" + (f" ({kept}, of more episodes, kept)" if kept else ""), soft_wrap=True)
         if video:  # the filmed seed's first evaluation episode
             drawn = EpisodeRecorder(runs[filmed_run].env, camera, fmt).save(
                 run_dirs[filmed_run], video_name, evaluations[filmed_run].episode, err, files.EVAL)
@@ -738,11 +737,12 @@ def _evaluate_team(run_dirs: list[Path], episodes: int | None, seed: int, action
         ranked = sorted(judged["ratings"].items(), key=lambda item: -item[1])
         out.print(f"Elo ratings{f' of seed {s}' if several else ''} (snapshot by evaluation): "
                   + ", ".join(f"{name} {value:.0f}" for name, value in ranked), soft_wrap=True)
+    path, kept = (path, None) if summary_file else judging.kept_beside(path, result["episodes"])
     try:
         files.write_file(path, (json.dumps(result, indent=1) + "\n").encode(), files.EVAL)
     except WriteError as exc:
         fail(str(exc))
-    out.print(f"summary: {path}")
+    out.print(f"summary: {path}" + (f" ({kept}, of more episodes, kept)" if kept else ""), soft_wrap=True)
     if filmed is not None:  # the last snapshot at home, the earlier one away
         from fieldgen.run.videos import EpisodeRecorder
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import json
 from pathlib import Path
 
 import jax
@@ -143,15 +144,23 @@ def judged_copy(folders: list[Path], copies: list[Path | None]) -> Path | None:
 def summary_path(folders: list[Path], run: Run, other_field: bool, episodes: int) -> tuple[Path, Path | None]:
     """Where a summary goes by default: into the run folder for one run, beside the first for several;
     summary_<field>.json on another field, as its video is eval_<field>. A summary there of more episodes is
-    kept, and this one goes beside it named with its episodes (summary_4.json), so that a quick look, such as a
-    filmed episode or four, never replaces a figure of 1,024 episodes; the second path is the one kept."""
+    kept, and this one goes beside it named with its episodes (summary_4.json, `kept_beside`), so that a quick
+    look, such as a filmed episode or four, never replaces a figure of 1,024 episodes."""
     name = summary.SUMMARY if not other_field else f"summary_{run.env.spec.name}.json"
-    path = (folders[0] if len(folders) == 1 else folders[0].absolute().parent) / name
+    return kept_beside((folders[0] if len(folders) == 1 else folders[0].absolute().parent) / name, episodes)
+
+
+def kept_beside(path: Path, episodes: int) -> tuple[Path, Path | None]:
+    """`path` for an evaluation of `episodes`, unless the file there records more ("episodes", as a summary and
+    a self-play evaluation do): then that one is kept, the path beside it named with the episodes is returned
+    first and the kept one second."""
     try:
-        held = summary.read(path).episodes
-    except (summary.SummaryError, OSError):  # none there, or no summary of eval's: the writer's checks decide
+        held = json.loads(path.read_bytes()).get("episodes")
+    except (OSError, ValueError, AttributeError):  # none there, or none of eval's: the writer's checks decide
         return path, None
-    return (path, None) if held <= episodes else (path.with_name(f"{path.stem}_{episodes}.json"), path)
+    if not isinstance(held, int) or held <= episodes:
+        return path, None
+    return path.with_name(f"{path.stem}_{episodes}{path.suffix}"), path
 
 
 def summarize(runs: list[Run], evaluations: list[Evaluation], episodes: int, command: str,

@@ -359,3 +359,7 @@ def test_a_quick_evaluation_keeps_the_summary_of_more_episodes_and_writes_its_ow
         assert judging.summary_path([folder], run, False, as_many_or_more) == (folder / "summary.json", None)
     (folder / "summary.json").write_text("{}")  # not a summary of eval's: the writer refuses or replaces it
     assert judging.summary_path([folder], run, False, 4) == (folder / "summary.json", None)
+    team = folder / "selfplay_eval.json"  # a self-play run's evaluation records its episodes the same way
+    team.write_text(json.dumps({"episodes": 1024, "per_seed": {}}))
+    assert judging.kept_beside(team, 8) == (folder / "selfplay_eval_8.json", team)
+    assert judging.kept_beside(team, 1024) == (team, None)

@@ -252,6 +252,10 @@ def test_self_play_writes_ratings_resumes_exactly_and_is_judged(tmp_path, interr
     mine = judged["per_seed"]["0"]
     assert mine["vs_snapshot"]["snapshot"] == 1 and sum(mine["vs_random"].values()) == 8
     assert mine["ratings"] == last["ratings"]
+    before = (run / selfplay.EVALUATION).read_bytes()  # 8 matches a seed: a quick look of 2 goes beside it
+    result = runner.invoke(app, ["eval", str(run), "--episodes", "2", "--no-video"])
+    assert result.exit_code == 0 and json.loads((run / "selfplay_eval_2.json").read_text())["episodes"] == 2
+    assert (run / selfplay.EVALUATION).read_bytes() == before, result.output
 
     # the learner exported as one agent's policy acts as the run's own actor does, on either side's observation
     policy_folder = tmp_path / "policy"
