@@ -268,3 +268,16 @@ def test_the_window_shows_the_agent_and_the_ball_where_the_spec_puts_them(virtua
         seen = image[row - 4:row + 5, col - 4:col + 5].reshape(-1, 3).mean(axis=0)
         colour = 255 * np.array(shown["rgba"][geom][:3])
         assert np.abs(seen - colour).max() < 40, f"{geom} at pixel ({col}, {row}) looks {seen}, not {colour}"
+
+
+def test_a_folder_of_none_of_what_view_plays_is_told_the_three_it_could_be(tmp_path, monkeypatch):
+    """Before: told only that it was no built field, as if fieldgen build were the only way on."""
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    (tmp_path / "notes.txt").write_text("a user's folder\n")
+    for extra in ([], ["--field", "point_nav"]):
+        result = CliRunner().invoke(app, ["view", str(tmp_path), *extra])
+        said = " ".join(result.output.split())
+        assert result.exit_code == 1 and "holds nothing fieldgen view plays: no field.json" in said, result.output
+        assert "run.json (a run fieldgen train wrote) or policy.json (a policy fieldgen export wrote)" in said
+    assert (tmp_path / "notes.txt").read_text() == "a user's folder\n"

@@ -63,6 +63,7 @@ def view(
 def _check_arguments(source: str, field: str | None, seed: int | None) -> None:
     """Refuse a source that names nothing, or an option it does not take, before the display is looked for:
     without one, advice to draw what `source` names would hide the mistake."""
+    from fieldgen.compile.artifact import META
     from fieldgen.policy_folder import DESCRIPTION
     from fieldgen.run.record import RUN
 
@@ -73,6 +74,10 @@ def _check_arguments(source: str, field: str | None, seed: int | None) -> None:
         fail(f"--seed picks one of a run's seeds; {source} is not a run folder (it holds no {RUN})")
     if (folder / DESCRIPTION).is_file():
         return
+    if folder.is_dir() and not (folder / META).is_file():  # else told only that it is no built field
+        fail(f"{source} holds nothing fieldgen view plays: no {META} (a field fieldgen build wrote), {RUN} (a run "
+             f"fieldgen train wrote) or {DESCRIPTION} (a policy fieldgen export wrote); name one of those folders, a "
+             "spec file or a bundled field")
     if field is not None:
         fail(f"--field names the field a policy plays on; {source} is a field itself (no {RUN} or {DESCRIPTION} in "
              "it)")
