@@ -598,14 +598,27 @@ def kind_of_blocker(blocker: Path) -> str:
     return "a link that leads nowhere (a loop of links, or to nothing)" if blocker.is_symlink() else "a file"
 
 
-def way_on(folder: Path, flag: str, why: str | None = None) -> str:
+NO_SPACE, NO_PERMISSION = {errno.ENOSPC, errno.EDQUOT}, {errno.EACCES, errno.EPERM}
+
+
+def way_on(folder: Path, flag: str, error: OSError | None = None, said: bool = False) -> str:
     """How to go on where `folder` could not be written: move aside what stands where a folder should
-    (file_in_the_way), for which no space or permission helps; else, after the system's `why` if given, free some
-    space or fix the permissions; or choose another place with `flag` (--out, -o)."""
+    (file_in_the_way), for which no space or permission helps; else, after the system's words for `error` unless
+    the message `said` them already, what helps with that error (space for a full disk, permissions where they
+    refuse, another place on a read-only disk or one where no folder can be made), or, where the error is not
+    known, any of them; and always another place with `flag` (--out, -o)."""
     blocker = file_in_the_way(folder)
     if blocker is not None:  # the system's words are about a path below it: "Not a directory"
         return f"{blocker} is {kind_of_blocker(blocker)}, not a folder; move it aside or choose another {flag}"
-    return f"{why + '; ' if why else ''}free some space, fix the folder's permissions or choose another {flag}"
+    why = f"{error.strerror}; " if error is not None and error.strerror and not said else ""
+    code = None if error is None else error.errno
+    if code in NO_SPACE:
+        return f"{why}free some space or choose another {flag}"
+    if code in NO_PERMISSION:
+        return f"{why}fix the folder's permissions or choose another {flag}"
+    if code is not None:  # a read-only disk, or a place where no folder can be made (/proc): another place
+        return f"{why}choose another {flag}"
+    return f"{why}free some space, fix the folder's permissions or choose another {flag}"
 
 
 def _umask() -> int:

@@ -468,3 +468,24 @@ def test_a_loop_of_links_given_as_out_is_one_line(tmp_path, command):
     assert result.exit_code == 1 and "Traceback" not in message, result.output
     assert str(loop) in message and "a link that leads nowhere (a loop of links, or to nothing)" in message
     assert loop.is_symlink() and os.readlink(loop) == "loop"
+
+
+def test_the_way_on_after_a_write_fails_is_chosen_by_the_systems_error(tmp_path):
+    """Before: "free some space, fix the folder's permissions" whatever the system had said, even "No such file or
+    directory" where no folder can be made (under /proc)."""
+    import errno
+
+    def error(code: int) -> OSError:
+        return OSError(code, os.strerror(code))
+
+    folder = tmp_path / "out"
+    assert files.way_on(folder, "--out", error(errno.ENOSPC)) == \
+        "No space left on device; free some space or choose another --out"
+    assert files.way_on(folder, "-o", error(errno.EACCES)) == \
+        "Permission denied; fix the folder's permissions or choose another -o"
+    assert files.way_on(folder, "--out", error(errno.ENOENT)) == "No such file or directory; choose another --out"
+    assert files.way_on(folder, "--out", error(errno.EROFS), said=True) == "choose another --out"
+    assert files.way_on(folder, "--out") == "free some space, fix the folder's permissions or choose another --out"
+    (tmp_path / "afile").write_text("mine")  # what stands in the way is said before any error's advice
+    assert files.way_on(tmp_path / "afile" / "out", "--out", error(errno.ENOSPC)) == \
+        f"{tmp_path / 'afile'} is a file, not a folder; move it aside or choose another --out"

@@ -87,7 +87,7 @@ def build(
         except FolderError as exc:
             fail(str(exc))
         except OSError as exc:
-            fail(f"{os_problem(exc)}; any earlier build there is unchanged: {files.way_on(out_dir, '--out')}")
+            fail(f"{os_problem(exc)}; any earlier build there is unchanged: {files.way_on(out_dir, '--out', exc, said=True)}")
         _report(result)
     if failed:
         raise typer.Exit(1)

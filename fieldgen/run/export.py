@@ -39,7 +39,7 @@ def export(run_dir: Path, out: Path, seed: int | None = None, fmt: str = "flax")
     try:
         save_policy(policy, description, out, fmt)
     except WriteError as exc:
-        raise record.RunError(f"{exc}; {way_on(out.parent, '-o')}") from None
+        raise record.RunError(f"{exc}; {way_on(out.parent, '-o', exc, said=True)}") from None
     return Exported(out, description)
 
 

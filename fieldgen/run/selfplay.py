@@ -132,7 +132,7 @@ def new_run(source: Path, config: SelfPlayConfig, out: Path, seeds: list[int], c
                          seeds, {"fields": [FIELD], "selfplay": True, **({"recipe": recipe} if recipe else {})})
     except OSError as exc:
         raise record.RunError(f"cannot set up the run folder {folder}: "
-                              f"{files.way_on(folder.parent, '--out', exc.strerror)}") from None
+                              f"{files.way_on(folder.parent, '--out', exc)}") from None
     return TeamRun(folder, config, env, seeds, [])
 
 

@@ -172,7 +172,7 @@ def new_run(source: Path, algo: str, seeds: Sequence[int], config, out: Path, mi
                                  **({"processes": processes} if processes else {})})
     except OSError as exc:
         raise record.RunError(f"cannot set up the run folder {folder}: "
-                              f"{files.way_on(folder.parent, '--out', exc.strerror)}") from None
+                              f"{files.way_on(folder.parent, '--out', exc)}") from None
     return run
 
 

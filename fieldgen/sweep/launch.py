@@ -111,7 +111,7 @@ def record_plan(sweep: Sweep, jobs: dict[str, str] | None = None) -> None:
     except OSError as exc:  # a file in the way was said as the sweep was planned: no space, or no permission
         how = "out:" if sweep.spec.out and Path(sweep.spec.out).absolute() == sweep.folder else "--out"
         raise SweepError([Problem(sweep.path, None, None, "", f"cannot set up the sweep's folder {sweep.folder}: "
-                                  f"{files.way_on(sweep.folder, how, exc.strerror)}")]) from None
+                                  f"{files.way_on(sweep.folder, how, exc)}")]) from None
     path = sweep.folder / PLAN
     before = read_plan(sweep.folder) or PlanRecord(file="", backend="")
     write_file(path, (json.dumps({"file": str(sweep.path.absolute()), "backend": sweep.spec.backend,

@@ -301,8 +301,8 @@ def test_a_sweeps_folder_that_cannot_be_made_says_what_to_do(tmp_path, monkeypat
         result = runner.invoke(app, ["sweep", str(sweep), "--out", str(parent / "sweep")])
     finally:
         parent.chmod(0o755)
-    refused(result, f"{sweep}: cannot set up the sweep's folder {parent / 'sweep'}: Permission denied; free some "
-                    "space, fix the folder's permissions or choose another --out")
+    refused(result, f"{sweep}: cannot set up the sweep's folder {parent / 'sweep'}: Permission denied; fix the "
+                    "folder's permissions or choose another --out")
     assert list(parent.iterdir()) == []
 
 
