@@ -21,7 +21,7 @@ import numpy as np
 from brax import envs
 
 import fieldgen
-from fieldgen.env.throughput import append_jsonl
+from fieldgen.files import append_jsonl
 
 
 def brax_rollout(backend: str):

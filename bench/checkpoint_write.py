@@ -18,7 +18,7 @@ import sys
 import time
 from pathlib import Path
 
-from fieldgen.env.throughput import append_jsonl
+from fieldgen.files import append_jsonl
 
 WAYS = ("whole", "pieces")
 

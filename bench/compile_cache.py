@@ -16,7 +16,8 @@ import subprocess
 import tempfile
 import time
 
-from fieldgen.env.throughput import append_jsonl, run_arguments, run_command
+from fieldgen.env.throughput import run_arguments, run_command
+from fieldgen.files import append_jsonl
 
 
 def timed_run(args, out: str, cache: str | None) -> float:

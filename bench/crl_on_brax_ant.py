@@ -20,7 +20,7 @@ import jax.numpy as jnp
 from brax import envs
 
 from fieldgen.agents import crl, loop
-from fieldgen.env.throughput import append_jsonl
+from fieldgen.files import append_jsonl
 
 
 class GoalAnt:

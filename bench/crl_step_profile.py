@@ -39,7 +39,7 @@ import fieldgen
 from fieldgen import xla_flags
 from fieldgen.agents import buffer, loop, registry
 from fieldgen.agents.config import ConfigError
-from fieldgen.env.throughput import append_jsonl
+from fieldgen.files import append_jsonl
 from fieldgen.schema import SpecError
 from kernel_trace import busy_us, device_kernels, host_ops, trace_events
 from train_throughput import config_for

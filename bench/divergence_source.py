@@ -20,7 +20,7 @@ import jax.numpy as jnp
 
 import fieldgen
 from fieldgen.agents import crl
-from fieldgen.env.throughput import append_jsonl
+from fieldgen.files import append_jsonl
 
 
 def all_finite(tree) -> bool:

@@ -20,7 +20,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from fieldgen.agents.contrastive import energy, paired_energy
-from fieldgen.env.throughput import append_jsonl
+from fieldgen.files import append_jsonl
 
 
 def differences(kind: str, phi: jax.Array, psi: jax.Array) -> jax.Array:

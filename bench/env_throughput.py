@@ -41,7 +41,8 @@ import numpy as np
 
 import fieldgen
 from fieldgen.compile.artifact import compile_spec, load_artifact, write_artifact
-from fieldgen.env.throughput import Throughput, action_shape, append_jsonl, measure
+from fieldgen.env.throughput import Throughput, action_shape, measure
+from fieldgen.files import append_jsonl
 from fieldgen.schema import load_spec, resolve_spec_path
 
 

@@ -27,7 +27,8 @@ from fieldgen.agents import checkpoint, loop, registry
 from fieldgen.curriculum.contract import OneStage
 from fieldgen.run import videos
 from fieldgen.files import write_atomic
-from fieldgen.env.throughput import append_jsonl, run_arguments
+from fieldgen.env.throughput import run_arguments
+from fieldgen.files import append_jsonl
 
 PARTS = ("evaluation", "state_to_host", "write_checkpoint", "draw_gif")
 

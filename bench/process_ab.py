@@ -32,7 +32,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from fieldgen.env.throughput import append_jsonl
+from fieldgen.files import append_jsonl
 
 BENCH = Path(__file__).resolve().parent / "train_throughput.py"
 KEYS = ("field", "algo", "envs", "seeds", "devices")  # what names a row of train_throughput

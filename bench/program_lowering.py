@@ -25,7 +25,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from fieldgen.env.throughput import append_jsonl
+from fieldgen.files import append_jsonl
 
 PROGRAMS = ("start", "evaluate", "chunk")  # lowered in this order; "shapes" is the trace of the state's shapes
 

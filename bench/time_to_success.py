@@ -29,7 +29,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from fieldgen.env.throughput import append_jsonl, train_command
+from fieldgen.env.throughput import train_command
+from fieldgen.files import append_jsonl
 
 
 def first_passing(metrics: Path | None, threshold: float) -> dict | None:

@@ -33,7 +33,8 @@ import fieldgen
 from fieldgen import xla_flags
 from fieldgen.agents import buffer, loop, programs, registry, sharding
 from fieldgen.agents.config import ReplayConfig
-from fieldgen.env.throughput import append_jsonl, measure
+from fieldgen.env.throughput import measure
+from fieldgen.files import append_jsonl
 from fieldgen.run.train import peak_memory_mb
 from kernel_trace import busy_us, device_kernels, span_us, trace_events
 

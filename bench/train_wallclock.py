@@ -26,7 +26,8 @@ import time
 from pathlib import Path
 
 from fieldgen.run import record
-from fieldgen.env.throughput import append_jsonl, run_arguments, run_command
+from fieldgen.env.throughput import run_arguments, run_command
+from fieldgen.files import append_jsonl
 
 
 def run_once(root: Path, args) -> dict:

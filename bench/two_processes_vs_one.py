@@ -47,7 +47,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from fieldgen.env.throughput import append_jsonl, run_arguments, run_command
+from fieldgen.env.throughput import run_arguments, run_command
+from fieldgen.files import append_jsonl
 from fieldgen.run import distributed, record
 
 LAYOUTS = {"one process": [[0, 1]], "two processes": [[0], [1]],  # layout -> the devices of each process

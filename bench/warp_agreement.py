@@ -24,7 +24,7 @@ import numpy as np
 import mujoco
 
 from fieldgen.env.mjx_physics import capacities
-from fieldgen.env.throughput import append_jsonl
+from fieldgen.files import append_jsonl
 from warp_vs_jax import (DEFAULT_FIELDS, Implementation, add_warp_start, load_field, physics_model, use_warp_start,
                          warp_unavailable)
 

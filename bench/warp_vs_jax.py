@@ -38,7 +38,7 @@ import jax.numpy as jnp
 from env_throughput import field_env
 from fieldgen.env import warp_start
 from fieldgen.env.mjx_physics import capacities, overflow_bits, overflow_names, put_model, start_warp
-from fieldgen.env.throughput import append_jsonl
+from fieldgen.files import append_jsonl
 from fieldgen.schema import SpecError
 from fieldgen.schema.backends import BACKENDS
 

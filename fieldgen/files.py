@@ -28,6 +28,7 @@ import errno
 import fcntl
 import fnmatch
 import json
+import math
 import os
 import shlex
 import shutil
@@ -596,6 +597,27 @@ def file_in_the_way(folder: Path) -> Path | None:
 def kind_of_blocker(blocker: Path) -> str:
     """What file_in_the_way found, in the words every message about it uses."""
     return "a link that leads nowhere (a loop of links, or to nothing)" if blocker.is_symlink() else "a file"
+
+
+def append_jsonl(path: Path | None, row: dict) -> None:
+    """Add one benchmark result row to a JSON-lines file (nothing when path is None): the file rewritten whole beside itself
+    and renamed over, so a full disk or a kill leaves the rows before intact; a value that is no number (NaN, as a
+    ratio with no reference row) is written null, which every JSON reader takes."""
+    if path is not None:
+        before = path.read_bytes() if path.exists() else b""
+        torn = b"\n" if before and not before.endswith(b"\n") else b""  # a last line cut before this code
+        write_atomic(path, [before, torn, (json.dumps(_finite(row), allow_nan=False) + "\n").encode()])
+
+
+def _finite(value):
+    """`value` with every float that is not finite replaced by None, through dicts and lists."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite(v) for v in value]
+    return value
 
 
 NO_SPACE, NO_PERMISSION = {errno.ENOSPC, errno.EDQUOT}, {errno.EACCES, errno.EPERM}

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -18,7 +17,6 @@ import jax
 import jax.numpy as jnp
 
 from fieldgen.command import fieldgen_command
-from fieldgen.files import write_atomic
 from fieldgen.env.mjx_physics import OVERFLOW
 from fieldgen.env.contract import agents_per_env
 from fieldgen.env.team_contract import TeamEnvironment
@@ -80,27 +78,6 @@ def measure(env, n_envs: int, steps: int = 200, repeats: int = 3, seed: int = 0)
     if OVERFLOW in state.info:
         env.check_physics(state.info[OVERFLOW])
     return Throughput(n_envs, steps, best, agents_per_env(env))
-
-
-def append_jsonl(path: Path | None, row: dict) -> None:
-    """Add one result row to a JSON-lines file (nothing when path is None): the file rewritten whole beside itself
-    and renamed over, so a full disk or a kill leaves the rows before intact; a value that is no number (NaN, as a
-    ratio with no reference row) is written null, which every JSON reader takes."""
-    if path is not None:
-        before = path.read_bytes() if path.exists() else b""
-        torn = b"\n" if before and not before.endswith(b"\n") else b""  # a last line cut before this code
-        write_atomic(path, [before, torn, (json.dumps(_finite(row), allow_nan=False) + "\n").encode()])
-
-
-def _finite(value):
-    """`value` with every float that is not finite replaced by None, through dicts and lists."""
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    if isinstance(value, dict):
-        return {k: _finite(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_finite(v) for v in value]
-    return value
 
 
 def train_command(field, algo: str, out, *options: str) -> list[str]:

@@ -1,11 +1,12 @@
-"""Benchmark rows appended to a JSON-lines file: each a line any JSON reader takes, the rows before kept whole."""
+"""Benchmark rows appended to a JSON-lines file (fieldgen.files.append_jsonl): each a line any JSON reader takes,
+the rows before kept whole."""
 
 from __future__ import annotations
 
 import json
 import math
 
-from fieldgen.env.throughput import append_jsonl
+from fieldgen.files import append_jsonl
 
 
 def test_rows_append_as_strict_json_with_no_number_written_null(tmp_path):
