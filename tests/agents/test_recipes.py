@@ -33,10 +33,10 @@ def test_the_measured_recipes_are_the_commands_their_figures_came_from():
         "ppo", 300_000_000, 8192, "warp", ("ppo.num_evals=15", "ppo.spread=global"))
     assert dense.fall == {"kind": "flipped", "grace_steps": 50}  # as bench/fields/soccer_v2_dense_flip_warp.yaml
     assert dense.measured.figure.startswith("IQM 0.851 [0.812, 0.897]") and "1030-1032" in dense.measured.seeds
-    near = table["soccer_v1_dense"]
-    assert (near.steps, near.envs, near.backend, near.fall) == (350_000_000, 4096, "warp", {"kind": "never"})
-    assert near.sets == ("ppo.spread=global", "ppo.num_evals=25", "ppo.policy_out_scale=1.0")
-    assert near.measured.figure.startswith("IQM 0.624 [0.458, 0.782]") and "960-962" in near.measured.seeds
+    near = table["soccer_v1_dense"]  # soccer_v2_dense's recipe, as bench/fields/soccer_v1_dense_flip_warp.yaml
+    assert (near.algo, near.steps, near.envs, near.backend, near.fall, near.sets) == (
+        dense.algo, dense.steps, dense.envs, dense.backend, dense.fall, dense.sets)
+    assert near.measured.figure.startswith("IQM 0.854 [0.832, 0.878]") and "840-842" in near.measured.seeds
     ant = table["ant_nav"]
     assert (ant.algo, ant.steps, ant.sets) == ("crl", 14_000_000, ("crl.num_evals=7",))
     assert ant.measured.figure.startswith("IQM 0.923 [0.899, 0.947]") and "600-604" in ant.measured.seeds
@@ -45,8 +45,12 @@ def test_the_measured_recipes_are_the_commands_their_figures_came_from():
         "ppo", 300_000_000, 8192, "dense", "warp")
     for name in ("v2_wide_goalie", "v2_wide_goalie_dense", "v2_wide_goalie_dense_warp"):
         assert table[name].sets == dense.sets and table[name].backend == "warp" and table[name].fall == dense.fall
+    for name in ("v2_wide_goalie_dense", "v2_wide_goalie_dense_warp"):
         assert table[name].measured.figure.startswith("IQM 0.885 [0.857, 0.913]")
         assert "1020-1022" in table[name].measured.seeds
+    # the user's field measured by its own command, `fieldgen train fields/v2_wide_goalie.yaml`
+    assert wide_goalie.measured.figure.startswith("IQM 0.866 [0.803, 0.906]")
+    assert "1040-1042" in wide_goalie.measured.seeds and "fields/v2_wide_goalie.yaml" in wide_goalie.measured.detail
 
 
 def test_a_recipe_extends_another_keeping_its_own_set_items_and_never_its_figure(tmp_path):
@@ -73,7 +77,8 @@ def test_a_recipe_names_a_fall_rule_as_a_spec_writes_it_and_passes_it_on_through
     path = tmp_path / "recipes.yaml"
     path.write_text("base:\n  algo: ppo\n  backend: warp\n  fall: {kind: flipped, grace_steps: 50}\n"
                     "child:\n  extends: base\n  envs: 8\n"
-                    "own:\n  extends: base\n  fall: {kind: height_band, band: [0.3, 1.2]}\n")
+                    "own:\n  extends: base\n  fall: {kind: height_band, band: [0.3, 1.2]}\n"
+                    "rule_off:\n  extends: base\n  fall: {kind: never}\n")
     table = recipes.read(path)
     assert table["base"].fall == table["child"].fall == {"kind": "flipped", "grace_steps": 50}
     assert table["own"].fall == {"kind": "height_band", "band": [0.3, 1.2]}
@@ -83,7 +88,7 @@ def test_a_recipe_names_a_fall_rule_as_a_spec_writes_it_and_passes_it_on_through
                                         "turned over for 50 control steps in a row")
     assert table["own"].summary().endswith("on episodes ending once the ant's torso leaves heights 0.3 to 1.2 m")
     assert table["child"] != table["own"] and len({table["base"], table["child"]}) == 2  # compared, and hashable
-    assert recipes.read()["soccer_v1_dense"].fall == {"kind": "never"}  # a child may keep the rule off
+    assert table["rule_off"].fall == {"kind": "never"}  # a child may keep the rule off
 
 
 def test_a_field_takes_the_recipe_of_the_nearest_field_it_extends():
