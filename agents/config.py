@@ -137,6 +137,8 @@ class RunConfig(BaseModel):
     def _section_values(cls, source: Path | None, skipped: tuple[str, ...]) -> dict:
         """This algorithm's keys in a preset or config file, each checked at its line."""
         section, lines, written = cls._section(source, skipped)
+        for key in section:
+            cls._not_seed(key, f"{source}:{lines[key]}" if key in lines else f"{source}")
         return {key: cls._checked(key, value, f"{source}:{lines[key]}" if key in lines else f"{source}",
                                   written.get(key)) for key, value in section.items()}  # merged in: no line
 
@@ -155,6 +157,7 @@ class RunConfig(BaseModel):
                                   f"with --algo {section}")
             if not sep or not dot or section != cls.algo:
                 raise ConfigError(f"{source}{item!r}: write {cls.algo}.KEY=VALUE, e.g. {cls.example()}")
+            cls._not_seed(key, f"{source}{shown_text(item)}", raw.strip())
             try:
                 value = yaml.load(raw, Loader=SpecLoader)  # as a file's values are read: numbers bounded in digits
             except yaml.YAMLError as exc:
@@ -163,6 +166,15 @@ class RunConfig(BaseModel):
                     from None
             values[key] = cls._checked(key, value, f"{source}{shown_text(item)}", raw.strip())
         return values
+
+    @classmethod
+    def _not_seed(cls, key: str, where: str, written: str = "N") -> None:
+        """A run's seed is the command line's (--seed, and --seeds for several), which every command passes: set
+        in a config file or by --set it would be overridden without a word, so it is refused where it is written."""
+        if key == "seed":
+            raise ConfigError(f"{where}: {cls.algo}.seed is set on the command line, not here: --seed "
+                              f"{written or 'N'} (--seeds K trains K seeds from it); a sweep lists its seeds "
+                              "under `seeds:`")
 
     @classmethod
     def example(cls) -> str:

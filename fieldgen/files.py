@@ -599,6 +599,19 @@ def kind_of_blocker(blocker: Path) -> str:
     return "a link that leads nowhere (a loop of links, or to nothing)" if blocker.is_symlink() else "a file"
 
 
+def named_twice(paths: Iterable[Path]) -> str | None:
+    """The first path named twice (as itself, through a link, or a path that leads to it), as a sentence's start
+    that each caller ends with why once is enough; None where each is named once."""
+    seen: dict[str, Path] = {}
+    for path in paths:
+        real = os.path.realpath(path)  # a loop of links is left to the caller's own check, not raised here
+        if (first := seen.get(real)) is not None:
+            also = "" if str(first) == str(path) else f" (also as {path})"
+            return f"{first} is named twice{also}"
+        seen[real] = path
+    return None
+
+
 def append_jsonl(path: Path | None, row: dict) -> None:
     """Add one benchmark result row to a JSON-lines file (nothing when path is None): the file rewritten whole beside itself
     and renamed over, so a full disk or a kill leaves the rows before intact; a value that is no number (NaN, as a

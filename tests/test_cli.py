@@ -186,7 +186,7 @@ def test_a_curriculum_records_the_fields_as_they_were_named(tmp_path, monkeypatc
     assert made.exit_code == 0, made.output
     written = "".join(p.read_text() for p in sorted((tmp_path / "c").iterdir()))
     assert "from point_nav to my_nav.yaml" in written and str(bundled_fields()["point_nav"]) not in written
-    refused = runner.invoke(app, ["curriculum", "point_soccer", "--start-near", "1", "--stages", "3", "--then",
+    refused = runner.invoke(app, ["curriculum", "point_soccer", "--start-near", "2", "--stages", "3", "--then",
                                   "soccer_v1", "-o", "d"])
     assert refused.exit_code == 1
     assert "point_soccer drives the point agent and soccer_v1 the ant" in " ".join(refused.output.split())

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from typing import Annotated, ClassVar, Literal
 
 from pydantic import Field, StrictBool
@@ -73,8 +74,11 @@ class PPOConfig(RunConfig):
         super().validate_env(env, devices, seeds)
         per_iter = self.per_iteration
         if per_iter % self.num_minibatches:
+            fits = max(d for d in range(1, self.num_minibatches) if per_iter % d == 0)
+            step = self.num_minibatches // math.gcd(self.unroll_length, self.num_minibatches)
             raise ConfigError(f"num_envs x unroll_length = {per_iter:,} does not divide into {self.num_minibatches} "
-                              "minibatches; change num_envs, unroll_length or num_minibatches")
+                              f"minibatches; change num_envs, unroll_length or num_minibatches: --set "
+                              f"ppo.num_minibatches={fits}, or --envs a multiple of {step}")
         need = self.num_evals * per_iter
         if self.total_steps < need:
             step = self.num_minibatches  # envs that keep a minibatch whole at any unroll

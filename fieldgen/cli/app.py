@@ -138,9 +138,11 @@ def duration(text: str | float) -> float:
     """Seconds as people write a time limit: 570, 570s, 9m30s, 45m, 1.5h or 2h30m; a time read but out of range
     (0s, a century) is told the range, not that it is no time."""
     match = DURATION.fullmatch(str(text).strip().lower().replace(" ", ""))
-    how = "write it as 570 (seconds), 9m30s, 45m or 1.5h"
+    how = "write it in hours, minutes and seconds (h, m, s), as 570 (seconds), 9m30s, 45m or 1.5h"
     if not (match and any(match.groups())):
-        raise typer.BadParameter(f"'{text}' is not a length of time; {how}")
+        days = re.fullmatch(r"(\d+(?:\.\d*)?)d", str(text).strip().lower())
+        hint = f" ({float(days[1]) * 24:g}h for {days[0]})" if days else ""
+        raise typer.BadParameter(f"'{text}' is not a length of time; {how}{hint}")
     hours, minutes, seconds = (float(part or 0) for part in match.groups())
     total = hours * 3600 + minutes * 60 + seconds
     if not 0 < total < limits.TIME_LIMIT_SECONDS:

@@ -323,6 +323,9 @@ def train(
         way_on = "" if run is None else f"; start it with: fieldgen train --resume {run.folder}"
         out.print(f"{stops.said()} while setting the run up; nothing was trained{way_on}", soft_wrap=True)
         _exit_interrupted()
+    if prepare and run.finished:  # set up and trained to its end: nothing to start
+        out.print(f"{run.folder} is already complete ({run.rows[-1]['env_steps']:,} env steps)")
+        return
     if prepare:
         out.print(f"prepared {run.folder}; start it with: fieldgen train --resume {run.folder}",
                   soft_wrap=True)  # one line: the command stays whole to copy

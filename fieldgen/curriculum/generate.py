@@ -78,10 +78,14 @@ def variants(base: Path, asked: Asked) -> tuple[str, list[tuple[dict, str]]]:
     for other in KINDS.values():
         for field, option in other.own_options.items():
             if other is not chosen[0] and getattr(asked, field) is not None:
-                raise CurriculumError(f"{option} belongs to a {other.noun} curriculum: "
+                article = "an" if other.noun[0] in "aeiou" else "a"
+                raise CurriculumError(f"{option} belongs to {article} {other.noun} curriculum: "
                                       f"give {other.asked_by.split()[0]} too")
     if asked.then_stages is not None and not asked.then:
         raise CurriculumError("--then-stages belongs to --then: give the field to go on to")
+    if asked.geometric and chosen[0].name != "interpolation" and not asked.then:
+        raise CurriculumError(f"--geometric {asked.geometric[0]} belongs to an interpolation: give --to FIELD (or "
+                              "--then FIELD), whose numbers it moves geometrically")
     for field in (base, asked.to, *asked.then):
         if field is not None and _is_team_field(field):
             raise CurriculumError(f"{field} is a team field: a match trains by self-play on one field from nothing "
@@ -103,7 +107,7 @@ def _is_team_field(path: Path) -> bool:
         return False
 
 
-@kind("interpolation", "--to FIELD", "interpolation", lambda a: a.to is not None)
+@kind("interpolation", "--to FIELD", "interpolation", lambda a: a.to is not None, {"switch_at": "--switch-at"})
 def _interpolation(base: Path, asked: Asked) -> list[tuple[dict, str]]:
     return interpolate(base, asked.to, asked.stages, asked.geometric, asked.switch_at)
 
@@ -192,6 +196,9 @@ def grid(base: Path, axes: dict[str, list]) -> list[tuple[dict, str]]:
         _check_key(key, a, "--vary")
         if not values:
             raise CurriculumError(f"--vary {key}: the list of values is empty")
+        twice = next((v for i, v in enumerate(values) if v in values[:i]), None)
+        if twice is not None:  # two stages of one field: a stage trained twice, weighed twice
+            raise CurriculumError(f"--vary {key}: {shown_text(str(twice))} is listed twice; list each value once")
     out = []
     for combo in itertools.product(*axes.values()):
         assignment = dict(zip(axes, combo))
@@ -235,20 +242,51 @@ def start_states(base: Path, near: float, stages: int, agent_near: float | None 
     if agent_near is not None and not 0 < agent_near < gap:
         raise CurriculumError(f"--agent-near {agent_near:g}: choose a distance between 0 and {gap:.2f}, the distance "
                               f"from the ball's spawn centre to the agent's start in {base}")
+
+    def moved_by(moved: float, closer: float) -> dict:
+        """The changes that move the kick-off `moved` of the way to the target and the agent `closer` of its gap."""
+        dx, dy = (_rounded(moved * to_target[0]), _rounded(moved * to_target[1]))
+        start = (spec.agent.start[0] + dx - closer * behind[0], spec.agent.start[1] + dy - closer * behind[1])
+        return {} if moved == 0 and closer == 0 else {
+            "ball": {"spawn": {"x": [_rounded(v + dx) for v in spawn.x], "y": [_rounded(v + dy) for v in spawn.y]}},
+            "agent": {"start": [_rounded(start[0]), _rounded(start[1])]}}
+
+    def problems_at(distance_left: float) -> str | None:
+        """Why the field with the kick-off this far from the target is no field (None where it is one)."""
+        closer = 0.0 if agent_near is None else 1 - agent_near / gap
+        try:
+            validate(merge(Source(spec.model_dump(mode="json")), Source(moved_by(1 - distance_left / distance, closer))))
+        except SpecError as exc:
+            return "; ".join(f"{p.path}: {p.message}" if p.path else p.message for p in exc.problems)
+        return None
+
+    if (problems := problems_at(near)) is not None:
+        step = distance / 50
+        fits = [round(k * step, 2) for k in range(1, 50) if problems_at(k * step) is None]
+        where = (f"from {base} the distances that make a field, checked every {step:.2f}, run "
+                 f"{_runs(fits, step)}" if fits else f"no distance from {base}'s kick-off makes a field")
+        raise CurriculumError(f"--start-near {near:g}: the first stage, the ball's spawn centre {near:g} from the "
+                              f"target, is not a valid field ({problems}); {where}")
     out = []
     for k in range(stages):
         t = k / (stages - 1)
         moved = (1 - near / distance) * (1 - t)
         closer = 0.0 if agent_near is None else (1 - agent_near / gap) * (1 - t)  # share of the gap taken away
-        dx, dy = (_rounded(moved * to_target[0]), _rounded(moved * to_target[1]))
-        start = (spec.agent.start[0] + dx - closer * behind[0], spec.agent.start[1] + dy - closer * behind[1])
-        changes = {} if moved == 0 and closer == 0 else {
-            "ball": {"spawn": {"x": [_rounded(v + dx) for v in spawn.x], "y": [_rounded(v + dy) for v in spawn.y]}},
-            "agent": {"start": [_rounded(start[0]), _rounded(start[1])]}}
         agent = "" if agent_near is None else f", the agent {gap - closer * gap:.2f} from it"
-        out.append((changes, f"stage {k + 1} of {stages}: kick-off moved {moved * distance:.2f} toward the target, "
-                             f"the ball's spawn centre {distance - moved * distance:.2f} from it{agent}"))
+        out.append((moved_by(moved, closer), f"stage {k + 1} of {stages}: kick-off moved {moved * distance:.2f} "
+                                             f"toward the target, the ball's spawn centre "
+                                             f"{distance - moved * distance:.2f} from it{agent}"))
     return out
+
+
+def _runs(values: list[float], step: float) -> str:
+    """Sorted values checked `step` apart, as the runs they make: '0.50 to 1.00 and 2.00 to 2.40'."""
+    spans, first = [], values[0]
+    for before, value in zip(values, values[1:] + [None]):
+        if value is None or value - before > step * 1.5:
+            spans.append(f"{first:.2f}" if first == before else f"{first:.2f} to {before:.2f}")
+            first = value
+    return " and ".join(spans)
 
 
 def _rounded(x: float) -> float:

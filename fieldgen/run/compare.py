@@ -25,7 +25,7 @@ from rich.table import Column, Table
 import fieldgen
 from fieldgen.agents import registry, sharding
 from fieldgen.compile.artifact import ArtifactError
-from fieldgen.files import COMPARE, Output, check_file, kind_of_blocker, write_file
+from fieldgen.files import COMPARE, Output, check_file, kind_of_blocker, named_twice, write_file
 from fieldgen.run import plots, record, session, summary
 
 PLOT, TABLE = "compare.png", "compare.json"
@@ -48,9 +48,15 @@ def runs(source: Path, algos: list[str], seeds: list[int], folder: Path | None, 
     folder = folder or Path("runs") / f"compare-{env.spec.name}"
     for name in (TABLE, PLOT):  # before anything trains: files of the user's where the table and plot go
         check_file(folder / name, COMPARE)
+    for item in sets:  # another algorithm's keys, unchecked and unused, would read as part of the comparison
+        section = item.partition("=")[0].partition(".")[0]
+        if section in registry.ALGORITHMS and section not in algos:
+            raise record.RunError(f"--set {item}: '{section}' is not among the compared algorithms "
+                                  f"({', '.join(algos)}); its keys apply to those runs alone: add it to --algos or "
+                                  "leave the item out")
     configs = {}
     for algo, entry in entries.items():
-        others = tuple(a for a in registry.ALGORITHMS if a != algo)
+        others = tuple(a for a in algos if a != algo)
         configs[algo] = entry.config.layered(config_file, sets, others, env.spec.agent.kind, preset, **fixed)
         configs[algo].validate_env(env, sharding.device_count(), len(seeds))
     result = []
@@ -299,12 +305,8 @@ def run_folders(arguments: list[str]) -> list[Path] | None:
 def _refuse_twice(runs: list[Path]) -> None:
     """A run named twice (as itself, through a link, or a path that leads to it) would be a line and a row twice,
     weighing as two runs that agree."""
-    seen: dict[Path, Path] = {}
-    for run in runs:
-        first = seen.setdefault(run.resolve(), run)
-        if first is not run:
-            also = "" if str(first) == str(run) else f" (also as {run})"
-            raise record.RunError(f"{first} is named twice{also}: each run is compared once; name it once")
+    if twice := named_twice(runs):
+        raise record.RunError(f"{twice}: each run is compared once; name it once")
 
 
 @dataclasses.dataclass(frozen=True)

@@ -72,7 +72,10 @@ def layout(coordinator: str | None, num_processes: int | None, process_id: int |
         raise RunError(f"--process-id {process_id} is out of range: with --num-processes {num_processes} the ids "
                        f"are 0 to {num_processes - 1}")
     host, _, port = coordinator.rpartition(":")
-    if not host or not port.isdigit() or not 0 < int(port) < 65536:
+    if host and port.isdigit() and not 0 < int(port) < 65536:
+        raise RunError(f"--coordinator {coordinator}: port {int(port):,} is out of range; a port is 1 to 65535, a "
+                       "free one on process 0's host, such as node01:12345")
+    if not host or not port.isdigit():
         raise RunError(f"--coordinator {coordinator}: write it as HOST:PORT, the address of process 0's host and a "
                        "free port, such as node01:12345")
     return Layout(coordinator, num_processes, process_id)

@@ -14,6 +14,7 @@ import jax
 from fieldgen.agents import loop, memory, programs
 from fieldgen.compile.artifact import ArtifactError, field_digest, load_artifact
 from fieldgen.env.mjx_physics import OVERFLOW, PhysicsOverflow
+from fieldgen.files import named_twice
 from fieldgen.run import record, session, summary
 from fieldgen.run.session import Run
 from fieldgen.run.videos import EpisodeRecorder
@@ -94,6 +95,8 @@ def open_runs(folders: list[Path], field: Path | None = None) -> list[Run]:
     field or algorithm than the first's, a seed in two of them, a `field` that is a folder of fields; a summary
     is over the seeds of one recipe."""
     first, owners, copies = None, {}, []
+    if twice := named_twice(folders):
+        raise record.RunError(f"{twice}: each run's seeds count once in a summary; name it once")
     for folder in folders:
         run = session.open_run(folder, load_state=False)
         copies.append(run.judged)

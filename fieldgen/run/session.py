@@ -358,6 +358,11 @@ def open_run(folder: Path, load_state: bool = True, to_train: bool = False, lear
         if to_train and run.finished and (at_end := _learned_to_the_end(run)) is not None:
             run.state, run.sampling = at_end
             return run  # trains no further: neither its whole checkpoint (gigabytes) nor this machine's memory matter
+    if to_train and not trained and any(row["eval"] > 0 for row in rows):  # past the first: its checkpoint is gone
+        raise record.RunError(f"{folder / record.METRICS} holds evaluations to {rows[-1]['env_steps']:,} env steps, "
+                              f"but the run has neither {record.CHECKPOINT} nor {record.LEARNER} to go on from (moved "
+                              "or deleted): put them back to continue it; training it again from the start would "
+                              "replace those evaluations, so start it in a new folder (another --out) instead")
     if to_train:
         try:
             check_memory(run)

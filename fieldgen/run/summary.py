@@ -20,7 +20,7 @@ import scipy.stats
 from pydantic import BaseModel, Field, ValidationError, model_validator
 
 from fieldgen.agents.registry import EVAL_ACTIONS
-from fieldgen.files import EVAL, Output, write_file
+from fieldgen.files import EVAL, Output, named_twice, write_file
 from fieldgen.run.record import metric_problem
 from fieldgen.schema.errors import shown_text
 
@@ -232,6 +232,8 @@ def pooled(summaries: Sequence[tuple[Path, SeedSummary]], command: str) -> SeedS
     apart): their per-seed values, the IQM and interval over all of them. The summaries must be of one field
     and algorithm, judged on as many episodes a seed with the same actions, each seed in one of them; else
     SummaryError naming the two files."""
+    if twice := named_twice(path for path, _ in summaries):
+        raise SummaryError(f"{twice}: each summary's seeds are pooled once; name it once")
     (first_path, first), owners = summaries[0], {}
     for path, one in summaries:
         if not one.field_digests:

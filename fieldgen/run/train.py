@@ -83,6 +83,24 @@ class Deadline:
         return run
 
 
+def restore_learner(run: Run, console: Console) -> None:
+    """A complete run whose learner.msgpack is missing or damaged, while its whole checkpoint holds the end:
+    `fieldgen eval` and `export` read the learner, so it is written again from the checkpoint."""
+    path = run.folder / record.LEARNER
+    try:
+        checkpoint.load(path, *session.learner_template(run))
+        return
+    except checkpoint.CheckpointError:
+        pass
+    if path.is_dir():
+        raise record.RunError(f"{path} is a folder, not what the run learned: move it aside and run fieldgen train "
+                              f"--resume {run.folder} again, which writes it from {record.CHECKPOINT}")
+    learned = session.learner_contents(run.trainers[0], *sharding.to_host((run.state, run.sampling)))
+    write_atomic(path, checkpoint.pieces(learned))
+    console.print(f"{path.name} was missing or damaged: written again from {record.CHECKPOINT}, which holds the "
+                  "run's end")
+
+
 def _train(run: Run, console: Console, videos: bool, logger: str, video_format: str | None,
            deadline: Deadline) -> bool:
     writes = jax.process_index() == 0
@@ -92,6 +110,8 @@ def _train(run: Run, console: Console, videos: bool, logger: str, video_format: 
         remove_leftovers(run.folder)  # of writes killed midway; here, not on opening, which `fieldgen eval` does mid-run
     config, env = run.config, run.env
     if run.state is not None and run.finished:
+        if writes and not run.refills:  # its state read from the whole checkpoint: the learner was not readable
+            restore_learner(run, console)
         console.print(f"{run.folder} is already complete ({run.rows[-1]['env_steps']:,} env steps)")
         return True
     trainers = run.trainers

@@ -113,6 +113,20 @@ def test_counts_in_a_config_file_and_set_read_as_the_command_line_writes_them(tm
         ppo.PPOConfig.layered(file=written)
 
 
+def test_a_seed_written_in_a_config_file_or_by_set_is_refused_where_it_is_written(tmp_path):
+    """The command line's --seed is always passed and would override it without a word: the run would train
+    seed 0 where the user wrote 5."""
+    from fieldgen.agents.config import ConfigError
+
+    with pytest.raises(ConfigError, match=r"--set ppo.seed=5: ppo.seed is set on the command line, not here: --seed 5"):
+        ppo.PPOConfig.layered(sets=["ppo.seed=5"])
+    written = tmp_path / "c.yaml"
+    written.write_text("ppo:\n  num_envs: 8\n  seed: 3\n")
+    with pytest.raises(ConfigError, match=r"c.yaml:3: ppo.seed is set on the command line"):
+        ppo.PPOConfig.layered(file=written)
+    assert ppo.PPOConfig.layered(seed=5).seed == 5  # --seed itself
+
+
 def test_a_linear_learning_rate_falls_from_its_rate_to_zero_over_the_runs_updates():
     """Each of the run's `updates` gradient steps moves a parameter by the rate of its place in the run (Adam's
     step under a steady gradient is the rate itself): the first at learning_rate, half-way at half, the last

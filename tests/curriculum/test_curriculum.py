@@ -60,6 +60,7 @@ def test_grid_has_the_product_size(tmp_path):
 
 @pytest.mark.parametrize("args,phrase", [
     (["--vary", "goal.distance="], "the list of values is empty"),
+    (["--vary", "goal.distance=8,9,8.0"], "--vary goal.distance: 8.0 is listed twice; list each value once"),
     (["--vary", "goal.distanse=8,12"], "unknown key 'goal.distanse'; did you mean 'goal.distance'?"),
     (["--to", "point_nav"], "drives the ant agent and"),
     (["--stage", "goal.distance=200"], "stage 1 (listed: goal.distance=200) is not a valid field (goal.distance:"),
@@ -70,6 +71,9 @@ def test_grid_has_the_product_size(tmp_path):
     (["--start-near", "3", "--then", "point_nav"], "drives the ant agent and"),
     (["--start-near", "3", "--then", "soccer_v2", "--then-stages", "0"], "--then-stages 0: the stages each --then adds is a whole number from 1 to 1,000"),
     (["--start-near", "3", "--then-stages", "2"], "--then-stages belongs to --then"),
+    (["--vary", "goal.distance=8,12", "--geometric", "goal.distance"],  # before: both taken, neither used
+     "--geometric goal.distance belongs to an interpolation: give --to FIELD (or --then FIELD)"),
+    (["--stage", "goal.distance=9", "--switch-at", "2"], "--switch-at belongs to an interpolation curriculum: give --to too"),
     (["--to", "soccer_v2", "--stages", "2", "--then", "soccer_v2"], "stage 2 is that field already"),
     (["--start-near", "3", "--then", "soccer_v2", "--geometric", "goal.distanse"], "did you mean 'goal.distance'?"),
     (["--stage", "goal.distance=abc", "--then", "soccer_v2"], "stage 1, which --then goes on from, is not a valid field (goal.distance: 'abc' is text"),
@@ -81,6 +85,20 @@ def test_bad_curriculum_input_writes_nothing(tmp_path, args, phrase):
     assert result.exit_code == 1, result.output
     assert phrase in " ".join(result.output.split()) and "Traceback" not in result.output
     assert not out.exists() and list(tmp_path.iterdir()) == []
+
+
+def test_a_start_near_that_puts_the_ball_on_an_obstacle_names_the_distances_that_make_a_field(tmp_path):
+    """point_soccer's goalie stands between the kick-off and the goal: the range 0 to 2.50 that --start-near states
+    held distances refused after, with no word of which do make a field."""
+    out = tmp_path / "c"
+    result = runner.invoke(app, ["curriculum", "point_soccer", "-o", str(out), "--start-near", "1", "--stages", "3"])
+    message = " ".join(result.output.split())
+    assert result.exit_code == 1 and not out.exists(), result.output
+    assert ("--start-near 1: the first stage, the ball's spawn centre 1 from the target, is not a valid field "
+            "(obstacles.goalie: the ball can spawn touching obstacle 'goalie'); from point_soccer the distances that "
+            "make a field, checked every 0.05, run 0.50 to 0.85 and 1.55 to 2.45") in message
+    fits = runner.invoke(app, ["curriculum", "point_soccer", "-o", str(out), "--start-near", "2", "--stages", "2"])
+    assert fits.exit_code == 0, fits.output
 
 
 def test_a_variant_that_is_no_field_is_named_by_what_made_it_not_by_a_file_that_is_gone(tmp_path):

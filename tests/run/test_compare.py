@@ -54,6 +54,15 @@ def test_bad_comparisons_are_refused_before_anything_is_written(tmp_path, algos,
     assert not (tmp_path / "c").exists()
 
 
+def test_settings_of_an_algorithm_not_compared_are_refused_not_skipped(tmp_path):
+    """Skipped unread, `--set crl.foo=1` beside `--algos ppo` passed, a typo and all, as part of the comparison."""
+    result = runner.invoke(app, ["compare", "point_nav", "--algos", "ppo", "--set", "crl.foo=1", "--prepare",
+                                 "--out", str(tmp_path / "c")])
+    assert result.exit_code == 1 and "--set crl.foo=1: 'crl' is not among the compared algorithms (ppo); its keys " \
+        "apply to those runs alone" in " ".join(result.output.split()), result.output
+    assert not (tmp_path / "c").exists()
+
+
 def hand_made_run(folder, algo: str, per_eval: list[list[float]], **config):
     """A finished run whose evaluations gave these success_any values, one per seed (no training: the
     plot and the table read only the rows)."""

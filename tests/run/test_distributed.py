@@ -33,6 +33,8 @@ runner = CliRunner()
     (["--coordinator", "localhost:1234"], "--num-processes, --process-id missing: a run over several processes needs"),
     (["--coordinator", "node01", "--num-processes", "2", "--process-id", "1"],
      "--coordinator node01: write it as HOST:PORT"),
+    (["--coordinator", "localhost:99999", "--num-processes", "1", "--process-id", "0"],
+     "--coordinator localhost:99999: port 99,999 is out of range; a port is 1 to 65535"),
 ])
 def test_process_settings_that_cannot_make_a_run_are_one_line(tmp_path, options, phrase):
     result = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path), *options])

@@ -190,6 +190,7 @@ def test_bad_evaluations_are_one_line_and_write_nothing(tmp_path):
     soccer = looks_trained(prepared(tmp_path / "c", "point_soccer", "--seed", "2"))
     other_algo = looks_trained(prepared(tmp_path / "d", "point_nav", "--algo", "td3", "--seed", "3"))
     (tmp_path / "empty").mkdir()
+    again = looks_trained(prepared(tmp_path / "e", "point_nav", "--seed", "1"))  # another run of nav's seed
     before = sorted(tmp_path.rglob("*"))
     cases = [
         ([str(tmp_path / "empty")], f"{tmp_path / 'empty'} is not a training run: run.json is missing"),
@@ -200,7 +201,8 @@ def test_bad_evaluations_are_one_line_and_write_nothing(tmp_path):
         ([str(nav), str(soccer)], f"{soccer} trained crl on point_soccer, {nav} crl on point_nav: runs evaluated "
                                   "together are seeds of one field and algorithm"),
         ([str(nav), str(other_algo)], f"{other_algo} trained td3 on point_nav, {nav} crl on point_nav"),
-        ([str(nav), str(nav)], f"seed 1 is in both {nav} and {nav}: each seed counts once"),
+        ([str(nav), str(nav)], f"{nav} is named twice: each run's seeds count once in a summary; name it once"),
+        ([str(nav), str(again)], f"seed 1 is in both {nav} and {again}: each seed counts once"),
         ([str(nav), "--summary", str(tmp_path / "no" / "s.json")], f"there is no folder {tmp_path / 'no'}"),
         ([str(nav), "--summary", str(tmp_path)], f"--summary {tmp_path} is a folder"),
         ([str(nav), "--summary", str(tmp_path / "s.png")], f"--summary {tmp_path / 's.png'}: fieldgen writes a "

@@ -155,6 +155,29 @@ def test_a_damaged_learner_beside_a_whole_checkpoint_says_to_move_it_aside(tmp_p
     assert not (tmp_path / "policy").exists()
 
 
+def test_resume_refuses_to_train_again_over_evaluations_whose_checkpoints_are_gone(prepared):
+    """A run whose checkpoint.msgpack and learner.msgpack were moved or deleted read as one never trained: resumed,
+    it trained from the start and replaced its evaluations in metrics.jsonl without a word."""
+    rows = [{"eval": k, "seed": 0, "env_steps": 800 * k, "success_any": 0.0} for k in (0, 1)]
+    written = "".join(json.dumps(row) + "\n" for row in rows)
+    (prepared / record.METRICS).write_text(written)
+    refused(runner.invoke(app, ["train", "--resume", str(prepared)]),
+            f"{prepared / record.METRICS} holds evaluations to 800 env steps, but the run has neither "
+            "checkpoint.msgpack nor learner.msgpack to go on from (moved or deleted): put them back to continue it")
+    assert (prepared / record.METRICS).read_text() == written
+
+
+def test_ppo_minibatches_that_do_not_divide_a_batch_are_told_the_settings_that_do(tmp_path):
+    """The refusal named the three settings and no value of any; a user had to work out the arithmetic."""
+    result = runner.invoke(app, ["train", "point_nav", "--algo", "ppo", "--envs", "4", "--steps", "4000", "--prepare",
+                                 "--out", str(tmp_path)])
+    refused(result, "num_envs x unroll_length = 80 does not divide into 32 minibatches; change num_envs, "
+                    "unroll_length or num_minibatches: --set ppo.num_minibatches=20, or --envs a multiple of 8")
+    fixed = runner.invoke(app, ["train", "point_nav", "--algo", "ppo", "--envs", "8", "--steps", "4000", "--prepare",
+                                "--out", str(tmp_path)])
+    assert fixed.exit_code == 0, fixed.output
+
+
 def test_evaluation_episodes_the_machine_cannot_hold_are_refused_before_training(tmp_path, tiny_crl_args):
     """Training checked its own state's memory, not its evaluations': eval_envs=1e12 compiled, trained a chunk and
     died in an OverflowError traceback at the first evaluation."""

@@ -164,7 +164,8 @@ def test_summaries_judged_otherwise_are_refused_in_one_line(tmp_path, changes, p
         return
     with pytest.raises(SummaryError, match=rf"^{paths[4]} and {paths[0]} {re.escape(phrase)}$"):
         pooled(read_all, "")
-    with pytest.raises(SummaryError, match=rf"^seed 0 is in both {paths[0]} and {paths[0]}; pool each seed once$"):
+    with pytest.raises(SummaryError, match=rf"^{paths[0]} is named twice: each summary's seeds are pooled once; "
+                                           "name it once$"):
         pooled([read_all[0], read_all[0]], "")
 
 

@@ -185,12 +185,12 @@ def test_the_deadline_weighs_the_longest_chunk_and_checkpoint_and_lets_an_unmeas
     assert not training.Deadline(1031.0, rows).stop(None) and training.Deadline(1029.0, rows).stop(None)
 
 
-@pytest.mark.parametrize("limit", ["9x", "-5", "m"])
-def test_a_time_limit_that_is_no_length_of_time_is_one_line(tmp_path, limit):
+@pytest.mark.parametrize("limit,hint", [("9x", ""), ("-5", ""), ("m", ""), ("2d", " (48h for 2d)")])
+def test_a_time_limit_that_is_no_length_of_time_is_one_line(tmp_path, limit, hint):
     result = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path), "--time-limit", limit])
     said = " ".join(result.output.replace("│", " ").split())  # the words of the error's box
-    assert result.exit_code == 2 and f"'{limit}' is not a length of time; write it as 570 (seconds), 9m30s, 45m or " \
-        "1.5h" in said and "Traceback" not in result.output
+    assert result.exit_code == 2 and f"'{limit}' is not a length of time; write it in hours, minutes and seconds " \
+        f"(h, m, s), as 570 (seconds), 9m30s, 45m or 1.5h{hint}" in said and "Traceback" not in result.output
 
 
 @pytest.mark.parametrize("limit", ["0", "0s", "0h0m", "300000h"])
@@ -199,7 +199,7 @@ def test_a_time_limit_out_of_range_is_told_the_range(tmp_path, limit):
     result = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path), "--time-limit", limit])
     said = " ".join(result.output.replace("│", " ").split())
     assert result.exit_code == 2 and f"'{limit}' is out of range: a time limit is above 0 and under 1,000,000,000 " \
-        "seconds (some thirty years); write it as 570 (seconds), 9m30s" in said and "Traceback" not in result.output
+        "seconds (some thirty years); write it in hours, minutes and seconds" in said and "Traceback" not in result.output
 
 
 @pytest.mark.slow
@@ -377,12 +377,25 @@ def test_cli_run_folder_and_resume_of_a_finished_run(tmp_path, monkeypatch, tiny
     done = runner.invoke(app, ["train", "--resume", str(run)])
     assert done.exit_code == 0 and "already complete" in done.output
     assert loaded == ["learner.msgpack"]  # of the last evaluation: the whole checkpoint is not read
+    prepared = runner.invoke(app, ["train", "--resume", str(run), "--prepare"])  # said prepared, to be started
+    assert prepared.exit_code == 0 and "already complete" in prepared.output and "prepared" not in prepared.output
+    loaded.clear()
     (run / "learner.msgpack").rename(tmp_path / "learner.msgpack")  # a kill before the last learner was written
     loaded.clear()
     done = runner.invoke(app, ["train", "--resume", str(run)])
     assert done.exit_code == 0 and "already complete" in done.output
-    assert loaded == ["learner.msgpack", "checkpoint.msgpack"]  # none there: the whole checkpoint says where it is
-    assert "goes on from" not in done.output
+    # none there: the whole checkpoint says where it is, and the learner that eval and export read is written again
+    assert loaded == ["learner.msgpack", "checkpoint.msgpack", "learner.msgpack"]
+    assert "goes on from" not in done.output and "learner.msgpack was missing or damaged" in done.output
+    assert (run / "learner.msgpack").read_bytes() == (tmp_path / "learner.msgpack").read_bytes()
+    (run / "learner.msgpack").write_bytes(b"cut")  # damaged alike
+    assert "written again" in runner.invoke(app, ["train", "--resume", str(run)]).output
+    assert (run / "learner.msgpack").read_bytes() == (tmp_path / "learner.msgpack").read_bytes()
+    (run / "learner.msgpack").unlink()
+    (run / "learner.msgpack").mkdir()  # not a file: said, not overwritten
+    folder = runner.invoke(app, ["train", "--resume", str(run)])
+    assert folder.exit_code == 1 and "is a folder, not what the run learned: move it aside" in folder.output
+    (run / "learner.msgpack").rmdir()
     (tmp_path / "learner.msgpack").rename(run / "learner.msgpack")
     evaluated = runner.invoke(app, ["eval", str(run), "--episodes", "8"])
     assert evaluated.exit_code == 0, evaluated.output
