@@ -392,13 +392,21 @@ def _assignments(spec: SweepFile, source: Source, found: list[Problem]) -> None:
                                                             f"({listed}); its keys apply to those runs alone"))
                 continue
             config = registry.trainer(algo).config
-            for value in choices:
+            read: list = []  # each value as the trainer reads it: 4 and "4" plan one run twice in two folders
+            for i, value in enumerate(choices):
                 item = f"{key}={_shown(value)}"
                 try:
-                    config.layered(sets=[item])
+                    setting = getattr(config.layered(sets=[item]), key.partition(".")[2])
                 except ConfigError as exc:
                     found.append(source.problem((section, key), str(exc).removeprefix(f"--set {item}: ")))
                     break
+                # the same as written is _each_once's to say; the same as read, written otherwise, is said here
+                if section == "grid" and setting in read and _shown(value) not in map(_shown, choices[:i]):
+                    found.append(source.problem((section, key, i), f"{_shown(value)} sets what item "
+                                                                  f"{read.index(setting)} sets ({setting!r}): the same "
+                                                                  "run is planned twice; list each value once"))
+                    break
+                read.append(setting)
 
 
 class PlanRecord(BaseModel):

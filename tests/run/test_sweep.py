@@ -188,6 +188,8 @@ def test_a_set_key_the_grid_varies_too_is_refused_at_the_key(tmp_path, body, phr
     ("seeds: [0, 3, 0]\n", ":3:15: seeds[2]: seed 0 is listed twice (items 0 and 2); list each once"),
     ("algorithms: [crl, crl]\n", ":2:19: algorithms[1]: algorithm crl is listed twice"),
     ("grid:\n  crl.repr_dim: [8, 16, 8]\n", ":7:25: grid.crl.repr_dim[2]: value 8 is listed twice (items 0 and 2)"),
+    ("grid:\n  crl.repr_dim: [8, 16, \"8\"]\n", ":7:25: grid.crl.repr_dim[2]: \"8\" sets what item 0 sets (8): the "
+                                               "same run is planned twice"),  # before: two folders, one run
     ("fields: [point_nav, mine.yaml]\n", ":1:21: fields[1]: 'mine.yaml' is the field point_nav, as 'point_nav' "
                                         "(fields[0]) is: their runs would share folders and a summary"),
     ("local: {gpus: [1, 1]}\n", ":6:19: local.gpus[1]: GPU 1 is listed twice (items 0 and 1); list each once, or "
