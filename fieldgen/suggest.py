@@ -36,9 +36,9 @@ def allowed(error: dict, field) -> str:
         phrase, key = BOUNDS[error["type"]]
         bound = error["ctx"][key]
         return f"must be {phrase} {f'{bound:,}' if isinstance(bound, int) else bound}"
-    if error["type"] == "finite_number":
-        return "must be a finite number"
     kind = typing.get_origin(field.annotation) or field.annotation
+    if error["type"] == "finite_number" and kind is not tuple:  # a list's item is told as the list is
+        return "must be a finite number"
     words = {int: "a whole number", float: "a number", bool: "true or false",
              tuple: "a list of layer widths, whole numbers above 0"}
     return f"must be {words.get(kind, kind.__name__)}"

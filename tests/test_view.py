@@ -45,6 +45,14 @@ def test_no_display_is_one_line_naming_render_and_eval(monkeypatch, tmp_path):
     (policy / "policy.json").write_text("{}")
     said = " ".join(CliRunner().invoke(app, ["view", str(policy)]).output.split())
     assert "fieldgen render FIELD -o field.png" in said and f"render {policy}" not in said, said
+    run = tmp_path / "run"  # a run set up, not trained: eval would refuse it, so the advice trains it first
+    run.mkdir()
+    (run / "run.json").write_text("{}")
+    said = " ".join(CliRunner().invoke(app, ["view", str(run)]).output.split())
+    assert f"{run} has not trained yet: `fieldgen train --resume {run}` trains it, then `fieldgen eval" in said, said
+    (run / "learner.msgpack").write_bytes(b"")
+    said = " ".join(CliRunner().invoke(app, ["view", str(run)]).output.split())
+    assert f"`fieldgen eval {run}` writes videos of its policy" in said and "not trained" not in said, said
     assert no_display_reason({"DISPLAY": ":1"}, "linux") is None
     assert no_display_reason({"WAYLAND_DISPLAY": "wayland-0"}, "linux") is None
     assert no_display_reason({}, "darwin") is None  # there the viewer itself says why it cannot open

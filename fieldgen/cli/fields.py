@@ -252,7 +252,8 @@ def make_curriculum(
                                                      help="stage where booleans and choices switch "
                                                           "(default halfway)")] = None,
     vary: Annotated[Optional[list[str]], typer.Option(metavar="KEY=V1,V2",
-                                                      help="a grid axis (repeat for more axes)")] = None,
+                                                      help="a grid axis (repeat for more axes); a list value "
+                                                           "in brackets: ball.spawn.x=[-1,1],[-2,2]")] = None,
     stage: Annotated[Optional[list[str]], typer.Option(metavar="'KEY=V ...'",
                                                        help="one listed variant (repeat)")] = None,
     start_near: Annotated[Optional[float], typer.Option(metavar="DISTANCE",

@@ -87,10 +87,13 @@ def _check_arguments(source: str, field: str | None, seed: int | None) -> None:
 def _no_display(reason: str, source: str) -> None:
     """No viewer: what draws the same without a display, for what `source` is (a run, an exported policy, a field)."""
     from fieldgen.policy_folder import DESCRIPTION
-    from fieldgen.run.record import RUN
+    from fieldgen.run.record import RUN, has_trained
 
     folder = Path(source)
-    if (folder / RUN).is_file():
+    if (folder / RUN).is_file() and not has_trained(folder):  # eval would refuse it as well
+        instead = (f"{source} has not trained yet: `fieldgen train --resume {source}` trains it, then `fieldgen eval "
+                   f"{source}` writes videos of its policy")
+    elif (folder / RUN).is_file():
         instead = f"`fieldgen eval {source}` writes videos of its policy"
     elif (folder / DESCRIPTION).is_file():
         instead = ("`fieldgen eval RUN` writes videos of the run it was exported from, and `fieldgen render FIELD "

@@ -439,12 +439,31 @@ def _yaml_value(raw: str, where: str):
                               "[a, list] or {a: mapping}") from None
 
 
+def _top_level_values(raw: str) -> list[str]:
+    """'8,[-1, 1],{a: 2}' -> ['8', '[-1, 1]', '{a: 2}']: a comma inside brackets, braces or quotes is part of
+    its value, so an axis can vary a list or a mapping."""
+    values, depth, quote, start = [], 0, "", 0
+    for i, char in enumerate(raw):
+        if quote:
+            quote = "" if char == quote else quote
+        elif char in "'\"":
+            quote = char
+        elif char in "[{":
+            depth += 1
+        elif char in "]}":
+            depth = max(depth - 1, 0)
+        elif char == "," and depth == 0:
+            values.append(raw[start:i])
+            start = i + 1
+    return values + [raw[start:]]
+
+
 def parse_axis(item: str) -> tuple[str, list]:
-    """'goal.distance=8,12,16' -> ('goal.distance', [8, 12, 16])."""
+    """'goal.distance=8,12,16' -> ('goal.distance', [8, 12, 16]); 'ball.spawn.x=[-1,1],[-2,2]' -> two lists."""
     key, sep, raw = item.partition("=")
     if not sep or not key:
         raise CurriculumError(f"--vary '{item}': write KEY=V1,V2,..., e.g. goal.distance=8,12,16")
-    raws = raw.split(",")
+    raws = _top_level_values(raw)
     if not raw.replace(",", "").strip():
         raise CurriculumError(f"--vary {key}: the list of values is empty")
     if any(not v.strip() for v in raws):

@@ -271,6 +271,13 @@ def _should(error: dict) -> str:
     return str(error["ctx"]["error"]) if error["type"] == "value_error" else error["msg"].removeprefix("Input ")
 
 
+def _json_kind(value) -> str:
+    """What a parsed JSON value is, in words (a run record must be an object)."""
+    if isinstance(value, list):
+        return f"a list of {len(value):,} item{'s' * (len(value) != 1)}"
+    return {str: "a string", bool: "true or false", type(None): "null"}.get(type(value), "a number")
+
+
 def read_run(run_dir: Path) -> RunRecord:
     if not run_dir.is_dir():
         what = kind_of_blocker(run_dir) if run_dir.is_symlink() or run_dir.exists() else "missing"
@@ -295,8 +302,12 @@ def read_run(run_dir: Path) -> RunRecord:
         said = "it is empty" if not text.strip() else f"it is not JSON: {shown_text(str(exc), PARSER_COMPLAINT)}"
         raise RunError(f"{run_dir / RUN} cannot be read as a run record ({said}); it was edited or damaged: "
                        "restore it from a copy, or start the run again in a new folder") from None
+    if not isinstance(saved, dict):
+        raise RunError(f"{run_dir / RUN} is not a run record: it holds {_json_kind(saved)}, where fieldgen train "
+                       "writes one JSON object (algo, config, observation, ...); it was edited or damaged: restore "
+                       "it from a copy, or start the run again in a new folder")
     try:
-        return RunRecord.model_validate(saved if isinstance(saved, dict) else {})
+        return RunRecord.model_validate(saved)
     except ValidationError as exc:
         raise RunError(f"{run_dir / RUN} is not a run record: {_problems(exc)} (edited or damaged); "
                        "start the run again in a new folder") from None

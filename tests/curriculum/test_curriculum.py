@@ -408,3 +408,13 @@ def test_a_curriculum_asked_for_nothing_is_refused_rather_than_written(tmp_path,
     result = runner.invoke(app, ["curriculum", "point_nav", "-o", str(out), *args])
     said = " ".join(result.output.split())
     assert result.exit_code == 1 and phrase in said and not out.exists(), said
+
+
+def test_a_grid_axis_varies_a_list_written_in_brackets(tmp_path):
+    """A comma inside brackets belongs to its value: ball.spawn.x=[-0.5,0.5],[-1,1] is two spawn ranges (before,
+    the commas split it into four values that were no YAML)."""
+    out = tmp_path / "spread"
+    result = runner.invoke(app, ["curriculum", "soccer_v1", "--vary", "ball.spawn.x=[-0.5,0.5],[-1, 1]", "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    stages = sorted(out.glob("stage_*.yaml"))
+    assert [load_spec(path).ball.spawn.x for path in stages] == [(-0.5, 0.5), (-1.0, 1.0)]

@@ -454,7 +454,9 @@ TORN = '{"eval": 1, "se'
 @pytest.mark.parametrize("damage,phrase", [
     (lambda run: run / "run.json", "is a file, not a run folder; name the folder fieldgen train wrote"),
     (lambda run: (run / "run.json").write_text("{}"), "run.json is not a run record: it lacks algo, config, observation"),
-    (lambda run: (run / "run.json").write_text("[]"), "run.json is not a run record: it lacks algo, config, observation"),
+    (lambda run: (run / "run.json").write_text("[]"), "run.json is not a run record: it holds a list of 0 items, "
+     "where fieldgen train writes one JSON object"),  # before: "it lacks algo, config, observation"
+    (lambda run: (run / "run.json").write_text('"x"'), "run.json is not a run record: it holds a string, where"),
     (lambda run: edit_record(run, config=[]), "run.json is not a run record: config should be a valid dictionary, not []"),
     (lambda run: edit_record(run, seeds="x"), "run.json is not a run record: seeds should be a valid list, not 'x'"),
     (lambda run: edit_record(run, seeds=[]), "run.json is not a run record: seeds should hold at least 1 item, not [] "
@@ -502,7 +504,7 @@ TORN = '{"eval": 1, "se'
     (lambda run: (run / "run.json").unlink(), "point_nav-crl-0 is not a training run: run.json is missing; name the "
      "folder fieldgen train wrote (runs/<field>-<algo>-<seed>); one whose setup was cut short is set up again by the "
      "same fieldgen train command"),
-], ids=["file", "empty", "list", "config", "seeds", "seeds_empty", "observation", "seeds_mixed", "fields", "promotion",
+], ids=["file", "empty", "list", "string", "config", "seeds", "seeds_empty", "observation", "seeds_mixed", "fields", "promotion",
         "middle", "bytes",
         "eval_text", "stage", "no_rows", "folder", "field", "other_field", "field_text", "no_field", "field_missing",
         "judged_outside", "judged_missing", "record_missing"])
