@@ -699,8 +699,12 @@ def _evaluate_team(run_dirs: list[Path], episodes: int | None, seed: int, action
     from fieldgen.files import WriteError
     from fieldgen.run import record, selfplay, summary
 
-    if len(run_dirs) != 1 or field is not None:
-        fail("a self-play run is evaluated alone, on its own field: name one run folder, without --field")
+    team = next(d for d in run_dirs if selfplay.is_team_run(d))
+    if len(run_dirs) != 1:
+        fail(f"{team} is a self-play run: it is evaluated alone, in matches on its own field; name it alone "
+             f"(fieldgen eval {team}) and evaluate the other runs without it")
+    if field is not None:
+        fail(f"{team} is a self-play run: it is evaluated on its own team field alone; leave out --field")
     from fieldgen.run import evaluate as judging
 
     path = summary_file or run_dirs[0] / selfplay.EVALUATION

@@ -105,7 +105,8 @@ def open_runs(folders: list[Path], field: Path | None = None) -> list[Run]:
                                   f"fieldgen train --resume {folder}, then evaluate it")
         first = first or run
         if (run.algo, field_digests(run)) != (first.algo, field_digests(first)):
-            alike = " (fields of one name that differ)" if _trained_on(run) == _trained_on(first) else ""
+            alike = (" (fields of one name that differ)" if _trained_on(run) == _trained_on(first)
+                     and field_digests(run) != field_digests(first) else "")
             raise record.RunError(f"{folder} trained {run.algo} on {_trained_on(run)}, {first.folder} {first.algo} "
                                   f"on {_trained_on(first)}{alike}: runs evaluated together are seeds of one field "
                                   "and algorithm; evaluate them separately")

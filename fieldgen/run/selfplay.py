@@ -189,6 +189,13 @@ def _league_rows(folder: Path, seeds: list[int]) -> list[dict]:
     """The run's rows, each with its league, rating and ratings (record.MetricsRow checks their types where
     present): a resumed run rates its new snapshots from the leagues before, and eval reports the ratings."""
     rows = record.read_metrics(folder, seeds)
+    for s in seeds:  # every evaluation of every seed: eval finds the snapshot from a third of the way among them
+        held = sorted(row["eval"] for row in rows if row["seed"] == s)
+        gap = next((i for i, e in enumerate(held) if e != i), None)
+        if gap is not None:
+            raise record.RunError(f"{folder / record.METRICS} lacks evaluation {gap} of seed {s}, which a self-play "
+                                  "run's later evaluations and its ratings build on (edited or damaged); restore the "
+                                  "file from a copy, or start the run again in a new folder")
     for row in rows:
         lacks = [key for key in ("league", "elo", "ratings") if key not in row]
         if lacks:

@@ -295,6 +295,19 @@ def _check_observation(folder: Path, saved: dict, given: dict, sub: str) -> None
                           "together from two runs); restore the run from a copy, or start it again in a new folder")
 
 
+def _team_field_said(folder: Path, sub: str) -> str:
+    """Why a run on a team field is not read here: a self-play run is read by the commands that know matches; a
+    record that does not say self-play while its field has sides was edited."""
+    from fieldgen.run import selfplay
+
+    if selfplay.is_team_run(folder):
+        return (f"{folder} is a self-play run on a team field: fieldgen eval, export and view read it (fieldgen eval "
+                f"{folder} judges it in matches and films one); this command reads runs of one agent")
+    return (f"{folder / record.RUN} does not say selfplay: true, yet the run's field ({folder / sub}) has two sides: "
+            "a self-play run's record was edited or damaged; restore it from a copy, or start the run again in a "
+            "new folder")
+
+
 def open_run(folder: Path, load_state: bool = True, to_train: bool = False, learned: bool = False) -> Run:
     """A run folder with its fields loaded from the run's own copies and (with load_state) its last
     checkpoint; without, the run's record and metrics alone, enough to report on a finished run. To train it
@@ -307,7 +320,10 @@ def open_run(folder: Path, load_state: bool = True, to_train: bool = False, lear
     for sub in saved.fields or [FIELD]:
         record.check_field_copy(folder / sub)
         try:
-            envs.append(fieldgen.FieldEnv(load_artifact(folder / sub)))
+            artifact = load_artifact(folder / sub)
+            if artifact.spec.teams is not None:
+                raise record.RunError(_team_field_said(folder, sub))
+            envs.append(fieldgen.FieldEnv(artifact))
         except ArtifactError as exc:
             raise record.field_copy_error(folder / sub, exc.problem) from None
     if saved.judged and not (folder / saved.judged).is_dir():

@@ -257,6 +257,23 @@ def test_runs_of_two_fields_that_share_a_name_are_not_judged_as_seeds_of_one(tmp
     assert "Traceback" not in message and not (tmp_path / "s.json").exists()
 
 
+def test_runs_of_two_algorithms_on_one_field_are_told_the_algorithms_differ_and_a_team_run_goes_alone(tmp_path):
+    """Two algorithms on the bundled point_nav differ in their algorithm alone (said, before, to be "fields of one
+    name that differ"); a self-play run named beside another, or with --field, is told to be evaluated alone
+    (before: "without --field" where none was given)."""
+    crl = looks_trained(prepared(tmp_path / "a", "point_nav"))
+    ppo = looks_trained(prepared(tmp_path / "b", "point_nav", "--algo", "ppo"))
+    message = " ".join(runner.invoke(app, ["eval", str(crl), str(ppo), "--no-video"]).output.split())
+    assert message.startswith(f"error: {ppo} trained ppo on point_nav, {crl} crl on point_nav: runs evaluated "
+                              "together are seeds of one field and algorithm"), message
+    team = prepared(tmp_path / "c", "soccer_1v1")
+    message = " ".join(runner.invoke(app, ["eval", str(crl), str(team), "--no-video"]).output.split())
+    assert message == (f"error: {team} is a self-play run: it is evaluated alone, in matches on its own field; "
+                       f"name it alone (fieldgen eval {team}) and evaluate the other runs without it"), message
+    message = " ".join(runner.invoke(app, ["eval", str(team), "--field", "point_nav"]).output.split())
+    assert message == f"error: {team} is a self-play run: it is evaluated on its own team field alone; leave out --field"
+
+
 def test_ctrl_c_says_what_an_evaluation_wrote_and_exits_as_train_does(tmp_path, monkeypatch):
     """Stopped while it evaluates, an evaluation has written nothing; stopped while it draws its video, the
     summary written whole before it is all there is. Either way one line says so, and the status is Ctrl-C's."""

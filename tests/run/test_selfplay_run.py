@@ -350,3 +350,30 @@ def test_several_seeds_train_in_one_program_as_each_would_alone(tmp_path, interr
         won = judged[f"win_{opponent}"]
         assert won["per_seed"] == {s: one[opponent]["win"] / 8 for s, one in judged["per_seed"].items()}
         assert won["low"] <= won["iqm"] <= won["high"]
+
+
+def test_commands_of_single_agent_runs_and_an_edited_record_refuse_a_self_play_run_in_one_line(tmp_path):
+    """`render --levels` and `videos` read runs of one agent: on a self-play run they name the commands that read
+    it; a record whose `selfplay` key was removed, or metrics missing an evaluation between others, are said to be
+    edited (each ended in a KeyError or a StopIteration before)."""
+    result = runner.invoke(app, ["train", "soccer_1v1", "--prepare", "--out", str(tmp_path), *TINY])
+    assert result.exit_code == 0, result.output
+    run = tmp_path / "soccer_1v1-ppo-0"
+    for command in (["render", str(run), "--levels"], ["videos", str(run)]):
+        result = runner.invoke(app, command)
+        assert result.exit_code == 1 and "Traceback" not in result.output, result.output
+        assert f"{run} is a self-play run on a team field: fieldgen eval, export and view read it" in \
+            " ".join(result.output.split())
+    played = selfplay.TeamRun(run, SelfPlayConfig(league_opponents=2, eval_envs=8), None, [0], [])
+    for index in range(3):
+        results = {"random": np.asarray([1, 6, 1]), "earlier": np.asarray([[2, 4, 2]] * 2)}
+        played.rows.append(selfplay.seed_row(played, index, 0, {}, results, 800 * index))
+    record.write_metrics(run, [played.rows[0], played.rows[2]])
+    with pytest.raises(record.RunError, match="metrics.jsonl lacks evaluation 1 of seed 0, which a self-play run's"):
+        selfplay.open_run(run, load_state=False)
+    saved = json.loads((run / record.RUN).read_text())
+    (run / record.RUN).write_text(json.dumps({k: v for k, v in saved.items() if k != "selfplay"}))
+    for command in (["eval", str(run), "--no-video"], ["export", str(run), "-o", str(tmp_path / "p")]):
+        result = runner.invoke(app, command)
+        assert result.exit_code == 1 and "Traceback" not in result.output, result.output
+        assert "run.json does not say selfplay: true, yet the run's field" in " ".join(result.output.split())
