@@ -26,6 +26,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 from fieldgen.agents.actor import Policy
 from fieldgen.agents.networks import residual_blocks
 from fieldgen.files import Output, replace_folder, write_atomic
+from fieldgen.suggest import shell
 
 DESCRIPTION, PARAMS, ONNX = "policy.json", "params.msgpack", "policy.onnx"
 MAX_DESCRIPTION_BYTES = 10_000_000  # a description names each observation and action: kilobytes
@@ -181,7 +182,7 @@ def load_policy(folder: str | Path) -> jax.tree_util.Partial:
 def read_description(folder: Path) -> Description:
     path = folder / DESCRIPTION
     if not folder.is_dir():
-        raise PolicyError(f"{folder} is not a folder; export a run's policy there with: fieldgen export RUN -o {folder}")
+        raise PolicyError(f"{folder} is not a folder; export a run's policy there with: fieldgen export RUN -o {shell(folder)}")
     try:
         if path.stat().st_size > MAX_DESCRIPTION_BYTES:
             raise PolicyError(f"{path} has {path.stat().st_size:,} bytes, more than a policy's description ever "
@@ -192,7 +193,7 @@ def read_description(folder: Path) -> Description:
             from None
     except ValidationError as exc:  # each told the way on: the folder is remade whole from its run
         problem = exc.errors()[0]
-        again = f"it was edited or damaged: export the policy again (fieldgen export RUN -o {folder})"
+        again = f"it was edited or damaged: export the policy again (fieldgen export RUN -o {shell(folder)})"
         if problem["type"] == "json_invalid":  # cut short in a copy, or not JSON: pydantic names the line
             raise PolicyError(f"{path} is not JSON ({problem['msg'].removeprefix('Invalid JSON: ')}); {again}") \
                 from None

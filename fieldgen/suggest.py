@@ -4,6 +4,7 @@ setting's value must be."""
 from __future__ import annotations
 
 import difflib
+import shlex
 import typing
 from typing import Iterable, Mapping
 
@@ -15,6 +16,15 @@ def did_you_mean(word: str, choices: Iterable[str], shown: Mapping[str, object] 
     the folder)."""
     near = difflib.get_close_matches(word, list(choices), n=1, cutoff=cutoff)
     return f"; did you mean '{(shown or {}).get(near[0], near[0])}'?" if near else ""
+
+
+def shell(word: object) -> str:
+    """A path or word as a printed command must hold it to be pasted into a shell: quoted where it has spaces or
+    characters the shell reads (a folder named 'my runs' or '-x')."""
+    text = str(word)
+    if text.startswith("-"):
+        text = f"./{text}" if not text.startswith("./") else text
+    return shlex.quote(text)
 
 
 BOUNDS = {"greater_than": ("greater than", "gt"), "greater_than_equal": ("at least", "ge"),

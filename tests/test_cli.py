@@ -600,3 +600,20 @@ def test_levels_of_a_field_rather_than_a_run_says_what_it_draws(tmp_path):
     said = " ".join(result.output.split())
     assert result.exit_code == 1 and "point_nav is a field, not a run folder: fieldgen render RUN --levels" in said
     assert "is missing" not in said and not (tmp_path / "a.png").exists()
+
+
+def test_a_printed_command_names_a_folder_with_spaces_or_a_leading_dash_as_a_shell_reads_it(tmp_path):
+    """The commands fieldgen prints to go on are pasted into a shell: a folder named 'my runs' or '-cu' is quoted
+    (or led by ./) so that the pasted command names it (before: 'fieldgen train --resume my runs/...' gave two
+    arguments, and 'fieldgen build -cu' an unknown option)."""
+    import shlex
+
+    runs = tmp_path / "my runs é"
+    result = runner.invoke(app, ["train", "point_nav", "--out", str(runs), "--prepare"])
+    assert result.exit_code == 0, result.output
+    said = " ".join(result.output.split())
+    pasted = shlex.split(said.split("start it with: ", 1)[1])
+    assert pasted == ["fieldgen", "train", "--resume", str(runs / "point_nav-crl-0")], said
+    from fieldgen.suggest import shell
+
+    assert shlex.split(shell("-cu")) == ["./-cu"] and shell("runs/a") == "runs/a"

@@ -16,7 +16,7 @@ from fieldgen.cli.app import (SpecArg, app, bounded, choice, count, err, fail, f
                               spec_path)
 from fieldgen.cameras import CAMERAS
 from fieldgen.schema import SpecError, bundled_fields, geometry, load_spec
-from fieldgen.suggest import did_you_mean
+from fieldgen.suggest import did_you_mean, shell
 
 
 @app.command()
@@ -174,7 +174,7 @@ def render(
 
         if not Path(spec).is_dir() and (spec in bundled_fields() or Path(spec).is_file()):
             fail(f"--levels draws the levels a run of the automatic (or mixed) curriculum favours, and {spec} is a "
-                 f"field, not a run folder: fieldgen render RUN --levels (or fieldgen render {spec} -o field.png "
+                 f"field, not a run folder: fieldgen render RUN --levels (or fieldgen render {shell(spec)} -o field.png "
                  f"for the field)")
 
         output = output or Path(spec) / "levels.png"
@@ -305,7 +305,7 @@ def make_curriculum(
             sx, sy = spec.agent.start
             out.print(Text(f"stage {i}: obstacle '{name}' stands between the agent's start ({sx:g}, {sy:g}) and the "
                            "ball: the agent must walk around it to reach the ball", style="yellow"))
-    out.print(f"build them: fieldgen build {output}; see them: fieldgen render {output} -o sheet.png")
+    out.print(f"build them: fieldgen build {shell(output)}; see them: fieldgen render {shell(output)} -o sheet.png")
 
 
 def _as_typed(text: str, typed: dict[str, Path]) -> str:

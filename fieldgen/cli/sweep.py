@@ -11,6 +11,7 @@ from rich.text import Text
 
 from fieldgen import limits, stops
 from fieldgen.cli.app import app, bounded, choice, fail, out
+from fieldgen.suggest import shell
 from fieldgen.sweep.plan import BACKENDS
 
 
@@ -49,7 +50,7 @@ def sweep(
         plan.check_plan(planned)  # sweep.json read and checked: --status trusts it as going on does
     except plan.SweepError as exc:
         fail(str(exc))
-    command = f"fieldgen sweep {file}"
+    command = f"fieldgen sweep {shell(file)}"
     if dry_run:
         for line in launch.dry_run(planned):
             out.print(line, highlight=False, soft_wrap=True)
@@ -62,20 +63,20 @@ def sweep(
             jobs = launch.submit(planned)
             if jobs:
                 out.print(f"submitted {len(jobs)} runs as job array {jobs[0].job_id.split('_')[0]}; follow them with: "
-                          f"fieldgen sweep {file} --status", highlight=False)
+                          f"fieldgen sweep {shell(file)} --status", highlight=False)
             else:
                 raise typer.Exit(_report(planned, standing, command))
             return
         launch.run_local(planned, lambda line: out.print(line, highlight=False))
         if not planned.folder.is_dir():
             fail(f"the sweep's folder {planned.folder} was removed while its runs trained, and with it their "
-                 f"results; start the sweep again to train them anew: fieldgen sweep {file}")
+                 f"results; start the sweep again to train them anew: fieldgen sweep {shell(file)}")
     except launch.BackendError as exc:
         fail(str(exc))
     except plan.SweepError as exc:
         fail(str(exc))
     except KeyboardInterrupt:
-        out.print(f"{stops.said()}; the runs keep their last checkpoints: fieldgen sweep {file} continues them",
+        out.print(f"{stops.said()}; the runs keep their last checkpoints: fieldgen sweep {shell(file)} continues them",
                   soft_wrap=True)  # one line: the command stays whole to copy
         raise typer.Exit(stops.status()) from None
     raise typer.Exit(_report(planned, standing, command))

@@ -20,6 +20,7 @@ from fieldgen.cameras import CAMERAS
 from fieldgen.policy_onnx import FORMATS as POLICY_FORMATS
 from fieldgen.run.loggers import LOGGERS
 from fieldgen.schema import FieldSpec, SpecError
+from fieldgen.suggest import shell
 from fieldgen.video import FORMATS as VIDEO_FORMATS
 
 # --steps' and --envs' defaults, the config's total_steps and num_envs, in words: --help loads no trainer to read
@@ -97,7 +98,7 @@ def _train(run, videos: bool, logger: str, fmt: str | None = None, deadline: flo
     except OSError as exc:  # every file of a run is replaced atomically, so the last good ones remain
         fail(f"could not write {exc.filename or run.folder}: {exc.strerror or exc}; the files already there are "
               f"intact: free some space (or fix the folder's permissions) and continue with "
-              f"fieldgen train --resume {run.folder}")
+              f"fieldgen train --resume {shell(run.folder)}")
     except Exception as exc:
         distributed.stop_if_another_stopped(exc, another_stopped)
         raise
@@ -234,7 +235,7 @@ def train(
                 recorded = f" (its run.json: {total:,} env steps in all)" if type(total) is int else ""
                 fail(f"--resume goes on with the settings {resume} was set up with{recorded}, which "
                      f"{' and '.join(settings)} cannot change; to train "
-                     f"on from what it learned, start a new run from it: fieldgen train SPEC --init-from {resume} "
+                     f"on from what it learned, start a new run from it: fieldgen train SPEC --init-from {shell(resume)} "
                      "--steps N --out DIR")
             if init_from is not None:
                 fail(f"--init-from sets up a new run; {resume} goes on from its own checkpoint (or from what it "
@@ -264,13 +265,13 @@ def train(
                     last = curricula.load(source).spec_paths()[-1]
                     fail(f"{spec} is a curriculum of team fields: a match trains by self-play on one field from "
                          f"nothing (docs/teams.md), never through stages; train one of its stages itself, e.g. "
-                         f"fieldgen train {last}")
+                         f"fieldgen train {shell(last)}")
                 _refuse_for_self_play(field.name, mixed=mixed, curriculum=curriculum_kind, levels=levels,
                                       sampler=samplers, init_from=init_from, logger=logger)
                 team = _team_run(source, field, algo, seeds, config, sets, preset, steps, envs, seed, runs, prepare,
                                  use_recipe)
                 if prepare:
-                    out.print(f"prepared {team.folder}; start it with: fieldgen train --resume {team.folder}",
+                    out.print(f"prepared {team.folder}; start it with: fieldgen train --resume {shell(team.folder)}",
                               soft_wrap=True)
                     try:
                         selfplay.fits_memory(team.config, team.env, len(team.seeds))
@@ -320,14 +321,14 @@ def train(
     except (SpecError, ConfigError, RecipeError, record.RunError, FolderError) as exc:
         fail(str(exc))
     except KeyboardInterrupt:
-        way_on = "" if run is None else f"; start it with: fieldgen train --resume {run.folder}"
+        way_on = "" if run is None else f"; start it with: fieldgen train --resume {shell(run.folder)}"
         out.print(f"{stops.said()} while setting the run up; nothing was trained{way_on}", soft_wrap=True)
         _exit_interrupted()
     if prepare and run.finished:  # set up and trained to its end: nothing to start
         out.print(f"{run.folder} is already complete ({run.rows[-1]['env_steps']:,} env steps)")
         return
     if prepare:
-        out.print(f"prepared {run.folder}; start it with: fieldgen train --resume {run.folder}",
+        out.print(f"prepared {run.folder}; start it with: fieldgen train --resume {shell(run.folder)}",
                   soft_wrap=True)  # one line: the command stays whole to copy
         try:
             session.check_memory(run)
@@ -416,11 +417,11 @@ def _train_team(run, deadline: float | None = None, fmt: str | None = None) -> N
     try:
         complete = selfplay.train(run, lambda line: out.print(line, soft_wrap=True), deadline, recorder)
     except KeyboardInterrupt:
-        out.print(f"{stops.said()}; continue with: fieldgen train --resume {run.folder}", soft_wrap=True)
+        out.print(f"{stops.said()}; continue with: fieldgen train --resume {shell(run.folder)}", soft_wrap=True)
         _exit_interrupted()
     except (record.RunError, FolderError) as exc:
         fail(str(exc))
-    out.print(f"ratings: {run.folder / selfplay.RATINGS_PLOT}; judge it with: fieldgen eval {run.folder}",
+    out.print(f"ratings: {run.folder / selfplay.RATINGS_PLOT}; judge it with: fieldgen eval {shell(run.folder)}",
               soft_wrap=True)
     if not complete:
         raise typer.Exit(TIME_LIMIT_STATUS)
@@ -618,7 +619,7 @@ def evaluate(
         files.check_file(path, files.EVAL)  # before evaluating: a file it may not replace is one line now
         if video:
             files.check_file(video_name.with_suffix(f".{fmt}"), files.EVAL, "--no-video")
-        elsewhere = recipes.judged_elsewhere(runs[0].env.spec, " ".join(map(str, run_dirs))) if field is None else None
+        elsewhere = recipes.judged_elsewhere(runs[0].env.spec, run_dirs) if field is None else None
         if elsewhere is not None:  # a figure on the training physics is not the one a recipe's figure is judged on
             out.print(f"note: {elsewhere}", soft_wrap=True)
         if judged is not None:
@@ -702,7 +703,7 @@ def _evaluate_team(run_dirs: list[Path], episodes: int | None, seed: int, action
     team = next(d for d in run_dirs if selfplay.is_team_run(d))
     if len(run_dirs) != 1:
         fail(f"{team} is a self-play run: it is evaluated alone, in matches on its own field; name it alone "
-             f"(fieldgen eval {team}) and evaluate the other runs without it")
+             f"(fieldgen eval {shell(team)}) and evaluate the other runs without it")
     if field is not None:
         fail(f"{team} is a self-play run: it is evaluated on its own team field alone; leave out --field")
     from fieldgen.run import evaluate as judging
@@ -716,7 +717,7 @@ def _evaluate_team(run_dirs: list[Path], episodes: int | None, seed: int, action
         run = selfplay.open_run(run_dirs[0])
         if run.state is None:
             fail(f"{run_dirs[0]} has no checkpoint: it has not trained yet; train it with "
-                 f"fieldgen train --resume {run_dirs[0]}, then evaluate it")
+                 f"fieldgen train --resume {shell(run_dirs[0])}, then evaluate it")
         _, place = judging.filmed([run], film_seed)
         result, filmed = selfplay.evaluate(run, episodes, seed, actions, film=place if fmt is not None else None)
     except (ConfigError, record.RunError, files.FolderError) as exc:

@@ -10,6 +10,7 @@ import typer
 from fieldgen import stops
 from fieldgen.cameras import CAMERAS, FREE
 from fieldgen.cli.app import app, choice, fail, field_source, out
+from fieldgen.suggest import shell
 
 
 @app.command()
@@ -91,15 +92,15 @@ def _no_display(reason: str, source: str) -> None:
 
     folder = Path(source)
     if (folder / RUN).is_file() and not has_trained(folder):  # eval would refuse it as well
-        instead = (f"{source} has not trained yet: `fieldgen train --resume {source}` trains it, then `fieldgen eval "
+        instead = (f"{source} has not trained yet: `fieldgen train --resume {shell(source)}` trains it, then `fieldgen eval "
                    f"{source}` writes videos of its policy")
     elif (folder / RUN).is_file():
-        instead = f"`fieldgen eval {source}` writes videos of its policy"
+        instead = f"`fieldgen eval {shell(source)}` writes videos of its policy"
     elif (folder / DESCRIPTION).is_file():
         instead = ("`fieldgen eval RUN` writes videos of the run it was exported from, and `fieldgen render FIELD "
                    "-o field.png` draws the field it plays on")
     else:
-        instead = (f"`fieldgen render {source} -o field.png` draws the field, `fieldgen eval RUN` writes videos of "
+        instead = (f"`fieldgen render {shell(source)} -o field.png` draws the field, `fieldgen eval RUN` writes videos of "
                    "a run's policy")
     fail(f"no display here ({reason}), so no viewer opens; {instead}")
 
@@ -134,7 +135,7 @@ def _playing(source: str, field: str | None, seed: int | None):
             about = read_description(folder)
             if field is None and about.field not in bundled_fields():
                 fail(f"{folder / DESCRIPTION} names field '{about.field}', which is not a bundled one; name its YAML "
-                     f"file or build folder: fieldgen view {source} --field SPEC")
+                     f"file or build folder: fieldgen view {shell(source)} --field SPEC")
             act = load_policy(folder)
             env = fieldgen.make(field_source(field or about.field))
             if (tuple(about.observation_names), tuple(about.action_names)) != (env.observation_names, env.action_names):

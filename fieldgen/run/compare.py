@@ -27,6 +27,7 @@ from fieldgen.agents import registry, sharding
 from fieldgen.compile.artifact import ArtifactError
 from fieldgen.files import COMPARE, Output, check_file, kind_of_blocker, named_twice, write_file
 from fieldgen.run import plots, record, session, summary
+from fieldgen.suggest import shell
 
 PLOT, TABLE = "compare.png", "compare.json"
 
@@ -293,7 +294,7 @@ def run_folders(arguments: list[str]) -> list[Path] | None:
             continue
         if path.is_file() and (path.parent / record.RUN).is_file():
             raise record.RunError(f"{path} is a file of the run folder {path.parent}; name the folder itself "
-                                  f"(fieldgen compare {path.parent} ...)")
+                                  f"(fieldgen compare {shell(path.parent)} ...)")
         if path.is_dir():
             raise record.RunError(f"{path} is not a built field (no {META}) nor a run folder (no {record.RUN}): "
                                   f"compare trains on a field with --algos, or compares run folders; {RUN_FOLDER_HINT}")
@@ -369,7 +370,7 @@ def recorded(folder: Path) -> Recorded:
     if missing:
         said = "holds no evaluation yet" if not rows else f"holds no evaluation of seed {missing[0]}"
         raise record.RunError(f"{folder / record.METRICS} {said}, so {folder} has nothing to compare; train it "
-                              f"first (fieldgen train --resume {folder}) or leave it out")
+                              f"first (fieldgen train --resume {shell(folder)}) or leave it out")
     rows = reached_by_every_seed(rows, seeds)
     metric = "win_vs_random" if saved.selfplay else "success_any"
     for r in rows:

@@ -18,6 +18,7 @@ from fieldgen.files import named_twice
 from fieldgen.run import record, session, summary
 from fieldgen.run.session import Run
 from fieldgen.run.videos import EpisodeRecorder
+from fieldgen.suggest import shell
 
 
 @dataclasses.dataclass(frozen=True)
@@ -102,7 +103,7 @@ def open_runs(folders: list[Path], field: Path | None = None) -> list[Run]:
         copies.append(run.judged)
         if not record.has_trained(folder):
             raise record.RunError(f"{folder} has no checkpoint: it has not trained yet; train it with "
-                                  f"fieldgen train --resume {folder}, then evaluate it")
+                                  f"fieldgen train --resume {shell(folder)}, then evaluate it")
         first = first or run
         if (run.algo, field_digests(run)) != (first.algo, field_digests(first)):
             alike = (" (fields of one name that differ)" if _trained_on(run) == _trained_on(first)

@@ -13,6 +13,7 @@ from fieldgen.agents.actor import Policy
 from fieldgen.files import WriteError, way_on
 from fieldgen.policy_folder import Description, describe, save_policy
 from fieldgen.run import record, selfplay, session
+from fieldgen.suggest import shell
 
 
 @dataclasses.dataclass(frozen=True)
@@ -47,7 +48,7 @@ def _seed_state(run, seed: int | None) -> tuple[int, object]:
     """(seed, its training state) of a run with a checkpoint, `seed` the run's first by default."""
     if run.state is None:
         raise record.RunError(f"{run.folder} has not trained yet, so it has no policy; start it with: "
-                              f"fieldgen train --resume {run.folder}")
+                              f"fieldgen train --resume {shell(run.folder)}")
     seed = run.seeds[0] if seed is None else seed
     if seed not in run.seeds:
         raise record.RunError(f"{run.folder} trained seeds {', '.join(map(str, run.seeds))}, not {seed}; "

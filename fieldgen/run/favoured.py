@@ -14,6 +14,7 @@ import numpy as np
 
 from fieldgen.curriculum.auto import HeldLevel
 from fieldgen.run import record, session
+from fieldgen.suggest import shell
 
 
 @dataclasses.dataclass(frozen=True)
@@ -69,7 +70,7 @@ def favoured_levels(folder: Path, camera: str, top: int = 6) -> tuple[bytes, str
                               "curriculum weighs (fieldgen train SPEC --curriculum auto)")
     if not run.rows:
         raise record.RunError(f"{folder} has no evaluation yet: the levels are weighed after each one; draw all of "
-                              f"them with fieldgen render {folder}, or train it first")
+                              f"them with fieldgen render {shell(folder)}, or train it first")
     last = [r for r in run.rows if r["eval"] == run.rows[-1]["eval"]]  # each with its levels' results: open_run checks
     share = np.mean([r["variants"]["weight"] for r in last], axis=0)  # in [0, 1]: record.read_metrics checks
     measured = np.array([r["variants"]["success_any"] for r in last], dtype=float)  # NaN: a level no episode played

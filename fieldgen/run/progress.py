@@ -13,6 +13,7 @@ from rich.text import Text
 
 from fieldgen.run import record
 from fieldgen.run.recipe import judged_elsewhere
+from fieldgen.suggest import shell
 
 if TYPE_CHECKING:
     from fieldgen.run.session import Run
@@ -175,10 +176,10 @@ def summary(run: Run, console: Console) -> None:
     if memory is not None:
         console.print(f"peak device memory: {memory:,.0f} MiB")
     console.print(f"metrics: {run.folder / record.CSV}; plot: {run.folder / record.PLOT}")
-    elsewhere = judged_elsewhere(run.env.spec, run.folder)
+    elsewhere = judged_elsewhere(run.env.spec, [run.folder])
     if elsewhere is not None:
         console.print(elsewhere, soft_wrap=True)
     if run.judged is not None:
         console.print(f"its recipe trained it on another form of {run.env.spec.name} (run.json: recipe), judged on "
-                      f"the field as written ({run.judged}): fieldgen eval {run.folder} --episodes 1024",
+                      f"the field as written ({run.judged}): fieldgen eval {shell(run.folder)} --episodes 1024",
                       soft_wrap=True)

@@ -20,6 +20,7 @@ from fieldgen.schema import FieldSpec, SpecError, bundled_fields, load_spec
 from fieldgen.schema.backends import BACKENDS
 from fieldgen.schema.loader import lineage
 from fieldgen.schema.terms import DENSE_REWARDS, MATCH_TERMS, TERMS
+from fieldgen.suggest import shell
 
 DENSE_TWIN = "{}_dense"  # the bundled field that gives a field's task a dense reward
 
@@ -256,14 +257,15 @@ def physics_twin(spec: FieldSpec) -> str | None:
     return spec.extends
 
 
-def judged_elsewhere(spec: FieldSpec, runs: Path | str) -> str | None:
+def judged_elsewhere(spec: FieldSpec, runs: list[Path]) -> str | None:
     """For runs (their folders) on a physics twin (`physics_twin`): that their evaluations play the training
     physics, and the command that judges them as the recipe's figure is judged; else None."""
     twin = physics_twin(spec)
     if twin is None:
         return None
+    folders = " ".join(map(shell, runs))
     return (f"{spec.name} is {twin} with sim.backend {spec.sim.backend}: its evaluations play that physics, and its "
-            f"recipe's figure is judged on {twin} itself: fieldgen eval {runs} --episodes 1024 --field {twin}")
+            f"recipe's figure is judged on {twin} itself: fieldgen eval {folders} --episodes 1024 --field {shell(twin)}")
 
 
 def is_sparse(spec: FieldSpec) -> bool:
@@ -291,7 +293,7 @@ def sparse_warning(spec: FieldSpec, algo: str, reward: str = "dense", set_aside:
     elif set_aside is not None and set_aside.reward == "dense":
         instead = f"its recipe ({set_aside.field}) trains it on its task's dense reward: leave out --no-recipe"
     elif twin in bundled_fields():
-        instead = f"train its dense twin instead: fieldgen train {twin}"
+        instead = f"train its dense twin instead: fieldgen train {shell(twin)}"
     elif spec.task.success.kind in DENSE_REWARDS:
         instead = "give the field the dense reward of its task: task: {reward: dense}"
     else:

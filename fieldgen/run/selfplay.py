@@ -33,6 +33,7 @@ from fieldgen.env.contract import DIVERGED, OVERFLOW
 from fieldgen.env.mjx_physics import PhysicsOverflow
 from fieldgen.run import record
 from fieldgen.run.videos import video_name
+from fieldgen.suggest import shell
 
 FIELD = "field"
 RATINGS_PLOT = "ratings.png"
@@ -260,7 +261,7 @@ def train(run: TeamRun, say=print, deadline: float | None = None, recorder=None)
                 say(f"stopped at the time limit after evaluation {last['eval']} of {c.num_evals} "
                     f"({last['env_steps']:,} of {c.trained_steps:,} env steps): the next chunk with its evaluation "
                     f"and checkpoint (about {max(took):.0f} s) would not have ended in time. Continue with: "
-                    f"fieldgen train --resume {run.folder}")
+                    f"fieldgen train --resume {shell(run.folder)}")
                 return False
             began = time.perf_counter()
             metrics = {}

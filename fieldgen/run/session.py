@@ -24,6 +24,7 @@ from fieldgen.curriculum.contract import start_sampling
 from fieldgen.run import record
 from fieldgen.schema import FieldSpec, load_spec
 from fieldgen.schema.errors import shown_text, shown_value
+from fieldgen.suggest import shell
 
 FIELD, STAGES = "field", "stages"  # the run's own copies of its built fields: resuming needs no compiler
 JUDGED = "judged"  # the field as written, where a recipe trains the run on another (fieldgen.run.recipe.training)
@@ -329,7 +330,7 @@ def open_run(folder: Path, load_state: bool = True, to_train: bool = False, lear
     if saved.judged and not (folder / saved.judged).is_dir():
         raise record.RunError(f"{folder / saved.judged} is missing: the run's own copy of the field as written, which "
                               f"its figures are judged on (a copy of the run that left it out); restore it from the "
-                              f"run's copy, or judge it on that field by name: fieldgen eval {folder} --field FIELD")
+                              f"run's copy, or judge it on that field by name: fieldgen eval {shell(folder)} --field FIELD")
     for env, sub in zip(envs, saved.fields or [FIELD]):
         _check_observation(folder, saved.observation, env.layout.to_json(), sub)
     try:
@@ -405,7 +406,7 @@ def open_run(folder: Path, load_state: bool = True, to_train: bool = False, lear
     except checkpoint.CheckpointError as exc:
         said = str(exc)
         if isinstance(exc, checkpoint.CheckpointDamaged) and not alone and (folder / record.LEARNER).is_file():
-            said += (f"; or move {path.name} aside: fieldgen train --resume {folder} then goes on from "
+            said += (f"; or move {path.name} aside: fieldgen train --resume {shell(folder)} then goes on from "
                      f"{record.LEARNER} (what the run learned, its replay buffer filled anew)")
         elif isinstance(exc, checkpoint.CheckpointDamaged) and alone and (folder / record.CHECKPOINT).is_file():
             said += (f"; or move {path.name} aside: what the run learned is then read from {record.CHECKPOINT}, "

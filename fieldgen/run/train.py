@@ -24,6 +24,7 @@ from fieldgen.run.plots import plot_success
 from fieldgen.run.progress import display, rate, stats, summary
 from fieldgen.run.session import Run
 from fieldgen.run.videos import EpisodeRecorder, video_name
+from fieldgen.suggest import shell
 
 
 def train(run: Run, console: Console, videos: bool = True, logger: str = "none", video_format: str | None = None,
@@ -196,7 +197,7 @@ def _train(run: Run, console: Console, videos: bool, logger: str, video_format: 
             writer.wait()
             saved = record.has_trained(run.folder)
             console.print(f"{stops.said()}; {'the last checkpoint is intact' if saved else 'no checkpoint yet'}. "
-                          f"{'Continue' if saved else 'Start again'} with: fieldgen train --resume {run.folder}",
+                          f"{'Continue' if saved else 'Start again'} with: fieldgen train --resume {shell(run.folder)}",
                           soft_wrap=True)  # one line: the command stays whole to copy
             raise
     summary(run, console)
@@ -206,7 +207,7 @@ def _train(run: Run, console: Console, videos: bool, logger: str, video_format: 
         console.print(f"stopped at the time limit after evaluation {last['eval']} of {config.num_evals} "
                       f"({last['env_steps']:,} of {ending[0]:,} env steps): the next chunk with its "
                       f"evaluation and checkpoint{took} would not have ended in time. "
-                      f"Continue with: fieldgen train --resume {run.folder}", soft_wrap=True)
+                      f"Continue with: fieldgen train --resume {shell(run.folder)}", soft_wrap=True)
     return not deadline.reached
 
 

@@ -14,6 +14,7 @@ from rich.text import Text
 
 from fieldgen.files import VIDEOS as DRAWN, FolderError, Output, write_atomic, write_file
 from fieldgen.run.record import VIDEOS
+from fieldgen.suggest import shell
 
 
 def video_name(run_dir: Path, index: int) -> Path:
@@ -63,7 +64,7 @@ class EpisodeRecorder:
             except Exception as exc:  # noqa: BLE001 - renderer back ends fail in many ways
                 self.broken = True
                 console.print(Text.assemble(("warning:", "yellow"), f" cannot render here ({exc}); keeping episodes as "
-                              f".npz files where their videos would be: draw them with `fieldgen videos {run_dir}` "
+                              f".npz files where their videos would be: draw them with `fieldgen videos {shell(run_dir)}` "
                               "on a machine that renders"))
         buf = io.BytesIO()
         np.savez(buf, field=self.env.spec.name, camera=self.camera, **episode)
