@@ -249,10 +249,27 @@ def started_from(run: Run, source: Path) -> tuple[object, dict]:
     with the env steps counted from 0 and the randomness of `run`'s own seeds, so that fine-tuning one
     policy with two seeds gives two runs. Refused, before anything is written, where `source` has not
     learned yet or trained another algorithm, observation layout, action size, seed count or network."""
+    from fieldgen.run import selfplay
+
+    try:
+        record.read_run(source)  # a missing path, a file, a folder of no run: each said as itself
+    except record.RunError as exc:
+        raise record.RunError(f"--init-from {source}: {exc}") from None
+    if selfplay.is_team_run(source):
+        raise record.RunError(f"--init-from {source}: it is a self-play run on a team field; start from a run of one "
+                              "agent on a field of the same layout")
     learner = source / record.LEARNER
+    if learner.is_dir() or learner.is_symlink() and not learner.exists():
+        raise record.RunError(f"--init-from {source}: its {record.LEARNER} is "
+                              f"{'a folder' if learner.is_dir() else 'a link that leads nowhere'}; make it the file "
+                              f"fieldgen train wrote: fieldgen train --resume {shell(source)} writes it again from "
+                              "the run's checkpoint")
     if not learner.is_file():
-        raise record.RunError(f"--init-from {source}: no {record.LEARNER} there; name a run folder that "
-                              "fieldgen train wrote, after its first evaluation")
+        raise record.RunError(f"--init-from {source}: " + (
+            f"its {record.LEARNER} is missing; fieldgen train --resume {shell(source)} writes it again from the "
+            "run's checkpoint" if (source / record.CHECKPOINT).exists() else
+            f"it holds no {record.LEARNER} (written at each evaluation) nor checkpoint: it has not trained yet; "
+            f"train it first (fieldgen train --resume {shell(source)}), or name a run that has"))
     other = open_run(source, load_state=False)
     here = f"this run ({run.algo} on {run.env.spec.name})"
     if other.algo != run.algo:

@@ -119,10 +119,29 @@ def test_a_source_of_another_algorithm_is_refused(tmp_path, learned):
 
 
 def test_init_from_names_a_run_that_has_learned(tmp_path, tiny_crl_args):
-    result = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path), "--init-from", str(tmp_path / "none"),
+    """Each way a source is no run that learned is said as itself (before: "no learner.msgpack there" for all)."""
+    (tmp_path / "notes.txt").write_text("mine")
+    prepared = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path / "new"), "--prepare", *tiny_crl_args])
+    assert prepared.exit_code == 0, prepared.output
+    fresh = tmp_path / "new" / "point_nav-crl-0"
+    for source, said in ((tmp_path / "none", f"{tmp_path / 'none'} is missing, not a run folder"),
+                         (tmp_path / "notes.txt", f"{tmp_path / 'notes.txt'} is a file, not a run folder"),
+                         (fresh, "it holds no learner.msgpack (written at each evaluation) nor checkpoint: it has not "
+                                 f"trained yet; train it first (fieldgen train --resume {fresh})")):
+        result = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path / "runs"), "--init-from", str(source),
+                                     *tiny_crl_args])
+        assert result.exit_code == 1 and "Traceback" not in result.output
+        assert flat(f"--init-from {source}: {said}") in flat(result.output), result.output
+    (fresh / record.CHECKPOINT).write_bytes(b"a checkpoint")  # learned, its learner.msgpack deleted
+    result = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path / "runs"), "--init-from", str(fresh),
                                  *tiny_crl_args])
-    assert result.exit_code == 1 and "Traceback" not in result.output
-    assert flat(f"--init-from {tmp_path / 'none'}: no learner.msgpack there") in flat(result.output)
+    assert flat(f"its learner.msgpack is missing; fieldgen train --resume {fresh} writes it again") in \
+        flat(result.output), result.output
+    (fresh / record.LEARNER).mkdir()
+    result = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path / "runs"), "--init-from", str(fresh),
+                                 *tiny_crl_args])
+    assert flat("its learner.msgpack is a folder; make it the file fieldgen train wrote") in flat(result.output)
+    assert not (tmp_path / "runs").exists()
 
 
 def test_init_from_is_not_for_a_resumed_run(tmp_path, learned):

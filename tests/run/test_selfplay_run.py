@@ -364,6 +364,8 @@ def test_commands_of_single_agent_runs_and_an_edited_record_refuse_a_self_play_r
         assert result.exit_code == 1 and "Traceback" not in result.output, result.output
         assert f"{run} is a self-play run on a team field: fieldgen eval, export and view read it" in \
             " ".join(result.output.split())
+    result = runner.invoke(app, ["train", "point_soccer", "--out", str(tmp_path / "new"), "--init-from", str(run)])
+    assert "it is a self-play run on a team field; start from a run of one agent" in " ".join(result.output.split())
     played = selfplay.TeamRun(run, SelfPlayConfig(league_opponents=2, eval_envs=8), None, [0], [])
     for index in range(3):
         results = {"random": np.asarray([1, 6, 1]), "earlier": np.asarray([[2, 4, 2]] * 2)}
