@@ -367,6 +367,9 @@ def recorded(folder: Path) -> Recorded:
     seeds = saved.every_seed
     rows = record.read_metrics(folder, seeds)
     missing = sorted(set(seeds) - {r.get("seed") for r in rows})
+    if missing and not rows and record.has_trained(folder):  # a checkpoint's own evaluation is written before it
+        raise record.RunError(f"{folder / record.METRICS} holds no evaluation, yet the run has a checkpoint; the file "
+                              "was edited or damaged: restore it from a copy, or leave the run out")
     if missing:
         said = "holds no evaluation yet" if not rows else f"holds no evaluation of seed {missing[0]}"
         raise record.RunError(f"{folder / record.METRICS} {said}, so {folder} has nothing to compare; train it "

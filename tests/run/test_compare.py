@@ -285,7 +285,12 @@ def test_compare_refuses_a_mix_and_folders_that_are_not_runs_in_one_line(tmp_pat
     empty.mkdir()
     prepared = run_folder(tmp_path / "prepared", [[0.0]])
     (prepared / "metrics.jsonl").unlink()
-    cases = [([str(run), "point_nav"], f"{run} is a run folder and point_nav a field"),
+    emptied = run_folder(tmp_path / "emptied", [[0.0]])  # trained, its evaluations emptied: resume refuses it too
+    (emptied / "metrics.jsonl").write_text("")
+    (emptied / "checkpoint.msgpack").write_bytes(b"x")
+    cases = [([str(run), str(emptied)], f"{emptied / 'metrics.jsonl'} holds no evaluation, yet the run has a "
+                                        "checkpoint; the file was edited or damaged"),
+             ([str(run), "point_nav"], f"{run} is a run folder and point_nav a field"),
              ([str(run), str(run / "metrics.jsonl")], f"{run / 'metrics.jsonl'} is a file of the run folder {run}"),
              ([str(run / "run.json")], f"{run / 'run.json'} is a file of the run folder {run}"),
              ([str(run), str(empty)], f"{empty} is not a built field (no field.json) nor a run folder (no run.json)"),
@@ -299,7 +304,7 @@ def test_compare_refuses_a_mix_and_folders_that_are_not_runs_in_one_line(tmp_pat
         result = runner.invoke(app, ["compare", *args], env={"COLUMNS": "400"})
         assert result.exit_code == 1 and "Traceback" not in result.output, (args, result.output)
         assert result.output.startswith("error: ") and phrase in result.output, (args, result.output)
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["empty", "point_nav-crl-0", "prepared"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["emptied", "empty", "point_nav-crl-0", "prepared"]
 
 
 def test_a_damaged_metrics_row_is_named_by_its_line_in_the_file_blank_lines_counted(tmp_path):
