@@ -320,7 +320,7 @@ def _team_field_said(folder: Path, sub: str) -> str:
 
     if selfplay.is_team_run(folder):
         return (f"{folder} is a self-play run on a team field: fieldgen eval, export and view read it (fieldgen eval "
-                f"{folder} judges it in matches and films one); this command reads runs of one agent")
+                f"{shell(folder)} judges it in matches and films one); this command reads runs of one agent")
     return (f"{folder / record.RUN} does not say selfplay: true, yet the run's field ({folder / sub}) has two sides: "
             "a self-play run's record was edited or damaged; restore it from a copy, or start the run again in a "
             "new folder")
