@@ -294,8 +294,7 @@ def make_curriculum(
     except (curriculum.CurriculumError, FolderError) as exc:
         fail(_as_typed(str(exc), typed))
     except OSError as exc:
-        fail(f"cannot write {output}: {exc.strerror}; nothing was written: fix the folder's permissions or choose "
-             "another -o")
+        fail(f"cannot write {output}: {exc.strerror}; nothing was written: {files.way_on(output, '-o', exc, said=True)}")
     table = Table("stage", "name", "changes from the base", title=f"{output}/{curriculum.INDEX} ({c.kind})")
     for i, st in enumerate(c.stages, 1):
         table.add_row(str(i), st.name, _flat_changes(st.changes) or "(the base itself)")

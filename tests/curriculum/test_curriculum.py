@@ -418,3 +418,14 @@ def test_a_grid_axis_varies_a_list_written_in_brackets(tmp_path):
     assert result.exit_code == 0, result.output
     stages = sorted(out.glob("stage_*.yaml"))
     assert [load_spec(path).ball.spawn.x for path in stages] == [(-0.5, 0.5), (-1.0, 1.0)]
+
+
+def test_a_curriculum_folder_under_a_file_names_the_file_in_the_way(tmp_path):
+    """Before: "fix the folder's permissions", which no permission mends."""
+    (tmp_path / "notes.json").write_text("mine")
+    out = tmp_path / "notes.json" / "cur"
+    result = runner.invoke(app, ["curriculum", "point_nav", "--vary", "task.target.radius=1,2", "-o", str(out)])
+    said = " ".join(result.output.split())
+    assert result.exit_code == 1 and f"{tmp_path / 'notes.json'} is a file, not a folder; move it aside or choose " \
+        "another -o" in said, said
+    assert (tmp_path / "notes.json").read_text() == "mine"
