@@ -528,8 +528,11 @@ def _compare_trained(ctx: typer.Context, folders: list[Path], plot: Path | None)
     plot = Path(comparing.PLOT) if plot is None else plot / comparing.PLOT if plot.is_dir() else plot
     if plot.suffix.lower() != ".png":
         fail(f"-o {plot}: the plot is a PNG; name a file ending in .png, such as {plot.with_suffix('.png')}")
+    from fieldgen import files
+
     if not plot.parent.is_dir():
-        fail(f"-o {plot}: there is no folder {plot.parent} to write it in; make it, or choose another -o")
+        fail(f"-o {plot}: " + (f"{files.way_on(plot.parent, '-o')}" if files.file_in_the_way(plot.parent) else
+                               f"there is no folder {plot.parent} to write it in; make it, or choose another -o"))
     from fieldgen.files import COMPARE, check_file
 
     check_file(plot, COMPARE)

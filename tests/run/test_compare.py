@@ -299,7 +299,9 @@ def test_compare_refuses_a_mix_and_folders_that_are_not_runs_in_one_line(tmp_pat
              (["point_nav", "point_soccer"], "point_nav and point_soccer are both fields"),
              ([str(run), "--steps", "1000", "--seeds", "2"], "--steps and --seeds set up new runs on a field"),
              ([str(run), "-o", str(tmp_path / "plot.svg")], "the plot is a PNG"),
-             ([str(run), "-o", str(tmp_path / "nowhere" / "p.png")], f"there is no folder {tmp_path / 'nowhere'}")]
+             ([str(run), "-o", str(tmp_path / "nowhere" / "p.png")], f"there is no folder {tmp_path / 'nowhere'}"),
+             ([str(run), "-o", str(run / "run.json" / "p.png")],  # before: "there is no folder ...; make it"
+              f"{run / 'run.json'} is a file, not a folder; move it aside or choose another -o")]
     for args, phrase in cases:
         result = runner.invoke(app, ["compare", *args], env={"COLUMNS": "400"})
         assert result.exit_code == 1 and "Traceback" not in result.output, (args, result.output)
