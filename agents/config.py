@@ -145,16 +145,12 @@ class RunConfig(BaseModel):
     @classmethod
     def _assigned(cls, items: Sequence[str], others: tuple[str, ...], source: str) -> dict:
         """ALGO.KEY=VALUE items (--set's, a recipe's), each checked; `source` says where each was written."""
-        values, written = {}, {}
+        values = {}
         for item in items:
             name, sep, raw = item.partition("=")
             section, dot, key = name.partition(".")
             if section in others:
                 continue
-            if sep and dot and section == cls.algo and key in written:  # the last would win without a word
-                raise ConfigError(f"{source}{shown_text(item)}: {cls.algo}.{key} is set twice (first "
-                                  f"{shown_text(written[key])}); give it once")
-            written[key] = item
             if sep and dot and section in ALGORITHMS and section != cls.algo:
                 raise ConfigError(f"{source}{item!r}: {section}.* sets {section}'s settings, and this run trains "
                                   f"{cls.algo}; write {cls.algo}.KEY=VALUE (e.g. {cls.example()}), or train {section} "

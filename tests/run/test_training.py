@@ -471,8 +471,6 @@ def test_bundled_config_files_hold_only_known_keys(path):
     (["--set", "crl.hidden=64,64"], "crl.hidden must be a list of layer widths, whole numbers above 0, not '64,64'; "
                                     "write it as a list, [64,64]"),
     (["--set", "crl.hidden=[1e400]"], "crl.hidden must be a list of layer widths, whole numbers above 0, not [inf]"),
-    (["--set", "crl.batch_size=64", "--set", "crl.batch_size=128"],  # before: the last won without a word
-     "--set crl.batch_size=128: crl.batch_size is set twice (first crl.batch_size=64); give it once"),
     (["--steps", "100"], "100 env steps (--steps or crl.total_steps) are too few"),
     (["--algo", "ppo", "--set", "ppo.total_steps=1.5k"], "1,500 env steps (--steps or ppo.total_steps) are too few"),
     (["--set", "crl.energy=cos"], "--set crl.energy=cos: unknown energy 'cos'; choose one of norm,"),
