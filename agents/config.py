@@ -196,11 +196,23 @@ class RunConfig(BaseModel):
         except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
             raise ConfigError(f"cannot read config file {file}: {exc}") from None
         section = (loaded.get(cls.algo) or {}) if isinstance(loaded, dict) else None
-        if not isinstance(section, dict) or set(loaded) - {cls.algo, *others}:
-            sections = ", ".join(f"'{a}:'" for a in (cls.algo, *others))
-            what = f"sections {sections}" if others else f"one section, {sections},"
+        sections = ", ".join(f"'{a}:'" for a in (cls.algo, *others))
+        what = f"sections {sections}" if others else f"one section, {sections},"
+        if not isinstance(loaded, dict):
             raise ConfigError(f"{file}: a config file is a mapping with {what} of config keys")
         root = yaml.compose(text, Loader=yaml.SafeLoader)
+        lines = {key.value: key.start_mark.line + 1 for key, _ in root.value}
+        stray = next((key for key in loaded if key not in (cls.algo, *others)), None)
+        if stray is not None:
+            near = did_you_mean(str(stray), (cls.algo,))
+            hint = (f"; it sets {stray}'s settings and this run trains {cls.algo} (train {stray} with --algo "
+                    f"{stray})" if stray in ALGORITHMS else f" ({near[2:]})" if near else "")
+            raise ConfigError(f"{file}:{lines.get(stray, '?')}: section '{stray}:' is not read by this run"
+                              f"{hint}; a config file is a mapping with {what} of config keys")
+        if not isinstance(section, dict):
+            key, value = cls.example().split(".", 1)[1].split("=", 1)
+            raise ConfigError(f"{file}:{lines.get(cls.algo, '?')}: '{cls.algo}:' holds {shown_value(section)} where "
+                              f"its config keys go, one a line and indented below it, e.g. '  {key}: {value}'")
         body = next(value for key, value in root.value if key.value == cls.algo) if section else None
         pairs = getattr(body, "value", [])
         return (section, {key.value: key.start_mark.line + 1 for key, _ in pairs},

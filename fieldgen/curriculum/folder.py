@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import re
 from pathlib import Path
 from typing import Annotated
 
@@ -198,7 +199,9 @@ def layout_key(spec: FieldSpec) -> str:
 
 
 def _slug(name: str) -> str:
-    slug = "".join(c if c.isalnum() else "_" for c in name.lower()).strip("_") or "curriculum"
+    """A stage name's stem from its folder's name: field names are ASCII (a folder may be named in any script)."""
+    slug = re.sub("_+", "_", "".join(c if c.isascii() and c.isalnum() else "_" for c in name.lower())).strip("_")
+    slug = slug or "curriculum"
     return slug[:56]
 
 

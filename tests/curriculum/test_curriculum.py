@@ -429,3 +429,13 @@ def test_a_curriculum_folder_under_a_file_names_the_file_in_the_way(tmp_path):
     assert result.exit_code == 1 and f"{tmp_path / 'notes.json'} is a file, not a folder; move it aside or choose " \
         "another -o" in said, said
     assert (tmp_path / "notes.json").read_text() == "mine"
+
+
+@pytest.mark.parametrize("folder, first", [("日本", "curriculum_s01"), ("Wide Goalie (v2)", "wide_goalie_v2_s01"),
+                                           ("é2", "2_s01")])
+def test_stage_names_come_from_any_folder_name_as_field_names(tmp_path, folder, first):
+    """A stage's name is a field name (ASCII letters, digits, _ and -), whatever letters its folder's name uses."""
+    variants = curriculum.interpolate(FIELDS["soccer_v1"], FIELDS["soccer_v2"], 2)
+    c = curriculum.write(tmp_path / folder, "soccer_v1", FIELDS["soccer_v1"], "interpolation", variants,
+                         curriculum.Promotion())
+    assert [s.name for s in c.stages] == [first, first.replace("s01", "s02")]

@@ -507,6 +507,19 @@ def test_config_file_and_precedence(tmp_path):
     file.write_text("ppo: {}\n")
     with pytest.raises(ConfigError, match="one section, 'crl:'"):
         crl.CRLConfig.layered(file)
+    # a section this run does not read is named with its line, and what it is for
+    file.write_text("crl:\n  repr_dim: 32\nppo:\n  lr: 1\n")
+    with pytest.raises(ConfigError) as caught:
+        crl.CRLConfig.layered(file)
+    assert str(caught.value).startswith(f"{file}:3: section 'ppo:' is not read by this run; it sets ppo's "
+                                        "settings and this run trains crl (train ppo with --algo ppo)")
+    file.write_text("crl:\n  repr_dim: 32\ncrll:\n  x: 1\n")
+    with pytest.raises(ConfigError, match=r":3: section 'crll:' is not read by this run \(did you mean 'crl'\?\)"):
+        crl.CRLConfig.layered(file)
+    file.write_text("crl: [64, 64]\n")  # the section itself is not a mapping
+    with pytest.raises(ConfigError) as caught:
+        crl.CRLConfig.layered(file)
+    assert str(caught.value).startswith(f"{file}:1: 'crl:' holds [64, 64] where its config keys go")
     file.write_text("# a config file's problems name its line\ncrl:\n  repr_dim: 32\n\n  batch_size: -64\n")
     with pytest.raises(ConfigError) as caught:
         crl.CRLConfig.layered(file)
