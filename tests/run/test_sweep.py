@@ -121,6 +121,19 @@ def test_dry_run_on_the_command_line_shows_each_command_and_the_backend(tmp_path
     assert result.output.rstrip().endswith("--no-videos --time-limit 85m")  # slurm.stop_before's default, 5
 
 
+def test_the_repository_sweep_file_the_docs_show_plans_its_runs(tmp_path):
+    """`fieldgen sweep --help` and docs/scale.md start from sweeps/point_nav.yaml: it is there and plans."""
+    path = Path(__file__).resolve().parents[2] / "sweeps" / "point_nav.yaml"
+    result = runner.invoke(app, ["sweep", str(path), "--dry-run", "--out", str(tmp_path / "out")])
+    assert result.exit_code == 0, result.output
+    commands = [line for line in result.output.splitlines() if line.startswith("fieldgen train")]
+    assert len(commands) == 50  # 2 fields x (4 CRL settings + SAC) x 5 seeds
+    assert sum("point_nav_far.yaml --algo sac" in c for c in commands) == 5
+    assert not (tmp_path / "out").exists()
+    docs = (path.parents[1] / "docs" / "scale.md").read_text()
+    assert path.read_text().split("\nfields:")[1] in docs  # the page shows the file as it is
+
+
 @pytest.mark.parametrize("body,phrase", [
     ("grid:\n  crl.repr_dimm: [8, 16]\n", ":7:3: grid.crl.repr_dimm: unknown config key 'repr_dimm'; did you mean "
                                           "'repr_dim'?"),
