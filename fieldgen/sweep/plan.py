@@ -192,6 +192,8 @@ def load(path: Path, out: Path | None = None, **overrides) -> Sweep:
     config = None if spec.config is None else _relative(path, spec.config)
     if config is not None and not config.is_file():
         found.append(source.problem(("config",), f"there is no file {config}"))
+    elif config is not None:
+        _config_file(config, spec, source, found)
     _assignments(spec, source, found)
     _set_or_grid(spec, source, found)
     _each_once(spec, names, source, found)
@@ -296,15 +298,33 @@ def _field_names(path: Path, spec: SweepFile, source: Source, found: list[Proble
         target = _relative(path, ref)
         try:
             if target.is_dir():
-                names.append(target.name if curriculum.is_curriculum(target) else load_artifact(target).spec.name)
+                field = None if curriculum.is_curriculum(target) else load_artifact(target).spec
+                names.append(target.name if field is None else field.name)
             elif target.is_file():
-                names.append(load_spec(target).name)
+                field = load_spec(target)
+                names.append(field.name)
             else:
+                field = None
                 found.append(source.problem(("fields", i), f"'{ref}' is neither a file nor a folder nor a bundled "
                                                            f"field ({', '.join(bundled_fields())})"))
+            if field is not None and field.teams is not None:
+                _self_play_algorithms(ref, spec, source, ("fields", i), found)
         except (SpecError, ArtifactError) as exc:
             found.append(source.problem(("fields", i), f"'{ref}' cannot be read: {exc}".replace("\n", " ")))
     return names
+
+
+def _self_play_algorithms(ref: str, spec: SweepFile, source: Source, where: tuple, found: list[Problem]) -> None:
+    """A team field trains by self-play alone, whose learner is one algorithm: a sweep listing another would plan
+    runs that each refuse at their start."""
+    from fieldgen.agents.selfplay import SelfPlayConfig
+
+    others = [algo for algo in spec.algorithms if algo != SelfPlayConfig.algo]
+    if others:
+        found.append(source.problem(where, f"'{ref}' is a team field: it trains by self-play, whose learner is "
+                                           f"{SelfPlayConfig.algo}, and the sweep's algorithms list "
+                                           f"{', '.join(others)}; sweep team fields in a file of their own with "
+                                           f"algorithms: [{SelfPlayConfig.algo}]"))
 
 
 def _few_enough(spec: SweepFile, source: Source, found: list[Problem]) -> None:
@@ -357,6 +377,20 @@ def _set_or_grid(spec: SweepFile, source: Source, found: list[Problem]) -> None:
     for key in (k for k in spec.set if k in spec.grid):
         found.append(source.problem(("set", key), f"grid varies {key} too, so every run would take the grid's value, "
                                                   "never this one: keep the key in set or in grid, not both"))
+
+
+def _config_file(config: Path, spec: SweepFile, source: Source, found: list[Problem]) -> None:
+    """Read the config file as each algorithm's runs will (`fieldgen train --config`), so that a file every run
+    would refuse is refused before any starts."""
+    from fieldgen.agents import registry
+    from fieldgen.agents.config import ConfigError
+
+    for algo in spec.algorithms:
+        try:
+            registry.trainer(algo).config.layered(config)
+        except ConfigError as exc:
+            found.append(source.problem(("config",), f"the {algo} runs read it with --config and would stop: {exc}"))
+            return
 
 
 def _assignments(spec: SweepFile, source: Source, found: list[Problem]) -> None:

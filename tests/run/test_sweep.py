@@ -199,6 +199,9 @@ def test_a_set_key_the_grid_varies_too_is_refused_at_the_key(tmp_path, body, phr
 
 @pytest.mark.parametrize("body,phrase", [
     ("seeds: [0, 3, 0]\n", ":3:15: seeds[2]: seed 0 is listed twice (items 0 and 2); list each once"),
+    ("fields: [point_nav, soccer_1v1]\n", ":1:21: fields[1]: 'soccer_1v1' is a team field: it trains by self-play, "
+                                         "whose learner is ppo, and the sweep's algorithms list crl; sweep team "
+                                         "fields in a file of their own with algorithms: [ppo]"),
     ("algorithms: [crl, crl]\n", ":2:19: algorithms[1]: algorithm crl is listed twice"),
     ("grid:\n  crl.repr_dim: [8, 16, 8]\n", ":7:25: grid.crl.repr_dim[2]: value 8 is listed twice (items 0 and 2)"),
     ("grid:\n  crl.repr_dim: [8, 16, \"8\"]\n", ":7:25: grid.crl.repr_dim[2]: \"8\" sets what item 0 sets (8): the "
@@ -599,3 +602,19 @@ def test_a_list_with_a_wrong_item_is_refused_at_the_item_alone(tmp_path, body, p
     said = " ".join(result.output.split())
     assert result.exit_code == 1 and phrase in said and "got a list" not in said and "'auto'" not in said, said
     assert len(result.output.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize("text,phrase", [
+    ("- crl\n", "a config file is a mapping with one section, 'crl:', of config keys"),
+    ("crl:\n  hiden: [64]\n", "c.yaml:2: unknown config key 'hiden'; did you mean 'hidden'?"),
+    ("crl: {repr_dim: 32}\nsac: {her: 0.5}\n", "c.yaml:2: section 'sac:' is not read by this run"),
+])
+def test_a_config_file_every_run_would_refuse_is_refused_by_the_plan(tmp_path, text, phrase):
+    """The runs read `config:` with --config: the plan reads it as they will, before any starts."""
+    (tmp_path / "c.yaml").write_text(text)
+    path = tmp_path / "sweep.yaml"
+    path.write_text("fields: [point_nav]\nalgorithms: [crl]\nseeds: 1\nsteps: 1900\nenvs: 8\nconfig: c.yaml\n")
+    result = runner.invoke(app, ["sweep", str(path), "--dry-run", "--out", str(tmp_path / "out")])
+    assert result.exit_code == 1 and result.output.startswith(f"error: {path}:6:1: config: the crl runs read it "
+                                                              "with --config and would stop: "), result.output
+    assert phrase in result.output and "fieldgen train" not in result.output
