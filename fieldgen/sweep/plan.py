@@ -201,9 +201,14 @@ def load(path: Path, out: Path | None = None, **overrides) -> Sweep:
         found.append(source.problem(("levels",), f"{spec.levels} levels of the automatic curriculum: add "
                                                  "curriculum: auto to the sweep"))
     if spec.backend == "slurm" and spec.slurm.stop_before >= spec.slurm.time:
-        found.append(source.problem(("slurm", "stop_before"), f"{spec.slurm.stop_before:g} minutes before the end "
-                                    f"of a task of {spec.slurm.time} minutes (slurm.time) leaves its run no time to "
-                                    "train: give fewer, or 0 to let the run train until submitit's signal"))
+        given = "stop_before" in ((source.data.get("slurm") or {}) if isinstance(source.data, dict) else {})
+        before = f"{spec.slurm.stop_before:g} minutes{'' if given else ' (its default)'}"
+        task = (f"--time {spec.slurm.time}" if overrides.get("time") is not None else "slurm.time")
+        found.append(source.problem(("slurm", "stop_before"), f"{before} before the end of a task of "
+                                    f"{spec.slurm.time} minutes ({task}) leaves its run no time to train: give "
+                                    f"{task.replace(' ' + str(spec.slurm.time), '')} more minutes than "
+                                    f"{spec.slurm.stop_before:g}, or a smaller slurm.stop_before (0 lets the run "
+                                    "train until submitit's signal)"))
     if not found:
         _few_enough(spec, source, found)
     if found:

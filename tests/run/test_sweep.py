@@ -134,6 +134,15 @@ def test_the_repository_sweep_file_the_docs_show_plans_its_runs(tmp_path):
     assert path.read_text().split("\nfields:")[1] in docs  # the page shows the file as it is
 
 
+def test_a_task_too_short_for_the_runs_stop_names_the_time_given_on_the_command_line(tmp_path):
+    """--time 5 against slurm.stop_before's default 5: the option given is named, not a key of the file."""
+    path = sweep_file(tmp_path, "backend: slurm\nslurm: {partition: gpu}\n", seeds=1)
+    result = runner.invoke(app, ["sweep", str(path), "--dry-run", "--time", "5"])
+    assert result.exit_code == 1, result.output
+    assert ("slurm.stop_before: 5 minutes (its default) before the end of a task of 5 minutes (--time 5) leaves its "
+            "run no time to train: give --time more minutes than 5") in " ".join(result.output.split())
+
+
 @pytest.mark.parametrize("body,phrase", [
     ("grid:\n  crl.repr_dimm: [8, 16]\n", ":7:3: grid.crl.repr_dimm: unknown config key 'repr_dimm'; did you mean "
                                           "'repr_dim'?"),
