@@ -24,6 +24,7 @@ from pydantic import (AfterValidator, BaseModel, ConfigDict, Field, StrictBool, 
 from fieldgen.curriculum.promotion import Promotion
 from fieldgen.files import Output, kind_of_blocker, parsed_json, write_atomic, written_by
 from fieldgen.schema.errors import shown_text, shown_value
+from fieldgen.suggest import shell
 
 RUN, METRICS, CSV, CHECKPOINT, PLOT = "run.json", "metrics.jsonl", "metrics.csv", "checkpoint.msgpack", "success.png"
 LEARNER, INITIAL, VIDEOS = "learner.msgpack", "initial.msgpack", "videos"
@@ -45,6 +46,18 @@ def run_name(field: str, algo: str, seeds: list[int]) -> str:
 def has_trained(run_dir: Path) -> bool:
     """Whether the run has a checkpoint to go on from: its whole state, or what it learned alone."""
     return (run_dir / CHECKPOINT).exists() or (run_dir / LEARNER).exists()
+
+
+def occupied(run_dir: Path) -> str | None:
+    """Why a new run cannot be set up in `run_dir`, or None: a run is there to continue, or its checkpoint without
+    the run.json that says how it trains (nothing of it is removed here: the folder is the user's to move)."""
+    if not has_trained(run_dir):
+        return None
+    if (run_dir / RUN).is_file():
+        return f"{run_dir} already holds a run; continue it with --resume {shell(run_dir)}, or pick another --seed or --out"
+    return (f"{run_dir} holds a run's checkpoint but not its {RUN}, the record of its settings and seeds, so it can "
+            f"neither go on nor be set up again there: restore {RUN} from a copy to continue it, or move the folder "
+            f"away (mv {shell(run_dir)} {shell(str(run_dir) + '.old')}) to train it anew")
 
 
 class RunError(Exception):

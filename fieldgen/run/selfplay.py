@@ -118,9 +118,8 @@ def new_run(source: Path, config: SelfPlayConfig, out: Path, seeds: list[int], c
     except ConfigError as exc:
         raise record.RunError(str(exc)) from None
     folder = out / record.run_name(env.spec.name, config.algo, seeds)
-    if record.has_trained(folder):
-        raise record.RunError(f"{folder} already holds a run; continue it with --resume {folder}, "
-                              "or pick another --seed or --out")
+    if (taken := record.occupied(folder)) is not None:
+        raise record.RunError(taken)
     files.claim(folder, record.RUN_FOLDER)
     try:
         folder.mkdir(parents=True, exist_ok=True)

@@ -135,9 +135,8 @@ def new_run(source: Path, algo: str, seeds: Sequence[int], config, out: Path, mi
         except ValueError as exc:
             raise record.RunError(str(exc)) from None
     folder = out / record.run_name(plan.name or envs[0].spec.name, algo, seeds)
-    if record.has_trained(folder):
-        raise record.RunError(f"{folder} already holds a run; continue it with --resume {folder}, "
-                                "or pick another --seed or --out")
+    if (taken := record.occupied(folder)) is not None:
+        raise record.RunError(taken)
     for env in envs:
         config.validate_env(env, sharding.device_count(), len(seeds))
     dirs = [FIELD] if len(envs) == 1 else [f"{STAGES}/{k + 1:02d}" for k in range(len(envs))]

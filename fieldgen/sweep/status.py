@@ -66,7 +66,7 @@ def damaged(run: PlannedRun) -> str | None:
     """Why the run's folder cannot be read (its run.json or metrics.jsonl edited or damaged: a success rate of
     7.5, say), or None: such a run is failed, neither waiting nor done, and none of its values reach a figure."""
     if not (run.folder / record.RUN).is_file():
-        return None
+        return record.occupied(run.folder)
     try:
         saved = record.read_run(run.folder)
         record.read_metrics(run.folder, saved.every_seed)

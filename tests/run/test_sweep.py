@@ -394,6 +394,23 @@ def test_status_tells_done_failed_stopped_and_waiting_then_summarizes_once_all_a
     assert (sweep.folder / "summary-point_nav.png").stat().st_size > 10_000
 
 
+def test_a_run_whose_run_json_was_lost_is_failed_with_the_way_on_not_sent_round_in_a_circle(tmp_path):
+    """Its checkpoint is there, its record of settings and seeds is not: neither --resume nor a new start can use
+    the folder, so status and `fieldgen train` both say what can (restore run.json, or move the folder away)."""
+    path = sweep_file(tmp_path, seeds=1)
+    (run,) = plan.load(path).runs
+    hand_made(run, 1, 0.5)
+    (run.folder / "learner.msgpack").write_bytes(b"learnt")
+    (run.folder / "run.json").unlink()
+    ((state, detail),) = [(s.state, s.detail) for s in status.states(plan.load(path))]
+    assert state == "failed" and detail.startswith(f"{run.folder} holds a run's checkpoint but not its run.json")
+    assert f"(mv {run.folder} {run.folder}.old) to train it anew" in detail
+    result = runner.invoke(app, ["train", "point_nav", "--algo", "crl", "--seed", "0", "--out", str(run.folder.parent),
+                                 "--steps", "5000", "--envs", "4", "--no-videos"])
+    assert result.exit_code == 1 and "holds a run's checkpoint but not its run.json" in result.output, result.output
+    assert (run.folder / "learner.msgpack").read_bytes() == b"learnt"  # nothing of the user's folder is touched
+
+
 def test_status_exits_zero_when_done_one_when_a_run_failed_and_75_while_runs_wait(tmp_path):
     """`--status` tells failed from waiting in its exit status too, for scripts that poll it: 75 (sysexits'
     "try again later") while no run failed and some are still to come."""
