@@ -493,6 +493,25 @@ def _another_file(recorded: str, path: Path) -> bool:
         return False
 
 
+def _same_start(recorded: list[str], planned: tuple[str, ...], folder: Path) -> bool:
+    """Whether a run was started as the plan would start it now, the sweep's folder moved since allowed for: its
+    `--out` then names the old folder, the same grid point's folder under it."""
+    if len(recorded) != len(planned):
+        return False
+    for i, (was, now) in enumerate(zip(recorded, planned)):
+        if was == now:
+            continue
+        if i == 0 or planned[i - 1] != "--out" or recorded[i - 1] != "--out":
+            return False
+        try:
+            inside = Path(now).relative_to(folder).parts
+        except ValueError:
+            return False
+        if inside and Path(was).parts[-len(inside):] != inside:
+            return False
+    return True
+
+
 def check_plan(sweep: Sweep) -> None:
     """Refuse to go on in a folder whose runs were planned otherwise (the sweep file edited since): a run
     would resume with the settings it started with, not those the file now gives."""
@@ -506,7 +525,8 @@ def check_plan(sweep: Sweep) -> None:
                                   "of its own (out: in the file, or --out)")])
     before = recorded.runs
     for run in sweep.runs:
-        if run.id in before and before[run.id] != list(run.start) and (run.folder / "run.json").is_file():
+        if run.id in before and not _same_start(before[run.id], run.start, sweep.folder) and \
+                (run.folder / "run.json").is_file():
             raise SweepError([Problem(sweep.path, None, None, "", f"{run.folder} was started as `{shell(before[run.id])}`, "
                                       f"the sweep file now plans `{shell(run.start)}`; give the sweep another "
                                       "out: folder, or move that run aside")])

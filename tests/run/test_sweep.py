@@ -468,6 +468,24 @@ def test_a_sweep_file_changed_under_started_runs_is_refused(tmp_path):
     assert "--steps 1900" in result.output and "now plans" in result.output
 
 
+def test_a_sweep_folder_moved_whole_goes_on_where_a_changed_setting_is_still_refused(tmp_path):
+    """Its runs were started with --out naming the old folder: that alone is no change of plan."""
+    path = sweep_file(tmp_path, seeds=1, grid="  crl.repr_dim: [8, 16]")
+    sweep = plan.load(path)
+    launch.record_plan(sweep)
+    for run in sweep.runs:
+        hand_made(run, 2, 0.5)
+    moved = tmp_path / "moved"
+    shutil.move(sweep.folder, moved)
+    result = runner.invoke(app, ["sweep", str(path), "--out", str(moved), "--status"])
+    assert result.exit_code == 0 and "2 done" in result.output, result.output
+    path.write_text(path.read_text().replace("steps: 1900", "steps: 3800"))
+    result = runner.invoke(app, ["sweep", str(path), "--out", str(moved), "--status"])
+    assert result.exit_code == 1 and "now plans" in result.output, result.output
+    assert not plan._same_start(["train", "--out", "/a/crl.repr_dim=8"], ("train", "--out", str(moved / "crl.repr_dim=16")),
+                                moved)  # another grid point's folder is another run
+
+
 def test_two_sweep_files_of_one_name_are_refused_one_folder_unless_the_file_was_moved(tmp_path, monkeypatch):
     """sweeps/nav/sweep.yaml and sweeps/soccer/sweep.yaml both take runs/sweep-sweep: the second merged its runs
     into the first's plan, logs and summary, each --status replacing the other's summary.json."""
