@@ -14,6 +14,12 @@ def main() -> None:
     except KeyboardInterrupt:
         print(f"{stops.said()} while fieldgen loaded; nothing was done", file=sys.stderr)
         sys.exit(stops.status())
+    from fieldgen.cli.app import empty_argument
+
+    problem = empty_argument(sys.argv[1:])
+    if problem:
+        print(f"error: {problem}", file=sys.stderr)
+        sys.exit(1)
     try:
         app(prog_name="fieldgen")
     except SystemExit as done:

@@ -617,3 +617,28 @@ def test_a_printed_command_names_a_folder_with_spaces_or_a_leading_dash_as_a_she
     from fieldgen.suggest import shell
 
     assert shlex.split(shell("-cu")) == ["./-cu"] and shell("runs/a") == "runs/a"
+
+
+@pytest.mark.parametrize("argv,said", [
+    (["validate", ""], "word 2 of the command line after fieldgen is empty (''), as a shell variable unset or empty "
+                       "gives it (fieldgen validate \"$VAR\"); give the name or path it stands for"),
+    (["train", "--no-videos", ""], "word 3 of the command line after fieldgen is empty"),  # a flag takes no value
+    (["train", "point_nav", "--out", ""], "--out is given an empty value (''), as a shell variable unset or empty "
+                                          "gives it (--out \"$VAR\"); give it the value it stands for"),
+    (["eval", "runs/x", "--summary="], "--summary is given an empty value"),
+    (["train", "point_nav", "--set", "crl.repr_dim="], None),  # an empty value of a key is the config's to judge
+    (["train", "point_nav", "--bogus", ""], None),  # an option the command lacks: click's own error names it
+])
+def test_an_empty_word_on_the_command_line_is_named_where_a_path_read_it_as_this_folder(argv, said):
+    """`fieldgen train "$FIELD"` with FIELD unset gave '', which a path reads as '.': errors then spoke of '.'."""
+    from fieldgen.cli.app import empty_argument
+
+    assert empty_argument(argv) == said if said is None or said.endswith("stands for") else said in empty_argument(argv)
+
+
+def test_the_installed_command_refuses_an_empty_word_before_it_starts():
+    import subprocess
+    import sys
+
+    proc = subprocess.run([sys.executable, "-m", "fieldgen", "eval", ""], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 1 and proc.stderr.startswith("error: word 2 of the command line after fieldgen is empty")

@@ -157,6 +157,38 @@ def fail(message: str) -> None:
     raise typer.Exit(1)
 
 
+def empty_argument(argv: list[str]) -> str | None:
+    """Why a command line with an empty word cannot mean what it says, or None: a shell variable unset or empty
+    (`fieldgen train "$FIELD"`) gives '', which a path reads as '.', the folder the command runs in."""
+    command = next((word for word in argv if word and not word.startswith("-")), "")
+    for i, word in enumerate(argv):
+        option = word[:-1] if word.startswith("--") and word.endswith("=") else None
+        if word and option is None:
+            continue
+        takes = _takes_value(command, argv[i - 1]) if option is None and i > 0 else False
+        if takes is None:
+            return None
+        if takes:
+            option = argv[i - 1]
+        if option is not None:
+            return (f"{option} is given an empty value (''), as a shell variable unset or empty gives it "
+                    f"({option} \"$VAR\"); give it the value it stands for")
+        return (f"word {i + 1} of the command line after fieldgen is empty (''), as a shell variable unset or empty "
+                f"gives it (fieldgen {command or 'COMMAND'} \"$VAR\"); give the name or path it stands for")
+    return None
+
+
+def _takes_value(command: str, word: str) -> bool | None:
+    """Whether `word` is an option of `fieldgen command` that takes a value (not a flag such as --no-videos)."""
+    if not word.startswith("-") or "=" in word:
+        return False
+    found = getattr(typer.main.get_command(app), "commands", {}).get(command)
+    for param in getattr(found, "params", []):
+        if word in (*param.opts, *param.secondary_opts):
+            return getattr(param, "is_flag", None) is False and not getattr(param, "count", False)  # an argument: None
+    return None  # an option this command lacks: click's own error names it
+
+
 def spec_path(ref: str) -> Path:
     """The YAML file a field named on the command line is in; a name or path that is not one, refused with
     the nearest that is."""
