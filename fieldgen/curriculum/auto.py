@@ -77,8 +77,8 @@ class Sampler(BaseModel):
     floor: float = Field(0.05, ge=0, lt=1, description="of new episodes, spread evenly over the levels but the "
                                                        "spec (with kick-off points, over the buffer's entries but "
                                                        "the spec's own): none of them is starved")
-    buffer: int = Field(32, ge=2, le=4096, description="levels (a level and one of its kick-off points) episodes "
-                                                       "are drawn from")
+    buffer: int = Field(32, ge=2, le=4096, description="entries episodes are drawn from, each a level with one "
+                                                       "of its kick-off points")
     replaced: int = Field(4, ge=0, le=4096, description="of the buffer's levels, replaced after each evaluation "
                                                         "by mutations of the most learnable")
     prior: float = Field(2.0, gt=0, le=1000, description="episodes at success 0.5 every estimate starts from: a "
