@@ -42,11 +42,15 @@ def allowed(error: dict, field) -> str:
     span = _whole_range(field)
     if span is not None and error["type"] in TOO_LARGE:
         return f"must be {span}"
+    kind = typing.get_origin(field.annotation) or field.annotation
     if error["type"] in BOUNDS:
         phrase, key = BOUNDS[error["type"]]
         bound = error["ctx"][key]
-        return f"must be {phrase} {f'{bound:,}' if isinstance(bound, int) else bound}"
-    kind = typing.get_origin(field.annotation) or field.annotation
+        shown = f"{bound:,}" if isinstance(bound, int) else bound
+        loc = error.get("loc") or ()
+        if kind is tuple and loc and isinstance(loc[-1], int):
+            return f"must be a list of layer widths, each {phrase} {shown}"  # an item's bound, not the list's
+        return f"must be {phrase} {shown}"
     if error["type"] == "finite_number" and kind is not tuple:  # a list's item is told as the list is
         return "must be a finite number"
     words = {int: "a whole number", float: "a number", bool: "true or false",

@@ -467,7 +467,7 @@ def test_bundled_config_files_hold_only_known_keys(path):
     (["--set", "crl.actor_lr=.nan"], "crl.actor_lr must be a finite number, not nan"),
     (["--set", "crl.critic_lr=-0.001"], "crl.critic_lr must be greater than 0, not -0.001"),
     (["--set", "crl.discount=1"], "crl.discount must be less than 1, not 1"),
-    (["--set", "crl.hidden=[256,0]"], "crl.hidden must be greater than 0"),
+    (["--set", "crl.hidden=[256,0]"], "crl.hidden must be a list of layer widths, each greater than 0, not [256, 0]"),
     (["--set", "crl.hidden=64,64"], "crl.hidden must be a list of layer widths, whole numbers above 0, not '64,64'; "
                                     "write it as a list, [64,64]"),
     (["--set", "crl.hidden=[1e400]"], "crl.hidden must be a list of layer widths, whole numbers above 0, not [inf]"),
