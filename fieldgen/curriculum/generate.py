@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
+import json
 import re
 from pathlib import Path
 from typing import Callable
@@ -307,10 +308,44 @@ def _check_compatible(a_path: Path, sa: FieldSpec, b_path: Path, sb: FieldSpec) 
 
 
 def _check_geometric(keys: tuple[str, ...], a: dict, b: dict) -> None:
+    """Each key names a number (or list of numbers) that the interpolation moves: a boolean, a choice, a key of one
+    field alone or one both fields hold alike would have been accepted and left as it is."""
     known = set(_leaf_keys(a)) | set(_leaf_keys(b))
+    moving = sorted(k for k in known if _numbers(_at(a, k)) and _numbers(_at(b, k)) and _at(a, k) != _at(b, k)
+                    and len(_listed(_at(a, k))) == len(_listed(_at(b, k))))
     for key in keys:
         if key not in known:
             raise CurriculumError(f"--geometric {key}: no such key{did_you_mean(key, sorted(known))}")
+        if key not in moving:
+            start, end = _at(a, key), _at(b, key)
+            said = [shown_text(json.dumps(v)) for v in (start, end) if v is not _ABSENT]
+            why = ("only one of the two fields has it, so it switches at --switch-at" if len(said) < 2 else
+                   f"both fields hold {said[0]}, so it does not move" if start == end else
+                   f"it goes from {said[0]} to {said[1]}, not a number that moves (booleans, choices and lists "
+                   "of other lengths switch at --switch-at)")
+            raise CurriculumError(f"--geometric {key}: {why}; the numbers that move here: "
+                                  f"{', '.join(moving) or 'none'}")
+
+
+_ABSENT = object()
+
+
+def _at(tree: dict, dotted: str):
+    """The value at a dotted key of a resolved spec, or _ABSENT."""
+    for part in dotted.split("."):
+        if not isinstance(tree, dict) or part not in tree:
+            return _ABSENT
+        tree = tree[part]
+    return tree
+
+
+def _listed(value) -> list:
+    return value if isinstance(value, list) else [value]
+
+
+def _numbers(value) -> bool:
+    """A number, or a non-empty list of numbers: what an interpolation moves."""
+    return bool(_listed(value)) and all(map(_is_number, _listed(value)))
 
 
 def _resolved(path: Path) -> dict:

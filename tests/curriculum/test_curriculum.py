@@ -76,6 +76,14 @@ def test_grid_has_the_product_size(tmp_path):
     (["--stage", "goal.distance=9", "--switch-at", "2"], "--switch-at belongs to an interpolation curriculum: give --to too"),
     (["--to", "soccer_v2", "--stages", "2", "--then", "soccer_v2"], "stage 2 is that field already"),
     (["--start-near", "3", "--then", "soccer_v2", "--geometric", "goal.distanse"], "did you mean 'goal.distance'?"),
+    # a key the interpolation does not move as a number: before, accepted and left as it was
+    (["--to", "soccer_v2", "--geometric", "walls.enabled"], "--geometric walls.enabled: it goes from false to true, "
+     "not a number that moves (booleans, choices and lists of other lengths switch at --switch-at); the numbers "
+     "that move here: ball.spawn.y, field.length, field.width, goal.depth, goal.distance,"),
+    (["--to", "soccer_v2", "--geometric", "episode.length"], "--geometric episode.length: both fields hold 1001, so "
+                                                               "it does not move"),
+    (["--to", "v2_wide_goalie", "--geometric", "obstacles.goalie.width"], "--geometric obstacles.goalie.width: only "
+                                                                          "one of the two fields has it"),
     (["--stage", "goal.distance=abc", "--then", "soccer_v2"], "stage 1, which --then goes on from, is not a valid field (goal.distance: 'abc' is text"),
     ([], "give exactly one of"),
 ])
