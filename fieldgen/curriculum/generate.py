@@ -210,9 +210,13 @@ def grid(base: Path, axes: dict[str, list]) -> list[tuple[dict, str]]:
 def explicit(base: Path, variants: list[dict[str, object]]) -> list[tuple[dict, str]]:
     """One variant per assignment dict, in the order given."""
     a = _resolved(base)
-    for assignment in variants:
+    for i, assignment in enumerate(variants):
         for key in assignment:
             _check_key(key, a, "--stage")
+        if assignment in variants[:i]:  # two stages of one field: a stage trained twice, weighed twice
+            said = " ".join(f"{k}={v}" for k, v in assignment.items())
+            raise CurriculumError(f"--stage {i + 1} ({shown_text(said)}) sets what --stage "
+                                  f"{variants.index(assignment) + 1} sets: the same field twice; list each once")
     return [(_nest(v), "listed: " + ", ".join(f"{k}={x}" for k, x in v.items())) for v in variants]
 
 

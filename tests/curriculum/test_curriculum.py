@@ -62,6 +62,8 @@ def test_grid_has_the_product_size(tmp_path):
     (["--vary", "goal.distance="], "the list of values is empty"),
     (["--vary", "goal.distance=8,9,8.0"], "--vary goal.distance: 8.0 is listed twice; list each value once"),
     (["--vary", "goal.distanse=8,12"], "unknown key 'goal.distanse'; did you mean 'goal.distance'?"),
+    (["--stage", "goal.distance=9", "--stage", "goal.distance=12", "--stage", "goal.distance=9.0"],
+     "--stage 3 (goal.distance=9.0) sets what --stage 1 sets: the same field twice; list each once"),
     (["--to", "point_nav"], "drives the ant agent and"),
     (["--stage", "goal.distance=200"], "stage 1 (listed: goal.distance=200) is not a valid field (goal.distance:"),
     (["--stage", "goal.distance=9 obstacles={rock:"], "--stage obstacles: the value '{rock:' is not valid YAML"),
