@@ -326,7 +326,7 @@ class ReplayConfig(RunConfig):
             envs = self.total_steps // ((prefill_iters + self.num_evals) * self.unroll_length)
             evals = self.total_steps // self.per_iteration - prefill_iters
             raise ConfigError(f"{self.total_steps:,} env steps (--steps or {self.algo}.total_steps) are too few: "
-                              f"{self.num_envs} envs x unroll "
+                              f"{self.num_envs:,} envs x unroll "
                               f"{self.unroll_length} need {prefill:,} steps to prefill the buffer and "
                               f"{self.num_evals} more iterations; use at least {need:,}"
                               + self.instead(envs, evals))
