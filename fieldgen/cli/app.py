@@ -185,7 +185,7 @@ def _takes_value(command: str, word: str) -> bool | None:
     found = getattr(typer.main.get_command(app), "commands", {}).get(command)
     for param in getattr(found, "params", []):
         if word in (*param.opts, *param.secondary_opts):
-            return getattr(param, "is_flag", None) is False and not getattr(param, "count", False)  # an argument: None
+            return getattr(param, "is_flag", None) is False and not getattr(param, "count", False)  # no is_flag: an argument
     return None  # an option this command lacks: click's own error names it
 
 

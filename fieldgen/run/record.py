@@ -54,7 +54,8 @@ def occupied(run_dir: Path) -> str | None:
     if not has_trained(run_dir):
         return None
     if (run_dir / RUN).is_file():
-        return f"{run_dir} already holds a run; continue it with --resume {shell(run_dir)}, or pick another --seed or --out"
+        return (f"{run_dir} already holds a run; continue it with --resume {shell(run_dir)}, or pick another --seed "
+                "or --out")
     return (f"{run_dir} holds a run's checkpoint but not its {RUN}, the record of its settings and seeds, so it can "
             f"neither go on nor be set up again there: restore {RUN} from a copy to continue it, or move the folder "
             f"away (mv {shell(run_dir)} {shell(str(run_dir) + '.old')}) to train it anew")
