@@ -185,7 +185,8 @@ def _takes_value(command: str, word: str) -> bool | None:
     found = getattr(typer.main.get_command(app), "commands", {}).get(command)
     for param in getattr(found, "params", []):
         if word in (*param.opts, *param.secondary_opts):
-            return getattr(param, "is_flag", None) is False and not getattr(param, "count", False)  # no is_flag: an argument
+            # an argument has no is_flag; a flag (--no-videos) takes no value
+            return getattr(param, "is_flag", None) is False and not getattr(param, "count", False)
     return None  # an option this command lacks: click's own error names it
 
 
