@@ -315,8 +315,7 @@ def _check_geometric(keys: tuple[str, ...], a: dict, b: dict) -> None:
     """Each key names a number (or list of numbers) that the interpolation moves: a boolean, a choice, a key of one
     field alone or one both fields hold alike would have been accepted and left as it is."""
     known = set(_leaf_keys(a)) | set(_leaf_keys(b))
-    moving = sorted(k for k in known if _numbers(_at(a, k)) and _numbers(_at(b, k)) and _at(a, k) != _at(b, k)
-                    and len(_listed(_at(a, k))) == len(_listed(_at(b, k))))
+    moving = sorted(k for k in known if _at(a, k) != _at(b, k) and _moves(_at(a, k), _at(b, k)))
     for key in keys:
         if key not in known:
             raise CurriculumError(f"--geometric {key}: no such key{did_you_mean(key, sorted(known))}")
@@ -343,13 +342,12 @@ def _at(tree: dict, dotted: str):
     return tree
 
 
-def _listed(value) -> list:
-    return value if isinstance(value, list) else [value]
-
-
-def _numbers(value) -> bool:
-    """A number, or a non-empty list of numbers: what an interpolation moves."""
-    return bool(_listed(value)) and all(map(_is_number, _listed(value)))
+def _moves(a, b) -> bool:
+    """Whether an interpolation moves a value from `a` to `b` as a number: two numbers, or two lists of numbers of
+    one length; anything else switches at the switch stage."""
+    if _is_number(a) and _is_number(b):
+        return True
+    return isinstance(a, list) and isinstance(b, list) and len(a) == len(b) and all(map(_is_number, a + b))
 
 
 def _resolved(path: Path) -> dict:
@@ -414,9 +412,9 @@ def _blend(a, b, t: float, switched: bool, geometric: tuple[str, ...], path: tup
             elif (k in b) == switched:  # only in b and switched in, or only in a and not yet switched out
                 out[k] = b[k] if k in b else a[k]
         return out
-    if _is_number(a) and _is_number(b):
-        return _mix(a, b, t, key in geometric, key)
-    if isinstance(a, list) and isinstance(b, list) and len(a) == len(b) and all(map(_is_number, a + b)):
+    if _moves(a, b):
+        if _is_number(a):
+            return _mix(a, b, t, key in geometric, key)
         return [_mix(x, y, t, key in geometric, key) for x, y in zip(a, b)]
     return b if switched else a
 
