@@ -6,6 +6,7 @@ import contextlib
 import io
 import math
 import os
+import textwrap
 
 import imageio.v3 as iio
 import mujoco
@@ -28,6 +29,7 @@ LEGEND = {"agent": ("torso", "agent"), "home": ("home0_torso", "home0_agent"), "
           "ball": ("ball",), "target": ("target",), "goal": ("goal_area", "away_goal_area"),
           "walls": ("wall_",), "obstacles": ("obstacle_",), "field lines": ("line_",)}
 LEGEND_HEIGHT = 32  # pixels of the strip under the preview
+CAPTION_CHARACTERS = 48  # of a contact sheet's caption line: about its panel's width at 8 points
 MAX_FOVY = 180  # mujoco takes no camera fovy of this or more, an orthographic camera's metres included
 
 
@@ -174,16 +176,20 @@ def contact_sheet(images: list[np.ndarray], titles: list[str], columns: int = 3,
 
     rows = -(-len(images) // columns)
     cols = min(columns, len(images))
-    fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 2.7 * rows), squeeze=False)
+    # a caption wider than its panel would run into its neighbours': wrapped at the panel's width, in lines
+    # the rows make room for
+    wrapped = [textwrap.fill(caption, CAPTION_CHARACTERS) for caption in captions or [""] * len(images)]
+    lines = max((text.count("\n") + 1 for text in wrapped if text), default=0)
+    fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, (2.7 + 0.14 * max(lines - 1, 0)) * rows), squeeze=False)
     for ax in axes.flat:
         ax.axis("off")
-    for ax, image, title, caption in zip(axes.flat, images, titles, captions or [""] * len(images)):
+    for ax, image, title, caption in zip(axes.flat, images, titles, wrapped):
         ax.imshow(image)
         ax.set_title(title, fontsize=8)
         ax.text(0.5, -0.03, caption, transform=ax.transAxes, ha="center", va="top", fontsize=8)
     fig.tight_layout()
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=100)
+    fig.savefig(buf, format="png", dpi=100, bbox_inches="tight")
     plt.close(fig)
     return buf.getvalue()
 

@@ -241,3 +241,23 @@ def test_environment_render_refuses_what_it_cannot_draw_in_a_sentence(point_env,
     kwargs.setdefault("trajectory", [state])
     with pytest.raises(ValueError, match=says):
         env.render(**kwargs)
+
+
+def test_a_contact_sheet_wraps_a_caption_wider_than_its_panel_and_makes_room_for_it():
+    """Three stages' captions side by side ran into each other: a long one is wrapped, its row taller."""
+    import io
+
+    import imageio.v3 as iio
+
+    from fieldgen.render import contact_sheet
+
+    images = [np.full((60, 40, 3), 128, np.uint8)] * 3
+    short = iio.imread(io.BytesIO(contact_sheet(images, ["a", "b", "c"], captions=["field 16 wide"] * 3)))
+    caption = "field 32 wide, 40 long; goal 20 ahead, 8 wide; goalie 1.5 wide; walls 0.6 high"
+    long = iio.imread(io.BytesIO(contact_sheet(images, ["a", "b", "c"], captions=[caption] * 3)))
+    assert long.shape[0] > short.shape[0]  # the wrapped lines below the panels
+    assert long.shape[1] <= 3 * 320  # three panels of 3.2 inches at 100 dpi: no caption reaches past the sheet
+    ink = (long[..., :3].min(axis=-1) < 100)  # the captions' dark text on white
+    gaps = ~ink[short.shape[0] - 20:].any(axis=0)  # columns with no caption text in the caption band
+    runs = np.flatnonzero(np.diff(gaps.astype(int)) == 1)  # where a text span ends and a gap begins
+    assert len(runs) >= 3  # three separate spans of text, none run into the next

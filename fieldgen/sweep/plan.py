@@ -223,7 +223,7 @@ def load(path: Path, out: Path | None = None, **overrides) -> Sweep:
         raise SweepError([Problem(blocker, None, None, "", f"{said} --out")])
     runs = []
     for ref, name in zip(spec.fields, names):
-        field_arg = ref if ref in bundled_fields() and "/" not in ref else str(_relative(path, ref).absolute())
+        field_arg = ref if ref in bundled_fields() and "/" not in ref else str(_relative(path, ref).resolve())
         for algo in spec.algorithms:
             axes = {k: v for k, v in spec.grid.items() if k.partition(".")[0] in (algo, SAMPLER)}
             fixed = {k: v for k, v in spec.set.items() if k.partition(".")[0] in (algo, SAMPLER)}
@@ -237,7 +237,7 @@ def load(path: Path, out: Path | None = None, **overrides) -> Sweep:
                              *(("--levels", str(spec.levels)) if spec.levels else ()),
                              *(("--steps", str(spec.steps)) if spec.steps else ()),
                              *(("--envs", str(spec.envs)) if spec.envs else ()),
-                             *(("--config", str(config.absolute())) if config else ()),
+                             *(("--config", str(config.resolve())) if config else ()),
                              *_options({**fixed, **point}),
                              "--videos" if spec.videos else "--no-videos")
                     runs.append(PlannedRun(str(run_folder.relative_to(folder)), run_folder, name, algo, seed, point,
@@ -499,7 +499,7 @@ def _same_start(recorded: list[str], planned: tuple[str, ...], folder: Path) -> 
     if len(recorded) != len(planned):
         return False
     for i, (was, now) in enumerate(zip(recorded, planned)):
-        if was == now:
+        if was == now or _same_file(was, now):
             continue
         if i == 0 or planned[i - 1] != "--out" or recorded[i - 1] != "--out":
             return False
@@ -510,6 +510,16 @@ def _same_start(recorded: list[str], planned: tuple[str, ...], folder: Path) -> 
         if inside and Path(was).parts[-len(inside):] != inside:
             return False
     return True
+
+
+def _same_file(was: str, now: str) -> bool:
+    """Whether two words of a command name one file: plans before paths were resolved kept `sweeps/../fields`."""
+    if "/" not in was or "/" not in now:
+        return False
+    try:
+        return Path(was).resolve() == Path(now).resolve()
+    except (OSError, RuntimeError, ValueError):
+        return False
 
 
 def check_plan(sweep: Sweep) -> None:

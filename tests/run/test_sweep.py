@@ -662,3 +662,23 @@ def test_a_config_file_every_run_would_refuse_is_refused_by_the_plan(tmp_path, t
     assert result.exit_code == 1 and result.output.startswith(f"error: {path}:6:1: config: the crl runs read it "
                                                               "with --config and would stop: "), result.output
     assert phrase in result.output and "fieldgen train" not in result.output
+
+
+def test_a_field_beside_the_sweep_folder_is_named_without_dot_dot_and_a_plan_recorded_with_it_goes_on(tmp_path):
+    """`fields: [../mine.yaml]` printed `.../sweeps/../mine.yaml` in every command; a sweep started that way
+    still goes on."""
+    (tmp_path / "mine.yaml").write_text("extends: point_nav\nname: mine\n")
+    (tmp_path / "sweeps").mkdir()
+    path = sweep_file(tmp_path / "sweeps", seeds=1).rename(tmp_path / "sweeps" / "s.yaml")
+    path.write_text(path.read_text().replace("fields: [point_nav]", "fields: [../mine.yaml]"))
+    sweep = plan.load(path)
+    assert sweep.runs[0].start[1] == str((tmp_path / "mine.yaml").resolve())
+    launch.record_plan(sweep)
+    hand_made(sweep.runs[0], 2, 0.5)
+    was = list(sweep.runs[0].start)
+    was[1] = str(tmp_path / "sweeps" / ".." / "mine.yaml")
+    record = json.loads((sweep.folder / "sweep.json").read_text())
+    record["runs"][sweep.runs[0].id] = was
+    (sweep.folder / "sweep.json").write_text(json.dumps(record))
+    plan.check_plan(plan.load(path))  # the same file, written otherwise: no change of plan
+    assert not plan._same_file("crl.repr_dim=8", "crl.repr_dim=16")
