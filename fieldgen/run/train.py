@@ -133,18 +133,19 @@ def _train(run: Run, console: Console, videos: bool, logger: str, video_format: 
         def on_eval(state, index, stage, filmed, sampling):
             began = time.perf_counter()
             skipped[0] = skip_checkpoint(writer.busy, skipped[0], index == config.num_evals or deadline.reached)
-            if skipped[0]:  # what it learned alone, megabytes: the write under way is not waited for
-                learned = sharding.to_host(session.learner_contents(trainers[0], state, sampling))
-            else:
+            whole = None
+            if not skipped[0]:
                 writer.wait()  # one snapshot at a time in host memory; a failed write stops training here
-                snapshot = sharding.to_host(session.checkpoint_contents(state, sampling))  # every process gathers it
-                learned = session.learner_contents(trainers[0], *snapshot)
+                whole = session.checkpoint_contents(state, sampling)
+                if jax.process_count() > 1:  # every process gathers it, together, here
+                    whole = sharding.to_host(whole)
+            learned = sharding.to_host(session.learner_contents(trainers[0], state, sampling))  # megabytes
             waited[:] = [time.perf_counter() - began]
             deadline.handing.append(waited[0])
             if not writes:
                 return
-            if not skipped[0]:
-                writer.submit(deadline.timed(write_atomic), run.folder / record.CHECKPOINT, checkpoint.pieces(snapshot))
+            if whole is not None:
+                writer.submit(deadline.timed(write_whole), run.folder / record.CHECKPOINT, whole)
             writer.submit(write_atomic, run.folder / record.LEARNER, checkpoint.pieces(learned))
             if filmed is not None:  # the episode just evaluated (a mixed run films its last stage)
                 filmed_stage, frames = filmed
@@ -219,6 +220,12 @@ def ends_at(run: Run) -> int:
     last = run.rows[-1]
     refill = run.config.steps_at(0) if run.refills and not run.finished else 0  # PPO's: none
     return run.config.ends_at(last["eval"], last["env_steps"]) + refill
+
+
+def write_whole(path, contents) -> None:
+    """Write the whole checkpoint, copying it to the host here, in the writer's thread: training's next chunk
+    starts meanwhile (a chunk makes a new state; the one evaluated stays as it was until copied)."""
+    write_atomic(path, checkpoint.pieces(sharding.to_host(contents)))
 
 
 def skip_checkpoint(writing: bool, skipped_last: bool, last: bool) -> bool:

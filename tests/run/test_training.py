@@ -130,6 +130,33 @@ def test_a_checkpoint_is_left_out_only_while_another_is_written_never_twice_in_a
     assert not skip_checkpoint(writing=True, skipped_last=False, last=True)
 
 
+def test_the_whole_checkpoint_is_copied_to_the_host_in_the_writers_thread_not_the_training_one(
+        tmp_path, monkeypatch, tiny_crl_args):
+    """Copying gigabytes of replay buffer off the GPU held training for seconds at every evaluation: the
+    training thread now takes what was learned (megabytes) and the writer copies the whole state itself."""
+    import threading
+
+    import jax
+    import numpy as np
+
+    from fieldgen.run import train as training
+
+    copies, to_host = [], training.sharding.to_host
+
+    def noted(tree):
+        size = sum(np.asarray(leaf).nbytes for leaf in jax.tree.leaves(tree))
+        copies.append((threading.current_thread().name, size))
+        return to_host(tree)
+
+    monkeypatch.setattr(training.sharding, "to_host", noted)
+    result = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path), "--no-videos", *tiny_crl_args])
+    assert result.exit_code == 0, result.output
+    whole = [size for thread, size in copies if thread.startswith("fieldgen-writer")]
+    held = [size for thread, size in copies if not thread.startswith("fieldgen-writer")]
+    assert len(whole) == 3 and len(held) == 3  # evaluations 0, 1 and 2: a whole checkpoint and a learner each
+    assert max(held) < min(whole) / 2  # the replay buffer is what the training thread no longer copies
+
+
 @pytest.mark.slow
 def test_a_run_whose_checkpoints_are_left_out_resumes_to_the_run_never_stopped(tmp_path, monkeypatch,
                                                                                interrupt_after_eval, tiny_crl_args):
