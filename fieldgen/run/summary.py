@@ -196,7 +196,11 @@ def summarize(fields: list[str], algo: str, runs: list[Path], episodes: int, env
 def read(path: Path) -> SeedSummary:
     """A summary.json that `fieldgen eval` wrote, or SummaryError naming the file and what is wrong."""
     try:
-        return SeedSummary.model_validate_json(path.read_bytes())
+        text = path.read_bytes()
+        if not text.strip():
+            raise SummaryError(f"{path} is empty, not a summary of fieldgen eval; name the summary.json that "
+                               "fieldgen eval --summary wrote, or evaluate the runs again")
+        return SeedSummary.model_validate_json(text)
     except FileNotFoundError:
         raise SummaryError(f"{path} is missing; name a summary.json that fieldgen eval wrote") from None
     except IsADirectoryError:

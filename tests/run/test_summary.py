@@ -184,7 +184,9 @@ def test_aggregate_prints_and_writes_the_pooled_seeds_and_says_what_is_wrong_in_
     assert "IQM (5 seeds): success_any 0.500 [" in said and all(f"│ {s} " in result.output for s in range(5)), said
     assert read(out).seeds == [0, 1, 2, 3, 4] and "fieldgen aggregate" in read(out).command
     (tmp_path / "bad.json").write_text("{}")
+    (tmp_path / "empty.json").write_text("\n")
     for args, phrase in (([str(tmp_path / "none.json")], "none.json is missing"),
+                       ([str(tmp_path / "empty.json")], "empty.json is empty, not a summary of fieldgen eval"),
                        ([str(tmp_path / "bad.json")], "bad.json is not a summary of fieldgen eval: it has no key "
                                                        "'fields' (fieldgen eval --summary writes one)"),
                        ([str(tmp_path)], "is a folder"),
