@@ -239,14 +239,19 @@ class RunConfig(BaseModel):
             raise ConfigError(f"{where}: {cls.algo}.{key} {allowed(exc.errors()[0], fields[key])}, "
                               f"not {shown}{listed}") from None
 
-    def validate_env(self, env: Environment, devices: int = 1, seeds: int = 1) -> None:
-        """Problems a run would hit after compiling, reported before. `seeds` trained at once on `devices`
-        devices (every process's, in a run over several) split by seed when they can, and otherwise split
-        each seed's environments."""
+    def validate_budget(self) -> None:
+        """Problems of the env steps asked for that the config alone shows, no field needed: a sweep's plan
+        checks each run's before any starts (a run queued for hours on a cluster would fail at once)."""
         if self.total_steps + self.per_iteration > COUNTER_MAX:
             raise ConfigError(f"--steps {self.total_steps:,} with {self.num_envs:,} envs x unroll "
                               f"{self.unroll_length:,} per iteration: a run counts its env steps in 32-bit "
                               f"integers, which reach {COUNTER_MAX:,}; train fewer steps or use fewer --envs")
+
+    def validate_env(self, env: Environment, devices: int = 1, seeds: int = 1) -> None:
+        """Problems a run would hit after compiling, reported before. `seeds` trained at once on `devices`
+        devices (every process's, in a run over several) split by seed when they can, and otherwise split
+        each seed's environments."""
+        self.validate_budget()
         if seeds > MAX_SEEDS:
             raise ConfigError(f"--seeds {seeds:,}: at most {MAX_SEEDS:,} seeds train at once, each a whole run; "
                               "train them in several runs")
@@ -315,10 +320,9 @@ class ReplayConfig(RunConfig):
         prefill_iters, per_eval = iterations(self)
         return (prefill_iters + index * per_eval) * self.per_iteration
 
-    def validate_env(self, env: Environment, devices: int = 1, seeds: int = 1) -> None:
-        """Also: steps to prefill the buffer and train, room for an episode, a batch's worth of
-        transitions in the windows it samples."""
-        super().validate_env(env, devices, seeds)
+    def validate_budget(self) -> None:
+        """Also: steps to prefill the buffer and train."""
+        super().validate_budget()
         prefill_iters, per_eval = iterations(self)
         prefill = prefill_iters * self.per_iteration
         need = prefill + self.num_evals * self.per_iteration
@@ -330,6 +334,10 @@ class ReplayConfig(RunConfig):
                               f"{self.unroll_length} need {prefill:,} steps to prefill the buffer and "
                               f"{self.num_evals} more iterations; use at least {need:,}"
                               + self.instead(envs, evals))
+
+    def validate_env(self, env: Environment, devices: int = 1, seeds: int = 1) -> None:
+        """Also: room for an episode, a batch's worth of transitions in the windows it samples."""
+        super().validate_env(env, devices, seeds)
         if self.max_replay_rows < max(self.min_replay_rows, env.episode_length):
             raise ConfigError(f"max_replay_rows {self.max_replay_rows} must hold min_replay_rows "
                               f"({self.min_replay_rows}) and one episode ({env.episode_length} steps)")

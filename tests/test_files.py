@@ -240,7 +240,7 @@ def test_a_sweep_whose_out_reaches_a_users_folder_is_refused_before_anything_tra
     mine.mkdir()
     (mine / "summary.md").write_text("my notes")
     path = tmp_path / "sweep.yaml"
-    path.write_text(f"fields: [point_nav]\nalgorithms: [crl]\nseeds: 1\nsteps: 1900\nenvs: 8\nout: {mine}\n")
+    path.write_text(f"fields: [point_nav]\nalgorithms: [crl]\nseeds: 1\nsteps: 14000\nenvs: 8\nout: {mine}\n")
     for status in ([], ["--status"]):
         result = runner.invoke(app, ["sweep", str(path), *status])
         assert result.exit_code == 1 and one_line(result.output) == (

@@ -7,7 +7,6 @@ from typing import Annotated, ClassVar, Literal
 
 from pydantic import Field, StrictBool
 
-from ...env.contract import Environment
 from ..config import ConfigError, Count, Discount, Float, Hidden, Rate, Reward, RunConfig, Share, Unknown
 
 SPREADS = ("global", "state")
@@ -70,8 +69,9 @@ class PPOConfig(RunConfig):
         minibatches."""
         return self.iterations_per_eval * self.num_evals * self.update_epochs * self.num_minibatches
 
-    def validate_env(self, env: Environment, devices: int = 1, seeds: int = 1) -> None:
-        super().validate_env(env, devices, seeds)
+    def validate_budget(self) -> None:
+        """Also: iterations that split into whole minibatches, one at least before each evaluation."""
+        super().validate_budget()
         per_iter = self.per_iteration
         if per_iter % self.num_minibatches:
             fits = max(d for d in range(1, self.num_minibatches) if per_iter % d == 0)

@@ -281,11 +281,11 @@ def train(
                 return _train_team(team, None if time_limit is None else started + time_limit, fmt)
             chosen = recipes.choose(source, algo, use_recipe)
             algo, recipe = chosen.algo, chosen.recipe
-            named = preset or (recipe and recipe.preset)
+            named = chosen.preset_named(preset)
             curriculum_kind = curriculum_kind or (recipe and recipe.curriculum)
             trainer_config, agent = registry.trainer(algo).config, field.agent.kind
-            algo_config = trainer_config.layered(config, sets or [], agent=agent, preset=named, recipe=recipe,
-                                                 total_steps=steps, num_envs=envs, seed=seed)
+            algo_config = recipes.new_run_config(chosen, agent, config, sets, preset, total_steps=steps, num_envs=envs,
+                                                 seed=seed)
             overriding = _overriding(steps, envs, sets, config, preset)
             said = chosen.line(overriding)
             if said:

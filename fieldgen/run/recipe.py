@@ -68,11 +68,27 @@ class Choice:
         overrides = f"; {flags} override{'s' * (len(overriding) == 1)} it" if overriding else ""
         return f"{why}: {recipe.summary()}; {figure(self.found)}{overrides}"
 
+    def preset_named(self, given: str | None) -> str | None:
+        """The named preset a new run starts from: the one given (--preset), else the recipe's."""
+        return given or (self.recipe.preset if self.recipe is not None else None)
+
     def record(self, overriding: list[str]) -> dict | None:
         """The recipe as run.json keeps it, with the flags that overrode it."""
         if self.recipe is None:
             return None
         return {**self.recipe.record(), **({"overridden_by": overriding} if overriding else {})}
+
+
+def new_run_config(chosen: Choice, agent: str, config: Path | None, sets: list[str] | None, preset: str | None,
+                   **options):
+    """The config a new run starts with (RunConfig.layered): its trainer's defaults, the preset of its kind of
+    agent, the recipe chosen, the preset named, a config file, --set items, then `options` (total_steps,
+    num_envs, seed: None where not given). `fieldgen train` and a sweep's plan both read it here."""
+    from fieldgen.agents import registry
+
+    return registry.trainer(chosen.algo).config.layered(config, sets or [], agent=agent,
+                                                        preset=chosen.preset_named(preset), recipe=chosen.recipe,
+                                                        **options)
 
 
 def choose(source: Path, algo: str | None, use: bool = True) -> Choice:

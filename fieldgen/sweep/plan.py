@@ -211,6 +211,8 @@ def load(path: Path, out: Path | None = None, **overrides) -> Sweep:
                                     "train until submitit's signal)"))
     if not found:
         _few_enough(spec, source, found)
+    if not found:
+        _budgets(path, spec, config, names, source, found)
     if found:
         raise SweepError(found)
     folder = (Path(spec.out) if out is None and spec.out else out or Path("runs") / f"sweep-{path.stem}").absolute()
@@ -346,6 +348,38 @@ def _few_enough(spec: SweepFile, source: Source, found: list[Problem]) -> None:
         found.append(source.problem((), f"plans {planned:,} runs (fields x algorithms x grid points x seeds); a sweep "
                                          f"runs at most {limits.SWEEP_RUNS:,}: split it into several sweep files, "
                                          "or list fewer values"))
+
+
+def _budgets(path: Path, spec: SweepFile, config: Path | None, names: list[str], source: Source,
+             found: list[Problem]) -> None:
+    """Each run's env steps checked as its config will hold them (the field's recipe, the config file, `set` and
+    its grid point, `steps` and `envs`), before any run starts: too few for its evaluations fails every run at its
+    start, on a cluster after its wait in the queue. A team field's runs are self-play's to check."""
+    from fieldgen.agents.config import ConfigError
+    from fieldgen.run import recipe as recipes
+    from fieldgen.run.session import field_spec
+
+    for i, (ref, name) in enumerate(zip(spec.fields, names)):
+        target = _relative(path, ref)
+        field = field_spec(target)  # read already by _field_names
+        if field.teams is not None:
+            continue
+        for algo in spec.algorithms:
+            chosen = recipes.choose(target, algo)
+            axes = {k: v for k, v in spec.grid.items() if k.partition(".")[0] == algo}
+            fixed = {k: v for k, v in spec.set.items() if k.partition(".")[0] == algo}
+            for values in itertools.product(*axes.values()):
+                point = dict(zip(axes, values))
+                sets = [f"{k}={_shown(v)}" for k, v in {**fixed, **point}.items()]
+                try:
+                    recipes.new_run_config(chosen, field.agent.kind, config, sets, None, total_steps=spec.steps,
+                                           num_envs=spec.envs).validate_budget()
+                except ConfigError as exc:
+                    at = "".join(f", {k}={_shown(v)}" for k, v in point.items())
+                    where = ("steps",) if spec.steps is not None else ("fields", i)
+                    found.append(source.problem(where, f"the {algo} runs on {name}{at} would stop at their start: "
+                                                       f"{exc}"))
+                    break
 
 
 def _each_once(spec: SweepFile, names: list[str], source: Source, found: list[Problem]) -> None:

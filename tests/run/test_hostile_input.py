@@ -319,7 +319,7 @@ def test_a_sweeps_folder_that_cannot_be_made_says_what_to_do(tmp_path, monkeypat
 
         monkeypatch.setattr(Path, "mkdir", refused_below)
     sweep = tmp_path / "sweep.yaml"
-    sweep.write_text("fields: [point_nav]\nalgorithms: [crl]\nsteps: 1000\n")
+    sweep.write_text("fields: [point_nav]\nalgorithms: [crl]\nsteps: 2M\n")
     try:
         result = runner.invoke(app, ["sweep", str(sweep), "--out", str(parent / "sweep")])
     finally:

@@ -177,7 +177,7 @@ def test_a_task_too_short_for_the_runs_stop_names_the_time_given_on_the_command_
 ])
 def test_bad_sweep_files_are_one_line_at_the_key(tmp_path, body, phrase):
     path = tmp_path / "sweep.yaml"
-    base = {"fields": "[point_nav]", "algorithms": "[crl]", "seeds": "2", "steps": "1900", "envs": "8"}
+    base = {"fields": "[point_nav]", "algorithms": "[crl]", "seeds": "2", "steps": "14000", "envs": "8"}
     given = body.partition(":")[0]  # a key of the base given otherwise takes its line
     path.write_text("".join(f"{k}: {v}\n" if k != given else body for k, v in base.items())
                     + ("" if given in base else body))
@@ -224,7 +224,7 @@ def test_a_sweep_that_would_plan_one_run_twice_is_refused_at_the_key(tmp_path, b
     """Two entries that plan the same run folder would train it twice, or count one seed twice in a summary."""
     (tmp_path / "mine.yaml").write_text("extends: point_nav\nname: point_nav\nfield: {length: 12, width: 12}\n")
     path = tmp_path / "sweep.yaml"
-    base = {"fields": "[point_nav]", "algorithms": "[crl]", "seeds": "2", "steps": "1900", "envs": "8"}
+    base = {"fields": "[point_nav]", "algorithms": "[crl]", "seeds": "2", "steps": "14000", "envs": "8"}
     given = body.partition(":")[0]
     path.write_text("".join(f"{k}: {v}\n" if k != given else body for k, v in base.items())
                     + ("" if given in base else body))
@@ -433,11 +433,12 @@ def test_status_exits_zero_when_done_one_when_a_run_failed_and_75_while_runs_wai
 
 
 def test_a_sweep_whose_every_run_failed_exits_one(tmp_path):
-    """A run refused before it compiles (too few steps) fails fast; the sweep that ran it says so in its exit."""
+    """A run refused before it compiles (a replay buffer shorter than an episode) fails fast; the sweep that ran it
+    says so in its exit."""
     path = sweep_file(tmp_path, seeds=1)
-    path.write_text(path.read_text().replace("steps: 1900", "steps: 100"))
+    path.write_text(path.read_text().replace("crl.max_replay_rows: 400", "crl.max_replay_rows: 60"))
     result = runner.invoke(app, ["sweep", str(path)])
-    too_few = "100 env steps (--steps or crl.total_steps) are too few"
+    too_few = "max_replay_rows 60 must hold min_replay_rows (100) and one episode (100 steps)"
     assert result.exit_code == 1 and "1 failed" in result.output and too_few in result.output, \
         result.output
     assert "Traceback" not in result.output
@@ -493,7 +494,7 @@ def test_two_sweep_files_of_one_name_are_refused_one_folder_unless_the_file_was_
     first, second = tmp_path / "nav" / "sweep.yaml", tmp_path / "soccer" / "sweep.yaml"
     for path, field in ((first, "point_nav"), (second, "point_soccer")):
         path.parent.mkdir()
-        path.write_text(f"fields: [{field}]\nalgorithms: [crl]\nseeds: 1\nsteps: 1900\nenvs: 8\n")
+        path.write_text(f"fields: [{field}]\nalgorithms: [crl]\nseeds: 1\nsteps: 14000\nenvs: 8\n")
     launch.record_plan(plan.load(first))
     result = runner.invoke(app, ["sweep", str(second), "--dry-run"])
     message = " ".join(result.output.split())
@@ -566,7 +567,7 @@ def test_the_slurm_path_through_submitits_local_executor_records_failures_and_sk
     """The job array, its tasks running `fieldgen train` and writing how they ended: a run refused before it
     compiles fails fast with its reason; a finished run is not submitted."""
     path = sweep_file(tmp_path, "backend: slurm\nslurm: {gpus_per_task: 0, time: 5, stop_before: 1}\n", seeds=2)
-    path.write_text(path.read_text().replace("steps: 1900", "steps: 100"))  # too few for the prefill: refused
+    path.write_text(path.read_text().replace("crl.max_replay_rows: 400", "crl.max_replay_rows: 60"))  # refused
     sweep = plan.load(path)
     hand_made(sweep.runs[1], 2, 1.0)
     jobs = launch.submit(sweep, cluster="local")
@@ -575,7 +576,7 @@ def test_the_slurm_path_through_submitits_local_executor_records_failures_and_sk
         jobs[0].result()
     found = {s.run.id: s for s in status.states(sweep)}
     assert found[sweep.runs[0].id].state == "failed"
-    assert "100 env steps (--steps or crl.total_steps) are too few" in found[sweep.runs[0].id].detail
+    assert "max_replay_rows 60 must hold min_replay_rows" in found[sweep.runs[0].id].detail
     assert found[sweep.runs[1].id].state == "done"
     assert json.loads((sweep.folder / plan.PLAN).read_text())["jobs"][sweep.runs[0].id] == jobs[0].job_id
 
@@ -682,3 +683,16 @@ def test_a_field_beside_the_sweep_folder_is_named_without_dot_dot_and_a_plan_rec
     (sweep.folder / "sweep.json").write_text(json.dumps(record))
     plan.check_plan(plan.load(path))  # the same file, written otherwise: no change of plan
     assert not plan._same_file("crl.repr_dim=8", "crl.repr_dim=16")
+
+
+def test_a_grid_point_with_too_few_steps_for_its_runs_is_refused_before_any_run_starts(tmp_path):
+    """Each run would stop at its start (on a cluster, after its wait in the queue): the plan says so, naming the
+    point, where the others fit."""
+    path = sweep_file(tmp_path, seeds=1, grid="  crl.num_evals: [2, 50]")
+    result = runner.invoke(app, ["sweep", str(path), "--dry-run"])
+    message = " ".join(result.output.split())
+    assert result.exit_code == 1 and "sweep.yaml:4:1: steps: the crl runs on point_nav, crl.num_evals=50 would stop " \
+                                     "at their start: 1,900 env steps" in message, result.output
+    assert "are too few" in message and "crl.num_evals=2 " not in message
+    path.write_text(path.read_text().replace("[2, 50]", "[2, 3]"))
+    assert runner.invoke(app, ["sweep", str(path), "--dry-run"]).exit_code == 0
