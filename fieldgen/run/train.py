@@ -145,7 +145,7 @@ def _train(run: Run, console: Console, videos: bool, logger: str, video_format: 
             if not writes:
                 return
             if whole is not None:
-                writer.submit(deadline.timed(write_whole), run.folder / record.CHECKPOINT, whole)
+                writer.submit(deadline.timed(write_whole), run.folder / record.CHECKPOINT, [whole])
             writer.submit(write_atomic, run.folder / record.LEARNER, checkpoint.pieces(learned))
             if filmed is not None:  # the episode just evaluated (a mixed run films its last stage)
                 filmed_stage, frames = filmed
@@ -222,10 +222,12 @@ def ends_at(run: Run) -> int:
     return run.config.ends_at(last["eval"], last["env_steps"]) + refill
 
 
-def write_whole(path, contents) -> None:
+def write_whole(path, held: list) -> None:
     """Write the whole checkpoint, copying it to the host here, in the writer's thread: training's next chunk
-    starts meanwhile (a chunk makes a new state; the one evaluated stays as it was until copied)."""
-    write_atomic(path, checkpoint.pieces(sharding.to_host(contents)))
+    starts meanwhile (a chunk makes a new state; the one evaluated stays as it was until copied). `held` holds
+    the state alone, emptied once copied so that its device memory is freed while the write goes on."""
+    contents = sharding.to_host(held.pop())
+    write_atomic(path, checkpoint.pieces(contents))
 
 
 def skip_checkpoint(writing: bool, skipped_last: bool, last: bool) -> bool:
