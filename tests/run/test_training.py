@@ -130,6 +130,7 @@ def test_a_checkpoint_is_left_out_only_while_another_is_written_never_twice_in_a
     assert not skip_checkpoint(writing=True, skipped_last=False, last=True)
 
 
+@pytest.mark.slow
 def test_the_whole_checkpoint_is_copied_to_the_host_in_the_writers_thread_not_the_training_one(
         tmp_path, monkeypatch, tiny_crl_args):
     """Copying gigabytes of replay buffer off the GPU held training for seconds at every evaluation: the
