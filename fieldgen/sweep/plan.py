@@ -188,7 +188,8 @@ def load(path: Path, out: Path | None = None, **overrides) -> Sweep:
     except ValidationError as exc:
         raise SweepError(problems(source, exc.errors(), SweepFile)) from None
     found: list[Problem] = []
-    names = _field_names(path, spec, source, found)
+    read: list = []  # each field's spec as _field_names read it (None: a curriculum folder)
+    names = _field_names(path, spec, source, found, read)
     config = None if spec.config is None else _relative(path, spec.config)
     if config is not None and not config.is_file():
         found.append(source.problem(("config",), f"there is no file {config}"))
@@ -212,7 +213,7 @@ def load(path: Path, out: Path | None = None, **overrides) -> Sweep:
     if not found:
         _few_enough(spec, source, found)
     if not found:
-        _budgets(path, spec, config, names, source, found)
+        _budgets(path, spec, config, names, read, source, found)
     if found:
         raise SweepError(found)
     folder = (Path(spec.out) if out is None and spec.out else out or Path("runs") / f"sweep-{path.stem}").absolute()
@@ -293,9 +294,9 @@ def _point_folder(point: dict) -> str:
     return "".join(c if c.isalnum() or c in "._=,+-" else "_" for c in text)
 
 
-def _field_names(path: Path, spec: SweepFile, source: Source, found: list[Problem]) -> list[str]:
+def _field_names(path: Path, spec: SweepFile, source: Source, found: list[Problem], read: list) -> list[str]:
     """Each field's name, which names its runs' folders: a spec's `name`, a build folder's, a curriculum
-    folder's own name."""
+    folder's own name; each field's spec goes into `read` (None for a curriculum folder)."""
     from fieldgen import curriculum
     from fieldgen.compile.artifact import ArtifactError, load_artifact
     from fieldgen.schema import load_spec
@@ -307,9 +308,11 @@ def _field_names(path: Path, spec: SweepFile, source: Source, found: list[Proble
             if target.is_dir():
                 field = None if curriculum.is_curriculum(target) else load_artifact(target).spec
                 names.append(target.name if field is None else field.name)
+                read.append(field)
             elif target.is_file():
                 field = load_spec(target)
                 names.append(field.name)
+                read.append(field)
             else:
                 field = None
                 found.append(source.problem(("fields", i), f"'{ref}' is neither a file nor a folder nor a bundled "
@@ -350,7 +353,7 @@ def _few_enough(spec: SweepFile, source: Source, found: list[Problem]) -> None:
                                          "or list fewer values"))
 
 
-def _budgets(path: Path, spec: SweepFile, config: Path | None, names: list[str], source: Source,
+def _budgets(path: Path, spec: SweepFile, config: Path | None, names: list[str], read: list, source: Source,
              found: list[Problem]) -> None:
     """Each run's env steps checked as its config will hold them (the field's recipe, the config file, `set` and
     its grid point, `steps` and `envs`), before any run starts: too few for its evaluations fails every run at its
@@ -359,9 +362,9 @@ def _budgets(path: Path, spec: SweepFile, config: Path | None, names: list[str],
     from fieldgen.run import recipe as recipes
     from fieldgen.run.session import field_spec
 
-    for i, (ref, name) in enumerate(zip(spec.fields, names)):
+    for i, (ref, name, field) in enumerate(zip(spec.fields, names, read)):
         target = _relative(path, ref)
-        field = field_spec(target)  # read already by _field_names
+        field = field or field_spec(target)  # a curriculum folder: its first stage
         if field.teams is not None:
             continue
         for algo in spec.algorithms:
