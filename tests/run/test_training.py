@@ -584,6 +584,7 @@ def test_ant_fields_get_the_ant_preset_under_a_config_file_and_set(tmp_path):
     assert (wide.hidden, wide.skip_every, wide.windows_per_env) == ((1024,) * 4, 0, 2.0)  # the former preset
     soccer = crl.CRLConfig.layered(ROOT / "bench" / "configs" / "crl_soccer_auto.yaml", agent="ant")
     assert (soccer.hidden, soccer.skip_every, soccer.windows_per_env) == ((256,) * 4, 0, 2.0)  # as it was measured
+    assert (soccer.actor_lr, soccer.critic_lr, soccer.alpha_lr) == (1e-3, 1e-3, crl.CRLConfig().alpha_lr)
 
 
 def test_hidden_layers_that_form_no_residual_block_under_the_ant_preset_are_refused_naming_the_way_out(tmp_path):
