@@ -56,7 +56,7 @@ def validate(specs: Annotated[list[str], typer.Argument(
 @app.command()
 def build(
     specs: Annotated[list[str], typer.Argument(metavar="SPEC", help="YAML files or bundled field names")],
-    out_dir: Annotated[Path, typer.Option("--out", metavar="DIR",
+    out_dir: Annotated[Path, typer.Option("--out", "-o", metavar="DIR",
                                           help="where build/<name>/ folders go")] = Path("build"),
     force: Annotated[bool, typer.Option(help="rebuild even when the build is current")] = False,
     preview: Annotated[bool, typer.Option(help="render preview.png")] = True,

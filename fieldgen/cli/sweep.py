@@ -22,7 +22,7 @@ def sweep(
     status: Annotated[bool, typer.Option("--status", help="show what ran, what failed and why, and once every run "
                                                           "is done write the summary over seeds")] = False,
     dry_run: Annotated[bool, typer.Option("--dry-run", help="show the commands it would run, and run none")] = False,
-    runs: Annotated[Optional[Path], typer.Option("--out", metavar="DIR",
+    runs: Annotated[Optional[Path], typer.Option("--out", "-o", metavar="DIR",
                                                  help="the sweep's folder (default: the file's out:, else "
                                                       "runs/sweep-<file name>)")] = None,
     backend: Annotated[Optional[str], typer.Option(help="where the runs train (default: the file's backend:)",

@@ -44,9 +44,9 @@ def _read_config(config: Path | None) -> None:
 
     if config is not None:
         try:
-            read_yaml(config, "a config file", "it holds a section per algorithm, such as 'crl:'")
-        except SpecError as exc:
-            raise ConfigError(f"{config} is not a config file: " + "; ".join(map(str, exc.problems))) from None
+            read_yaml(config, "a config file", "a config file holds a section per algorithm, such as 'crl:'")
+        except SpecError as exc:  # each problem names the file, with its line where it has one
+            raise ConfigError("--config " + "; ".join(map(str, exc.problems))) from None
 
 
 def _json_named(flag: str, path: Path | None) -> None:
@@ -140,7 +140,7 @@ def train(
                                      "envs, settings, curriculum, and a dense reward or physics to train on, judged "
                                      "on the field as written), or that of the field it extends; its options above "
                                      "and --set override it; --no-recipe trains with the defaults")] = True,
-    runs: Annotated[Path, typer.Option("--out", metavar="DIR", help="folder for run folders")] = Path("runs"),
+    runs: Annotated[Path, typer.Option("--out", "-o", metavar="DIR", help="folder for run folders")] = Path("runs"),
     resume: Annotated[Optional[Path], typer.Option(metavar="RUN", help="continue the run in this folder")] = None,
     init_from: Annotated[Optional[Path], typer.Option(
         metavar="RUN", help="start from the networks another run learned (its learner.msgpack), e.g. to fine-tune "

@@ -457,12 +457,14 @@ def split_assignments(text: str) -> list[str]:
 
 
 def parse_assignments(items: list[str], where: str) -> dict[str, object]:
-    """'key=value' strings (values read as YAML) -> {key: value}."""
+    """'key=value' strings (values read as YAML) -> {key: value}; a key given twice is refused."""
     out = {}
     for item in items:
         key, sep, raw = item.partition("=")
         if not sep or not key:
             raise CurriculumError(f"{where} '{item}': write KEY=VALUE, e.g. goal.distance=12")
+        if key.strip() in out:
+            raise CurriculumError(f"{where} '{item}': {key.strip()} is given twice; give each key once")
         out[key.strip()] = _yaml_value(raw, f"{where} {key.strip()}")
     return out
 

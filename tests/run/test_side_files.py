@@ -22,9 +22,10 @@ BOMB = "a: &a [x, x, x, x, x, x, x, x, x, x]\n" + "".join(
     ("crl:\n  repr_dim: 8\n  repr_dim: 16\n", "config.yaml:3:3: crl.repr_dim: duplicate key 'repr_dim' (first given on "
      "line 2)"),
     ("- crl\n", "config.yaml:1:1: the document is a list; a config file is a mapping of sections"),
+    ("", "config.yaml:1:1: the file is empty; a config file holds a section per algorithm, such as 'crl:'"),
     ("crl: {seed: 1}\n\x07", "character U+0007 (a control character) is not allowed in YAML"),
     ("crl:\n" + "  # padding\n" * 100_000, "a config file may have at most 1,000,000"),
-], ids=["alias_bomb", "duplicate", "list", "control", "huge"])
+], ids=["alias_bomb", "duplicate", "list", "empty", "control", "huge"])
 def test_a_config_file_is_read_within_bounds(tmp_path, text, phrase):
     """Before: an alias bomb was expanded (minutes and gigabytes), a duplicate key silently took the last value."""
     config = tmp_path / "config.yaml"
@@ -33,7 +34,7 @@ def test_a_config_file_is_read_within_bounds(tmp_path, text, phrase):
                                  str(tmp_path / "runs")])
     message = " ".join(result.output.split())
     assert result.exit_code == 1 and "Traceback" not in message, result.output
-    assert f"error: {config} is not a config file: " in message and phrase in message
+    assert f"error: --config {config}" in message and phrase in message and message.count(str(config)) == 1
     assert not (tmp_path / "runs").exists()
 
 
