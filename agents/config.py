@@ -145,8 +145,8 @@ class RunConfig(BaseModel):
     @classmethod
     def _assigned(cls, items: Sequence[str], others: tuple[str, ...], source: str) -> dict:
         """ALGO.KEY=VALUE items (--set's, a recipe's), each checked; `source` says where each was written. A key
-        given twice is refused: which of the two was meant cannot be told."""
-        values, given = {}, {}
+        given again overrides the earlier one, as a script's own --set after its defaults does."""
+        values = {}
         for item in items:
             name, sep, raw = item.partition("=")
             section, dot, key = name.partition(".")
@@ -159,10 +159,6 @@ class RunConfig(BaseModel):
             if not sep or not dot or section != cls.algo:
                 raise ConfigError(f"{source}{item!r}: write {cls.algo}.KEY=VALUE, e.g. {cls.example()}")
             cls._not_seed(key, f"{source}{shown_text(item)}", raw.strip())
-            if key in given:
-                raise ConfigError(f"{source}{shown_text(repr(item))}: {name} is given twice (first as "
-                                  f"{shown_text(repr(given[key]))}); give each key once")
-            given[key] = item
             try:
                 value = yaml.load(raw, Loader=SpecLoader)  # as a file's values are read: numbers bounded in digits
             except yaml.YAMLError as exc:

@@ -132,7 +132,8 @@ def train(
     seeds: Annotated[int, typer.Option(parser=bounded("--seeds", limits.SEEDS), metavar="K",
                                        help="train this many seeds at once (seed, seed+1, ...), vmapped")] = 1,
     sets: Annotated[Optional[list[str]], typer.Option("--set", metavar="KEY=VALUE",
-                                                      help="override a config key: crl.repr_dim=128")] = None,
+                                                      help="override a config key: crl.repr_dim=128 (repeat it for more; a later "
+                                                           "one wins)")] = None,
     preset: Preset = None,
     config: Annotated[Optional[Path], typer.Option(metavar="FILE", help="YAML file: {crl: {key: value}}")] = None,
     use_recipe: Annotated[bool, typer.Option(
@@ -453,7 +454,8 @@ def compare(
     seeds: Annotated[int, typer.Option(parser=bounded("--seeds", limits.SEEDS), metavar="K",
                                        help="seeds per algorithm (0, 1, ...), vmapped in one run")] = 1,
     sets: Annotated[Optional[list[str]], typer.Option("--set", metavar="KEY=VALUE",
-                                                      help="override a config key: sac.her=0.8")] = None,
+                                                      help="override a config key: sac.her=0.8 (repeat it for more; a later "
+                                                           "one wins)")] = None,
     preset: Preset = None,
     config: Annotated[Optional[Path], typer.Option(metavar="FILE", help="YAML file: {crl: {...}, sac: {...}}")] = None,
     runs: Annotated[Optional[Path], typer.Option("--out", "-o", metavar="PATH", help=(

@@ -119,8 +119,6 @@ class Sampler(BaseModel):
             if key not in cls.model_fields:
                 near = did_you_mean(key, list(cls.model_fields)) or "."
                 raise LevelError(f"{where} {setting}: unknown key '{key}'{near} Keys: {', '.join(cls.model_fields)}")
-            if key in values:
-                raise LevelError(f"{where} {setting}: {key} is given twice; give each key once")
             try:
                 values[key] = yaml.safe_load(text) if len(text) <= limits.MAX_DIGITS else text
             except (yaml.YAMLError, ValueError):  # ValueError: an integer of more digits than Python converts
