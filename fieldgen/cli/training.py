@@ -36,6 +36,11 @@ VideoFormat = Annotated[Optional[str], typer.Option(
     **choice("video format", VIDEO_FORMATS))]
 
 
+def _set_help(example: str) -> str:
+    """--set's help: a later item of a key overrides an earlier one (RunConfig.layered reads them in order)."""
+    return f"override a config key: {example} (repeat it for more; a later one wins)"
+
+
 def _read_config(config: Path | None) -> None:
     """A --config file is read first as specs are (fieldgen.schema.source: bounded in size, depth and aliases,
     duplicate keys refused, every problem at its line), before its values are checked (ConfigError)."""
@@ -132,8 +137,7 @@ def train(
     seeds: Annotated[int, typer.Option(parser=bounded("--seeds", limits.SEEDS), metavar="K",
                                        help="train this many seeds at once (seed, seed+1, ...), vmapped")] = 1,
     sets: Annotated[Optional[list[str]], typer.Option("--set", metavar="KEY=VALUE",
-                                                      help="override a config key: crl.repr_dim=128 (repeat it for more; a later "
-                                                           "one wins)")] = None,
+                                                      help=_set_help("crl.repr_dim=128"))] = None,
     preset: Preset = None,
     config: Annotated[Optional[Path], typer.Option(metavar="FILE", help="YAML file: {crl: {key: value}}")] = None,
     use_recipe: Annotated[bool, typer.Option(
@@ -454,8 +458,7 @@ def compare(
     seeds: Annotated[int, typer.Option(parser=bounded("--seeds", limits.SEEDS), metavar="K",
                                        help="seeds per algorithm (0, 1, ...), vmapped in one run")] = 1,
     sets: Annotated[Optional[list[str]], typer.Option("--set", metavar="KEY=VALUE",
-                                                      help="override a config key: sac.her=0.8 (repeat it for more; a later "
-                                                           "one wins)")] = None,
+                                                      help=_set_help("sac.her=0.8"))] = None,
     preset: Preset = None,
     config: Annotated[Optional[Path], typer.Option(metavar="FILE", help="YAML file: {crl: {...}, sac: {...}}")] = None,
     runs: Annotated[Optional[Path], typer.Option("--out", "-o", metavar="PATH", help=(

@@ -228,10 +228,7 @@ def load(path: Path, out: Path | None = None, **overrides) -> Sweep:
     for ref, name in zip(spec.fields, names):
         field_arg = ref if ref in bundled_fields() and "/" not in ref else str(_relative(path, ref).resolve())
         for algo in spec.algorithms:
-            axes = {k: v for k, v in spec.grid.items() if k.partition(".")[0] in (algo, SAMPLER)}
-            fixed = {k: v for k, v in spec.set.items() if k.partition(".")[0] in (algo, SAMPLER)}
-            for values in itertools.product(*axes.values()):
-                point = dict(zip(axes, values))
+            for fixed, point in _points(spec, (algo, SAMPLER)):
                 where = folder / _point_folder(point) if point else folder
                 for seed in spec.seed_list:
                     run_folder = where / f"{_auto_label(name) if spec.curriculum else name}-{algo}-{seed}"
@@ -248,6 +245,15 @@ def load(path: Path, out: Path | None = None, **overrides) -> Sweep:
     if (too_long := _names_too_long(runs, folder, source)) is not None:
         raise SweepError([too_long])
     return Sweep(path, spec, folder, runs)
+
+
+def _points(spec: SweepFile, sections: tuple[str, ...]):
+    """Each grid point over the `grid` keys of `sections` (an algorithm's, the sampler's), with the `set` values of
+    those sections that go with every point: ({key: value} fixed, {key: value} point)."""
+    axes = {k: v for k, v in spec.grid.items() if k.partition(".")[0] in sections}
+    fixed = {k: v for k, v in spec.set.items() if k.partition(".")[0] in sections}
+    for values in itertools.product(*axes.values()):
+        yield fixed, dict(zip(axes, values))
 
 
 def _names_too_long(runs: list[PlannedRun], folder: Path, source: Source) -> Problem | None:
@@ -369,10 +375,7 @@ def _budgets(path: Path, spec: SweepFile, config: Path | None, names: list[str],
             continue
         for algo in spec.algorithms:
             chosen = recipes.choose(target, algo)
-            axes = {k: v for k, v in spec.grid.items() if k.partition(".")[0] == algo}
-            fixed = {k: v for k, v in spec.set.items() if k.partition(".")[0] == algo}
-            for values in itertools.product(*axes.values()):
-                point = dict(zip(axes, values))
+            for fixed, point in _points(spec, (algo,)):
                 sets = [f"{k}={_shown(v)}" for k, v in {**fixed, **point}.items()]
                 try:
                     recipes.new_run_config(chosen, field.agent.kind, config, sets, None, total_steps=spec.steps,
