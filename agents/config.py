@@ -35,6 +35,19 @@ from .sharding import by_seed
 
 PRESETS = Path(__file__).with_name("presets")
 COUNTER_MAX = 2**31 - 1  # env steps are counted on the device in int32, up to the last iteration's end
+
+
+@dataclasses.dataclass(frozen=True)
+class Wording:
+    """How a budget's message names what the user changes: flags on the command line, keys in a sweep file."""
+
+    steps: str = "--steps"
+    envs: str = "--envs {}"
+    setting: str = "--set {}={}"
+
+
+COMMAND_LINE = Wording()
+SWEEP_FILE = Wording(steps="steps:", envs="envs: {}", setting="set: {{{}: {}}}")
 REWARDS = ("dense", "sparse")
 
 
@@ -240,13 +253,14 @@ class RunConfig(BaseModel):
             raise ConfigError(f"{where}: {cls.algo}.{key} {allowed(exc.errors()[0], fields[key])}, "
                               f"not {shown}{listed}") from None
 
-    def validate_budget(self) -> None:
+    def validate_budget(self, words: Wording = COMMAND_LINE) -> None:
         """Problems of the env steps asked for that the config alone shows, no field needed: a sweep's plan
-        checks each run's before any starts (a run queued for hours on a cluster would fail at once)."""
+        checks each run's before any starts (a run queued for hours on a cluster would fail at once), its
+        messages in the sweep file's `words`."""
         if self.total_steps + self.per_iteration > COUNTER_MAX:
-            raise ConfigError(f"--steps {self.total_steps:,} with {self.num_envs:,} envs x unroll "
+            raise ConfigError(f"{words.steps} {self.total_steps:,} with {self.num_envs:,} envs x unroll "
                               f"{self.unroll_length:,} per iteration: a run counts its env steps in 32-bit "
-                              f"integers, which reach {COUNTER_MAX:,}; train fewer steps or use fewer --envs")
+                              f"integers, which reach {COUNTER_MAX:,}; train fewer steps or use fewer envs")
 
     def validate_env(self, env: Environment, devices: int = 1, seeds: int = 1) -> None:
         """Problems a run would hit after compiling, reported before. `seeds` trained at once on `devices`
@@ -263,15 +277,19 @@ class RunConfig(BaseModel):
             raise ConfigError(f"num_envs {self.num_envs} does not split evenly over the {devices} devices; "
                               f"use a multiple of {devices}, or train a multiple of {devices} seeds at once")
 
-    def instead(self, envs: int, evals: int) -> str:
+    def instead(self, envs: int, evals: int, words: Wording = COMMAND_LINE) -> str:
         """What else would fit the steps asked for: `envs` environments, or `evals` evaluations, where either
         is a smaller number that still trains (the steps may be what the user meant to set)."""
         ways = []
         if 1 <= envs < self.num_envs:
-            ways.append(f"--envs {envs}")
+            ways.append(words.envs.format(envs))
         if 1 <= evals < self.num_evals:
-            ways.append(f"--set {self.algo}.num_evals={evals}")
+            ways.append(words.setting.format(f"{self.algo}.num_evals", evals))
         return f"; or keep the steps with {' or '.join(ways)}" if ways else ""
+
+    def too_few(self, words: Wording) -> str:
+        """How a message about too few env steps opens, naming where they were asked for."""
+        return f"{self.total_steps:,} env steps ({words.steps} or {self.algo}.total_steps) are too few"
 
     @property
     def per_iteration(self) -> int:
@@ -321,20 +339,19 @@ class ReplayConfig(RunConfig):
         prefill_iters, per_eval = iterations(self)
         return (prefill_iters + index * per_eval) * self.per_iteration
 
-    def validate_budget(self) -> None:
+    def validate_budget(self, words: Wording = COMMAND_LINE) -> None:
         """Also: steps to prefill the buffer and train."""
-        super().validate_budget()
+        super().validate_budget(words)
         prefill_iters, per_eval = iterations(self)
         prefill = prefill_iters * self.per_iteration
         need = prefill + self.num_evals * self.per_iteration
         if per_eval < 1:
             envs = self.total_steps // ((prefill_iters + self.num_evals) * self.unroll_length)
             evals = self.total_steps // self.per_iteration - prefill_iters
-            raise ConfigError(f"{self.total_steps:,} env steps (--steps or {self.algo}.total_steps) are too few: "
-                              f"{self.num_envs:,} envs x unroll "
+            raise ConfigError(f"{self.too_few(words)}: {self.num_envs:,} envs x unroll "
                               f"{self.unroll_length} need {prefill:,} steps to prefill the buffer and "
                               f"{self.num_evals} more iterations; use at least {need:,}"
-                              + self.instead(envs, evals))
+                              + self.instead(envs, evals, words))
 
     def validate_env(self, env: Environment, devices: int = 1, seeds: int = 1) -> None:
         """Also: room for an episode, a batch's worth of transitions in the windows it samples."""

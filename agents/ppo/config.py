@@ -7,7 +7,8 @@ from typing import Annotated, ClassVar, Literal
 
 from pydantic import Field, StrictBool
 
-from ..config import ConfigError, Count, Discount, Float, Hidden, Rate, Reward, RunConfig, Share, Unknown
+from ..config import (COMMAND_LINE, ConfigError, Count, Discount, Float, Hidden, Rate, Reward, RunConfig, Share,
+                      Unknown, Wording)
 
 SPREADS = ("global", "state")
 Spread = Annotated[Literal[SPREADS], Unknown(
@@ -69,21 +70,21 @@ class PPOConfig(RunConfig):
         minibatches."""
         return self.iterations_per_eval * self.num_evals * self.update_epochs * self.num_minibatches
 
-    def validate_budget(self) -> None:
+    def validate_budget(self, words: Wording = COMMAND_LINE) -> None:
         """Also: iterations that split into whole minibatches, one at least before each evaluation."""
-        super().validate_budget()
+        super().validate_budget(words)
         per_iter = self.per_iteration
         if per_iter % self.num_minibatches:
             fits = max(d for d in range(1, self.num_minibatches) if per_iter % d == 0)
             step = self.num_minibatches // math.gcd(self.unroll_length, self.num_minibatches)
             raise ConfigError(f"num_envs x unroll_length = {per_iter:,} does not divide into {self.num_minibatches} "
-                              f"minibatches; change num_envs, unroll_length or num_minibatches: --set "
-                              f"ppo.num_minibatches={fits}, or --envs a multiple of {step}")
+                              f"minibatches; change num_envs, unroll_length or num_minibatches: "
+                              f"{words.setting.format('ppo.num_minibatches', fits)}, or "
+                              f"{words.envs.format(f'a multiple of {step}')}")
         need = self.num_evals * per_iter
         if self.total_steps < need:
             step = self.num_minibatches  # envs that keep a minibatch whole at any unroll
             envs = self.total_steps // (self.num_evals * self.unroll_length) // step * step
-            raise ConfigError(f"{self.total_steps:,} env steps (--steps or {self.algo}.total_steps) are too few: "
-                              f"{self.num_evals} evaluations of "
+            raise ConfigError(f"{self.too_few(words)}: {self.num_evals} evaluations of "
                               f"{per_iter:,}-step iterations need at least {need:,}"
-                              + self.instead(envs, self.total_steps // per_iter))
+                              + self.instead(envs, self.total_steps // per_iter, words))

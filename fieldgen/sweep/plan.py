@@ -364,7 +364,7 @@ def _budgets(path: Path, spec: SweepFile, config: Path | None, names: list[str],
     """Each run's env steps checked as its config will hold them (the field's recipe, the config file, `set` and
     its grid point, `steps` and `envs`), before any run starts: too few for its evaluations fails every run at its
     start, on a cluster after its wait in the queue. A team field's runs are self-play's to check."""
-    from fieldgen.agents.config import ConfigError
+    from fieldgen.agents.config import SWEEP_FILE, ConfigError
     from fieldgen.run import recipe as recipes
     from fieldgen.run.session import field_spec
 
@@ -379,7 +379,7 @@ def _budgets(path: Path, spec: SweepFile, config: Path | None, names: list[str],
                 sets = [f"{k}={_shown(v)}" for k, v in {**fixed, **point}.items()]
                 try:
                     recipes.new_run_config(chosen, field.agent.kind, config, sets, None, total_steps=spec.steps,
-                                           num_envs=spec.envs).validate_budget()
+                                           num_envs=spec.envs).validate_budget(SWEEP_FILE)
                 except ConfigError as exc:
                     at = "".join(f", {k}={_shown(v)}" for k, v in point.items())
                     where = ("steps",) if spec.steps is not None else ("fields", i)
@@ -428,7 +428,7 @@ def _config_file(config: Path, spec: SweepFile, source: Source, found: list[Prob
     """Read the config file as each algorithm's runs will (`fieldgen train --config`), so that a file every run
     would refuse is refused before any starts."""
     from fieldgen.agents import registry
-    from fieldgen.agents.config import ConfigError
+    from fieldgen.agents.config import SWEEP_FILE, ConfigError
 
     for algo in spec.algorithms:
         try:
@@ -442,7 +442,7 @@ def _assignments(spec: SweepFile, source: Source, found: list[Problem]) -> None:
     """Check every `set` and `grid` value with its algorithm's config class, as `--set` would be, and every
     `sampler.KEY` with the automatic curriculum's sampler, as `--sampler` would be."""
     from fieldgen.agents import registry
-    from fieldgen.agents.config import ConfigError
+    from fieldgen.agents.config import SWEEP_FILE, ConfigError
     from fieldgen.curriculum.auto import Sampler
     from fieldgen.curriculum.levels import LevelError
 

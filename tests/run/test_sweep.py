@@ -694,5 +694,7 @@ def test_a_grid_point_with_too_few_steps_for_its_runs_is_refused_before_any_run_
     assert result.exit_code == 1 and "sweep.yaml:4:1: steps: the crl runs on point_nav, crl.num_evals=50 would stop " \
                                      "at their start: 1,900 env steps" in message, result.output
     assert "are too few" in message and "crl.num_evals=2 " not in message
+    # in the sweep file's own keys, not the command line's flags
+    assert "(steps: or crl.total_steps)" in message and "--" not in message.split("would stop")[1], result.output
     path.write_text(path.read_text().replace("[2, 50]", "[2, 3]"))
     assert runner.invoke(app, ["sweep", str(path), "--dry-run"]).exit_code == 0
