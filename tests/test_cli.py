@@ -151,6 +151,12 @@ def test_a_mistyped_path_or_a_curriculum_index_is_answered_with_what_was_meant(t
     cases = [
         (["validate", "my_nva.yaml"], "'my_nva.yaml' is not a file; did you mean 'my_nav.yaml'?"),
         (["build", "fields/my_nav.yaml"], "'fields/my_nav.yaml' is not a file: there is no folder fields"),
+        # commands that take folders too say which, where nothing is at the path
+        (["view", "gone/old_run"], "'gone/old_run' is not a file or folder: there is no folder gone"),
+        (["compare", "runs/old"], "'runs/old' is not a file or folder: name a field's YAML file, a bundled field or "
+                                  "a build folder, or run folders to compare"),
+        (["compare", "old_run"], "'old_run' is neither a file, a folder nor a bundled field."),
+        (["train", "./my_nva.yaml"], "'./my_nva.yaml' is not a file or folder; did you mean 'my_nav.yaml'?"),
         (["build", "to_far/curriculum.yaml"], "to_far/curriculum.yaml lists the stages of a curriculum, not a "
                                               "field: give the curriculum's folder, to_far, to validate, build"),
         (["train", "to_far/curriculum.yaml"], "give the curriculum's folder, to_far"),

@@ -116,7 +116,7 @@ def viewed(monkeypatch, source) -> list:
 
 
 @pytest.mark.parametrize("args,phrase", [
-    (["point_nv"], "'point_nv' is neither a file nor a bundled field; did you mean 'point_nav'?"),
+    (["point_nv"], "'point_nv' is neither a file, a folder nor a bundled field; did you mean 'point_nav'?"),
     ([FIELD, "--seed", "3"], f"--seed picks one of a run's seeds; {FIELD} is not a run folder"),
     ([FIELD, "--field", "point_nav"], f"--field names the field a policy plays on; {FIELD} is a field itself"),
 ], ids=["no_such_field", "seed_of_a_field", "field_of_a_field"])

@@ -190,9 +190,10 @@ def _takes_value(command: str, word: str) -> bool | None:
     return None  # an option this command lacks: click's own error names it
 
 
-def spec_path(ref: str) -> Path:
+def spec_path(ref: str, folders: str | None = None) -> Path:
     """The YAML file a field named on the command line is in; a name or path that is not one, refused with
-    the nearest that is."""
+    the nearest that is, and with what else the command takes (`folders`, e.g. "a run folder") where it
+    takes folders too."""
     from fieldgen.curriculum import INDEX, is_curriculum
 
     path = resolve_spec_path(ref)
@@ -212,13 +213,15 @@ def spec_path(ref: str) -> Path:
     if path.exists():
         return path
     if path == Path(ref) and ("/" in ref or path.suffix):  # a path, not a bundled name
-        folder = path.parent
+        folder, what = path.parent, "a file" if folders is None else "a file or folder"
         if not folder.is_dir():
-            fail(f"'{ref}' is not a file: there is no folder {folder}")
+            fail(f"'{ref}' is not {what}: there is no folder {folder}")
         files = {p.stem: p for p in folder.iterdir() if p.suffix in (".yaml", ".yml")}
-        fail(f"'{ref}' is not a file{did_you_mean(path.stem, files, files) or '.'}")
-    fail(f"'{ref}' is neither a file nor a bundled field{did_you_mean(ref, bundled_fields()) or '.'} "
-         "`fieldgen list` shows the bundled fields.")
+        nearest = did_you_mean(path.stem, files, files)
+        fail(f"'{ref}' is not {what}" + (nearest or ("." if folders is None else
+                                                     f": name a field's YAML file, a bundled field or {folders}")))
+    fail(f"'{ref}' is neither a file{'' if folders is None else ', a folder'} nor a bundled field"
+         f"{did_you_mean(ref, bundled_fields()) or '.'} `fieldgen list` shows the bundled fields.")
 
 
 def _refuse_run_folder(folder: Path, named: str | None = None) -> None:
@@ -247,9 +250,10 @@ def _refuse_record(ref: str, path: Path) -> None:
         fail(f"{ref} is the record of a built field, not a field spec: give its folder, {path.parent}")
 
 
-def field_source(ref: str) -> Path:
-    """A build folder as it is; else a YAML file or bundled field name."""
-    return Path(ref) if Path(ref).is_dir() else spec_path(ref)  # a path the system refuses: `Command` says so
+def field_source(ref: str, folders: str = "a build folder") -> Path:
+    """A build folder as it is; else a YAML file or bundled field name (`folders`: what else the command takes,
+    for the message where `ref` is none of them)."""
+    return Path(ref) if Path(ref).is_dir() else spec_path(ref, folders)  # a path the system refuses: `Command` says so
 
 
 def _print_version(given: bool) -> None:

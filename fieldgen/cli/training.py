@@ -495,7 +495,7 @@ def compare(
     if trained is not None:
         _compare_trained(ctx, trained, runs)
         return
-    source = field_source(sources[0])
+    source = field_source(sources[0], "a build folder, or run folders to compare")
     names = [a.strip() for a in algos.split(",") if a.strip()]
     try:
         _read_config(config)

@@ -82,7 +82,7 @@ def _check_arguments(source: str, field: str | None, seed: int | None) -> None:
     if field is not None:
         fail(f"--field names the field a policy plays on; {source} is a field itself (no {RUN} or {DESCRIPTION} in "
              "it)")
-    field_source(source)  # a field that is there, else refused with the nearest names
+    field_source(source, "a build, run or policy folder")  # a field that is there, else refused with the nearest names
 
 
 def _no_display(reason: str, source: str) -> None:
