@@ -48,6 +48,7 @@ class Wording:
 
 COMMAND_LINE = Wording()
 SWEEP_FILE = Wording(steps="steps:", envs="envs: {}", setting="set: {{{}: {}}}")
+
 REWARDS = ("dense", "sparse")
 
 
@@ -255,8 +256,8 @@ class RunConfig(BaseModel):
 
     def validate_budget(self, words: Wording = COMMAND_LINE) -> None:
         """Problems of the env steps asked for that the config alone shows, no field needed: a sweep's plan
-        checks each run's before any starts (a run queued for hours on a cluster would fail at once), its
-        messages in the sweep file's `words`."""
+        checks each run's before any starts (a run queued for hours on a cluster would fail at once). Its
+        messages name what to change in `words`: the command line's flags, or a sweep file's keys."""
         if self.total_steps + self.per_iteration > COUNTER_MAX:
             raise ConfigError(f"{words.steps} {self.total_steps:,} with {self.num_envs:,} envs x unroll "
                               f"{self.unroll_length:,} per iteration: a run counts its env steps in 32-bit "
