@@ -217,9 +217,8 @@ def spec_path(ref: str, folders: str | None = None) -> Path:
         if not folder.is_dir():
             fail(f"'{ref}' is not {what}: there is no folder {folder}")
         files = {p.stem: p for p in folder.iterdir() if p.suffix in (".yaml", ".yml")}
-        nearest = did_you_mean(path.stem, files, files)
-        fail(f"'{ref}' is not {what}" + (nearest or ("." if folders is None else
-                                                     f": name a field's YAML file, a bundled field or {folders}")))
+        takes = "." if folders is None else f": name a field's YAML file, a bundled field or {folders}"
+        fail(f"'{ref}' is not {what}{did_you_mean(path.stem, files, files) or takes}")
     fail(f"'{ref}' is neither a file{'' if folders is None else ', a folder'} nor a bundled field"
          f"{did_you_mean(ref, bundled_fields()) or '.'} `fieldgen list` shows the bundled fields.")
 

@@ -428,7 +428,7 @@ def _config_file(config: Path, spec: SweepFile, source: Source, found: list[Prob
     """Read the config file as each algorithm's runs will (`fieldgen train --config`), so that a file every run
     would refuse is refused before any starts."""
     from fieldgen.agents import registry
-    from fieldgen.agents.config import SWEEP_FILE, ConfigError
+    from fieldgen.agents.config import ConfigError
 
     for algo in spec.algorithms:
         try:
@@ -442,7 +442,7 @@ def _assignments(spec: SweepFile, source: Source, found: list[Problem]) -> None:
     """Check every `set` and `grid` value with its algorithm's config class, as `--set` would be, and every
     `sampler.KEY` with the automatic curriculum's sampler, as `--sampler` would be."""
     from fieldgen.agents import registry
-    from fieldgen.agents.config import SWEEP_FILE, ConfigError
+    from fieldgen.agents.config import ConfigError
     from fieldgen.curriculum.auto import Sampler
     from fieldgen.curriculum.levels import LevelError
 
