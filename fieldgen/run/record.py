@@ -15,6 +15,7 @@ import csv
 import io
 import json
 import math
+from collections import Counter
 from pathlib import Path, PurePosixPath
 from typing import Annotated
 
@@ -114,6 +115,16 @@ def _inside(name: str) -> str:
     return name
 
 
+def _each_once(seeds: list[int]) -> list[int]:
+    """A run's seeds, each trained once: a seed listed twice would be two runs' worth of arrays where the run
+    learned one, and its rows blamed on two seeds of one name."""
+    twice = sorted(seed for seed, times in Counter(seeds).items() if times > 1)
+    if twice:
+        shown = ", ".join(map(str, twice[:3])) + (", ..." if len(twice) > 3 else "")
+        raise ValueError(f"should list each seed once (seed{'s' * (len(twice) > 1)} {shown} more than once)")
+    return seeds
+
+
 class InitFrom(BaseModel):
     """Where a run started from another's networks came from: that run's folder as given, and how far it was;
     `before`, the env steps that run's own networks had trained before it (its --init-from, and theirs), so
@@ -156,7 +167,7 @@ class RunRecord(BaseModel):
     observation: dict
     field: Annotated[dict, Field(strict=True)] | None = None  # the resolved spec of the field the run is judged on
     # (reading metrics needs no field; opening the run does: session.open_run refuses a record without it)
-    seeds: Annotated[list[Index], Field(min_length=1)] = []  # [] (left out): the config's seed
+    seeds: Annotated[list[Index], Field(min_length=1), AfterValidator(_each_once)] = []  # []: the config's seed
     fields: Annotated[list[Annotated[StrictStr, AfterValidator(_inside)]], Field(min_length=1)] = []  # []: field/
     promotion: Promotion = Promotion()
     mixed: StrictBool = False

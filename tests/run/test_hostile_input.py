@@ -454,3 +454,15 @@ def test_a_policy_or_a_build_named_as_a_run_says_which_command_wrote_it(tmp_path
                 f"{folder} was written by {writer}, not fieldgen train: it is no training run; name the folder "
                 "fieldgen train wrote (runs/<field>-<algo>-<seed>)")
     assert not (tmp_path / "exported").exists()
+
+
+def test_a_run_json_listing_a_seed_twice_is_not_a_run_record(prepared):
+    """Before: eval said "seed 0 is in both RUN and RUN", export and a resume blamed the checkpoint's shapes on the
+    config, and compare tabled one seed as two."""
+    saved = json.loads((prepared / record.RUN).read_text())
+    saved["seeds"] = [0, 0]
+    (prepared / record.RUN).write_text(json.dumps(saved))
+    for command in (["train", "--resume"], ["eval", "--no-video"], ["compare"]):
+        refused(runner.invoke(app, [*command, str(prepared)]),
+                f"{prepared / record.RUN} is not a run record: seeds should list each seed once (seed 0 more than "
+                "once), not [0, 0] (edited or damaged)")
