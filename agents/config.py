@@ -24,7 +24,7 @@ from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, StrictBool, 
 
 from ..env.contract import Environment
 from ..counts import count
-from ..limits import COUNT_MAX, MAX_SEEDS, SEED_MAX
+from ..limits import COUNT_MAX, MAX_SEEDS, SEED_MAX, not_boolean
 from ..schema.errors import shown_text, shown_value
 from ..schema.source import SpecLoader
 from ..suggest import allowed, did_you_mean
@@ -63,13 +63,6 @@ class Unknown:
     message: str
 
 
-def _number(value):
-    """YAML's true and false are not numbers here, as numbers are not booleans (StrictBool)."""
-    if isinstance(value, bool):
-        raise ValueError("a boolean is not a number")
-    return value
-
-
 def _listed(value):
     """`hidden: 64` is one layer of 64."""
     return value if isinstance(value, (list, tuple)) else [value]
@@ -84,9 +77,9 @@ def _count_text(value):
 
 # a whole number as large as a count on the command line at most: a larger one is a typo, and past a machine
 # integer it would end in an OverflowError where it first sizes an array
-Int = Annotated[int, BeforeValidator(_number), Field(ge=-COUNT_MAX, le=COUNT_MAX)]
+Int = Annotated[int, BeforeValidator(not_boolean), Field(ge=-COUNT_MAX, le=COUNT_MAX)]
 Count = Annotated[Int, Field(gt=0), BeforeValidator(_count_text)]  # how many of something: at least one
-Float = Annotated[float, BeforeValidator(_number), Field(allow_inf_nan=False)]
+Float = Annotated[float, BeforeValidator(not_boolean), Field(allow_inf_nan=False)]
 Rate = Annotated[Float, Field(gt=0)]  # a learning rate, a step size, a scale
 Share = Annotated[Float, Field(ge=0, le=1)]
 Discount = Annotated[Float, Field(gt=0, lt=1)]

@@ -58,6 +58,14 @@ GPU_INDEX = Range(0, 1023, "a GPU's index")
 assert SLURM_MINUTES.high * 60 < TIME_LIMIT_SECONDS  # a task's minutes are a run's --time-limit
 
 
+def not_boolean(value):
+    """A setting's number as YAML or JSON gave it, for pydantic to read (a BeforeValidator): true and false are
+    refused, where pydantic would take them as 1 and 0, as numbers are not booleans (StrictBool)."""
+    if isinstance(value, bool):
+        raise ValueError("a boolean is not a number")
+    return value
+
+
 def number(text: str | int | float, whole: bool = True) -> int | float | None:
     """`text` as people write a number (40000, 2e6, 1_000) read exactly, or None where it is none, or longer
     than MAX_DIGITS (a value of thousands of digits is refused, not converted at length)."""

@@ -45,17 +45,35 @@ def allowed(error: dict, field) -> str:
     kind = typing.get_origin(field.annotation) or field.annotation
     if error["type"] in BOUNDS:
         phrase, key = BOUNDS[error["type"]]
-        bound = error["ctx"][key]
-        shown = f"{bound:,}" if isinstance(bound, int) else bound
         loc = error.get("loc") or ()
-        if kind is tuple and loc and isinstance(loc[-1], int):
-            return f"must be a list of layer widths, each {phrase} {shown}"  # an item's bound, not the list's
-        return f"must be {phrase} {shown}"
+        if kind is tuple and loc and isinstance(loc[-1], int):  # an item's bound, not the list's
+            return f"must be a list of layer widths, each {_bound(phrase, error['ctx'][key])}"
+        return f"must be {_bound(phrase, error['ctx'][key])}"
     if error["type"] == "finite_number" and kind is not tuple:  # a list's item is told as the list is
-        return "must be a finite number"
+        return f"must be {_passed_bound(field, error.get('input')) or 'a finite number'}"
     words = {int: "a whole number", float: "a number", bool: "true or false",
              tuple: "a list of layer widths, whole numbers above 0"}
     return f"must be {words.get(kind, kind.__name__)}"
+
+
+def _passed_bound(field, value) -> str | None:
+    """"at most 1,000" for an infinite `value` (1e999) of a setting bounded above, "greater than 0" for one
+    infinite downwards of a setting bounded below: the bound it passed, not only that it is infinite. None for
+    NaN, which lies on neither side, and for a setting unbounded on that side."""
+    try:
+        number = float(value)
+    except (TypeError, ValueError, OverflowError):
+        return None
+    sides = ("lt", "le") if number > 0 else ("gt", "ge") if number < 0 else ()  # NaN: neither
+    for phrase, key in BOUNDS.values():
+        bound = next((getattr(m, key) for m in field.metadata if getattr(m, key, None) is not None), None)
+        if key in sides and bound is not None:
+            return _bound(phrase, bound)
+    return None
+
+
+def _bound(phrase: str, bound) -> str:
+    return f"{phrase} {bound:,}" if isinstance(bound, int) else f"{phrase} {bound}"
 
 
 def _whole_range(field) -> str | None:

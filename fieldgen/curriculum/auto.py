@@ -35,7 +35,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from fieldgen import limits
 from fieldgen.curriculum.levels import LevelError, LevelSpace
@@ -69,7 +69,7 @@ class Sampler(BaseModel):
     `--sampler KEY=VALUE` and kept in run.json, so that a resumed run samples as it began (the defaults are
     those of runs that recorded none)."""
 
-    model_config = ConfigDict(frozen=True, extra="forbid")
+    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)  # NaN is in no setting's range
 
     target_share: float = Field(0.2, gt=0, lt=1, description="of new episodes, on the spec itself")
     frontier_share: float = Field(0.3, ge=0, le=1, description="of new episodes, on the easiest level not yet "
@@ -92,6 +92,8 @@ class Sampler(BaseModel):
     hardest_share: float = Field(0.0, ge=0, le=1, description="of new episodes, on the buffer's level furthest "
                                                                "along the path but the spec, which is never "
                                                                "replaced: the buffer cannot retreat")
+
+    _numbers = field_validator("*", mode="before")(limits.not_boolean)  # `--sampler prior=true` is no 1.0
 
     @model_validator(mode="after")
     def _fits(self):

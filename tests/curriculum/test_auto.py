@@ -520,10 +520,15 @@ def test_a_sampler_of_its_own_shares_and_replaces_as_it_says():
     ("target_share=half", "--sampler target_share='half': target_share must be a number (of new episodes, on the "
                           "spec itself)"),
     ("target_share=1", "--sampler target_share=1: target_share must be less than 1.0 (of new episodes"),
+    # before: NaN said "must be at most 1000.0", and true was taken as 1 (a prior) or said to be below 2 (a buffer)
+    ("prior=nan", "--sampler prior='nan': prior must be a finite number (episodes at success 0.5"),
+    ("prior=-1e999", "--sampler prior='-1e999': prior must be greater than 0 (episodes at success 0.5"),
+    ("prior=true", "--sampler prior=True: prior must be a number (episodes at success 0.5"),
+    ("buffer=true", "--sampler buffer=True: buffer must be a whole number (entries episodes are drawn from"),
 ])
 def test_a_bad_sampler_setting_is_one_line(tmp_path, setting, says):
     result = runner.invoke(app, ["train", "point_soccer", "--curriculum", "auto", "--sampler", setting,
-                                 "--out", str(tmp_path)])
+                                 "--out", str(tmp_path), "--prepare"])  # a setting taken trains nothing
     assert result.exit_code != 0 and says in " ".join(result.output.split()), result.output
     assert "Traceback" not in result.output and not any(tmp_path.iterdir())
 
