@@ -177,8 +177,9 @@ def render(
                  f"field, not a run folder: fieldgen render RUN --levels (or fieldgen render {shell(spec)} -o field.png "
                  f"for the field)")
 
-        output = output or Path(spec) / "levels.png"
-        check_file(output, RENDER)  # before reading the run: a file of the user's there is one line now
+        named, output = output is not None, output or Path(spec) / "levels.png"
+        # before reading the run: a file of the user's there, or no folder for -o's file, is one line now
+        check_file(output, RENDER, folder_made=not named)
         try:
             image_bytes, said, buffer = favoured_levels(Path(spec), "top" if camera == "both" else camera)
             write_file(output, image_bytes, RENDER)
@@ -189,7 +190,7 @@ def render(
             out.print(f"  {line}", soft_wrap=True)
         return
     output = output or Path("field.png")
-    check_file(output, RENDER)
+    check_file(output, RENDER, folder_made=False)
     if curriculum.is_curriculum(Path(spec)):
         from fieldgen.curriculum.sheet import stage_sheet
 

@@ -54,11 +54,21 @@ def _read_config(config: Path | None) -> None:
             raise ConfigError("--config " + "; ".join(map(str, exc.problems))) from None
 
 
-def _json_named(flag: str, path: Path | None) -> None:
-    """Refuse a file for JSON named otherwise (summary.png), which every reader would take for what it is not."""
-    if path is not None and path.suffix.lower() != ".json":
-        fail(f"{flag} {path}: fieldgen writes a summary as JSON; give the file the .json ending, such as "
+def _summary_named(path: Path | None, output) -> None:
+    """Refuse, before any work, a --summary that names a folder, a file for JSON named otherwise (summary.png, which
+    every reader would take for what it is not), or a file `output`'s command may not write (files.check_file: a
+    file of the user's, a folder missing or read-only)."""
+    from fieldgen.files import check_file
+    from fieldgen.run.summary import SUMMARY
+
+    if path is None:
+        return
+    if path.is_dir():
+        fail(f"--summary {path} is a folder; name the file to write, such as {path / SUMMARY}")
+    if path.suffix.lower() != ".json":
+        fail(f"--summary {path}: fieldgen writes a summary as JSON; give the file the .json ending, such as "
              f"{path.with_suffix('.json')}")
+    check_file(path, output, folder_made=False)
 
 
 def _exit_interrupted() -> NoReturn:
@@ -533,14 +543,9 @@ def _compare_trained(ctx: typer.Context, folders: list[Path], plot: Path | None)
     plot = Path(comparing.PLOT) if plot is None else plot / comparing.PLOT if plot.is_dir() else plot
     if plot.suffix.lower() != ".png":
         fail(f"-o {plot}: the plot is a PNG; name a file ending in .png, such as {plot.with_suffix('.png')}")
-    from fieldgen import files
-
-    if not plot.parent.is_dir():
-        fail(f"-o {plot}: " + (f"{files.way_on(plot.parent, '-o')}" if files.file_in_the_way(plot.parent) else
-                               f"there is no folder {plot.parent} to write it in; make it, or choose another -o"))
     from fieldgen.files import COMPARE, check_file
 
-    check_file(plot, COMPARE)
+    check_file(plot, COMPARE, folder_made=False)
     try:
         comparing.report_recorded([comparing.recorded(f) for f in folders], plot, out)
     except record.RunError as exc:
@@ -595,13 +600,7 @@ def evaluate(
     from fieldgen.run import record, summary
     from fieldgen.run.videos import EpisodeRecorder
 
-    if summary_file is not None and summary_file.is_dir():
-        fail(f"--summary {summary_file} is a folder; name the file to write, such as {summary_file / summary.SUMMARY}")
-    _json_named("--summary", summary_file)
-    if summary_file is not None:
-        files.check_file(summary_file, files.EVAL)  # a file in its folder's place, or a folder it may not write
-    if summary_file is not None and not summary_file.parent.is_dir():
-        fail(f"--summary {summary_file}: there is no folder {summary_file.parent} to write it in")
+    _summary_named(summary_file, files.EVAL)
     from fieldgen.run import selfplay
 
     if any(selfplay.is_team_run(folder) for folder in run_dirs):
@@ -787,14 +786,10 @@ def aggregate(
 
     Example: fieldgen aggregate runs/s340/summary.json runs/s341/summary.json --summary runs/all.json
     """
-    from fieldgen.files import AGGREGATE, WriteError, check_file
+    from fieldgen.files import AGGREGATE, WriteError
     from fieldgen.run import summary
 
-    if summary_file is not None and (summary_file.is_dir() or not summary_file.parent.is_dir()):
-        fail(f"--summary {summary_file}: name a file in an existing folder, such as {Path(summary.SUMMARY)}")
-    _json_named("--summary", summary_file)
-    if summary_file is not None:
-        check_file(summary_file, AGGREGATE)
+    _summary_named(summary_file, AGGREGATE)
     try:
         summaries = [(f, summary.read(f)) for f in files]
         result = summary.pooled(summaries, _command_line(ctx))

@@ -466,3 +466,23 @@ def test_a_run_json_listing_a_seed_twice_is_not_a_run_record(prepared):
         refused(runner.invoke(app, [*command, str(prepared)]),
                 f"{prepared / record.RUN} is not a run record: seeds should list each seed once (seed 0 more than "
                 "once), not [0, 0] (edited or damaged)")
+
+
+@pytest.mark.parametrize("command,option", [
+    (["render", "point_nav", "-o", "FILE.png"], "-o"),
+    (["render", "RUN", "--levels", "-o", "FILE.png"], "-o"),
+    (["compare", "RUN", "-o", "FILE.png"], "-o"),
+    (["aggregate", "summary.json", "--summary", "FILE.json"], "--summary"),
+], ids=["render", "render_levels", "compare", "aggregate"])
+def test_a_file_named_in_a_folder_that_is_not_there_says_so_before_any_work(tmp_path, command, option):
+    """Before: render drew the field, then "cannot write PATH: No such file or directory"; compare, eval and
+    aggregate each said it in words of their own (aggregate's named no folder at all)."""
+    missing, run = tmp_path / "missing", tmp_path / "run"
+    run.mkdir()
+    (run / record.RUN).write_text("{}")  # never read: the file to write is checked first
+    arguments = [str(missing / "out.png") if w == "FILE.png" else str(missing / "out.json") if w == "FILE.json"
+                 else str(run) if w == "RUN" else w for w in command]
+    written = missing / Path(command[-1]).name.replace("FILE", "out")
+    refused(runner.invoke(app, arguments), f"cannot write {written}: there is no folder {missing} to write it in; "
+                                           f"make it, or choose another {option}")
+    assert not missing.exists()

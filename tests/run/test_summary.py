@@ -190,7 +190,7 @@ def test_aggregate_prints_and_writes_the_pooled_seeds_and_says_what_is_wrong_in_
                        ([str(tmp_path / "bad.json")], "bad.json is not a summary of fieldgen eval: it has no key "
                                                        "'fields' (fieldgen eval --summary writes one)"),
                        ([str(tmp_path)], "is a folder"),
-                       ([str(paths[0]), "--summary", str(tmp_path / "no" / "x.json")], "name a file in an existing"),
+                       ([str(paths[0]), "--summary", str(tmp_path / "no" / "x.json")], "there is no folder"),
                        ([str(paths[0]), "--summary", str(tmp_path / "x.txt")], "give the file the .json ending")):
         result = runner.invoke(app, ["aggregate", *args])
         message = " ".join(result.output.split())  # the console breaks long paths over lines
