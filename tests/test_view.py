@@ -32,6 +32,12 @@ def player(env_cache):
     return Player(env, lambda obs: jnp.full(env.action_size, 0.5))
 
 
+def test_a_seed_given_no_number_is_one_line_with_the_range():
+    result = CliRunner().invoke(app, ["view", FIELD, "--seed", "first"])
+    said = " ".join(result.output.split())
+    assert result.exit_code == 1 and "--seed first: a seed" in said and "4,294,967,295" in said, said
+
+
 def test_no_display_is_one_line_naming_render_and_eval(monkeypatch, tmp_path):
     monkeypatch.delenv("DISPLAY", raising=False)
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)

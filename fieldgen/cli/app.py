@@ -123,6 +123,21 @@ def bounded(option: str, allowed: limits.Range, envvar: str | None = None):
     return parse
 
 
+def numeric(option: str, what: str, whole: bool = False):
+    """A typer parser for a number whose range is checked where its meaning is known (a curriculum's stages, its
+    field's distances): read as people write it (2e6 too), and one line saying what the option takes where the
+    value is no number (or no whole number), before anything loads."""
+
+    def parse(text: str | int | float) -> int | float:
+        value = limits.number(text, whole)
+        if value is None or (whole and not isinstance(value, int)):
+            fail(f"{option} {shown_text(str(text))}: {what} is {'a whole number' if whole else 'a number'}, "
+                 f"such as {'2' if whole else '0.5'}")
+        return value
+
+    return parse
+
+
 def count(text: str | int) -> int:
     """A whole count as people write them (fieldgen.counts), read as an option's value."""
     try:

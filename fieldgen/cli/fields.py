@@ -12,7 +12,7 @@ from rich.table import Column, Table
 from rich.text import Text
 
 from fieldgen import files, limits
-from fieldgen.cli.app import (SpecArg, app, bounded, choice, count, err, fail, field_source, os_problem, out,
+from fieldgen.cli.app import (SpecArg, app, bounded, choice, count, err, fail, field_source, numeric, os_problem, out,
                               spec_path)
 from fieldgen.cameras import CAMERAS
 from fieldgen.schema import SpecError, bundled_fields, geometry, load_spec
@@ -249,26 +249,32 @@ def make_curriculum(
                                         help="stages of an interpolation, both ends included")] = 5,
     geometric: Annotated[Optional[list[str]], typer.Option(metavar="KEY",
                                                            help="interpolate this key geometrically")] = None,
-    switch_at: Annotated[Optional[int], typer.Option(metavar="STAGE",
-                                                     help="stage where booleans and choices switch "
-                                                          "(default halfway)")] = None,
+    switch_at: Annotated[Optional[int], typer.Option(
+        parser=numeric("--switch-at", "the stage where booleans and choices switch", whole=True), metavar="STAGE",
+        help="stage where booleans and choices switch (default halfway)")] = None,
     vary: Annotated[Optional[list[str]], typer.Option(metavar="KEY=V1,V2",
                                                       help="a grid axis (repeat for more axes); a list value "
                                                            "in brackets: ball.spawn.x=[-1,1],[-2,2]")] = None,
     stage: Annotated[Optional[list[str]], typer.Option(metavar="'KEY=V ...'",
                                                        help="one listed variant (repeat)")] = None,
-    start_near: Annotated[Optional[float], typer.Option(metavar="DISTANCE",
+    start_near: Annotated[Optional[float], typer.Option(
+        parser=numeric("--start-near", "the first stage's distance from the ball to the target"), metavar="DISTANCE",
         help="a start-state curriculum: the first stage spawns the ball this far from the target, later "
              "stages move the kick-off back to BASE's (--stages of them)")] = None,
-    agent_near: Annotated[Optional[float], typer.Option(metavar="DISTANCE",
+    agent_near: Annotated[Optional[float], typer.Option(
+        parser=numeric("--agent-near", "the first stage's distance from the agent to the ball"), metavar="DISTANCE",
         help="with --start-near: the first stage also starts the agent this far from the ball, later stages "
              "widen the gap back to BASE's")] = None,
     then: Annotated[Optional[list[str]], typer.Option(metavar="SPEC",
         help="then go on from the last stage to this field by interpolation (repeat to go on further)")] = None,
     then_stages: Annotated[Optional[int], typer.Option(parser=bounded("--then-stages", limits.THEN_STAGES), metavar="N",
         help="stages each --then adds, SPEC the last of them (default: one fewer than --stages)")] = None,
-    threshold: Annotated[float, typer.Option(help="success_any that promotes a run to the next stage")] = 0.5,
-    window: Annotated[int, typer.Option(metavar="N", help="evaluations averaged for promotion")] = 2,
+    threshold: Annotated[float, typer.Option(
+        parser=numeric("--threshold", "the success_any that promotes a run to the next stage"),
+        help="success_any that promotes a run to the next stage")] = 0.5,
+    window: Annotated[int, typer.Option(
+        parser=numeric("--window", "the number of evaluations averaged for promotion", whole=True), metavar="N",
+        help="evaluations averaged for promotion")] = 2,
     force: Annotated[bool, typer.Option(help="replace an existing folder")] = False,
 ) -> None:
     """Write field variants and a curriculum.yaml: an interpolation (--to), a grid (--vary), a list (--stage)

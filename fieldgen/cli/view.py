@@ -7,9 +7,9 @@ from typing import Annotated, Optional
 
 import typer
 
-from fieldgen import stops
+from fieldgen import limits, stops
 from fieldgen.cameras import CAMERAS, FREE
-from fieldgen.cli.app import app, choice, fail, field_source, out
+from fieldgen.cli.app import app, bounded, choice, fail, field_source, out
 from fieldgen.suggest import shell
 
 
@@ -22,7 +22,7 @@ def view(
         metavar="SPEC", help="the field a policy plays on (YAML file, bundled name or build folder) [default: the "
                              "run's own, or the field as written that it keeps where its recipe trained it on another "
                              "form of it; for an exported policy, the bundled field it names]")] = None,
-    seed: Annotated[Optional[int], typer.Option(metavar="SEED",
+    seed: Annotated[Optional[int], typer.Option(parser=bounded("--seed", limits.SEED), metavar="SEED",
                                                 help="which of a run's seeds plays (default: its first)")] = None,
     camera: Annotated[str, typer.Option(help="the view: free turns with the mouse; the others are the scene's",
                                         **choice("camera", (FREE, *CAMERAS)))] = FREE,

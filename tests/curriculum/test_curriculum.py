@@ -395,15 +395,33 @@ def test_refusals_name_the_bundled_fields_that_would_serve(tmp_path):
 @pytest.mark.parametrize("args,phrase", [
     (["--threshold", "2"], "promotion threshold (--threshold) 2: the success_any that promotes a run is a share of "
                            "episodes, above 0 and at most 1"),
-    (["--threshold", "nan"], "promotion threshold (--threshold) nan"),
+    (["--threshold", "nan"], "--threshold nan: the success_any that promotes a run to the next stage is a number"),
+    (["--threshold", "abc"], "--threshold abc: the success_any that promotes a run to the next stage is a number, "
+                             "such as 0.5"),
     (["--window", "0"], "promotion window (--window) 0: the evaluations averaged for promotion are a whole number "
                         "from 1 to"),
+    (["--window", "2.5"], "--window 2.5: the number of evaluations averaged for promotion is a whole number"),
+    (["--window", "two"], "--window two: the number of evaluations averaged for promotion is a whole number"),
 ])
 def test_a_promotion_out_of_range_names_its_option_and_writes_nothing(tmp_path, args, phrase):
     out = tmp_path / "c"
     result = runner.invoke(app, ["curriculum", "point_nav", "--vary", "task.target.radius=1,2", "-o", str(out), *args])
     said = " ".join(result.output.split())
     assert result.exit_code == 1 and phrase in said and "Promotion(" not in said and not out.exists(), said
+
+
+@pytest.mark.parametrize("args,phrase", [
+    (["--start-near", "far"], "--start-near far: the first stage's distance from the ball to the target is a number"),
+    (["--start-near", "2", "--agent-near", "x"], "--agent-near x: the first stage's distance from the agent to the "
+                                                 "ball is a number"),
+    (["--to", "point_nav", "--switch-at", "half"], "--switch-at half: the stage where booleans and choices switch is "
+                                                   "a whole number"),
+])
+def test_a_curriculum_option_given_no_number_says_what_it_takes(tmp_path, args, phrase):
+    out = tmp_path / "c"
+    result = runner.invoke(app, ["curriculum", "point_nav", "-o", str(out), *args])
+    said = " ".join(result.output.split())
+    assert result.exit_code == 1 and phrase in said and "Invalid value" not in said and not out.exists(), said
 
 
 @pytest.mark.parametrize("args,phrase", [
