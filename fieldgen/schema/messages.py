@@ -74,6 +74,8 @@ def _problem(source: Source, parts: tuple, errs: list[dict], model: type[BaseMod
                                      f"'{_named(value, err['ctx']['pattern'])}' (got {_shown(value)})")
     if kind in EXPECTED:
         return source.problem(parts, f"expected {_expected(err)} (got {_shown(value)})")
+    if kind == "finite_number":  # .inf, .nan: the words models.py gives nan and inf written plainly
+        return source.problem(parts, f"expected a finite number (got {_shown(value)})")
     return source.problem(parts, _plain(err))
 
 

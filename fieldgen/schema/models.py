@@ -7,6 +7,7 @@ kilograms, seconds. The kick-off point is the origin and the goal lies along +y.
 
 from __future__ import annotations
 
+import math
 import types
 import typing
 from typing import Annotated, Literal, Union
@@ -87,19 +88,22 @@ def _taken_as_written(value, annotation):
             raise ValueError(f"{str(item).lower()} is not a number")
         if isinstance(item, str) and str not in accepts and item not in words and numeric:
             choices = f" or one of {', '.join(repr(w) for w in sorted(words))}" if words else ""
+            read = _as_number(item)
+            if read is not None and not math.isfinite(read):  # nan, inf: YAML reads them as text
+                raise ValueError(f"expected a finite number{choices} (got {shown_text(item)})")
             raise ValueError(f"'{shown_text(item)}' is text, not a number{choices}"
-                             + ("; write it without quotes" if _is_number(item) else ""))
+                             + ("; write it without quotes" if read is not None else ""))
     if accepts == {bool} and not isinstance(value, bool):
         raise ValueError(f"{shown_text(repr(value))} is not true or false")
     return value
 
 
-def _is_number(text: str) -> bool:
+def _as_number(text: str) -> float | None:
+    """`text` as Python reads a number (quoted "2", or nan and inf, which YAML leaves as text), or None."""
     try:
-        float(text)
+        return float(text)
     except ValueError:
-        return False
-    return True
+        return None
 
 
 def _as_span(value):

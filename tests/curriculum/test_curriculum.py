@@ -323,7 +323,7 @@ def test_a_folder_of_built_fields_renders_as_a_sheet_of_them(tmp_path):
     (lambda t: t.replace("file: stage_01.yaml", "file: 7"), "stages[0].file: expected text (got 7)"),
     (lambda t: t.replace("threshold: 0.5", "threshold: 7"), "curriculum.yaml:6:3: promotion.threshold: Input should "
      "be less than or equal to 1 (got 7)"),
-    (lambda t: t.replace("threshold: 0.5", "threshold: .nan"), "promotion.threshold: Input should be a finite number"),
+    (lambda t: t.replace("threshold: 0.5", "threshold: .nan"), "promotion.threshold: expected a finite number (got nan)"),
     (lambda t: t.replace("window: 2", "window: two"), "promotion.window: expected a whole number (got 'two')"),
     (lambda t: t.replace("window: 2", "window: 0"), "promotion.window: Input should be greater than or equal to 1"),
     (lambda t: t.replace("window: 2", "windw: 2"), "promotion.windw: unknown key 'windw'; did you mean 'window'?"),

@@ -20,7 +20,9 @@ BAD = [
     ("name: x\nball:\n  joint: rolling\n", 3, "ball.joint", "'planar' or 'free'"),
     ("name: x\nball:\n  spawn: {x: [1, -1], y: 3}\n", 3, "ball.spawn.x", "low end 1.0 is above the high end"),
     ("name: x\nball:\n  radius: .nan\n", 3, "ball.radius", "finite number"),
-    ("name: x\nfield:\n  length: .inf\n", 3, "field.length", "finite number"),
+    ("name: x\nfield:\n  length: .inf\n", 3, "field.length", "expected a finite number (got inf)"),
+    ("name: x\nfield:\n  length: nan\n", 3, "field.length", "expected a finite number (got nan)"),  # YAML's text
+    ("name: x\nfield:\n  length: -inf\n", 3, "field.length", "expected a finite number (got -inf)"),
     ("name: x\nfield: {length: 1.0e+9}\n", 2, "field.length", "less than or equal to 500"),
     ("name: x\ntask:\n  reward:\n    - {term: success}\n    - {term: ball_progres}\n", 5,
      "task.reward[1].term", "did you mean 'ball_progress'"),
