@@ -41,7 +41,7 @@ from fieldgen import limits
 from fieldgen.curriculum.levels import LevelError, LevelSpace
 from fieldgen.curriculum.schedule import Mixed
 from fieldgen.schema import FieldSpec, SpecError
-from fieldgen.schema.errors import shown_text
+from fieldgen.schema.errors import shown_value
 from fieldgen.suggest import allowed, did_you_mean
 
 LEVELS = 8  # levels on the path from the easy end to the spec, the spec included
@@ -137,7 +137,7 @@ class Sampler(BaseModel):
             key = error["loc"][0] if error["loc"] else None
             if key in cls.model_fields:
                 info = cls.model_fields[key]
-                raise LevelError(f"{where} {key}={shown_text(repr(values.get(key)))}: {key} {allowed(error, info)} "
+                raise LevelError(f"{where} {key}={shown_value(values.get(key))}: {key} {allowed(error, info)} "
                                  f"({info.description})") from None
             raise LevelError(f"{where}: {error['msg'].removeprefix('Value error, ')}") from None
 

@@ -54,10 +54,13 @@ def shown_text(text: str, most: int = SHOWN_CHARACTERS, quoted: bool = False) ->
 
 
 def shown_value(value) -> str:
-    """Any value a record holds as a problem echoes it: Python's repr, cut as `shown_text` cuts text, and never
-    written out whole first (a list of millions of items, a number of a million digits, is cut at its start)."""
+    """Any value a record holds as a problem echoes it: Python's repr (true, false and null as written), cut as
+    `shown_text` cuts text, and never written out whole first (a list of millions of items, a number of a million
+    digits, is cut at its start)."""
     if isinstance(value, str):
         return shown_text(value, quoted=True)
+    if isinstance(value, bool) or value is None:  # as YAML and JSON write them, where the value came from
+        return {True: "true", False: "false", None: "null"}[value]
     brief = reprlib.Repr()
     brief.maxstring = brief.maxother = brief.maxlong = SHOWN_CHARACTERS
     try:

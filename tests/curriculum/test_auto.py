@@ -523,8 +523,8 @@ def test_a_sampler_of_its_own_shares_and_replaces_as_it_says():
     # before: NaN said "must be at most 1000.0", and true was taken as 1 (a prior) or said to be below 2 (a buffer)
     ("prior=nan", "--sampler prior='nan': prior must be a finite number (episodes at success 0.5"),
     ("prior=-1e999", "--sampler prior='-1e999': prior must be greater than 0 (episodes at success 0.5"),
-    ("prior=true", "--sampler prior=True: prior must be a number (episodes at success 0.5"),
-    ("buffer=true", "--sampler buffer=True: buffer must be a whole number (entries episodes are drawn from"),
+    ("prior=true", "--sampler prior=true: prior must be a number (episodes at success 0.5"),
+    ("buffer=true", "--sampler buffer=true: buffer must be a whole number (entries episodes are drawn from"),
 ])
 def test_a_bad_sampler_setting_is_one_line(tmp_path, setting, says):
     result = runner.invoke(app, ["train", "point_soccer", "--curriculum", "auto", "--sampler", setting,

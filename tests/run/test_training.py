@@ -485,7 +485,7 @@ def test_bundled_config_files_hold_only_known_keys(path):
     (["--set", "ppo.num_evals=2"], "ppo.* sets ppo's settings, and this run trains crl; write crl.KEY=VALUE (e.g. "
                                    "crl.batch_size=256), or train ppo with --algo ppo"),
     (["--set", "crl.layer_norm=maybe"], "crl.layer_norm must be true or false, not 'maybe'"),
-    (["--set", "crl.batch_size=true"], "crl.batch_size must be a whole number, not True"),
+    (["--set", "crl.batch_size=true"], "crl.batch_size must be a whole number, not true"),  # as written
     (["--set", "crl.batch_size=0"], "crl.batch_size must be greater than 0, not 0"),
     (["--set", "crl.batch_size="], "--set crl.batch_size=: crl.batch_size must be a whole number, not left empty"),
     (["--set", "crl.actor_lr=~"], "crl.actor_lr must be a number, not left empty"),  # YAML's null, once "not None"
