@@ -15,7 +15,8 @@ saying which process holds it since when; the operating system drops the lock of
 A single file a command writes where files of the user's may be (a summary, a figure, a video, a rendered
 image) goes through `write_file`: the folder's record also lists each such file and the command that wrote
 it, and a file that is there already is replaced only where that record (or the kind of the folder, for the
-files a run or a sweep names) says the same command wrote it; anything else is refused with `NotOurs`.
+files a run or a sweep names) says the same command wrote it, and, for a listed file, where it still holds what
+that command wrote (the record keeps its digest); anything else is refused with `NotOurs`.
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ import dataclasses
 import errno
 import fcntl
 import fnmatch
+import hashlib
 import json
 import math
 import os
@@ -316,6 +318,10 @@ def _check_replace(path: Path, output: Output, how: str | None) -> None:
     if writer != output.command:
         raise NotOurs(f"{path} was written by {writer}, not {output.command}; it replaces only its own files: "
                       f"{where}")
+    written = _digests(_record(path.parent)).get(path.name)
+    if written is not None and _digest(path) != written:
+        raise NotOurs(f"{path} has changed since {writer} wrote it (edited, or another file put in its place); "
+                      f"fieldgen replaces only what it wrote itself: {where}")
 
 
 def write_file(path: Path, data: bytes | Iterable[bytes], output: Output, how: str | None = None) -> None:
@@ -324,7 +330,15 @@ def write_file(path: Path, data: bytes | Iterable[bytes], output: Output, how: s
     the folder that it wrote it, then write it whole (write_atomic)."""
     _check_replace(path, output, how)
     own(path, output)
-    write_atomic(path, data)
+    digest = hashlib.sha256()
+
+    def hashed() -> Iterator[bytes]:
+        for piece in [data] if isinstance(data, bytes) else data:
+            digest.update(piece)
+            yield piece
+
+    write_atomic(path, hashed())
+    _remember(path, digest.hexdigest())
 
 
 def own(path: Path, output: Output) -> None:
@@ -360,6 +374,42 @@ def _own(path: Path, output: Output) -> None:
         record = {**(record or {}), "files": files}
         record.setdefault("fieldgen_version", VERSION)
         write_atomic(folder / OWNER, (json.dumps(record) + "\n").encode())
+
+
+def _remember(path: Path, digest: str) -> None:
+    """Record the digest of what was just written to `path`, a file its folder's record lists (a file a folder's
+    own kind names, a run's plots, is rewritten as it goes and never listed): a file changed since, by an edit or
+    another file put in its place, is then the user's, and `check_file` refuses to replace it."""
+    folder = path.parent
+    try:
+        with _record_held(folder):
+            record = _record(folder)
+            if record is None or path.name not in (_files(record) or {}):
+                return
+            record["digests"] = {**_digests(record), path.name: digest}
+            write_atomic(folder / OWNER, (json.dumps(record) + "\n").encode())
+    except OSError as exc:
+        raise WriteError(exc.errno, exc.strerror, str(path)) from None
+
+
+def _digests(record: dict | None) -> dict[str, str]:
+    """The digests a record keeps (file name -> SHA-256 of what fieldgen wrote there); none in one kept before."""
+    digests = record.get("digests") if record else None
+    if not isinstance(digests, dict):
+        return {}
+    return {k: v for k, v in digests.items() if isinstance(k, str) and isinstance(v, str)}
+
+
+def _digest(path: Path) -> str | None:
+    """The SHA-256 of the file at `path`, read in pieces; None where it cannot be read."""
+    digest = hashlib.sha256()
+    try:
+        with open(path, "rb") as f:
+            for block in iter(lambda: f.read(2**20), b""):
+                digest.update(block)
+    except OSError:
+        return None
+    return digest.hexdigest()
 
 
 def _matches(name: str, patterns: tuple[str, ...]) -> bool:

@@ -12,7 +12,7 @@ from typer.testing import CliRunner
 
 from fieldgen.cli import app
 from fieldgen.schema import bundled_fields
-from fieldgen.schema.errors import shown_text
+from fieldgen.schema.errors import shown_text, shown_value
 
 runner = CliRunner()
 
@@ -568,7 +568,7 @@ SHOWN = shown_text(DIGITS)  # as a message echoes it: '9999... (5,000 characters
      "--then-stages 99999999999: the stages each --then adds is a whole number from 1 to 1,000"),
     (["bench", "point_nav", "--steps", "1e14"], "--steps 1e14: the steps of a timed rollout"),
     (["train", "point_soccer", "--curriculum", "auto", "--sampler", f"prior={DIGITS}"],
-     f"--sampler prior={shown_text(repr(DIGITS))}: prior must be at most 1,000"),
+     f"--sampler prior={shown_value(DIGITS)}: prior must be at most 1,000"),
     (["train", "point_nav", "--set", f"crl.repr_dim={DIGITS}"], "is not a YAML value: a number of 5,000 digits; a "
                                                                 "number here has at most 100"),
 ])

@@ -3,6 +3,7 @@ or not at all, whatever stops the process."""
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
@@ -147,6 +148,26 @@ def test_a_single_file_is_replaced_only_where_the_same_command_wrote_it(tmp_path
     files.mark(tmp_path, files.Output("fieldgen build", (), "field.json", record_keys=("spec",)))
     files.write_file(ours, b"third", files.RENDER)
     assert ours.read_bytes() == b"third" and list(tmp_path.glob(".*.tmp")) == []
+
+
+def test_a_file_changed_since_fieldgen_wrote_it_is_the_users(tmp_path):
+    """Before: a figure fieldgen wrote, then replaced by the user's own of the same name (or edited), was written
+    over, the record saying only which command had written that name."""
+    ours = tmp_path / "compare.png"
+    files.write_file(ours, [b"fieldgen's ", b"figure"], files.RENDER)  # written in pieces, digested whole
+    files.write_file(ours, b"again", files.RENDER)  # unchanged since: replaced
+    ours.write_bytes(b"the user's own figure")
+    with pytest.raises(files.NotOurs, match=f"{ours} has changed since fieldgen render wrote it"):
+        files.check_file(ours, files.RENDER)
+    with pytest.raises(files.NotOurs, match="has changed since"):
+        files.write_file(ours, b"render", files.RENDER)
+    assert ours.read_bytes() == b"the user's own figure"
+    # a record kept before digests were: the command's name alone, as before
+    record = json.loads((tmp_path / files.OWNER).read_text())
+    del record["digests"]
+    (tmp_path / files.OWNER).write_text(json.dumps(record))
+    files.write_file(ours, b"render", files.RENDER)
+    assert ours.read_bytes() == b"render"
 
 
 def test_a_runs_own_files_and_a_sweeps_summary_are_no_other_commands(tmp_path):
