@@ -48,7 +48,6 @@ class Wording:
 
 COMMAND_LINE = Wording()
 SWEEP_FILE = Wording(steps="steps:", envs="envs: {}", setting="set: {{{}: {}}}")
-
 REWARDS = ("dense", "sparse")
 
 
