@@ -159,11 +159,11 @@ class RunConfig(BaseModel):
             if section in others:
                 continue
             if sep and dot and section in ALGORITHMS and section != cls.algo:
-                raise ConfigError(f"{source}{item!r}: {section}.* sets {section}'s settings, and this run trains "
+                raise ConfigError(f"{source}{shown_text(item, quoted=True)}: {section}.* sets {section}'s settings, and this run trains "
                                   f"{cls.algo}; write {cls.algo}.KEY=VALUE (e.g. {cls.example()}), or train {section} "
                                   f"with --algo {section}")
             if not sep or not dot or section != cls.algo:
-                raise ConfigError(f"{source}{item!r}: write {cls.algo}.KEY=VALUE, e.g. {cls.example()}")
+                raise ConfigError(f"{source}{shown_text(item, quoted=True)}: write {cls.algo}.KEY=VALUE, e.g. {cls.example()}")
             cls._not_seed(key, f"{source}{shown_text(item)}", raw.strip())
             try:
                 value = yaml.load(raw, Loader=SpecLoader)  # as a file's values are read: numbers bounded in digits
@@ -179,8 +179,9 @@ class RunConfig(BaseModel):
         """A run's seed is the command line's (--seed, and --seeds for several), which every command passes: set
         in a config file or by --set it would be overridden without a word, so it is refused where it is written."""
         if key == "seed":
+            shown = written if written.isdigit() and len(written) < 11 and int(written) <= SEED_MAX else "N"
             raise ConfigError(f"{where}: {cls.algo}.seed is set on the command line, not here: --seed "
-                              f"{written or 'N'} (--seeds K trains K seeds from it); a sweep lists its seeds "
+                              f"{shown} (--seeds K trains K seeds from it); a sweep lists its seeds "
                               "under `seeds:`")
 
     @classmethod
@@ -231,14 +232,16 @@ class RunConfig(BaseModel):
         quoting a number past a float's range as it was `written` (1e400), not as Python reads it (inf)."""
         fields = cls.model_fields
         if key not in fields:
-            raise ConfigError(f"{where}: unknown config key '{key}'{did_you_mean(key, fields) or '.'} "
+            raise ConfigError(f"{where}: unknown config key {shown_text(str(key), quoted=True)}"
+                              f"{did_you_mean(key, fields) or '.'} "
                               f"Keys: {', '.join(fields)}.")
         try:
             return getattr(cls.model_validate({key: value}), key)
         except ValidationError as exc:
             if exc.errors()[0]["type"] == "literal_error":
                 unknown = next(m for m in fields[key].metadata if isinstance(m, Unknown))
-                raise ConfigError(f"{where}: {unknown.message.format(value)}") from None
+                said = shown_text(value) if isinstance(value, str) else shown_value(value)
+                raise ConfigError(f"{where}: {unknown.message.format(said)}") from None
             listed = f"; write it as a list, [{value}]" if isinstance(value, str) and "," in value else ""
             past = isinstance(value, float) and math.isinf(value) and written is not None
             # YAML's null (crl.x=, `x:` with nothing after it, ~) is said as left empty: Python's None was not written

@@ -21,7 +21,7 @@ def count(text: str | int) -> int:
         value = Decimal(cleaned[:-1] if scale > 1 else cleaned) * scale
     except InvalidOperation:
         value = Decimal(0)
-    if not (value.is_finite() and 1 <= value < COUNT_MAX and value == value.to_integral_value()):
-        raise ValueError(f"'{shown_text(str(text))}' is not a positive whole count (below {COUNT_MAX:.0e}); write it "
+    if not (value.is_finite() and 1 <= value <= COUNT_MAX and value == value.to_integral_value()):
+        raise ValueError(f"'{shown_text(str(text))}' is not a positive whole count (at most {COUNT_MAX:.0e}); write it "
                          "as 40000, 50M, 1.5k or 2e6 (k, M and G stand for thousand, million and billion)")
     return int(value)

@@ -285,8 +285,8 @@ def check_file(path: Path, output: Output, how: str | None = None, folder_made: 
     command did not write (a file of the user's, another command's, a run's own record, a folder, a link), and
     (FolderError) where its folder cannot take it (a file in its place, or read-only; missing, where the command
     makes no folder: not `folder_made`): a command checks before its work what would otherwise fail only once the
-    work is done. `how` is how the user chooses another path (by default `output.option`)."""
-    _check_folder(path, how or output.option, folder_made)
+    work is done. `how` is what else the user may do (by default: choose another path with `output.option`)."""
+    _check_folder(path, how or f"choose another {output.option}", folder_made)
     _check_replace(path, output, how)
 
 
@@ -295,22 +295,21 @@ def _check_folder(path: Path, how: str, folder_made: bool) -> None:
     blocker = file_in_the_way(folder)
     if blocker is not None:
         raise FolderError(f"cannot write {path}: {blocker} is {kind_of_blocker(blocker)}, not a folder; move it "
-                          f"aside or choose another {how}")
+                          f"aside or {how}")
     if not folder.is_dir():
         if folder_made:
             return  # said by whoever makes the folder
-        raise FolderError(f"cannot write {path}: there is no folder {folder} to write it in; make it, or choose "
-                          f"another {how}")
+        raise FolderError(f"cannot write {path}: there is no folder {folder} to write it in; make it, or {how}")
     # asked, not tried: a file made and removed to find out would change the folder a check must leave as it was
     if not os.access(folder, os.W_OK | os.X_OK):  # permissions, or a read-only disk (root's too)
         raise FolderError(f"cannot write {path}: its folder is read-only or not the user's to write in; fix the "
-                          f"folder's permissions or choose another {how}")
+                          f"folder's permissions or {how}")
 
 
 def _check_replace(path: Path, output: Output, how: str | None) -> None:
     if not path.exists() and not path.is_symlink():
         return
-    where = f"move it aside or choose another {how or output.option}"
+    where = f"move it aside or {how or f'choose another {output.option}'}"
     _refuse_unlike(path, "file", output, where)
     writer = writer_of(path)
     if writer is None:

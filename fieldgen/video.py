@@ -15,6 +15,7 @@ Format = Literal["mp4", "gif"]
 FORMATS: tuple[str, ...] = get_args(Format)
 GIF_COLOURS = 32  # the scenes are a few flat colours under shading: 32 keep them, 256 mostly add noise
 GIF_FPS = 10.0
+SLOWEST_FPS = 1.0  # a slower field plays faster than its own time: ffmpeg and GIF cannot hold a frame for hours
 
 
 class VideoError(Exception):
@@ -47,6 +48,7 @@ def choose(fmt: str | None) -> str:
 
 def encode(frames: list[np.ndarray], fps: float, fmt: str) -> tuple[bytes, int]:
     """The video file's bytes and how many frames it holds (a GIF may keep fewer than it was given)."""
+    fps = max(fps, SLOWEST_FPS)
     return _mp4(frames, fps) if fmt == "mp4" else _gif(frames, fps)
 
 

@@ -316,6 +316,11 @@ def test_counts_are_read_as_people_write_them(tmp_path):
     assert result.exit_code == 0, result.output
     config = json.loads((tmp_path / "point_nav-crl-0" / "run.json").read_text())["config"]
     assert (config["total_steps"], config["num_envs"]) == (50_000_000, 4)
+    from fieldgen.counts import count
+
+    assert count("1e15") == 10**15  # the largest, as docs/guarantees.md and the config's own range say
+    with pytest.raises(ValueError, match=r"'1000000000000001' is not a positive whole count \(at most 1e\+15\)"):
+        count("1000000000000001")
     for bad in ("5X", "0", "1.5", "-2M"):
         result = runner.invoke(app, ["train", "point_nav", "--steps", bad, "--prepare", "--out", str(tmp_path)])
         message = " ".join(result.output.split())

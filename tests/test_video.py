@@ -75,3 +75,13 @@ def test_mp4_is_the_default_only_where_its_encoder_is_installed(monkeypatch):
         video.choose("mp4")
     with pytest.raises(video.VideoError, match="unknown video format 'avi'; choose one of: mp4, gif"):
         video.choose("avi")
+
+
+@pytest.mark.parametrize("fmt", video.FORMATS)
+def test_a_field_slower_than_a_frame_a_second_still_encodes(frames, fmt):
+    """A spec may ask for 10 s control steps: the video plays at a frame a second, which both formats can hold."""
+    data, count = video.encode(frames[:4], 1e-6, fmt)
+    back = iio.imread(data, extension=f".{fmt}", index=None)
+    assert count == 4 and len(back) == 4
+    if fmt == "gif":
+        assert Image.open(io.BytesIO(data)).info["duration"] == 1000

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import errno
 import os
 import sys
 import time
@@ -90,7 +91,7 @@ def _train(run, videos: bool, logger: str, fmt: str | None = None, deadline: flo
     failed write, a diverged run or, in a run over several processes, one that stopped says what to do
     (training.train says how to go on). A run the deadline stopped exits with TIME_LIMIT_STATUS."""
     from fieldgen.run import distributed, record, supervisor
-    from fieldgen.files import FolderError
+    from fieldgen.files import NO_PERMISSION, NO_SPACE, FolderError
     from fieldgen.run.train import train as train_run
 
     def and_how_to_go_on(sentence: str) -> str:
@@ -101,6 +102,8 @@ def _train(run, videos: bool, logger: str, fmt: str | None = None, deadline: flo
 
     import jax
 
+    if (blocked := record.in_the_way(run.folder, videos)) is not None:
+        fail(blocked)
     if jax.process_count() > 1:  # what this process's watcher says too, should it notice first
         supervisor.leave_words(and_how_to_go_on(distributed.stopped([0], jax.process_index(), jax.process_count())))
     distributed.watch(another_stopped)
@@ -111,9 +114,11 @@ def _train(run, videos: bool, logger: str, fmt: str | None = None, deadline: flo
     except (record.RunError, FolderError) as exc:  # training diverged, or another process trains the run
         fail(str(exc))
     except OSError as exc:  # every file of a run is replaced atomically, so the last good ones remain
+        helps = ("move aside what stands there" if exc.errno in (errno.EEXIST, errno.EISDIR, errno.ENOTDIR) else
+                 "free some space" if exc.errno in NO_SPACE else "fix the folder's permissions"
+                 if exc.errno in NO_PERMISSION else "free some space (or fix the folder's permissions)")
         fail(f"could not write {exc.filename or run.folder}: {exc.strerror or exc}; the files already there are "
-              f"intact: free some space (or fix the folder's permissions) and continue with "
-              f"fieldgen train --resume {shell(run.folder)}")
+              f"intact: {helps} and continue with fieldgen train --resume {shell(run.folder)}")
     except Exception as exc:
         distributed.stop_if_another_stopped(exc, another_stopped)
         raise
@@ -625,7 +630,7 @@ def evaluate(
                                         film_seed)
         files.check_file(path, files.EVAL)  # before evaluating: a file it may not replace is one line now
         if video:
-            files.check_file(video_name.with_suffix(f".{fmt}"), files.EVAL, "--no-video")
+            files.check_file(video_name.with_suffix(f".{fmt}"), files.EVAL, "pass --no-video")
         elsewhere = recipes.judged_elsewhere(runs[0].env.spec, run_dirs) if field is None else None
         if elsewhere is not None:  # a figure on the training physics is not the one a recipe's figure is judged on
             out.print(f"note: {elsewhere}", soft_wrap=True)
@@ -720,7 +725,7 @@ def _evaluate_team(run_dirs: list[Path], episodes: int | None, seed: int, action
     try:
         files.check_file(path, files.EVAL)  # before evaluating: a file it may not replace is one line now
         if fmt is not None:
-            files.check_file(video_name.with_suffix(f".{fmt}"), files.EVAL, "--no-video")
+            files.check_file(video_name.with_suffix(f".{fmt}"), files.EVAL, "pass --no-video")
         run = selfplay.open_run(run_dirs[0])
         if run.state is None:
             fail(f"{run_dirs[0]} has no checkpoint: it has not trained yet; train it with "

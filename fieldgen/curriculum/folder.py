@@ -18,6 +18,7 @@ from fieldgen.files import Output, claim, replace_folder
 from fieldgen.limits import MAX_STAGES
 from fieldgen.schema import FieldSpec, SpecError, load_spec, messages
 from fieldgen.schema.editor import SCHEMA_FILE
+from fieldgen.schema.errors import shown_text
 from fieldgen.schema.source import read_yaml
 
 INDEX = "curriculum.yaml"
@@ -39,7 +40,7 @@ class Stage:
 @dataclasses.dataclass(frozen=True)
 class Curriculum:
     folder: Path
-    kind: str  # interpolation | grid | list
+    kind: str  # how fieldgen curriculum made the stages: a name of fieldgen.curriculum.generate.KINDS
     base: str  # as written in each stage's `extends:`
     stages: list[Stage]
     promotion: Promotion
@@ -94,6 +95,9 @@ def _stage_file(name: str) -> str:
     return name
 
 
+THEN = ", then "  # between the kinds of a curriculum that goes on to further fields: "start_states, then interpolation"
+
+
 class _Strict(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
@@ -132,21 +136,32 @@ def load(folder: Path) -> Curriculum:
         raise CurriculumError(_problems(index, exc.problems)) from None
     except ValidationError as exc:
         raise CurriculumError(_problems(index, messages.problems(source, exc.errors(), _Index))) from None
-    stages = []
+    from fieldgen.curriculum.generate import KINDS  # generate writes folders through this module
+
+    if any(part not in KINDS for part in raw.kind.split(THEN)):  # --then goes on to further fields
+        raise CurriculumError(f"{index}: kind {shown_text(raw.kind, quoted=True)} is not how fieldgen curriculum "
+                              f"makes stages; one of: {', '.join(KINDS)}, or several joined by '{THEN}'")
+    stages, seen = [], {}
     for i, entry in enumerate(raw.stages, 1):
-        path = folder / entry.file
+        path, said = folder / entry.file, f"{index}: stage {i} ({shown_text(entry.name, quoted=True)})"
+        for what, value in (("file", entry.file), ("name", entry.name)):
+            if (what, value) in seen:
+                raise CurriculumError(f"{said} has the {what} {shown_text(value, quoted=True)} of stage "
+                                      f"{seen[what, value]}; each stage has a {what} of its own")
+            seen[what, value] = i
+        if path.is_symlink() and not path.exists():
+            raise CurriculumError(f"{said} lists {shown_text(entry.file)}, a link that leads to no file (its target "
+                                  "is gone, or the link leads back to itself); copy the stage's file in instead")
         if not path.exists():
-            raise CurriculumError(f"{index}: stage {i} ('{entry.name}') lists {entry.file}, which is missing")
+            raise CurriculumError(f"{said} lists {shown_text(entry.file)}, which is missing")
         if path.is_symlink() and not path.resolve().is_relative_to(folder.resolve()):
-            raise CurriculumError(f"{index}: stage {i} ('{entry.name}') lists {entry.file}, a link to "
-                                  f"{path.resolve()} outside the curriculum's folder; copy the file in instead")
+            raise CurriculumError(f"{said} lists {shown_text(entry.file)}, a link to {path.resolve()} outside the "
+                                  "curriculum's folder; copy the file in instead")
         stages.append(Stage(entry.name, entry.file, {}, entry.origin))
     listed = {s.file for s in stages}
     stray = sorted(p.name for p in folder.glob("stage_*.yaml") if p.name not in listed)
     if stray:
         raise CurriculumError(f"{index} does not list {', '.join(stray)}; add them to 'stages:' or delete them")
-    if len(listed) != len(stages) or len({s.name for s in stages}) != len(stages):
-        raise CurriculumError(f"{index}: a stage file or name appears twice")
     curriculum = Curriculum(folder, raw.kind, raw.base, stages, Promotion(**raw.promotion.model_dump()))
     _validate_all(curriculum)
     return curriculum

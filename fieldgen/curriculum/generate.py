@@ -16,7 +16,7 @@ from typing import Callable
 
 import yaml
 
-from fieldgen.curriculum.folder import CurriculumError, layout_key
+from fieldgen.curriculum.folder import THEN, CurriculumError, layout_key
 from fieldgen.schema import FieldSpec, SpecError, geometry, load_spec
 from fieldgen.schema.errors import shown_text
 from fieldgen.schema.loader import bundled_names_where, merge, validate
@@ -96,7 +96,7 @@ def variants(base: Path, asked: Asked) -> tuple[str, list[tuple[dict, str]]]:
     for target in asked.then:
         out = out + go_on(base, out, target, asked.stages - 1 if asked.then_stages is None else asked.then_stages,
                           asked.geometric)
-    return chosen[0].name + ", then interpolation" * len(asked.then), out
+    return THEN.join([chosen[0].name] + ["interpolation"] * len(asked.then)), out
 
 
 def _is_team_field(path: Path) -> bool:

@@ -32,6 +32,26 @@ LEARNER, INITIAL, VIDEOS = "learner.msgpack", "initial.msgpack", "videos"
 RUN_FOLDER = Output("fieldgen train", (), RUN,  # written into file by file, never replaced whole
                     files=(RUN, METRICS, CSV, CHECKPOINT, LEARNER, INITIAL, PLOT, VIDEOS, "field", "stages"),
                     record_keys=("algo", "config"))
+# what each of a run's own files holds, in the words of a refusal where something else stands in its place
+OWN_FILES = {METRICS: "metrics", CSV: "metrics as CSV", CHECKPOINT: "checkpoint", LEARNER: "learner", PLOT: "plot"}
+
+
+def in_the_way(run_dir: Path, videos: bool) -> str | None:
+    """Where a folder (or a link that leads nowhere) stands where the run writes one of its own files, or a file where
+    it keeps its videos: the sentence that says so and how to go on, so that it is refused before training rather
+    than at the first write after it; None where nothing is."""
+    for name, what in OWN_FILES.items():
+        path = run_dir / name
+        if path.is_symlink() and not path.exists() or path.exists() and not path.is_file():
+            return (f"{path} is {'a folder' if path.is_dir() else kind_of_blocker(path)} where the run writes its "
+                    f"{what}; move it aside, then continue with fieldgen train --resume {shell(run_dir)}")
+    path = run_dir / VIDEOS
+    if videos and (path.is_symlink() and not path.exists() or path.exists() and not path.is_dir()):
+        return (f"{path} is {kind_of_blocker(path)} where the run keeps its videos; move it aside, or continue "
+                f"without videos: fieldgen train --resume {shell(run_dir)} --no-videos")
+    return None
+
+
 PARSER_COMPLAINT = 120  # characters of what JSON's parser says of a broken record: its whole sentence and place
 # the metrics that time the run rather than say what it learned: the only ones in which the same run, trained
 # again or over other processes, may differ

@@ -264,9 +264,12 @@ def started_from(run: Run, source: Path) -> tuple[object, dict]:
                               f"fieldgen train wrote: fieldgen train --resume {shell(source)} writes it again from "
                               "the run's checkpoint")
     if not learner.is_file():
+        trained = (source / record.METRICS).exists()  # its evaluations are there, what they judged is not
         raise record.RunError(f"--init-from {source}: " + (
             f"its {record.LEARNER} is missing; fieldgen train --resume {shell(source)} writes it again from the "
             "run's checkpoint" if (source / record.CHECKPOINT).exists() else
+            f"it has evaluations in {record.METRICS} but neither {record.LEARNER} nor {record.CHECKPOINT} (moved or "
+            "deleted): put them back, or name another run" if trained else
             f"it holds no {record.LEARNER} (written at each evaluation) nor checkpoint: it has not trained yet; "
             f"train it first (fieldgen train --resume {shell(source)}), or name a run that has"))
     other = open_run(source, load_state=False)

@@ -21,12 +21,15 @@ from pydantic import BaseModel, Field, ValidationError, model_validator
 
 from fieldgen.agents.registry import EVAL_ACTIONS
 from fieldgen.files import EVAL, Output, named_twice, write_file
+from fieldgen.limits import MAX_SEEDS
 from fieldgen.run.record import metric_problem
 from fieldgen.schema.errors import shown_text
 
 SUMMARY = "summary.json"
 METRICS = ("success_any", "time_at_goal")  # what a summary holds, per seed and over them
 CONFIDENCE, RESAMPLES, BOOTSTRAP_SEED = 0.95, 2000, 0  # rliable's default count of bootstrap resamples
+RESAMPLED_AT_ONCE = 2**22  # values of a bootstrap batch: memory stays a few tens of MB whatever the seed count
+MAX_SUMMARY_BYTES = 32 * 2**20  # a summary of MAX_SEEDS seeds takes a few MB
 
 
 def _tasks(tasks: Sequence[Sequence[float]]) -> list[np.ndarray]:
@@ -75,8 +78,10 @@ def interval(*tasks: Sequence[float], confidence: float = CONFIDENCE, resamples:
         constant = np.broadcast_to(fixed, samples[0].shape[:-1] + fixed.shape)
         return _trimmed(np.concatenate([*samples, constant], axis=-1))
 
+    batch = max(1, RESAMPLED_AT_ONCE // sum(a.size for a in arrays))
     result = scipy.stats.bootstrap(varied, statistic, n_resamples=resamples, confidence_level=confidence,
-                                   method="percentile", vectorized=True, axis=-1, rng=np.random.default_rng(seed))
+                                   method="percentile", vectorized=True, axis=-1, rng=np.random.default_rng(seed),
+                                   batch=batch)
     low, high = result.confidence_interval
     return float(low), float(high)
 
@@ -142,6 +147,8 @@ class SeedSummary(BaseModel):
                 if (said := metric_problem(metric, value)) is not None:
                     raise ValueError(f"seed {seed}'s {said}")
         seeds = sorted(self.env_steps)
+        if len(seeds) > MAX_SEEDS:
+            raise ValueError(f"it holds {len(seeds):,} seeds, more than the {MAX_SEEDS:,} one run trains at most")
         if not seeds:  # fieldgen eval judges one seed at least; an interval over none has no value
             raise ValueError("it holds no seed (env_steps is empty), and fieldgen eval writes one for every seed it "
                              "judged")
@@ -196,6 +203,9 @@ def summarize(fields: list[str], algo: str, runs: list[Path], episodes: int, env
 def read(path: Path) -> SeedSummary:
     """A summary.json that `fieldgen eval` wrote, or SummaryError naming the file and what is wrong."""
     try:
+        if path.is_file() and (size := path.stat().st_size) > MAX_SUMMARY_BYTES:
+            raise SummaryError(f"{path} holds {size:,} bytes, more than a summary of fieldgen eval ever does "
+                               f"({MAX_SUMMARY_BYTES:,}); name the summary.json that fieldgen eval --summary wrote")
         text = path.read_bytes()
         if not text.strip():
             raise SummaryError(f"{path} is empty, not a summary of fieldgen eval; name the summary.json that "
@@ -252,6 +262,9 @@ def pooled(summaries: Sequence[tuple[Path, SeedSummary]], command: str) -> SeedS
             if seed in owners:
                 raise SummaryError(f"seed {seed} is in both {owners[seed]} and {path}; pool each seed once")
             owners[seed] = path
+    if len(owners) > MAX_SEEDS:
+        raise SummaryError(f"these summaries hold {len(owners):,} seeds in all, more than the {MAX_SEEDS:,} a pooled "
+                           "summary holds; pool fewer at once")
     merged = lambda key: {s: v for _, one in summaries for s, v in getattr(one, key).items()}  # noqa: E731
     per_seed = {metric: {s: v for _, one in summaries for s, v in getattr(one, metric).per_seed.items()}
                 for metric in METRICS}

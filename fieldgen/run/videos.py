@@ -52,7 +52,7 @@ class EpisodeRecorder:
         `output`: the command writing it where files of the user's may be (eval's, beside a run's files; write_file),
         None for a run's own videos/."""
         def write(path: Path, data: bytes) -> None:
-            write_atomic(path, data) if output is None else write_file(path, data, output, "--no-video")
+            write_atomic(path, data) if output is None else write_file(path, data, output, "pass --no-video")
 
         if not self.broken:
             try:
@@ -87,8 +87,8 @@ def _check_episode(path: Path, episode: dict, model, camera: str) -> None:
     elif not (all(np.issubdtype(a.dtype, np.floating) for a in (qpos, mocap)) and np.isfinite(qpos).all()
               and np.isfinite(mocap).all()):
         problem = "its positions are not all finite numbers"
-    elif fps.shape != () or not np.issubdtype(fps.dtype, np.number) or not 0 < float(fps) < 1e4:
-        problem = f"fps should be one number above 0, not {fps.tolist()!r}"
+    elif fps.shape != () or not np.issubdtype(fps.dtype, np.number) or not 0 < float(fps) <= MAX_FPS:
+        problem = f"fps should be one number above 0 and at most {MAX_FPS:,}, not {fps.tolist()!r}"
     elif camera not in CAMERAS:
         problem = f"camera should be one of {', '.join(CAMERAS)}, not {camera!r}"
     if problem:
@@ -96,7 +96,8 @@ def _check_episode(path: Path, episode: dict, model, camera: str) -> None:
                        "or train again")
 
 
-MAX_FRAMES = 100_000  # a kept episode holds at most an episode's steps, cut to about 300 frames
+MAX_FRAMES = 1_000  # EpisodeRecorder.episode cuts an episode to fewer than 600 frames; each is drawn in memory
+MAX_FPS = 10_000  # a control step of 1e-4 s, the shortest a spec allows, filmed at every step
 MAX_KEPT_BYTES = 256 * 2**20  # unpacked: ~300 frames of joint positions take kilobytes to a few megabytes
 
 

@@ -112,7 +112,7 @@ class SweepFile(BaseModel):
     set: dict[StrictStr, Any] = {}  # config values every run of that algorithm gets: crl.batch_size: 256
     grid: dict[StrictStr, Annotated[list, Field(min_length=1)]] = {}  # axes: crl.repr_dim: [32, 64]
     videos: StrictBool = False
-    out: StrictStr | None = None  # the sweep's folder (default runs/sweep-<file name>)
+    out: Annotated[StrictStr, Field(min_length=1)] | None = None  # the sweep's folder (default runs/sweep-<file name>)
     backend: Literal[BACKENDS] = "local"
     local: Local = Local()
     slurm: Slurm = Slurm()

@@ -120,6 +120,8 @@ def test_a_seed_written_in_a_config_file_or_by_set_is_refused_where_it_is_writte
 
     with pytest.raises(ConfigError, match=r"--set ppo.seed=5: ppo.seed is set on the command line, not here: --seed 5"):
         ppo.PPOConfig.layered(sets=["ppo.seed=5"])
+    with pytest.raises(ConfigError, match=r"ppo.seed=-1: ppo.seed is set on the command line, not here: --seed N "):
+        ppo.PPOConfig.layered(sets=["ppo.seed=-1"])  # not --seed -1, which the command line refuses too
     written = tmp_path / "c.yaml"
     written.write_text("ppo:\n  num_envs: 8\n  seed: 3\n")
     with pytest.raises(ConfigError, match=r"c.yaml:3: ppo.seed is set on the command line"):

@@ -22,6 +22,14 @@ def resolved(path: Path) -> dict:
     return {k: v for k, v in data.items() if k not in ("name", "description", "extends")}
 
 
+def two_stages(out: Path) -> Path:
+    """A list curriculum of point_nav at target radius 1 then 2, written by fieldgen curriculum into `out`."""
+    result = runner.invoke(app, ["curriculum", "point_nav", "-o", str(out), "--stage", "task.target.radius=1",
+                                 "--stage", "task.target.radius=2"])
+    assert result.exit_code == 0, result.output
+    return out
+
+
 def test_interpolation_ends_are_the_two_specs_and_every_stage_builds(tmp_path):
     out = tmp_path / "v1_to_wide"
     variants = curriculum.interpolate(FIELDS["soccer_v1"], FIELDS["v2_wide_goalie"], 4)
@@ -140,10 +148,7 @@ def test_a_key_no_variant_can_set_names_its_option_and_the_keys_there_are(tmp_pa
 
 
 def test_folders_edited_into_an_inconsistent_state_are_refused(tmp_path):
-    out = tmp_path / "c"
-    result = runner.invoke(app, ["curriculum", "point_nav", "-o", str(out), "--stage", "task.target.radius=1",
-                                 "--stage", "task.target.radius=2"])
-    assert result.exit_code == 0, result.output
+    out = two_stages(tmp_path / "c")
     assert curriculum.load(out).stages[1].name == "c_s02"
     (out / "stage_03.yaml").write_text((out / "stage_02.yaml").read_text())
     with pytest.raises(curriculum.CurriculumError, match="does not list stage_03.yaml"):
@@ -341,10 +346,7 @@ def test_a_damaged_or_hostile_curriculum_index_is_one_paragraph_at_its_line(tmp_
     """curriculum.yaml is read as specs are: bounded, typed, each problem at its file, line and key; a stage's file
     stays in the curriculum's folder. Before: '../' paths were read, 7 and NaN thresholds taken, and an
     alias loop or a wrong type a traceback."""
-    out = tmp_path / "c"
-    result = runner.invoke(app, ["curriculum", "point_nav", "-o", str(out), "--stage", "task.target.radius=1",
-                                 "--stage", "task.target.radius=2"])
-    assert result.exit_code == 0, result.output
+    out = two_stages(tmp_path / "c")
     (tmp_path / "outside.yaml").write_text((out / "stage_01.yaml").read_text())
     index = out / "curriculum.yaml"
     index.write_text(edit(index.read_text()))
@@ -357,15 +359,42 @@ def test_a_damaged_or_hostile_curriculum_index_is_one_paragraph_at_its_line(tmp_
 
 
 def test_a_stage_linked_from_outside_its_folder_is_refused(tmp_path):
-    out = tmp_path / "c"
-    result = runner.invoke(app, ["curriculum", "point_nav", "-o", str(out), "--stage", "task.target.radius=1",
-                                 "--stage", "task.target.radius=2"])
-    assert result.exit_code == 0, result.output
+    out = two_stages(tmp_path / "c")
     (tmp_path / "elsewhere.yaml").write_text((out / "stage_01.yaml").read_text())
     (out / "stage_01.yaml").unlink()
     (out / "stage_01.yaml").symlink_to(tmp_path / "elsewhere.yaml")
     with pytest.raises(curriculum.CurriculumError, match="lists stage_01.yaml, a link to .*elsewhere.yaml outside the "
                                                          "curriculum's folder; copy the file in instead"):
+        curriculum.load(out)
+
+
+@pytest.mark.parametrize("edit,phrase", [
+    (lambda t: t.replace("kind: list", "kind: bogus"), "kind 'bogus' is not how fieldgen curriculum makes stages; one "
+     "of: interpolation, grid, list, start_states, or several joined by ', then '"),
+    (lambda t: t.replace("file: stage_02.yaml", "file: stage_01.yaml"), "stage 2 ('c_s02') has the file "
+     "'stage_01.yaml' of stage 1; each stage has a file of its own"),
+    (lambda t: t.replace("name: c_s02", "name: c_s01"), "stage 2 ('c_s01') has the name 'c_s01' of stage 1"),
+    (lambda t: t.replace("name: c_s02", "name: \"c\\u202e\\0\""), "stage 2 ('c\\u202e\\x00') lists stage_02.yaml"),
+], ids=["kind", "file_twice", "name_twice", "name_unprintable"])
+def test_an_index_edited_past_what_fieldgen_writes_names_the_stage_and_what_is_allowed(tmp_path, edit, phrase):
+    """Before: an unknown kind was read, a stage listed twice was "a stage file or name appears twice" (or a stray
+    file), and a name's NUL or right-to-left mark was printed raw."""
+    out = two_stages(tmp_path / "c")
+    index = out / "curriculum.yaml"
+    index.write_text(edit(index.read_text()))
+    if "unprintable" in phrase or "\\x00" in phrase:
+        (out / "stage_02.yaml").unlink()
+    with pytest.raises(curriculum.CurriculumError) as caught:
+        curriculum.load(out)
+    assert phrase in str(caught.value) and "\0" not in str(caught.value) and "\u202e" not in str(caught.value)
+
+
+def test_a_stage_that_is_a_link_to_itself_is_said_to_lead_nowhere(tmp_path):
+    """Before: a link loop was reported as a file that is missing."""
+    out = two_stages(tmp_path / "c")
+    (out / "stage_02.yaml").unlink()
+    (out / "stage_02.yaml").symlink_to(out / "stage_02.yaml")
+    with pytest.raises(curriculum.CurriculumError, match="lists stage_02.yaml, a link that leads to no file"):
         curriculum.load(out)
 
 

@@ -382,3 +382,17 @@ def test_a_quick_evaluation_keeps_the_summary_of_more_episodes_and_writes_its_ow
     team.write_text(json.dumps({"episodes": 1024, "per_seed": {}}))
     assert judging.kept_beside(team, 8) == (folder / "selfplay_eval_8.json", team)
     assert judging.kept_beside(team, 1024) == (team, None)
+
+
+def test_a_video_of_the_users_where_eval_films_says_how_to_go_on_without_it(trained, tmp_path):
+    """Before: "move it aside or choose another --no-video", as if --no-video named a path."""
+    import shutil
+
+    run = tmp_path / "run"
+    shutil.copytree(trained, run)
+    (run / "eval.gif").write_bytes(b"a video of mine")
+    result = runner.invoke(app, ["eval", str(run), "--episodes", "2", "--video-format", "gif"])
+    assert result.exit_code == 1 and "Traceback" not in result.output, result.output
+    assert said(f"{run / 'eval.gif'} is not a file fieldgen wrote; fieldgen replaces only what it "
+                "wrote itself: move it aside or pass --no-video", result.output)
+    assert (run / "eval.gif").read_bytes() == b"a video of mine"

@@ -486,3 +486,39 @@ def test_a_file_named_in_a_folder_that_is_not_there_says_so_before_any_work(tmp_
     refused(runner.invoke(app, arguments), f"cannot write {written}: there is no folder {missing} to write it in; "
                                            f"make it, or choose another {option}")
     assert not missing.exists()
+
+
+@pytest.mark.parametrize("args,phrase", [
+    (["--config", "bat\u202ech_size: 1"], "unknown config key 'bat\\u202ech_size'; did you mean 'batch_size'?"),
+    (["--config", "eval_actions: \"me\u202ean\""], "unknown eval_actions 'me\\u202ean'; choose one of mean, sampled"),
+    (["--set", "crl.bat\u202ech_size=1"], "unknown config key 'bat\\u202ech_size'"),
+    (["--set", "crl.eval_actions=" + "k" * 5000], "unknown eval_actions 'kkkk"),
+    (["--set", "x" * 5000 + "=1"], "(5,002 characters)"),
+], ids=["config_key", "config_value", "set_key", "set_long_value", "set_long_item"])
+def test_a_config_key_or_value_is_echoed_escaped_and_cut(tmp_path, args, phrase):
+    """Before: a config key or choice was echoed raw: a right-to-left mark reordered the terminal's line, and 5,000
+    characters of a --set value were printed whole."""
+    if args[0] == "--config":
+        (tmp_path / "config.yaml").write_text(f"crl:\n  {args[1]}\n")
+        args = ["--config", str(tmp_path / "config.yaml")]
+    result = runner.invoke(app, ["train", "point_nav", "--prepare", "--out", str(tmp_path / "runs"), *args])
+    refused(result, phrase)
+    assert "\u202e" not in result.output and "k" * 100 not in result.output and "x" * 100 not in result.output
+    assert len(said(result)) < 1200
+
+
+@pytest.mark.parametrize("blocker,phrase", [
+    ("success.png", "success.png is a folder where the run writes its plot; move it aside, then continue with "
+                    "fieldgen train --resume"),
+    ("metrics.csv", "metrics.csv is a folder where the run writes its metrics as CSV; move it aside"),
+    ("videos", "videos is a file where the run keeps its videos; move it aside, or continue without videos: "
+               "fieldgen train --resume"),
+])
+def test_something_where_a_run_writes_its_own_files_is_refused_before_training(prepared, blocker, phrase):
+    """Before: the run trained a chunk, then failed at its first write advising to free some space."""
+    path = prepared / blocker
+    path.mkdir() if blocker != "videos" else path.write_text("notes of the user's")
+    result = runner.invoke(app, ["train", "--resume", str(prepared)])
+    refused(result, phrase)
+    assert not (prepared / record.CHECKPOINT).exists() and not (prepared / record.LEARNER).exists()
+    assert path.is_dir() if blocker != "videos" else path.read_text() == "notes of the user's"

@@ -132,6 +132,12 @@ def test_init_from_names_a_run_that_has_learned(tmp_path, tiny_crl_args):
                                      *tiny_crl_args])
         assert result.exit_code == 1 and "Traceback" not in result.output
         assert flat(f"--init-from {source}: {said}") in flat(result.output), result.output
+    (fresh / record.METRICS).write_text("")  # evaluated, then both weight files moved away: no --resume brings them
+    result = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path / "runs"), "--init-from", str(fresh),
+                                 *tiny_crl_args])
+    assert flat(f"--init-from {fresh}: it has evaluations in metrics.jsonl but neither learner.msgpack nor "
+                "checkpoint.msgpack (moved or deleted): put them back, or name another run") in flat(result.output)
+    (fresh / record.METRICS).unlink()
     (fresh / record.CHECKPOINT).write_bytes(b"a checkpoint")  # learned, its learner.msgpack deleted
     result = runner.invoke(app, ["train", "point_nav", "--out", str(tmp_path / "runs"), "--init-from", str(fresh),
                                  *tiny_crl_args])

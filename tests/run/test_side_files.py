@@ -63,14 +63,18 @@ def kept(run, pack=np.savez, **changes) -> None:
 @pytest.mark.parametrize("changes,phrase", [
     ({"qpos": lambda m: np.zeros((30, m.nq + 1))}, "qpos should be [frames, "),
     ({"qpos": None}, "qpos should be [frames, "),
-    ({"qpos": lambda m: np.zeros((0, m.nq))}, "with 1 to 100000 frames"),
+    ({"qpos": lambda m: np.zeros((0, m.nq))}, "with 1 to 1000 frames"),
+    ({"qpos": lambda m: np.zeros((100_000, m.nq)), "mocap_pos": lambda m: np.zeros((100_000, m.nmocap, 3))},
+     "with 1 to 1000 frames, not [100000, "),
     ({"mocap_pos": np.zeros((29, 1, 3))}, "mocap_pos should be [30, "),
     ({"qpos": lambda m: np.full((30, m.nq), np.nan)}, "its positions are not all finite numbers"),
     ({"mocap_pos": lambda m: np.full((30, m.nmocap, 3), "x")}, "its positions are not all finite numbers"),
-    ({"fps": 0.0}, "fps should be one number above 0, not 0.0"),
-    ({"fps": np.array([1.0, 2.0])}, "fps should be one number above 0, not [1.0, 2.0]"),
+    ({"fps": 0.0}, "fps should be one number above 0 and at most 10,000, not 0.0"),
+    ({"fps": 1e300}, "fps should be one number above 0 and at most 10,000, not 1e+300"),
+    ({"fps": np.array([1.0, 2.0])}, "fps should be one number above 0 and at most 10,000, not [1.0, 2.0]"),
     ({"camera": "overhead"}, "camera should be one of"),
-], ids=["width", "no_qpos", "no_frames", "mocap", "nan", "mocap_text", "fps", "fps_list", "camera"])
+], ids=["width", "no_qpos", "no_frames", "frames_to_fill_memory", "mocap", "nan", "mocap_text", "fps", "fps_huge",
+        "fps_list", "camera"])
 def test_a_damaged_kept_episode_is_named_not_drawn(prepared, changes, phrase):
     """Before: a wrong width or frame count was an error from inside the renderer, a NaN a video of nothing."""
     kept(prepared, **changes)

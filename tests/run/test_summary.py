@@ -304,3 +304,32 @@ def test_a_summary_edited_past_what_eval_writes_is_refused_at_its_key(tmp_path, 
     paths[4].write_text(json.dumps(edited))
     with pytest.raises(SummaryError, match=re.escape(f"{paths[4]} is not a summary of fieldgen eval: {phrase}")):
         read(paths[4])
+
+
+def test_a_summary_of_more_seeds_than_a_run_trains_is_refused_before_any_bootstrap(tmp_path):
+    """Before: a summary.json of 200,000 seeds (9 MB) was read and bootstrapped in gigabytes of memory for minutes."""
+    from fieldgen.limits import MAX_SEEDS
+    from fieldgen.run.summary import SummaryError, read
+
+    paths, _, _ = one_seed_each(tmp_path)
+    edited = json.loads(paths[0].read_text())
+    many = {str(s): 0.5 for s in range(MAX_SEEDS + 1)}
+    edited["env_steps"] = {s: 800 for s in many}
+    edited["success_any"]["per_seed"], edited["time_at_goal"]["per_seed"] = many, many
+    paths[0].write_text(json.dumps(edited))
+    with pytest.raises(SummaryError, match=re.escape(f"{paths[0]} is not a summary of fieldgen eval: it holds "
+                                                     "65,537 seeds, more than the 65,536 one run trains at most")):
+        read(paths[0])
+    paths[1].write_bytes(b" " * (33 * 2**20))
+    with pytest.raises(SummaryError, match=re.escape(f"{paths[1]} holds 34,603,008 bytes, more than a summary")):
+        read(paths[1])
+
+
+def test_the_bootstrap_of_many_seeds_is_drawn_in_batches_with_the_same_answer(monkeypatch):
+    """Every resample at once held resamples x seeds values: 65,536 seeds took gigabytes. Batches bound it."""
+    import fieldgen.run.summary as summary
+
+    values = np.random.default_rng(3).random(40)
+    whole = interval(values)
+    monkeypatch.setattr(summary, "RESAMPLED_AT_ONCE", 40 * 7)  # seven resamples a batch
+    assert interval(values) == pytest.approx(whole)

@@ -154,6 +154,7 @@ def test_a_task_too_short_for_the_runs_stop_names_the_time_given_on_the_command_
     ("algorithms: [crll]\n", "did you mean 'crl'?"),
     ("seeds: 0\n", "seeds: Input should be greater than or equal to 1"),
     ("steps: lots\n", "steps: 'lots' is not a positive whole count"),
+    ("out: ''\n", "out: String should have at least 1 character (got '')"),
     ("colour: red\n", "unknown key 'colour'"),
     ("backend: slurm\nslurm: {time: 30, stop_before: 30}\n", ":7:19: slurm.stop_before: 30 minutes before the end of a "
                                                               "task of 30 minutes (slurm.time) leaves its run no time"),
