@@ -11,9 +11,9 @@ from pathlib import Path
 from typing import Annotated
 
 import yaml
-from pydantic import AfterValidator, BaseModel, ConfigDict, Field, StrictInt, StrictStr, ValidationError
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, StrictStr, ValidationError
 
-from fieldgen.curriculum.promotion import Promotion
+from fieldgen.curriculum.promotion import Promotion, Threshold, Window
 from fieldgen.files import Output, claim, replace_folder
 from fieldgen.limits import MAX_STAGES
 from fieldgen.schema import FieldSpec, SpecError, load_spec, messages
@@ -103,8 +103,8 @@ class _Strict(BaseModel):
 
 
 class _Promotion(_Strict):
-    threshold: Annotated[float, Field(gt=0, le=1, allow_inf_nan=False)] = 0.5
-    window: Annotated[StrictInt, Field(ge=1, le=MAX_STAGES)] = 2
+    threshold: Threshold = 0.5
+    window: Window = 2
 
 
 class _Stage(_Strict):

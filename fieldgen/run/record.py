@@ -24,6 +24,7 @@ from pydantic import (AfterValidator, BaseModel, ConfigDict, Field, StrictBool, 
 
 from fieldgen.curriculum.promotion import Promotion
 from fieldgen.files import Output, kind_of_blocker, parsed_json, write_atomic, written_by
+from fieldgen.limits import MAX_SEEDS, SEED_MAX
 from fieldgen.schema.errors import shown_text, shown_value
 from fieldgen.suggest import shell
 
@@ -187,7 +188,8 @@ class RunRecord(BaseModel):
     observation: dict
     field: Annotated[dict, Field(strict=True)] | None = None  # the resolved spec of the field the run is judged on
     # (reading metrics needs no field; opening the run does: session.open_run refuses a record without it)
-    seeds: Annotated[list[Index], Field(min_length=1), AfterValidator(_each_once)] = []  # []: the config's seed
+    seeds: Annotated[list[Annotated[StrictInt, Field(ge=0, le=SEED_MAX)]], Field(min_length=1, max_length=MAX_SEEDS),
+                     AfterValidator(_each_once)] = []  # []: the config's seed
     fields: Annotated[list[Annotated[StrictStr, AfterValidator(_inside)]], Field(min_length=1)] = []  # []: field/
     promotion: Promotion = Promotion()
     mixed: StrictBool = False

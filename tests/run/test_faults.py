@@ -469,7 +469,11 @@ TORN = '{"eval": 1, "se'
     (lambda run: edit_record(run, fields=["../../elsewhere"]), "run.json is not a run record: fields.0 should name a "
      "folder inside the run, such as field or stages/01, not '../../elsewhere'"),
     (lambda run: edit_record(run, promotion={"window": 1.5}), "run.json is not a run record: promotion.window "
-     "should be a valid integer, got a number with a fractional part, not 1.5"),
+     "should be a valid integer, not 1.5"),
+    (lambda run: edit_record(run, promotion={"threshold": 5}), "run.json is not a run record: promotion.threshold "
+     "should be less than or equal to 1, not 5"),  # before: read, a stage never promoted
+    (lambda run: edit_record(run, seeds=[2**40]), "run.json is not a run record: seeds.0 should be less than or equal "
+     "to 4294967295, not 1099511627776"),  # before: read, and its metrics rows blamed
     (lambda run: (run / "metrics.jsonl").write_text(f"{TORN}\n{ROW}\n"), "metrics.jsonl:1 is not a metrics row "
      "(not JSON); the file was edited or damaged: restore it from a copy, or start the run again in a new folder"),
     (lambda run: (run / "metrics.jsonl").write_bytes(b"\xff\xfe\n" + ROW.encode()), "metrics.jsonl:1 is not a "
@@ -505,7 +509,7 @@ TORN = '{"eval": 1, "se'
      "folder fieldgen train wrote (runs/<field>-<algo>-<seed>); one whose setup was cut short is set up again by the "
      "same fieldgen train command"),
 ], ids=["file", "empty", "list", "string", "config", "seeds", "seeds_empty", "observation", "seeds_mixed", "fields", "promotion",
-        "middle", "bytes",
+        "promotion_threshold", "seed_past_a_key", "middle", "bytes",
         "eval_text", "stage", "no_rows", "folder", "field", "other_field", "field_text", "no_field", "field_missing",
         "judged_outside", "judged_missing", "record_missing"])
 def test_damaged_run_folders_are_clear_errors(tmp_path, damage, phrase, tiny_crl_args):
