@@ -93,3 +93,17 @@ def test_a_kept_episode_that_unpacks_to_gigabytes_is_refused_unread(prepared):
     message = " ".join(result.output.split())
     assert result.exit_code == 1 and "Traceback" not in message, result.output
     assert f"{prepared / 'videos' / 'eval_000.npz'} unpacks to 536,8" in message and "delete it or train again" in message
+
+
+def test_a_folder_where_a_kept_episodes_video_goes_is_named_not_taken_for_the_video(prepared):
+    """Before: a folder named eval_000.gif was listed as the episode's video, already drawn."""
+    kept(prepared)
+    (prepared / "videos" / "eval_000.gif").mkdir()
+    try:
+        result = runner.invoke(app, ["videos", str(prepared), "--video-format", "gif"])
+    finally:
+        (prepared / "videos" / "eval_000.gif").rmdir()
+    message = " ".join(result.output.split())
+    assert result.exit_code == 1 and "Traceback" not in message, result.output
+    assert f"{prepared / 'videos' / 'eval_000.gif'} is a folder where the video of eval_000.npz goes; move it aside, " \
+           "or draw the episodes as mp4 (--video-format)" in message
