@@ -159,11 +159,12 @@ class RunConfig(BaseModel):
             if section in others:
                 continue
             if sep and dot and section in ALGORITHMS and section != cls.algo:
-                raise ConfigError(f"{source}{shown_text(item, quoted=True)}: {section}.* sets {section}'s settings, and this run trains "
-                                  f"{cls.algo}; write {cls.algo}.KEY=VALUE (e.g. {cls.example()}), or train {section} "
-                                  f"with --algo {section}")
+                raise ConfigError(f"{source}{shown_text(item, quoted=True)}: {section}.* sets {section}'s settings, "
+                                  f"and this run trains {cls.algo}; write {cls.algo}.KEY=VALUE (e.g. "
+                                  f"{cls.example()}), or train {section} with --algo {section}")
             if not sep or not dot or section != cls.algo:
-                raise ConfigError(f"{source}{shown_text(item, quoted=True)}: write {cls.algo}.KEY=VALUE, e.g. {cls.example()}")
+                raise ConfigError(f"{source}{shown_text(item, quoted=True)}: write {cls.algo}.KEY=VALUE, e.g. "
+                                  f"{cls.example()}")
             cls._not_seed(key, f"{source}{shown_text(item)}", raw.strip())
             try:
                 value = yaml.load(raw, Loader=SpecLoader)  # as a file's values are read: numbers bounded in digits
