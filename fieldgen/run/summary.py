@@ -230,8 +230,8 @@ def _first_problem(exc: ValidationError) -> str:
 
 # what summaries pooled into one must share, and the word for it in an error: fields by their digests, since two
 # fields may share a name
-POOLED_ALIKE = {"field_digests": "field (the digest of its spec, though names may agree)", "algo": "algorithm",
-                "actions": "actions", "episodes": "episodes per seed"}
+POOLED_ALIKE = {"field_digests": "field (the digest of its spec, though names may agree)", "fields": "field names",
+                "algo": "algorithm", "actions": "actions", "episodes": "episodes per seed"}
 
 
 def _shown(one: SeedSummary, key: str) -> str:

@@ -333,3 +333,16 @@ def test_the_bootstrap_of_many_seeds_is_drawn_in_batches_with_the_same_answer(mo
     whole = interval(values)
     monkeypatch.setattr(summary, "RESAMPLED_AT_ONCE", 40 * 7)  # seven resamples a batch
     assert interval(values) == pytest.approx(whole)
+
+
+def test_summaries_of_one_digest_under_two_names_are_not_pooled(tmp_path):
+    """Before: a summary edited to another field name was pooled, the result carrying the first's name alone."""
+    from fieldgen.run.summary import SummaryError, pooled, read
+
+    paths, _, _ = one_seed_each(tmp_path)
+    edited = json.loads(paths[4].read_text())
+    edited["fields"] = ["point_far"]
+    paths[4].write_text(json.dumps(edited))
+    with pytest.raises(SummaryError, match=re.escape(f"{paths[4]} and {paths[0]} differ in field names (['point_far'] "
+                                                     "against ['point_nav']): pooled seeds must be judged alike")):
+        pooled([(p, read(p)) for p in paths], "")
