@@ -286,8 +286,14 @@ def check_file(path: Path, output: Output, how: str | None = None, folder_made: 
     (FolderError) where its folder cannot take it (a file in its place, or read-only; missing, where the command
     makes no folder: not `folder_made`): a command checks before its work what would otherwise fail only once the
     work is done. `how` is what else the user may do (by default: choose another path with `output.option`)."""
-    _check_folder(path, how or f"choose another {output.option}", folder_made)
+    how = how or _another(output)
+    _check_folder(path, how, folder_made)
     _check_replace(path, output, how)
+
+
+def _another(output: Output) -> str:
+    """What else a user may do where a command's file cannot be written: name another path."""
+    return f"choose another {output.option}"
 
 
 def _check_folder(path: Path, how: str, folder_made: bool) -> None:
@@ -306,10 +312,10 @@ def _check_folder(path: Path, how: str, folder_made: bool) -> None:
                           f"folder's permissions or {how}")
 
 
-def _check_replace(path: Path, output: Output, how: str | None) -> None:
+def _check_replace(path: Path, output: Output, how: str) -> None:
     if not path.exists() and not path.is_symlink():
         return
-    where = f"move it aside or {how or f'choose another {output.option}'}"
+    where = f"move it aside or {how}"
     _refuse_unlike(path, "file", output, where)
     writer = writer_of(path)
     if writer is None:
@@ -327,7 +333,7 @@ def write_file(path: Path, data: bytes | Iterable[bytes], output: Output, how: s
     """Write the file `path` as `output.command` (refused, as by check_file, where it would replace what that
     command did not write; a folder that cannot take it is a WriteError, which each writer words), record in
     the folder that it wrote it, then write it whole (write_atomic)."""
-    _check_replace(path, output, how)
+    _check_replace(path, output, how or _another(output))
     own(path, output)
     digest = hashlib.sha256()
 

@@ -114,9 +114,10 @@ def _train(run, videos: bool, logger: str, fmt: str | None = None, deadline: flo
     except (record.RunError, FolderError) as exc:  # training diverged, or another process trains the run
         fail(str(exc))
     except OSError as exc:  # every file of a run is replaced atomically, so the last good ones remain
-        helps = ("move aside what stands there" if exc.errno in (errno.EEXIST, errno.EISDIR, errno.ENOTDIR) else
-                 "free some space" if exc.errno in NO_SPACE else "fix the folder's permissions"
-                 if exc.errno in NO_PERMISSION else "free some space (or fix the folder's permissions)")
+        helps = ("move aside what stands there" if exc.errno in (errno.EEXIST, errno.EISDIR, errno.ENOTDIR)
+                 else "free some space" if exc.errno in NO_SPACE
+                 else "fix the folder's permissions" if exc.errno in NO_PERMISSION
+                 else "free some space (or fix the folder's permissions)")
         fail(f"could not write {exc.filename or run.folder}: {exc.strerror or exc}; the files already there are "
               f"intact: {helps} and continue with fieldgen train --resume {shell(run.folder)}")
     except Exception as exc:

@@ -24,7 +24,7 @@ from pydantic import (AfterValidator, BaseModel, ConfigDict, Field, StrictBool, 
 
 from fieldgen.curriculum.promotion import Promotion
 from fieldgen.files import Output, kind_of_blocker, parsed_json, write_atomic, written_by
-from fieldgen.limits import MAX_SEEDS, SEED_MAX
+from fieldgen.limits import SEED, SEEDS
 from fieldgen.schema.errors import shown_text, shown_value
 from fieldgen.suggest import shell
 
@@ -41,13 +41,16 @@ def in_the_way(run_dir: Path, videos: bool) -> str | None:
     """Where a folder (or a link that leads nowhere) stands where the run writes one of its own files, or a file where
     it keeps its videos: the sentence that says so and how to go on, so that it is refused before training rather
     than at the first write after it; None where nothing is."""
+    def other_than(path: Path, is_kind) -> bool:  # something there, and not of the kind the run writes
+        return path.is_symlink() and not path.exists() or path.exists() and not is_kind(path)
+
     for name, what in OWN_FILES.items():
         path = run_dir / name
-        if path.is_symlink() and not path.exists() or path.exists() and not path.is_file():
+        if other_than(path, Path.is_file):
             return (f"{path} is {'a folder' if path.is_dir() else kind_of_blocker(path)} where the run writes its "
                     f"{what}; move it aside, then continue with fieldgen train --resume {shell(run_dir)}")
     path = run_dir / VIDEOS
-    if videos and (path.is_symlink() and not path.exists() or path.exists() and not path.is_dir()):
+    if videos and other_than(path, Path.is_dir):
         return (f"{path} is {kind_of_blocker(path)} where the run keeps its videos; move it aside, or continue "
                 f"without videos: fieldgen train --resume {shell(run_dir)} --no-videos")
     return None
@@ -188,8 +191,8 @@ class RunRecord(BaseModel):
     observation: dict
     field: Annotated[dict, Field(strict=True)] | None = None  # the resolved spec of the field the run is judged on
     # (reading metrics needs no field; opening the run does: session.open_run refuses a record without it)
-    seeds: Annotated[list[Annotated[StrictInt, Field(ge=0, le=SEED_MAX)]], Field(min_length=1, max_length=MAX_SEEDS),
-                     AfterValidator(_each_once)] = []  # []: the config's seed
+    seeds: Annotated[list[Annotated[StrictInt, Field(ge=SEED.low, le=SEED.high)]],
+                     Field(min_length=1, max_length=SEEDS.high), AfterValidator(_each_once)] = []  # []: config's seed
     fields: Annotated[list[Annotated[StrictStr, AfterValidator(_inside)]], Field(min_length=1)] = []  # []: field/
     promotion: Promotion = Promotion()
     mixed: StrictBool = False
