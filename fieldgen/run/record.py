@@ -33,8 +33,9 @@ LEARNER, INITIAL, VIDEOS = "learner.msgpack", "initial.msgpack", "videos"
 RUN_FOLDER = Output("fieldgen train", (), RUN,  # written into file by file, never replaced whole
                     files=(RUN, METRICS, CSV, CHECKPOINT, LEARNER, INITIAL, PLOT, VIDEOS, "field", "stages"),
                     record_keys=("algo", "config"))
-# what each of a run's own files holds, in the words of a refusal where something else stands in its place
-OWN_FILES = {METRICS: "metrics", CSV: "metrics as CSV", CHECKPOINT: "checkpoint", LEARNER: "learner", PLOT: "plot"}
+# what each of a run's own files holds, in the words of a refusal where something else stands in its place (its
+# checkpoint and learner are read before training, and train.py says what stands in their place)
+OWN_FILES = {METRICS: "metrics", CSV: "metrics as CSV", PLOT: "plot"}
 
 
 def in_the_way(run_dir: Path, videos: bool) -> str | None:
