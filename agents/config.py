@@ -29,7 +29,7 @@ from ..schema.errors import shown_text, shown_value
 from ..schema.source import SpecLoader
 from ..suggest import allowed, did_you_mean
 from .buffer import gradient_steps, iterations
-from .choices import ALGORITHMS, EVAL_ACTIONS, PRESETS as NAMED_PRESETS
+from .choices import ALGORITHMS, EVAL_ACTIONS, PRESETS as NAMED_PRESETS, SAMPLER
 from .recipes import Recipe
 from .sharding import by_seed
 
@@ -196,7 +196,8 @@ class RunConfig(BaseModel):
     @classmethod
     def _section(cls, file: Path | None, others: tuple[str, ...]) -> tuple[dict, dict[str, int], dict[str, str]]:
         """This algorithm's keys in a config file, the line of each, and each single value as it is written there;
-        a file with any other section is refused."""
+        a file with any other section is refused but the automatic curriculum's `sampler:`, whose reader is
+        `fieldgen train --curriculum auto` (curriculum.auto.Sampler.configured)."""
         if file is None:
             return {}, {}, {}
         try:
@@ -211,13 +212,14 @@ class RunConfig(BaseModel):
             raise ConfigError(f"{file}: a config file is a mapping with {what} of config keys")
         root = yaml.compose(text, Loader=yaml.SafeLoader)
         lines = {key.value: key.start_mark.line + 1 for key, _ in root.value}
-        stray = next((key for key in loaded if key not in (cls.algo, *others)), None)
+        stray = next((key for key in loaded if key not in (cls.algo, *others, SAMPLER)), None)
         if stray is not None:
             near = did_you_mean(str(stray), (cls.algo,))
             hint = (f"; it sets {stray}'s settings and this run trains {cls.algo} (train {stray} with --algo "
                     f"{stray})" if stray in ALGORITHMS else f" ({near[2:]})" if near else "")
             raise ConfigError(f"{file}:{lines.get(stray, '?')}: section '{stray}:' is not read by this run"
-                              f"{hint}; a config file is a mapping with {what} of config keys")
+                              f"{hint}; a config file is a mapping with {what} of config keys (and '{SAMPLER}:', the "
+                              "level sampler's, with --curriculum auto)")
         if not isinstance(section, dict):
             key, value = cls.example().split(".", 1)[1].split("=", 1)
             raise ConfigError(f"{file}:{lines.get(cls.algo, '?')}: '{cls.algo}:' holds {shown_value(section)} where "

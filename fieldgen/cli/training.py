@@ -42,17 +42,35 @@ def _set_help(example: str) -> str:
     return f"override a config key: {example} (repeat it for more; a later one wins)"
 
 
-def _read_config(config: Path | None) -> None:
-    """A --config file is read first as specs are (fieldgen.schema.source: bounded in size, depth and aliases,
-    duplicate keys refused, every problem at its line), before its values are checked (ConfigError)."""
+def _read_config(config: Path | None, unsampled: str | None = None):
+    """A --config file as schema.source reads specs (bounded in size, depth and aliases, duplicate keys refused,
+    every problem at its line), before its values are checked (ConfigError); None without one. Where the run
+    draws no automatic curriculum's levels (`unsampled` says what it trains instead), its `sampler:` section is
+    refused at its line: nothing would read it."""
     from fieldgen.agents.config import ConfigError
     from fieldgen.schema.source import read_yaml
 
-    if config is not None:
-        try:
-            read_yaml(config, "a config file", "a config file holds a section per algorithm, such as 'crl:'")
-        except SpecError as exc:  # each problem names the file, with its line where it has one
-            raise ConfigError("--config " + "; ".join(map(str, exc.problems))) from None
+    if config is None:
+        return None
+    try:
+        source = read_yaml(config, "a config file", "a config file holds a section per algorithm, such as 'crl:'")
+    except SpecError as exc:  # each problem names the file, with its line where it has one
+        raise ConfigError("--config " + "; ".join(map(str, exc.problems))) from None
+    if unsampled is not None:
+        _sampler_unread(source, unsampled)
+    return source
+
+
+def _sampler_unread(config, unsampled: str) -> None:
+    """ConfigError at the line of a config file's `sampler:` section (`config` as read) in a run that draws no
+    automatic curriculum's levels (`unsampled`: what it trains instead)."""
+    from fieldgen.agents.choices import SAMPLER
+    from fieldgen.agents.config import ConfigError
+
+    if config is not None and SAMPLER in config.data:
+        file, line, _ = config.position((SAMPLER,))
+        raise ConfigError(f"{file}:{line}: {SAMPLER}: sets how --curriculum auto draws its levels, and "
+                          f"{unsampled}; take the section out, or use a config file without it")
 
 
 def _summary_named(path: Path | None, output) -> None:
@@ -277,9 +295,10 @@ def train(
             if spec is None:
                 fail("name a field to train on, or --resume a run folder")
             source = field_source(spec)
-            _read_config(config)
+            config_read = _read_config(config)
             field = session.field_spec(source)
             if field.teams is not None:  # a match: one network plays both sides (self-play PPO)
+                _read_config(config, f"{field.name} trains by self-play on the field itself")
                 from fieldgen import curriculum as curricula
 
                 if curricula.is_curriculum(source):
@@ -328,7 +347,7 @@ def train(
                 _note_if_gpu_sized(algo_config.total_steps)
             if levels is not None and curriculum_kind != "auto":
                 fail(f"--levels {levels} sets how many levels --curriculum auto makes; add --curriculum auto")
-            sampler = _sampler(samplers) if samplers else None
+            sampler = _sampler(samplers, config_read, auto=curriculum_kind == "auto")
             stops.check()  # a Ctrl-C dropped while the field built: no run folder for it
             run = session.new_run(source, algo, range(seed, seed + seeds), algo_config, runs, mixed, init_from,
                                   auto=curriculum_kind == "auto", levels=levels, processes=processes,
@@ -448,13 +467,20 @@ def _train_team(run, deadline: float | None = None, fmt: str | None = None) -> N
         raise typer.Exit(TIME_LIMIT_STATUS)
 
 
-def _sampler(settings: list[str]):
-    """The automatic curriculum's sampler of --sampler's settings; one line where one is bad."""
+def _sampler(settings: list[str] | None, config, auto: bool):
+    """The automatic curriculum's sampler of a --config file's `sampler:` section (`config`, as read) and
+    --sampler's settings over it, None where neither sets one; one line where one is bad, or where the run
+    draws no automatic curriculum's levels (`auto`)."""
     from fieldgen.curriculum.auto import Sampler
     from fieldgen.curriculum.levels import LevelError
 
+    if not auto:
+        if settings:
+            fail("--sampler sets how --curriculum auto draws its levels; add --curriculum auto")
+        _sampler_unread(config, "this run makes no automatic curriculum (add --curriculum auto)")
+        return None
     try:
-        return Sampler.of(settings)
+        return Sampler.configured(config, settings or [])
     except LevelError as exc:
         fail(str(exc))
 
@@ -514,7 +540,7 @@ def compare(
     source = field_source(sources[0], "a build folder, or run folders to compare")
     names = [a.strip() for a in algos.split(",") if a.strip()]
     try:
-        _read_config(config)
+        _read_config(config, "fieldgen compare trains each algorithm on the field itself")
         folder, todo = comparing.runs(source, names, list(range(seeds)), runs, config, sets or [],
                                       preset=preset, total_steps=steps, num_envs=envs)
     except (SpecError, ConfigError, record.RunError, FolderError) as exc:

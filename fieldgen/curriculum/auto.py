@@ -30,6 +30,7 @@ Those settings are a `Sampler`, recorded in run.json.
 from __future__ import annotations
 
 import dataclasses
+from typing import Sequence
 
 import jax
 import jax.numpy as jnp
@@ -38,10 +39,12 @@ import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from fieldgen import limits
+from fieldgen.agents.choices import SAMPLER
 from fieldgen.curriculum.levels import LevelError, LevelSpace
 from fieldgen.curriculum.schedule import Mixed
 from fieldgen.schema import FieldSpec, SpecError
-from fieldgen.schema.errors import shown_value
+from fieldgen.schema.errors import shown_text, shown_value
+from fieldgen.schema.source import Source
 from fieldgen.suggest import allowed, did_you_mean
 
 LEVELS = 8  # levels on the path from the easy end to the spec, the spec included
@@ -111,6 +114,33 @@ class Sampler(BaseModel):
     def of(cls, settings: list[str], where: str = "--sampler") -> "Sampler":
         """The sampler of `settings` (KEY=VALUE each, over the defaults); LevelError in one line naming the
         setting, its allowed values and what it means, where one is unknown or out of range."""
+        return cls.checked(cls._parsed(settings, where), where)
+
+    @classmethod
+    def configured(cls, config: Source | None, settings: Sequence[str] = ()) -> "Sampler | None":
+        """The sampler of a --config file's `sampler:` section (`config`, as schema.source reads it) with
+        --sampler's `settings` over it, so that a recipe's file holds its sampler as it holds its trainer's
+        settings; None where neither sets one. LevelError names the file, line and key of a bad one."""
+        section = config.data.get(SAMPLER) if config is not None else None
+        if section is None and not settings:
+            return None
+        values, at, where = {}, {}, "--sampler"
+        if section is not None:
+            where = f"{_line(config, (SAMPLER,))}: {SAMPLER}"
+            if not isinstance(section, dict):
+                raise LevelError(f"{where} holds {shown_value(section)} where the sampler's keys go, one a line "
+                                 f"and indented below it, e.g. '  replaced: 8'; keys: {', '.join(cls.model_fields)}")
+            for key, value in section.items():
+                at[key] = f"{_line(config, (SAMPLER, key))}: {SAMPLER}:"
+                cls._known(str(key), f"{at[key]} {shown_text(str(key))}")
+                values[key] = value
+            where += " with --sampler" if settings else ""
+        parsed = cls._parsed(settings, "--sampler")
+        return cls.checked({**values, **parsed}, where, {**at, **dict.fromkeys(parsed, "--sampler")})
+
+    @classmethod
+    def _parsed(cls, settings: Sequence[str], where: str) -> dict:
+        """KEY=VALUE settings as values, each key known; LevelError in one line at the first that is not."""
         values = {}
         for setting in settings:
             key, sep, text = setting.partition("=")
@@ -118,18 +148,24 @@ class Sampler(BaseModel):
             if not sep or not text.strip():
                 raise LevelError(f"{where} {setting}: write KEY=VALUE, e.g. {where} replaced=8; keys: "
                                  f"{', '.join(cls.model_fields)}")
-            if key not in cls.model_fields:
-                near = did_you_mean(key, list(cls.model_fields)) or "."
-                raise LevelError(f"{where} {setting}: unknown key '{key}'{near} Keys: {', '.join(cls.model_fields)}")
+            cls._known(key, f"{where} {setting}")
             try:
                 values[key] = yaml.safe_load(text) if len(text) <= limits.MAX_DIGITS else text
             except (yaml.YAMLError, ValueError):  # ValueError: an integer of more digits than Python converts
                 values[key] = text
-        return cls.checked(values, where)
+        return values
 
     @classmethod
-    def checked(cls, values: dict, where: str) -> "Sampler":
-        """`values` as a Sampler, or LevelError in one line naming the first bad key and its allowed values."""
+    def _known(cls, key: str, said: str) -> None:
+        """LevelError where `key` is no setting of the sampler, with the nearest one and every key."""
+        if key not in cls.model_fields:
+            near = did_you_mean(key, list(cls.model_fields)) or "."
+            raise LevelError(f"{said}: unknown key '{key}'{near} Keys: {', '.join(cls.model_fields)}")
+
+    @classmethod
+    def checked(cls, values: dict, where: str, at: dict[str, str] | None = None) -> "Sampler":
+        """`values` as a Sampler, or LevelError in one line naming the first bad key and its allowed values,
+        said where it was written (`at`, by key) or else `where`."""
         try:
             return cls.model_validate(values)
         except ValidationError as exc:
@@ -137,9 +173,15 @@ class Sampler(BaseModel):
             key = error["loc"][0] if error["loc"] else None
             if key in cls.model_fields:
                 info = cls.model_fields[key]
-                raise LevelError(f"{where} {key}={shown_value(values.get(key))}: {key} {allowed(error, info)} "
-                                 f"({info.description})") from None
+                raise LevelError(f"{(at or {}).get(key, where)} {key}={shown_value(values.get(key))}: {key} "
+                                 f"{allowed(error, info)} ({info.description})") from None
             raise LevelError(f"{where}: {error['msg'].removeprefix('Value error, ')}") from None
+
+
+def _line(config: Source, parts: tuple) -> str:
+    """FILE:LINE of a key of a YAML file as schema.source read it."""
+    file, line, _ = config.position(parts)
+    return f"{file}:{line}"
 
 
 def path(axes: int, count: int) -> np.ndarray:

@@ -24,6 +24,7 @@ from pydantic import (BaseModel, BeforeValidator, ConfigDict, Field, StrictBool,
                       ValidationError)
 
 from fieldgen import limits
+from fieldgen.agents.choices import SAMPLER  # also the prefix of a set or grid key: sampler.replaced
 from fieldgen.agents.registry import ALGORITHMS
 from fieldgen.counts import count
 from fieldgen.files import file_in_the_way, kind_of_blocker
@@ -33,7 +34,6 @@ from fieldgen.schema.errors import shown_text
 from fieldgen.schema.source import Source, read_yaml
 
 BACKENDS = ("local", "slurm")
-SAMPLER = "sampler"  # the prefix of a set or grid key of the automatic curriculum's sampler: sampler.replaced
 PLAN = "sweep.json"  # in the sweep's folder: the runs as planned, so that a changed sweep file is noticed
 
 
@@ -429,6 +429,8 @@ def _config_file(config: Path, spec: SweepFile, source: Source, found: list[Prob
     would refuse is refused before any starts."""
     from fieldgen.agents import registry
     from fieldgen.agents.config import ConfigError
+    from fieldgen.curriculum.auto import Sampler
+    from fieldgen.curriculum.levels import LevelError
 
     for algo in spec.algorithms:
         try:
@@ -436,6 +438,17 @@ def _config_file(config: Path, spec: SweepFile, source: Source, found: list[Prob
         except ConfigError as exc:
             found.append(source.problem(("config",), f"the {algo} runs read it with --config and would stop: {exc}"))
             return
+    try:
+        read = read_yaml(config, "a config file", "a config file holds a section per algorithm, such as 'crl:'")
+        if spec.curriculum is None and SAMPLER in read.data:
+            file, line, _ = read.position((SAMPLER,))
+            found.append(source.problem(("config",), f"{file}:{line}: {SAMPLER}: sets how the automatic curriculum "
+                                                     "draws its levels, and this sweep makes none: add curriculum: "
+                                                     "auto to the sweep, or take the section out"))
+        else:
+            Sampler.configured(read)
+    except (SpecError, LevelError) as exc:
+        found.append(source.problem(("config",), f"the runs read it with --config and would stop: {exc}"))
 
 
 def _assignments(spec: SweepFile, source: Source, found: list[Problem]) -> None:

@@ -557,6 +557,51 @@ def test_a_runs_sampler_is_kept_in_run_json_and_resumed_with(tmp_path):
     assert session.open_run(run, load_state=False).plan.schedule.sampler == DEFAULT
 
 
+def test_a_config_files_sampler_section_sets_the_runs_sampler_under_the_command_lines(tmp_path):
+    """A --config file's `sampler:` holds a recipe's sampler as its `crl:` holds the trainer's: run.json keeps it,
+    --sampler given beside it wins key by key."""
+    config = tmp_path / "recipe.yaml"
+    config.write_text("crl:\n  num_evals: 2\nsampler:\n  replaced: 8\n  buffer: 16\n")
+    args = ["train", "point_soccer", "--curriculum", "auto", "--levels", "3", "--steps", "20k", "--envs", "8",
+            "--config", str(config), "--prepare"]
+    made = runner.invoke(app, [*args, "--out", str(tmp_path / "a")])
+    assert made.exit_code == 0, made.output
+    saved = json.loads((tmp_path / "a" / "point_soccer-auto-crl-0" / "run.json").read_text())
+    assert saved["sampler"] == {**DEFAULT.model_dump(), "replaced": 8, "buffer": 16}
+    over = runner.invoke(app, [*args, "--sampler", "replaced=2", "--out", str(tmp_path / "b")])
+    assert over.exit_code == 0, over.output
+    saved = json.loads((tmp_path / "b" / "point_soccer-auto-crl-0" / "run.json").read_text())
+    assert (saved["sampler"]["replaced"], saved["sampler"]["buffer"]) == (2, 16)
+
+
+@pytest.mark.parametrize(("section", "says"), [
+    ("sampler:\n  replaced: -1\n", "recipe.yaml:3: sampler: replaced=-1: replaced must be at least 0"),
+    ("sampler:\n  bufer: 64\n", "recipe.yaml:3: sampler: bufer: unknown key 'bufer'; did you mean 'buffer'?"),
+    ("sampler: 8\n", "recipe.yaml:2: sampler holds 8 where the sampler's keys go"),
+    ("sampler:\n  buffer: 16\n  replaced: 20\n", "recipe.yaml:2: sampler: replaced 20 is more than the buffer's "
+                                                   "16 levels"),
+])
+def test_a_bad_sampler_section_of_a_config_file_is_one_line_at_its_line(tmp_path, section, says):
+    config = tmp_path / "recipe.yaml"
+    config.write_text("crl: {num_evals: 2}\n" + section)
+    result = runner.invoke(app, ["train", "point_soccer", "--curriculum", "auto", "--config", str(config),
+                                 "--out", str(tmp_path / "runs"), "--prepare"])
+    assert result.exit_code != 0 and says in " ".join(result.output.split()), result.output
+    assert "Traceback" not in result.output and not (tmp_path / "runs").exists()
+
+
+@pytest.mark.parametrize("command", [["train", "point_soccer"], ["compare", "point_soccer"]])
+def test_a_sampler_section_where_no_automatic_curriculum_reads_it_is_refused_at_its_line(tmp_path, command):
+    """Nothing but --curriculum auto draws levels: a recipe's sampler given to another run would be dropped
+    without a word, so it is refused where it is written."""
+    config = tmp_path / "recipe.yaml"
+    config.write_text("crl: {num_evals: 2}\nsampler:\n  replaced: 8\n")
+    result = runner.invoke(app, [*command, "--config", str(config), "--out", str(tmp_path / "runs"), "--prepare"])
+    said = " ".join(result.output.split())
+    assert result.exit_code != 0 and "recipe.yaml:2: sampler: sets how --curriculum auto draws its levels" in said
+    assert "Traceback" not in result.output and not (tmp_path / "runs").exists()
+
+
 def test_a_buffer_whose_levels_are_solved_moves_towards_the_spec():
     """A policy whose frontier (success 0.5) moves out along the kick-off: the buffer gives up levels solved or
     out of reach for harder neighbours of the learnable ones, so its levels move towards the spec's kick-off."""

@@ -666,6 +666,28 @@ def test_a_config_file_every_run_would_refuse_is_refused_by_the_plan(tmp_path, t
     assert phrase in result.output and "fieldgen train" not in result.output
 
 
+@pytest.mark.parametrize("curriculum,text,phrase", [
+    ("", "crl: {num_evals: 2}\nsampler:\n  replaced: 8\n", "c.yaml:2: sampler: sets how the automatic curriculum "
+                                                             "draws its levels, and this sweep makes none"),
+    ("curriculum: auto\n", "sampler:\n  replaced: 99\n", "c.yaml:1: sampler: replaced 99 is more than the "
+                                                          "buffer's 32 levels"),
+])
+def test_a_config_files_sampler_section_is_read_by_the_plan_as_its_runs_will(tmp_path, curriculum, text, phrase):
+    (tmp_path / "c.yaml").write_text(text)
+    path = tmp_path / "sweep.yaml"
+    path.write_text(f"fields: [point_soccer]\nalgorithms: [crl]\nseeds: 1\nsteps: 20k\nenvs: 8\nconfig: c.yaml\n"
+                    f"{curriculum}")
+    result = runner.invoke(app, ["sweep", str(path), "--dry-run", "--out", str(tmp_path / "out")])
+    said = " ".join(result.output.split())
+    assert result.exit_code == 1 and said.startswith(f"error: {path}:6:1: config: ") and phrase in said, said
+    (tmp_path / "c.yaml").write_text("sampler:\n  replaced: 8\n")
+    sweep = plan.load(path) if curriculum else None
+    if sweep is not None:  # the file's sampler reaches the run through --config, as `fieldgen train` reads it
+        made = runner.invoke(app, [*sweep.runs[0].command(), "--prepare"])
+        assert made.exit_code == 0, made.output
+        assert json.loads((sweep.runs[0].folder / "run.json").read_text())["sampler"]["replaced"] == 8
+
+
 def test_a_field_beside_the_sweep_folder_is_named_without_dot_dot_and_a_plan_recorded_with_it_goes_on(tmp_path):
     """`fields: [../mine.yaml]` printed `.../sweeps/../mine.yaml` in every command; a sweep started that way
     still goes on."""

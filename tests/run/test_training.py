@@ -473,9 +473,14 @@ def test_the_config_files_are_found():
 def test_bundled_config_files_hold_only_known_keys(path):
     import yaml
 
-    sections = list(yaml.safe_load(path.read_text()))
+    from fieldgen.agents.choices import SAMPLER
+    from fieldgen.curriculum.auto import Sampler
+    from fieldgen.schema.source import read_yaml
+
+    sections = [s for s in yaml.safe_load(path.read_text()) if s != SAMPLER]  # the level sampler's: below
     for algo in sections:
         trainer(algo).config.layered(path, others=tuple(s for s in sections if s != algo))
+    Sampler.configured(read_yaml(path))  # a LevelError where its sampler section holds a bad key
 
 
 @pytest.mark.parametrize("args,phrase", [
@@ -585,6 +590,11 @@ def test_ant_fields_get_the_ant_preset_under_a_config_file_and_set(tmp_path):
     soccer = crl.CRLConfig.layered(ROOT / "bench" / "configs" / "crl_soccer_auto.yaml", agent="ant")
     assert (soccer.hidden, soccer.skip_every, soccer.windows_per_env) == ((256,) * 4, 0, 2.0)  # as it was measured
     assert (soccer.actor_lr, soccer.critic_lr, soccer.alpha_lr) == (1e-3, 1e-3, crl.CRLConfig().alpha_lr)
+    from fieldgen.curriculum.auto import Sampler
+    from fieldgen.schema.source import read_yaml
+
+    sampled = Sampler.configured(read_yaml(ROOT / "bench" / "configs" / "crl_soccer_auto.yaml"))
+    assert sampled == Sampler(replaced=8)  # its level sampler as measured, the rest at the defaults
 
 
 def test_hidden_layers_that_form_no_residual_block_under_the_ant_preset_are_refused_naming_the_way_out(tmp_path):
