@@ -348,6 +348,10 @@ def train(
             if levels is not None and curriculum_kind != "auto":
                 fail(f"--levels {levels} sets how many levels --curriculum auto makes; add --curriculum auto")
             sampler = _sampler(samplers, config_read, auto=curriculum_kind == "auto")
+            if sampler is not None:  # what --config and --sampler changed, so that a recipe's file is seen at work
+                changed = ", ".join(f"{k}={v}" for k, v in sampler.model_dump(exclude_defaults=True).items())
+                out.print(f"the level sampler: {changed or 'its defaults, as given'}; the rest at their defaults "
+                          "(docs/curricula.md)", soft_wrap=True)
             stops.check()  # a Ctrl-C dropped while the field built: no run folder for it
             run = session.new_run(source, algo, range(seed, seed + seeds), algo_config, runs, mixed, init_from,
                                   auto=curriculum_kind == "auto", levels=levels, processes=processes,

@@ -566,6 +566,7 @@ def test_a_config_files_sampler_section_sets_the_runs_sampler_under_the_command_
             "--config", str(config), "--prepare"]
     made = runner.invoke(app, [*args, "--out", str(tmp_path / "a")])
     assert made.exit_code == 0, made.output
+    assert "the level sampler: buffer=16, replaced=8; the rest at their defaults" in made.output
     saved = json.loads((tmp_path / "a" / "point_soccer-auto-crl-0" / "run.json").read_text())
     assert saved["sampler"] == {**DEFAULT.model_dump(), "replaced": 8, "buffer": 16}
     over = runner.invoke(app, [*args, "--sampler", "replaced=2", "--out", str(tmp_path / "b")])
