@@ -63,14 +63,12 @@ def _read_config(config: Path | None, unsampled: str | None = None):
 
 def _sampler_unread(config, unsampled: str) -> None:
     """ConfigError at the line of a config file's `sampler:` section (`config` as read) in a run that draws no
-    automatic curriculum's levels (`unsampled`: what it trains instead)."""
-    from fieldgen.agents.choices import SAMPLER
+    automatic curriculum's levels (`unsampled`: what it trains instead; curriculum.auto.unread)."""
     from fieldgen.agents.config import ConfigError
+    from fieldgen.curriculum.auto import unread
 
-    if config is not None and SAMPLER in config.data:
-        file, line, _ = config.position((SAMPLER,))
-        raise ConfigError(f"{file}:{line}: {SAMPLER}: sets how --curriculum auto draws its levels, and "
-                          f"{unsampled}; take the section out, or use a config file without it")
+    if (said := unread(config, unsampled)) is not None:
+        raise ConfigError(said)
 
 
 def _summary_named(path: Path | None, output) -> None:
@@ -298,7 +296,7 @@ def train(
             config_read = _read_config(config)
             field = session.field_spec(source)
             if field.teams is not None:  # a match: one network plays both sides (self-play PPO)
-                _read_config(config, f"{field.name} trains by self-play on the field itself")
+                _sampler_unread(config_read, f"{field.name} trains by self-play on the field itself")
                 from fieldgen import curriculum as curricula
 
                 if curricula.is_curriculum(source):
@@ -481,7 +479,7 @@ def _sampler(settings: list[str] | None, config, auto: bool):
     if not auto:
         if settings:
             fail("--sampler sets how --curriculum auto draws its levels; add --curriculum auto")
-        _sampler_unread(config, "this run makes no automatic curriculum (add --curriculum auto)")
+        _sampler_unread(config, "this run makes none (add --curriculum auto)")
         return None
     try:
         return Sampler.configured(config, settings or [])

@@ -178,6 +178,16 @@ class Sampler(BaseModel):
             raise LevelError(f"{where}: {error['msg'].removeprefix('Value error, ')}") from None
 
 
+def unread(config: Source | None, unsampled: str) -> str | None:
+    """Where a run draws no automatic curriculum's levels (`unsampled`: what it does instead) and its config file
+    (`config`, as schema.source read it) holds a `sampler:` section, the sentence that refuses the section at its
+    line: nothing would read it, and a recipe's sampler dropped without a word would be a run unlike its record."""
+    if config is None or SAMPLER not in config.data:
+        return None
+    return (f"{_line(config, (SAMPLER,))}: {SAMPLER}: sets how the automatic curriculum draws its levels, and "
+            f"{unsampled}; take the section out, or use a config file without it")
+
+
 def _line(config: Source, parts: tuple) -> str:
     """FILE:LINE of a key of a YAML file as schema.source read it."""
     file, line, _ = config.position(parts)

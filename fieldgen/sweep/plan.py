@@ -429,7 +429,7 @@ def _config_file(config: Path, spec: SweepFile, source: Source, found: list[Prob
     would refuse is refused before any starts."""
     from fieldgen.agents import registry
     from fieldgen.agents.config import ConfigError
-    from fieldgen.curriculum.auto import Sampler
+    from fieldgen.curriculum.auto import Sampler, unread
     from fieldgen.curriculum.levels import LevelError
 
     for algo in spec.algorithms:
@@ -440,11 +440,8 @@ def _config_file(config: Path, spec: SweepFile, source: Source, found: list[Prob
             return
     try:
         read = read_yaml(config, "a config file", "a config file holds a section per algorithm, such as 'crl:'")
-        if spec.curriculum is None and SAMPLER in read.data:
-            file, line, _ = read.position((SAMPLER,))
-            found.append(source.problem(("config",), f"{file}:{line}: {SAMPLER}: sets how the automatic curriculum "
-                                                     "draws its levels, and this sweep makes none: add curriculum: "
-                                                     "auto to the sweep, or take the section out"))
+        if spec.curriculum is None and (said := unread(read, "this sweep makes none (add curriculum: auto)")):
+            found.append(source.problem(("config",), said))
         else:
             Sampler.configured(read)
     except (SpecError, LevelError) as exc:

@@ -599,7 +599,7 @@ def test_a_sampler_section_where_no_automatic_curriculum_reads_it_is_refused_at_
     config.write_text("crl: {num_evals: 2}\nsampler:\n  replaced: 8\n")
     result = runner.invoke(app, [*command, "--config", str(config), "--out", str(tmp_path / "runs"), "--prepare"])
     said = " ".join(result.output.split())
-    assert result.exit_code != 0 and "recipe.yaml:2: sampler: sets how --curriculum auto draws its levels" in said
+    assert result.exit_code != 0 and "recipe.yaml:2: sampler: sets how the automatic curriculum draws its levels" in said
     assert "Traceback" not in result.output and not (tmp_path / "runs").exists()
 
 
