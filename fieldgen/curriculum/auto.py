@@ -95,6 +95,10 @@ class Sampler(BaseModel):
     hardest_share: float = Field(0.0, ge=0, le=1, description="of new episodes, on the buffer's level furthest "
                                                                "along the path but the spec, which is never "
                                                                "replaced: the buffer cannot retreat")
+    ahead: float = Field(0.0, ge=0, le=16, description="a level's learnability grows by this much times its place "
+                                                       "along the path (0 the easy end, 1 the spec): of levels "
+                                                       "alike learnable the harder is kept, mutated from and "
+                                                       "played more")
 
     _numbers = field_validator("*", mode="before")(limits.not_boolean)  # `--sampler prior=true` is no 1.0
 
@@ -289,13 +293,14 @@ def next_levels(counts: jax.Array, weights: jax.Array, playable: np.ndarray, key
     estimated from `counts` (training episodes ended, succeeded) and its prior. After that `replaced`
     lowest-scoring levels give way to mutations (HARDER) of the highest-scoring ones, each a playable level
     not yet in the buffer; the spec (the last level's own kick-off) never leaves. The spec keeps `target_share`,
-    every other level `floor` spread evenly, the rest goes by learnability p(1 - p) to the power
+    every other level `floor` spread evenly, the rest goes by `learnability` (p (1 - p), grown by `ahead`) to the power
     `sharpness`. With `hardest_share`, the buffer's level furthest along the path (in reading order) but the
     spec takes that share and is never replaced, so the hardest start the buffer holds moves only forward:
     without it a level at success 0 scores as low as a solved one and leaves first."""
     levels, points = playable.shape
     p = estimated_success(counts, sampler.prior).ravel()
-    score = p * (1 - p)
+    along = np.cumsum(playable.ravel()) - 1  # reading order is the path's: a level's points, then the next level's
+    score = learnability(p, jnp.asarray(along / max(int(playable.sum()) - 1, 1), p.dtype), sampler)
     target = jnp.arange(levels * points) == levels * points - 1
     start = initial_buffer(playable, sampler.buffer).ravel()
     member = weights.ravel() > 0
@@ -342,13 +347,20 @@ def next_levels(counts: jax.Array, weights: jax.Array, playable: np.ndarray, key
         jnp.where(member, sampler.kept, 0.0).reshape(levels, points).astype(weights.dtype)
 
 
+def learnability(p, place, sampler: Sampler):
+    """p (1 - p) of a level at success p, grown by `ahead` times its `place` along the path (0 the easy end, 1 the
+    spec): p (1 - p) alone rates a level at 0.5 near the easy end above one at 0.2 near the spec, so a policy
+    that succeeds a little everywhere keeps its episodes, and the buffer, near the easy end."""
+    return p * (1 - p) * (1 + sampler.ahead * place)
+
+
 def level_weights(success: jnp.ndarray, sampler: Sampler = Sampler()) -> jnp.ndarray:
     """How often each level starts an episode next, from each level's success (the spec's last)."""
     n = success.shape[-1] - 1
     if n == 0:
         return jnp.ones_like(success)
     p = success[:-1]
-    learnable = (p * (1.0 - p)) ** sampler.sharpness
+    learnable = learnability(p, jnp.arange(n) / n, sampler) ** sampler.sharpness
     unsolved = p < SOLVED
     frontier = jnp.where(jnp.any(unsolved), jnp.argmax(unsolved), n - 1)
     at_frontier = (jnp.arange(n) == frontier).astype(success.dtype)

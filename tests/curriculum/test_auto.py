@@ -510,6 +510,37 @@ def test_a_sampler_of_its_own_shares_and_replaces_as_it_says():
     np.testing.assert_allclose(np.asarray(even).ravel()[:-1], 0.8 / 7, rtol=1e-5)  # every level alike
 
 
+def test_ahead_grows_a_levels_learnability_with_its_place_along_the_path():
+    """`ahead` multiplies p (1 - p) by 1 + ahead x place (0 the easy end, 1 the spec): the episodes follow it, and
+    of two levels one replacement apart, the easier at success 0.5 gives way before the harder at 0.2; at 0 the
+    shares are p (1 - p)'s as before."""
+    playable = np.ones((2, 4), bool)
+    episodes = jnp.array([[10.0, 10, 10, 0], [0, 0, 0, 30]])
+    successes = jnp.array([[10.0, 5, 0, 0], [0, 0, 0, 3]])
+    p = (np.asarray(successes) + PRIOR / 2) / (np.asarray(episodes) + PRIOR)
+    place = np.arange(8) / 7
+    for ahead in (0.0, 2.0):
+        new, _ = next_levels(jnp.stack([episodes, successes]), jnp.full((2, 4), 1 / 8), playable,
+                             jax.random.PRNGKey(0), Sampler(ahead=ahead))
+        score = (p.ravel() * (1 - p.ravel()) * (1 + ahead * place))[:-1]
+        expected = (1 - TARGET_SHARE) * (FLOOR / 7 + (1 - FLOOR) * score / score.sum())
+        np.testing.assert_allclose(np.asarray(new).ravel(), [*expected, TARGET_SHARE], rtol=1e-5)
+    # a buffer of an easy level at success 0.5 and a hard one at 0.2 (each with its neighbour to mutate into):
+    # the replacement takes the easy one out by p (1 - p), the hard one with ahead 2
+    grid = np.ones((4, 8), bool)
+    held = jnp.zeros((4, 8)).at[0, 2].set(0.1).at[2, 5].set(0.1).at[3, 7].set(0.2).at[1, 0].set(0.1)
+    counts = jnp.zeros((2, 4, 8)).at[0, 0, 2].set(100).at[1, 0, 2].set(50).at[0, 2, 5].set(100).at[1, 2, 5].set(20)
+    counts = counts.at[0, 1, 0].set(100).at[1, 1, 0].set(40)  # a third level, the most learnable: the parent
+    kept = {}
+    for ahead in (0.0, 2.0):
+        weights, _ = next_levels(counts, held, grid, jax.random.PRNGKey(3), Sampler(replaced=1, buffer=4, ahead=ahead))
+        member = np.asarray(weights) > 0
+        kept[ahead] = (bool(member[0, 2]), bool(member[2, 5]))
+    assert kept == {0.0: (True, False), 2.0: (False, True)}
+    ahead_, plain = (level_weights(jnp.array([0.5, 0.2, 0.0]), s) for s in (Sampler(ahead=2.0), DEFAULT))
+    assert ahead_[1] / ahead_[0] > plain[1] / plain[0]  # levels without kick-off points alike: the harder gains
+
+
 @pytest.mark.parametrize(("setting", "says"), [
     ("replaced=-1", "--sampler replaced=-1: replaced must be at least 0 (of the buffer's levels, replaced after"),
     ("repalced=8", "unknown key 'repalced'; did you mean 'replaced'?"),
@@ -525,6 +556,7 @@ def test_a_sampler_of_its_own_shares_and_replaces_as_it_says():
     ("prior=-1e999", "--sampler prior='-1e999': prior must be greater than 0 (episodes at success 0.5"),
     ("prior=true", "--sampler prior=true: prior must be a number (episodes at success 0.5"),
     ("buffer=true", "--sampler buffer=true: buffer must be a whole number (entries episodes are drawn from"),
+    ("ahead=-1", "--sampler ahead=-1: ahead must be at least 0.0 (a level's learnability grows by this much"),
 ])
 def test_a_bad_sampler_setting_is_one_line(tmp_path, setting, says):
     result = runner.invoke(app, ["train", "point_soccer", "--curriculum", "auto", "--sampler", setting,
