@@ -19,9 +19,6 @@ PRESETS: tuple[str, ...] = ("cpu",)
 # how a policy acts when it is judged (a run's evaluations, `eval_actions`; fieldgen eval --actions): its mean
 # action, or actions drawn from it as in training, where the mean alone may do less (or more)
 EVAL_ACTIONS: tuple[str, ...] = ("mean", "sampled")
-# a config file's section beside the trainers': the automatic curriculum's level sampler (curriculum.auto.Sampler),
-# which `fieldgen train --curriculum auto` reads as it reads --sampler; a sweep's `sampler.KEY` is the same
-SAMPLER = "sampler"
 
 
 def judged_on(actions: str) -> str:

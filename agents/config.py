@@ -24,12 +24,13 @@ from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, StrictBool, 
 
 from ..env.contract import Environment
 from ..counts import count
+from ..curriculum.section import SAMPLER
 from ..limits import COUNT_MAX, MAX_SEEDS, SEED_MAX, not_boolean
 from ..schema.errors import shown_text, shown_value
 from ..schema.source import SpecLoader
 from ..suggest import allowed, did_you_mean
 from .buffer import gradient_steps, iterations
-from .choices import ALGORITHMS, EVAL_ACTIONS, PRESETS as NAMED_PRESETS, SAMPLER
+from .choices import ALGORITHMS, EVAL_ACTIONS, PRESETS as NAMED_PRESETS
 from .recipes import Recipe
 from .sharding import by_seed
 

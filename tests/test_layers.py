@@ -58,9 +58,9 @@ RULES = [  # (folder or file, the fieldgen modules it may import, modules outsid
     ("agents", ("fieldgen.env.contract", "fieldgen.curriculum.contract", "fieldgen.suggest", "fieldgen.limits"), (),
      "trainers know environments and curricula through their contracts alone"),
     ("agents/config.py", ("fieldgen.agents", "fieldgen.env.contract", "fieldgen.suggest", "fieldgen.limits", "fieldgen.schema.source",
-                          "fieldgen.schema.errors", "fieldgen.counts"), (),
+                          "fieldgen.schema.errors", "fieldgen.counts", "fieldgen.curriculum.section"), (),
      "the settings read a --set value as a spec's values are read, a count as the command line's, and echo it as a "
-     "spec's problems do"),
+     "spec's problems do; a config file's section beside theirs is a curriculum's, named where it is read"),
     ("agents/recipes.py", ("fieldgen.agents", "fieldgen.suggest", "fieldgen.schema.models", "fieldgen.schema.messages",
                            "fieldgen.schema.source"), (),
      "a recipe's fall rule is read, refused and said as a spec's episode.fall is"),

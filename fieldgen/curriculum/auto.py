@@ -39,9 +39,9 @@ import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from fieldgen import limits
-from fieldgen.agents.choices import SAMPLER
 from fieldgen.curriculum.levels import LevelError, LevelSpace
 from fieldgen.curriculum.schedule import Mixed
+from fieldgen.curriculum.section import SAMPLER
 from fieldgen.schema import FieldSpec, SpecError
 from fieldgen.schema.errors import shown_text, shown_value
 from fieldgen.schema.source import Source

@@ -24,9 +24,9 @@ from pydantic import (BaseModel, BeforeValidator, ConfigDict, Field, StrictBool,
                       ValidationError)
 
 from fieldgen import limits
-from fieldgen.agents.choices import SAMPLER  # also the prefix of a set or grid key: sampler.replaced
 from fieldgen.agents.registry import ALGORITHMS
 from fieldgen.counts import count
+from fieldgen.curriculum.section import SAMPLER  # also the prefix of a set or grid key: sampler.replaced
 from fieldgen.files import file_in_the_way, kind_of_blocker
 from fieldgen.schema import Problem, SpecError, bundled_fields, resolve_spec_path
 from fieldgen.schema.messages import problems

@@ -473,7 +473,7 @@ def test_the_config_files_are_found():
 def test_bundled_config_files_hold_only_known_keys(path):
     import yaml
 
-    from fieldgen.agents.choices import SAMPLER
+    from fieldgen.curriculum.section import SAMPLER
     from fieldgen.curriculum.auto import Sampler
     from fieldgen.schema.source import read_yaml
 
