@@ -589,6 +589,13 @@ def test_a_runs_sampler_is_kept_in_run_json_and_resumed_with(tmp_path):
     assert session.open_run(run, load_state=False).plan.schedule.sampler == DEFAULT
 
 
+def test_the_sampler_options_help_names_every_key_the_sampler_takes():
+    """The help is written before JAX loads, so it cannot read Sampler's keys: it must list them as they are."""
+    helped = " ".join(runner.invoke(app, ["train", "--help"], terminal_width=200).output.split())
+    listed = helped.split("kept in run.json: ", 1)[1].split(" (docs", 1)[0].split(", ")
+    assert listed == list(Sampler.model_fields)
+
+
 def test_a_config_files_sampler_section_sets_the_runs_sampler_under_the_command_lines(tmp_path):
     """A --config file's `sampler:` holds a recipe's sampler as its `crl:` holds the trainer's: run.json keeps it,
     --sampler given beside it wins key by key."""
