@@ -653,8 +653,16 @@ def file_in_the_way(folder: Path) -> Path | None:
 
 
 def kind_of_blocker(blocker: Path) -> str:
-    """What file_in_the_way found, in the words every message about it uses."""
+    """What file_in_the_way (or stands_unlike) found, in the words every message about it uses."""
+    if blocker.is_dir():
+        return "a folder"
     return "a link that leads nowhere (a loop of links, or to nothing)" if blocker.is_symlink() else "a file"
+
+
+def stands_unlike(path: Path, is_kind) -> bool:
+    """Whether something stands at `path` that is not of the kind a command writes there (`is_kind`: Path.is_file or
+    Path.is_dir), a link that leads nowhere included: what it must refuse before its work rather than fail at."""
+    return path.is_symlink() and not path.exists() or path.exists() and not is_kind(path)
 
 
 def named_twice(paths: Iterable[Path]) -> str | None:

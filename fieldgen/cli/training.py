@@ -347,7 +347,7 @@ def train(
             if levels is not None and curriculum_kind != "auto":
                 fail(f"--levels {levels} sets how many levels --curriculum auto makes; add --curriculum auto")
             sampler = _sampler(samplers, config_read, auto=curriculum_kind == "auto")
-            if sampler is not None:  # what --config and --sampler changed, so that a recipe's file is seen at work
+            if sampler is not None and curriculum_kind == "auto":  # so that a recipe's file is seen at work
                 changed = ", ".join(f"{k}={v}" for k, v in sampler.model_dump(exclude_defaults=True).items())
                 out.print(f"the level sampler: {changed or 'its defaults, as given'}; the rest at their defaults "
                           "(docs/curricula.md)", soft_wrap=True)
@@ -477,13 +477,10 @@ def _sampler(settings: list[str] | None, config, auto: bool):
     from fieldgen.curriculum.auto import Sampler
     from fieldgen.curriculum.levels import LevelError
 
-    if not auto:
-        if settings:
-            fail("--sampler sets how --curriculum auto draws its levels; add --curriculum auto")
+    if not auto:  # --sampler alone is refused with the run's plan (curriculum.plans.plan)
         _sampler_unread(config, "this run makes none (add --curriculum auto)")
-        return None
     try:
-        return Sampler.configured(config, settings or [])
+        return Sampler.configured(config if auto else None, settings or [])
     except LevelError as exc:
         fail(str(exc))
 

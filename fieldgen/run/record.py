@@ -23,7 +23,7 @@ from pydantic import (AfterValidator, BaseModel, ConfigDict, Field, StrictBool, 
                       model_validator)
 
 from fieldgen.curriculum.promotion import Promotion
-from fieldgen.files import Output, kind_of_blocker, parsed_json, write_atomic, written_by
+from fieldgen.files import Output, kind_of_blocker, parsed_json, stands_unlike, write_atomic, written_by
 from fieldgen.limits import SEED, SEEDS
 from fieldgen.schema.errors import shown_text, shown_value
 from fieldgen.suggest import shell
@@ -42,16 +42,13 @@ def in_the_way(run_dir: Path, videos: bool) -> str | None:
     """Where a folder (or a link that leads nowhere) stands where the run writes one of its own files, or a file where
     it keeps its videos: the sentence that says so and how to go on, so that it is refused before training rather
     than at the first write after it; None where nothing is."""
-    def other_than(path: Path, is_kind) -> bool:  # something there, and not of the kind the run writes
-        return path.is_symlink() and not path.exists() or path.exists() and not is_kind(path)
-
     for name, what in OWN_FILES.items():
         path = run_dir / name
-        if other_than(path, Path.is_file):
-            return (f"{path} is {'a folder' if path.is_dir() else kind_of_blocker(path)} where the run writes its "
-                    f"{what}; move it aside, then continue with fieldgen train --resume {shell(run_dir)}")
+        if stands_unlike(path, Path.is_file):
+            return (f"{path} is {kind_of_blocker(path)} where the run writes its {what}; move it aside, then continue "
+                    f"with fieldgen train --resume {shell(run_dir)}")
     path = run_dir / VIDEOS
-    if videos and other_than(path, Path.is_dir):
+    if videos and stands_unlike(path, Path.is_dir):
         return (f"{path} is {kind_of_blocker(path)} where the run keeps its videos; move it aside, or continue "
                 f"without videos: fieldgen train --resume {shell(run_dir)} --no-videos")
     return None

@@ -12,7 +12,8 @@ import jax
 import numpy as np
 from rich.text import Text
 
-from fieldgen.files import VIDEOS as DRAWN, FolderError, Output, kind_of_blocker, write_atomic, write_file
+from fieldgen.files import (VIDEOS as DRAWN, FolderError, Output, kind_of_blocker, stands_unlike, write_atomic,
+                            write_file)
 from fieldgen.run.record import VIDEOS
 from fieldgen.suggest import shell
 
@@ -157,8 +158,8 @@ def draw_kept(path: Path, models: dict, fmt: str) -> tuple[str, int | None]:
                        "--field SPEC")
     _check_episode(path, episode, models[played], camera)
     video = path.with_suffix(f".{fmt}")
-    if video.is_dir() or video.is_symlink() and not video.exists():
-        raise RunError(f"{video} is {'a folder' if video.is_dir() else kind_of_blocker(video)} where the video of "
+    if stands_unlike(video, Path.is_file):
+        raise RunError(f"{video} is {kind_of_blocker(video)} where the video of "
                        f"{path.name} goes; move it aside, or draw the episodes as {'gif' if fmt == 'mp4' else 'mp4'} "
                        "(--video-format)")
     if video.exists():
