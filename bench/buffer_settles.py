@@ -25,8 +25,16 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from fieldgen.cli.app import count
+from fieldgen import counts
 from fieldgen.curriculum.auto import Sampler, kickoff_coordinates, next_levels
+
+
+def env_steps(text: str) -> int:
+    """--at as fieldgen's options read a count (22M, 2.2e7); argparse's one-line error where it is none."""
+    try:
+        return counts.count(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def measured_success(metrics: Path, at: int) -> tuple[int, np.ndarray]:
@@ -77,7 +85,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("run", type=Path, help="a run folder of the automatic curriculum (its run.json's kickoffs)")
     parser.add_argument("--metrics", type=Path, required=True, help="a metrics.jsonl with per-level success")
-    parser.add_argument("--at", type=count, required=True, help="env steps: the evaluation nearest them is read (22M)")
+    parser.add_argument("--at", type=env_steps, required=True, help="env steps: the evaluation nearest them is read (22M)")
     parser.add_argument("--ahead", default="0,1,2,4", help="comma-separated values of the sampler's `ahead`")
     parser.add_argument("--replaced", type=int, default=8, help="the sampler's `replaced`")
     parser.add_argument("--evaluations", type=int, default=15)

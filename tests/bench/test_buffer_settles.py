@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from fieldgen.curriculum.auto import Sampler
 
@@ -44,3 +46,9 @@ def test_ahead_moves_the_settled_buffer_towards_the_field():
     for settled in shares.values():
         assert np.isclose(settled.sum(), 1.0) and settled[-1] >= 0.2 - 1e-6
     assert shares[4.0][2:].sum() > shares[0.0][2:].sum()
+
+
+def test_env_steps_read_as_fieldgen_reads_counts_and_refused_in_argparse_s_words():
+    assert buffer_settles.env_steps("22M") == 22_000_000 and buffer_settles.env_steps("1.08M") == 1_080_000
+    with pytest.raises(argparse.ArgumentTypeError, match="'abc' is not a positive whole count"):
+        buffer_settles.env_steps("abc")
