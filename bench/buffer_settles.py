@@ -6,6 +6,7 @@ It separates the sampler from learning: a run whose evaluations score levels 5-8
 levels 2-3 may be slow to learn or slow to move its buffer, and this says which the sampler alone would do.
 
     python bench/buffer_settles.py RUN --metrics FILE --at 22.0M --ahead 0,1,2,4 -o PNG
+    python bench/buffer_settles.py RUN --metrics FILE --at 1.08M --ahead 0,2,2 --ahead-from 0,0,0.1
 
 RUN is a run folder of the automatic curriculum with kick-off points (its run.json's `kickoffs`: `fieldgen train
 FIELD --curriculum auto --prepare` writes one); FILE a metrics.jsonl of such a run, whose rows at env steps --at give
@@ -81,12 +82,29 @@ def settle(coordinates: np.ndarray, success: np.ndarray, sampler: Sampler, evalu
     return shares.sum(axis=1) / shares.sum()
 
 
+def sampler_settings(ahead: str, ahead_from: str, parser: argparse.ArgumentParser) -> list[tuple[float, float]]:
+    """(ahead, ahead_from) of each row: --ahead-from pairs with --ahead value by value, or one value for all."""
+    aheads, froms = [float(a) for a in ahead.split(",")], [float(f) for f in ahead_from.split(",")]
+    if len(froms) == 1:
+        froms *= len(aheads)
+    if len(froms) != len(aheads):
+        parser.error(f"--ahead-from has {len(froms)} values for --ahead's {len(aheads)}: give one for each, or one")
+    return list(zip(aheads, froms))
+
+
+def label(ahead: float, ahead_from: float) -> str:
+    """A row's name: the ahead value, and where it is grown from when that is not 0."""
+    return f"{ahead:g}" + (f" from {ahead_from:g}" if ahead_from else "")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("run", type=Path, help="a run folder of the automatic curriculum (its run.json's kickoffs)")
     parser.add_argument("--metrics", type=Path, required=True, help="a metrics.jsonl with per-level success")
     parser.add_argument("--at", type=env_steps, required=True, help="env steps: the evaluation nearest them is read (22M)")
     parser.add_argument("--ahead", default="0,1,2,4", help="comma-separated values of the sampler's `ahead`")
+    parser.add_argument("--ahead-from", default="0", help="comma-separated values of the sampler's `ahead_from`, "
+                                                          "one for each --ahead value or one for all")
     parser.add_argument("--replaced", type=int, default=8, help="the sampler's `replaced`")
     parser.add_argument("--evaluations", type=int, default=15)
     parser.add_argument("--episodes", type=int, default=1900, help="training episodes between evaluations")
@@ -97,16 +115,17 @@ def main() -> None:
     coordinates = kickoff_coordinates(json.loads((args.run / "run.json").read_text())["kickoffs"])
     at, levels = measured_success(args.metrics, args.at)
     success = point_success(coordinates, levels)
-    aheads = [float(a) for a in args.ahead.split(",")]
-    table = {a: np.mean([settle(coordinates, success, Sampler(replaced=args.replaced, ahead=a), args.evaluations,
-                                args.episodes, r) for r in range(args.repeats)], axis=0) for a in aheads}
+    settings = sampler_settings(args.ahead, args.ahead_from, parser)
+    samplers = {label(a, f): Sampler(replaced=args.replaced, ahead=a, ahead_from=f) for a, f in settings}
+    table = {name: np.mean([settle(coordinates, success, sampler, args.evaluations, args.episodes, r)
+                            for r in range(args.repeats)], axis=0) for name, sampler in samplers.items()}
     names = [f"level {k + 1}" for k in range(len(levels))]
     print(f"measured success at each level's own kick-off ({at:,} env steps): "
           + ", ".join(f"{v:.2f}" for v in levels))
     print("| ahead | " + " | ".join(names) + " |")
     print("|---" * (len(names) + 1) + "|")
-    for a, shares in table.items():
-        print(f"| {a:g} | " + " | ".join(f"{s:.2f}" for s in shares) + " |")
+    for name, shares in table.items():
+        print(f"| {name} | " + " | ".join(f"{s:.2f}" for s in shares) + " |")
     if args.out:
         import matplotlib
 
@@ -115,8 +134,8 @@ def main() -> None:
 
         fig, ax = plt.subplots(figsize=(9, 4.2))
         width = 0.8 / len(table)
-        for k, (a, shares) in enumerate(table.items()):
-            ax.bar(np.arange(len(names)) + (k - (len(table) - 1) / 2) * width, shares, width, label=f"ahead {a:g}")
+        for k, (name, shares) in enumerate(table.items()):
+            ax.bar(np.arange(len(names)) + (k - (len(table) - 1) / 2) * width, shares, width, label=f"ahead {name}")
         ax.plot(np.arange(len(names)), levels, "k.--", label="measured success at the level's own kick-off")
         ax.set_xticks(np.arange(len(names)), names)
         ax.set_ylabel("share of new episodes (bars); success (dots)")

@@ -197,8 +197,8 @@ def train(
     samplers: Annotated[Optional[list[str]], typer.Option(
         "--sampler", metavar="KEY=VALUE", help="with --curriculum auto: a setting of its level sampler, kept in "
                                                "run.json: target_share, frontier_share, floor, buffer, replaced, "
-                                               "prior, sharpness, kept, hardest_share, ahead (docs: curricula; "
-                                               "a --config file's sampler: section holds them too)")] = None,
+                                               "prior, sharpness, kept, hardest_share, ahead, ahead_from (docs: "
+                                               "curricula; a --config file's sampler: section holds them too)")] = None,
     prepare: Annotated[bool, typer.Option(help="write the run folder (config, built fields) and stop; start it "
                                                 "later with --resume, e.g. on a machine without dm_control")] = False,
     logger: Annotated[str, typer.Option(help="also log every evaluation's numbers and video to TensorBoard "

@@ -99,6 +99,10 @@ class Sampler(BaseModel):
                                                        "along the path (0 the easy end, 1 the spec): of levels "
                                                        "alike learnable the harder is kept, mutated from and "
                                                        "played more")
+    ahead_from: float = Field(0.0, ge=0, lt=1, description="`ahead` grows only the levels the sampler estimates "
+                                                            "at this success or more: before anything is "
+                                                            "learned, levels alike near 0 are not ranked by "
+                                                            "place alone")
 
     _numbers = field_validator("*", mode="before")(limits.not_boolean)  # `--sampler prior=true` is no 1.0
 
@@ -350,8 +354,10 @@ def next_levels(counts: jax.Array, weights: jax.Array, playable: np.ndarray, key
 def learnability(p, place, sampler: Sampler):
     """p (1 - p) of a level at success p, grown by `ahead` times its `place` along the path (0 the easy end, 1 the
     spec): p (1 - p) alone rates a level at 0.5 near the easy end above one at 0.2 near the spec, so a policy
-    that succeeds a little everywhere keeps its episodes, and the buffer, near the easy end."""
-    return p * (1 - p) * (1 + sampler.ahead * place)
+    that succeeds a little everywhere keeps its episodes, and the buffer, near the easy end. A level below
+    `ahead_from` is not grown: where every level is near 0, place alone would rank them."""
+    grown = jnp.where(p >= sampler.ahead_from, sampler.ahead * place, 0.0)
+    return p * (1 - p) * (1 + grown)
 
 
 def level_weights(success: jnp.ndarray, sampler: Sampler = Sampler()) -> jnp.ndarray:

@@ -52,3 +52,12 @@ def test_env_steps_read_as_fieldgen_reads_counts_and_refused_in_argparse_s_words
     assert buffer_settles.env_steps("22M") == 22_000_000 and buffer_settles.env_steps("1.08M") == 1_080_000
     with pytest.raises(argparse.ArgumentTypeError, match="'abc' is not a positive whole count"):
         buffer_settles.env_steps("abc")
+
+
+def test_ahead_from_pairs_with_ahead_value_by_value_or_one_for_all():
+    parser = argparse.ArgumentParser(prog="buffer_settles.py")
+    assert buffer_settles.sampler_settings("0,2,2", "0,0,0.1", parser) == [(0.0, 0.0), (2.0, 0.0), (2.0, 0.1)]
+    assert buffer_settles.sampler_settings("0,2", "0.1", parser) == [(0.0, 0.1), (2.0, 0.1)]
+    assert [buffer_settles.label(a, f) for a, f in ((2.0, 0.0), (2.0, 0.1))] == ["2", "2 from 0.1"]
+    with pytest.raises(SystemExit):  # argparse's one line: two values for three
+        buffer_settles.sampler_settings("0,2,4", "0,0.1", parser)

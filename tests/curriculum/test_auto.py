@@ -13,8 +13,8 @@ import pytest
 from typer.testing import CliRunner
 
 from fieldgen.cli import app
-from fieldgen.curriculum.auto import (HARDER, Auto, Sampler, initial_buffer, kickoff_tables, level_weights, levels,
-                                     next_levels, path)
+from fieldgen.curriculum.auto import (HARDER, Auto, Sampler, initial_buffer, kickoff_tables, learnability,
+                                     level_weights, levels, next_levels, path)
 from fieldgen.curriculum.contract import KICKOFF_BINS, start_sampling
 from fieldgen.curriculum.levels import LevelError, LevelSpace
 from fieldgen.env import FieldEnv
@@ -539,6 +539,20 @@ def test_ahead_grows_a_levels_learnability_with_its_place_along_the_path():
     assert kept == {0.0: (True, False), 2.0: (False, True)}
     ahead_, plain = (level_weights(jnp.array([0.5, 0.2, 0.0]), s) for s in (Sampler(ahead=2.0), DEFAULT))
     assert ahead_[1] / ahead_[0] > plain[1] / plain[0]  # levels without kick-off points alike: the harder gains
+
+
+def test_ahead_from_grows_only_the_levels_that_already_succeed():
+    """With `ahead_from`, a level the sampler estimates below it scores p (1 - p) alone: of levels all near 0 the
+    harder are not rated up by place (what `ahead` alone does before anything is learned); a level at or above
+    it is grown as with `ahead`."""
+    p = jnp.array([0.02, 0.02, 0.3, 0.3])
+    place = jnp.array([0.0, 1.0, 0.0, 1.0])
+    grown = learnability(p, place, Sampler(ahead=2.0))
+    gated = learnability(p, place, Sampler(ahead=2.0, ahead_from=0.1))
+    plain = np.asarray(p * (1 - p))
+    np.testing.assert_allclose(np.asarray(gated), [plain[0], plain[1], plain[2], plain[3] * 3], rtol=1e-6)
+    assert grown[1] > grown[0] and gated[1] == gated[0]  # near 0: ranked by place only without the gate
+    np.testing.assert_allclose(np.asarray(gated)[2:], np.asarray(grown)[2:], rtol=1e-6)
 
 
 @pytest.mark.parametrize(("setting", "says"), [
