@@ -84,11 +84,19 @@ def settle(coordinates: np.ndarray, success: np.ndarray, sampler: Sampler, evalu
 
 def sampler_settings(ahead: str, ahead_from: str, parser: argparse.ArgumentParser) -> list[tuple[float, float]]:
     """(ahead, ahead_from) of each row: --ahead-from pairs with --ahead value by value, or one value for all."""
-    aheads, froms = [float(a) for a in ahead.split(",")], [float(f) for f in ahead_from.split(",")]
+    try:
+        aheads, froms = [float(a) for a in ahead.split(",")], [float(f) for f in ahead_from.split(",")]
+    except ValueError as exc:
+        parser.error(f"--ahead and --ahead-from take comma-separated numbers: {exc}")
     if len(froms) == 1:
         froms *= len(aheads)
     if len(froms) != len(aheads):
         parser.error(f"--ahead-from has {len(froms)} values for --ahead's {len(aheads)}: give one for each, or one")
+    for a, f in zip(aheads, froms):
+        try:
+            Sampler(ahead=a, ahead_from=f)
+        except ValueError as exc:  # pydantic's, in the sampler's own words
+            parser.error(f"ahead {a:g} from {f:g}: {exc.errors()[0]['msg']}")
     return list(zip(aheads, froms))
 
 
@@ -112,10 +120,13 @@ def main() -> None:
     parser.add_argument("-o", "--out", type=Path, help="a PNG of the shares by level")
     args = parser.parse_args()
 
+    settings = sampler_settings(args.ahead, args.ahead_from, parser)
+    for path in (args.run / "run.json", args.metrics):
+        if not path.is_file():
+            parser.error(f"{path} is not a file")
     coordinates = kickoff_coordinates(json.loads((args.run / "run.json").read_text())["kickoffs"])
     at, levels = measured_success(args.metrics, args.at)
     success = point_success(coordinates, levels)
-    settings = sampler_settings(args.ahead, args.ahead_from, parser)
     samplers = {label(a, f): Sampler(replaced=args.replaced, ahead=a, ahead_from=f) for a, f in settings}
     table = {name: np.mean([settle(coordinates, success, sampler, args.evaluations, args.episodes, r)
                             for r in range(args.repeats)], axis=0) for name, sampler in samplers.items()}

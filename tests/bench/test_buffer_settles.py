@@ -59,5 +59,6 @@ def test_ahead_from_pairs_with_ahead_value_by_value_or_one_for_all():
     assert buffer_settles.sampler_settings("0,2,2", "0,0,0.1", parser) == [(0.0, 0.0), (2.0, 0.0), (2.0, 0.1)]
     assert buffer_settles.sampler_settings("0,2", "0.1", parser) == [(0.0, 0.1), (2.0, 0.1)]
     assert [buffer_settles.label(a, f) for a, f in ((2.0, 0.0), (2.0, 0.1))] == ["2", "2 from 0.1"]
-    with pytest.raises(SystemExit):  # argparse's one line: two values for three
-        buffer_settles.sampler_settings("0,2,4", "0,0.1", parser)
+    for ahead, ahead_from in (("0,2,4", "0,0.1"), ("2", "half"), ("2", "1.5")):  # argparse's one line each
+        with pytest.raises(SystemExit):
+            buffer_settles.sampler_settings(ahead, ahead_from, parser)
