@@ -571,6 +571,7 @@ def test_ahead_from_grows_only_the_levels_that_already_succeed():
     ("prior=true", "--sampler prior=true: prior must be a number (episodes at success 0.5"),
     ("buffer=true", "--sampler buffer=true: buffer must be a whole number (entries episodes are drawn from"),
     ("ahead=-1", "--sampler ahead=-1: ahead must be at least 0.0 (a level's learnability grows by this much"),
+    ("ahead_from=1", "--sampler ahead_from=1: ahead_from must be less than 1.0 (`ahead` grows only the levels"),
 ])
 def test_a_bad_sampler_setting_is_one_line(tmp_path, setting, says):
     result = runner.invoke(app, ["train", "point_soccer", "--curriculum", "auto", "--sampler", setting,
