@@ -28,6 +28,7 @@ import numpy as np
 
 from fieldgen import counts
 from fieldgen.curriculum.auto import Sampler, kickoff_coordinates, next_levels
+from fieldgen.curriculum.levels import LevelError
 
 
 def env_steps(text: str) -> int:
@@ -82,8 +83,9 @@ def settle(coordinates: np.ndarray, success: np.ndarray, sampler: Sampler, evalu
     return shares.sum(axis=1) / shares.sum()
 
 
-def sampler_settings(ahead: str, ahead_from: str, parser: argparse.ArgumentParser) -> list[tuple[float, float]]:
-    """(ahead, ahead_from) of each row: --ahead-from pairs with --ahead value by value, or one value for all."""
+def samplers(ahead: str, ahead_from: str, replaced: int, parser: argparse.ArgumentParser) -> dict[str, Sampler]:
+    """The sampler of each row by its label: --ahead-from pairs with --ahead value by value, or one value for
+    all; argparse's one line, in the sampler's own words (Sampler.checked), where a value is not one."""
     try:
         aheads, froms = [float(a) for a in ahead.split(",")], [float(f) for f in ahead_from.split(",")]
     except ValueError as exc:
@@ -92,12 +94,11 @@ def sampler_settings(ahead: str, ahead_from: str, parser: argparse.ArgumentParse
         froms *= len(aheads)
     if len(froms) != len(aheads):
         parser.error(f"--ahead-from has {len(froms)} values for --ahead's {len(aheads)}: give one for each, or one")
-    for a, f in zip(aheads, froms):
-        try:
-            Sampler(ahead=a, ahead_from=f)
-        except ValueError as exc:  # pydantic's, in the sampler's own words
-            parser.error(f"ahead {a:g} from {f:g}: {exc.errors()[0]['msg']}")
-    return list(zip(aheads, froms))
+    try:
+        return {label(a, f): Sampler.checked({"replaced": replaced, "ahead": a, "ahead_from": f},
+                                             "a row's sampler:") for a, f in zip(aheads, froms)}
+    except LevelError as exc:
+        parser.error(str(exc))
 
 
 def label(ahead: float, ahead_from: float) -> str:
@@ -109,7 +110,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("run", type=Path, help="a run folder of the automatic curriculum (its run.json's kickoffs)")
     parser.add_argument("--metrics", type=Path, required=True, help="a metrics.jsonl with per-level success")
-    parser.add_argument("--at", type=env_steps, required=True, help="env steps: the evaluation nearest them is read (22M)")
+    parser.add_argument("--at", type=env_steps, required=True,
+                        help="env steps: the evaluation nearest them is read (22M)")
     parser.add_argument("--ahead", default="0,1,2,4", help="comma-separated values of the sampler's `ahead`")
     parser.add_argument("--ahead-from", default="0", help="comma-separated values of the sampler's `ahead_from`, "
                                                           "one for each --ahead value or one for all")
@@ -120,16 +122,15 @@ def main() -> None:
     parser.add_argument("-o", "--out", type=Path, help="a PNG of the shares by level")
     args = parser.parse_args()
 
-    settings = sampler_settings(args.ahead, args.ahead_from, parser)
+    settings = samplers(args.ahead, args.ahead_from, args.replaced, parser)
     for path in (args.run / "run.json", args.metrics):
         if not path.is_file():
             parser.error(f"{path} is not a file")
     coordinates = kickoff_coordinates(json.loads((args.run / "run.json").read_text())["kickoffs"])
     at, levels = measured_success(args.metrics, args.at)
     success = point_success(coordinates, levels)
-    samplers = {label(a, f): Sampler(replaced=args.replaced, ahead=a, ahead_from=f) for a, f in settings}
     table = {name: np.mean([settle(coordinates, success, sampler, args.evaluations, args.episodes, r)
-                            for r in range(args.repeats)], axis=0) for name, sampler in samplers.items()}
+                            for r in range(args.repeats)], axis=0) for name, sampler in settings.items()}
     names = [f"level {k + 1}" for k in range(len(levels))]
     print(f"measured success at each level's own kick-off ({at:,} env steps): "
           + ", ".join(f"{v:.2f}" for v in levels))

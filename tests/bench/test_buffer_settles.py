@@ -56,9 +56,11 @@ def test_env_steps_read_as_fieldgen_reads_counts_and_refused_in_argparse_s_words
 
 def test_ahead_from_pairs_with_ahead_value_by_value_or_one_for_all():
     parser = argparse.ArgumentParser(prog="buffer_settles.py")
-    assert buffer_settles.sampler_settings("0,2,2", "0,0,0.1", parser) == [(0.0, 0.0), (2.0, 0.0), (2.0, 0.1)]
-    assert buffer_settles.sampler_settings("0,2", "0.1", parser) == [(0.0, 0.1), (2.0, 0.1)]
-    assert [buffer_settles.label(a, f) for a, f in ((2.0, 0.0), (2.0, 0.1))] == ["2", "2 from 0.1"]
+    paired = buffer_settles.samplers("0,2,2", "0,0,0.1", 8, parser)
+    assert list(paired) == ["0", "2", "2 from 0.1"]
+    assert [(s.ahead, s.ahead_from, s.replaced) for s in paired.values()] == [(0, 0, 8), (2, 0, 8), (2, 0.1, 8)]
+    assert [(s.ahead, s.ahead_from) for s in buffer_settles.samplers("0,2", "0.1", 4, parser).values()] == \
+        [(0, 0.1), (2, 0.1)]
     for ahead, ahead_from in (("0,2,4", "0,0.1"), ("2", "half"), ("2", "1.5")):  # argparse's one line each
         with pytest.raises(SystemExit):
-            buffer_settles.sampler_settings(ahead, ahead_from, parser)
+            buffer_settles.samplers(ahead, ahead_from, 8, parser)
