@@ -99,8 +99,9 @@ class Sampler(BaseModel):
                                                        "along the path (0 the easy end, 1 the spec): of levels "
                                                        "alike learnable the harder is kept, mutated from and "
                                                        "played more")
-    ahead_from: float = Field(0.0, ge=0, lt=1, description="`ahead` grows only the levels the sampler estimates "
-                                                            "at this success or more: before anything is "
+    ahead_from: float = Field(0.0, ge=0, lt=1, description="`ahead` grows only the levels whose counted "
+                                                            "training episodes succeeded this often or more "
+                                                            "(none counted: not grown): before anything is "
                                                             "learned, levels alike near 0 are not ranked by "
                                                             "place alone")
 
@@ -289,6 +290,14 @@ def estimated_success(counts, prior: float):
     return (successes + prior / 2) / (episodes + prior)
 
 
+def counted_success(counts):
+    """Each level's share of counted episodes that succeeded, without the prior: 0 where none is counted, so
+    that `ahead_from` grows no level on the prior's 0.5 alone (a kick-off new to the buffer, or every kick-off
+    while the first episodes, drawn before the buffer, are still running)."""
+    episodes, successes = counts[0], counts[1]
+    return successes / jnp.maximum(episodes, jnp.finfo(jnp.float32).tiny)
+
+
 def next_levels(counts: jax.Array, weights: jax.Array, playable: np.ndarray, key: jax.Array,
                 sampler: Sampler = Sampler()) -> tuple[jax.Array, jax.Array]:
     """The level buffer after an evaluation: (the weights [level, kick-off point] new episodes are drawn with,
@@ -304,7 +313,8 @@ def next_levels(counts: jax.Array, weights: jax.Array, playable: np.ndarray, key
     levels, points = playable.shape
     p = estimated_success(counts, sampler.prior).ravel()
     along = np.cumsum(playable.ravel()) - 1  # reading order is the path's: a level's points, then the next level's
-    score = learnability(p, jnp.asarray(along / max(int(playable.sum()) - 1, 1), p.dtype), sampler)
+    score = learnability(p, jnp.asarray(along / max(int(playable.sum()) - 1, 1), p.dtype), sampler,
+                         counted_success(counts).ravel())
     target = jnp.arange(levels * points) == levels * points - 1
     start = initial_buffer(playable, sampler.buffer).ravel()
     member = weights.ravel() > 0
@@ -351,12 +361,13 @@ def next_levels(counts: jax.Array, weights: jax.Array, playable: np.ndarray, key
         jnp.where(member, sampler.kept, 0.0).reshape(levels, points).astype(weights.dtype)
 
 
-def learnability(p, place, sampler: Sampler):
+def learnability(p, place, sampler: Sampler, measured=None):
     """p (1 - p) of a level at success p, grown by `ahead` times its `place` along the path (0 the easy end, 1 the
     spec): p (1 - p) alone rates a level at 0.5 near the easy end above one at 0.2 near the spec, so a policy
-    that succeeds a little everywhere keeps its episodes, and the buffer, near the easy end. A level below
-    `ahead_from` is not grown: where every level is near 0, place alone would rank them."""
-    grown = jnp.where(p >= sampler.ahead_from, sampler.ahead * place, 0.0)
+    that succeeds a little everywhere keeps its episodes, and the buffer, near the easy end. A level whose
+    `measured` success (p where not given) is below `ahead_from` is not grown: where every level is near 0,
+    place alone would rank them."""
+    grown = jnp.where((p if measured is None else measured) >= sampler.ahead_from, sampler.ahead * place, 0.0)
     return p * (1 - p) * (1 + grown)
 
 

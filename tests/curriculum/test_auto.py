@@ -13,8 +13,8 @@ import pytest
 from typer.testing import CliRunner
 
 from fieldgen.cli import app
-from fieldgen.curriculum.auto import (HARDER, Auto, Sampler, initial_buffer, kickoff_tables, learnability,
-                                     level_weights, levels, next_levels, path)
+from fieldgen.curriculum.auto import (HARDER, Auto, Sampler, counted_success, estimated_success, initial_buffer,
+                                     kickoff_tables, learnability, level_weights, levels, next_levels, path)
 from fieldgen.curriculum.contract import KICKOFF_BINS, start_sampling
 from fieldgen.curriculum.levels import LevelError, LevelSpace
 from fieldgen.env import FieldEnv
@@ -553,6 +553,28 @@ def test_ahead_from_grows_only_the_levels_that_already_succeed():
     np.testing.assert_allclose(np.asarray(gated), [plain[0], plain[1], plain[2], plain[3] * 3], rtol=1e-6)
     assert grown[1] > grown[0] and gated[1] == gated[0]  # near 0: ranked by place only without the gate
     np.testing.assert_allclose(np.asarray(gated)[2:], np.asarray(grown)[2:], rtol=1e-6)
+
+
+def test_ahead_from_grows_no_level_on_the_prior_alone():
+    """Before: a level with no episode counted sat at the prior's 0.5, above any `ahead_from`, so the first
+    evaluations (whose episodes, drawn before the buffer, had not ended on most of its kick-offs) grew every
+    level as `ahead` alone does. A level is now grown only by what its counted episodes show; without
+    `ahead_from` nothing changes."""
+    playable = np.ones((2, 4), bool)
+    unplayed = jnp.zeros((2, 2, 4))
+    # two episodes lost on each of the easier level's kick-offs (estimated with the prior at 0.25, above the gate:
+    # grown before), ten on each of the harder's with three won
+    played = unplayed.at[0, 0].set(2.0).at[0, 1].set(10.0).at[1, 1].set(3.0)
+
+    def weights(counts, **setting):
+        return np.asarray(next_levels(counts, jnp.full((2, 4), 1 / 8), playable, jax.random.PRNGKey(0),
+                                      Sampler(**setting))[0])
+
+    np.testing.assert_allclose(weights(unplayed, ahead=2.0, ahead_from=0.1), weights(unplayed), rtol=1e-6)
+    assert weights(unplayed, ahead=2.0, ahead_from=0.0)[1, 2] > weights(unplayed)[1, 2]  # no gate: the harder grown
+    p, place = estimated_success(played, PRIOR).ravel(), jnp.arange(8) / 7
+    gated = learnability(p, place, Sampler(ahead=2.0, ahead_from=0.1), counted_success(played).ravel())
+    np.testing.assert_allclose(np.asarray(gated), p * (1 - p) * (1 + 2.0 * place * (np.arange(8) >= 4)), rtol=1e-6)
 
 
 @pytest.mark.parametrize(("setting", "says"), [
