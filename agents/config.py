@@ -103,6 +103,9 @@ class RunConfig(BaseModel):
     eval_envs: Count = 128
     # how the evaluations during training act (success.png, metrics, promotions), and fieldgen eval by default
     eval_actions: EvalActions = "mean"
+    # each environment's first episode cut to a length drawn evenly from 1 to a whole one's, so that episodes
+    # end spread over time rather than all at once (a curriculum's counts then arrive steadily): first_states
+    stagger_starts: bool = False
     seed: Annotated[Int, Field(ge=0, le=SEED_MAX)] = 0
 
     @classmethod

@@ -152,6 +152,19 @@ def evaluate_policy(env, act: Callable, key: jax.Array, n_envs: int, film: Calla
     return metrics, frames
 
 
+def first_states(env, config: RunConfig, key: jax.Array):
+    """The training batch's first states, one environment each from `key`. With `config.stagger_starts` each
+    environment's episode counter starts at a step drawn evenly from 0 to the episode's last: the first
+    episodes end after 1 to episode_length steps (a share of them before the agent could succeed), every later
+    one is whole, and the batch's episodes end spread over time instead of together at every multiple of the
+    episode's length."""
+    states = jax.vmap(env.reset)(jax.random.split(key, config.num_envs))
+    if not config.stagger_starts:
+        return states
+    begun = jax.random.randint(jax.random.fold_in(key, 1), (config.num_envs,), 0, env.episode_length)
+    return states.replace(info=dict(states.info, episode_step=begun.astype(states.info["episode_step"].dtype)))
+
+
 def diverged_episodes(counted, seeds: int) -> dict:
     """{"diverged_episodes": [seeds]}: each seed's training episodes that its environments ended because the
     simulation blew up (`counted`, State.info[DIVERGED] of every environment, on the host) since they started

@@ -25,7 +25,7 @@ import optax
 from . import buffer as replay
 from .config import OffPolicyConfig
 from .contrastive import weighted_mean
-from .loop import Trainer
+from .loop import Trainer, first_states
 from .networks import MLP, Actor
 from .actor import Policy
 
@@ -112,7 +112,7 @@ def trainer(nets: ActorCritic, new_state: Callable, explore: Callable, update: C
         actor = nets.actor.init(k_actor, jnp.zeros((1, env.observation_size)))
         critic = jax.vmap(nets.q_net.init, in_axes=(0, None))(jax.random.split(k_q, 2),
                                                                jnp.zeros((1, env.observation_size + action_size)))
-        env_state = jax.vmap(env.reset)(jax.random.split(k_env, c.num_envs))
+        env_state = first_states(env, c, k_env)
         example = {"state": jnp.zeros(state_dim), "goal": jnp.zeros(len(env.goal_indices)),
                    "action": jnp.zeros(action_size), "reward": jnp.zeros(()), "fell": jnp.zeros(()),
                    "episode": jnp.zeros((), jnp.int32)}

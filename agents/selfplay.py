@@ -40,7 +40,7 @@ from ..env.contract import OVERFLOW, merged_overflow
 from .actor import Policy
 from .choices import EVAL_ACTIONS
 from .config import ConfigError, Count, Float, Rate, Share, Unknown
-from .loop import batched_with
+from .loop import batched_with, first_states
 from .ppo.config import PPOConfig
 from .ppo.train import Normalizer, advantages, exported_policy, gaussian, networks, optimizer, squashed_entropy
 
@@ -213,7 +213,7 @@ def make_selfplay(config: SelfPlayConfig, env) -> SelfPlay:
         if c.spread == "global":
             params["log_std"] = jnp.full(n_act, -0.5)
         normalizer = Normalizer(jnp.zeros(()), jnp.zeros(n_obs), jnp.zeros(n_obs))
-        env_state = jax.vmap(env.reset)(jax.random.split(k_env, c.num_envs))
+        env_state = first_states(env, c, k_env)
         ts = SelfPlayState(params, tx.init(params), normalizer, env_state, key, jnp.zeros((), jnp.int32),
                            None, jnp.zeros(snapshots, bool), jnp.zeros((), jnp.int32), jnp.zeros(snapshots),
                            jnp.zeros(snapshots), jnp.full(c.num_envs, ITSELF, jnp.int32),

@@ -24,7 +24,7 @@ import optax
 from .. import buffer as replay
 from .config import CRLConfig
 from ..contrastive import critic_terms, energy, paired_energy, weighted_mean
-from ..loop import Trainer
+from ..loop import Trainer, first_states
 from ..networks import Stacked, gaussian_head, sample_tanh_gaussian
 from ..optim import adam_by_group
 from ..actor import Policy
@@ -71,7 +71,7 @@ def make_train(config: CRLConfig, env, team: Team | None = None, shared: bool = 
         k_actor, k_sa, k_g, k_env, key = jax.random.split(key, 5)
         params = nets.init([k_actor, k_sa, k_g])
         log_temperature, log_alpha = jnp.zeros(team.size), jnp.zeros(team.size)
-        env_state = jax.vmap(env.reset)(jax.random.split(k_env, c.num_envs))
+        env_state = first_states(env, c, k_env)
         example = {"state": jnp.zeros(state_dim), "action": jnp.zeros(action_size),
                    "episode": jnp.zeros((), jnp.int32)}
         if commanded:

@@ -22,7 +22,7 @@ import optax
 
 from ...env.contract import DIVERGED
 from .config import PPOConfig
-from ..loop import Trainer
+from ..loop import Trainer, first_states
 from ..networks import MLP, tanh_log_slope
 from ..actor import Policy
 
@@ -163,7 +163,7 @@ def make_train(config: PPOConfig, env) -> Trainer:
             params["log_std"] = jnp.full(env.action_size, -0.5)
         n = env.observation_size
         normalizer = Normalizer(jnp.zeros(()), jnp.zeros(n), jnp.zeros(n))
-        env_state = jax.vmap(env.reset)(jax.random.split(k_env, c.num_envs))
+        env_state = first_states(env, c, k_env)
         return TrainState(params, tx.init(params), normalizer, env_state, key, jnp.zeros((), jnp.int32))
 
     def distribution(params, obs):

@@ -264,3 +264,40 @@ def test_the_evaluation_reports_the_share_of_steps_an_agent_with_a_torso_spent_t
     assert float(metrics["turned_over"]) == pytest.approx(7 / 9)  # steps 3-9 of the 9 inside the episode
     assert torso_entries(TurningOver.observation_names) == [3, 4, 5, 6]
     assert torso_entries(("agent.x", "agent.y", "goal.x", "goal.y")) is None  # a point: no metric
+
+
+def test_staggered_starts_spread_the_first_episodes_ends_and_leave_the_later_ones_whole(env_cache):
+    env = env_cache("point_nav", episode_length=12)
+    key = jax.random.PRNGKey(5)
+    plain = loop.first_states(env, ppo.PPOConfig(num_envs=64), key)
+    same = jax.vmap(env.reset)(jax.random.split(key, 64))
+    for a, b in zip(jax.tree.leaves(plain), jax.tree.leaves(same)):  # off: the batch every run began with
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    staggered = loop.first_states(env, ppo.PPOConfig(num_envs=64, stagger_starts=True), key)
+    begun = np.asarray(staggered.info["episode_step"])
+    assert begun.min() >= 0 and begun.max() < 12 and len(set(begun.tolist())) > 6
+    np.testing.assert_array_equal(np.asarray(staggered.obs), np.asarray(plain.obs))  # the same first states
+
+    step = jax.jit(jax.vmap(env.step))
+    state, ended = staggered, []
+    for _ in range(2 * 12):  # still actions: time, not a fall or a goal, ends every episode
+        state = step(state, jnp.zeros((64, env.action_size)))
+        ended.append(np.asarray(state.done) > 0)
+    ended = np.array(ended)  # [steps, envs]
+    first, second = ended.argmax(0), 12 + ended[12:].argmax(0)
+    np.testing.assert_array_equal(first + 1, 12 - begun)  # the first episode: what was left of it
+    np.testing.assert_array_equal(second - first, np.full(64, 12))  # every later one whole
+    assert len(set(first.tolist())) > 6  # ends spread over the episode's length, not all at one step
+
+
+@pytest.mark.parametrize("algo", ["crl", "ppo", "sac", "td3"])
+def test_every_trainer_starts_its_episodes_staggered_when_told(env_cache, algo):
+    from fieldgen.agents import registry
+
+    entry = registry.trainer(algo)
+    small = dict(total_steps=100_000, num_envs=16, unroll_length=10, num_evals=2, eval_envs=8)  # init alone runs
+    env = env_cache("point_nav")
+    for stagger in (False, True):
+        state = entry.make_train(entry.config(**small, stagger_starts=stagger), env).init(jax.random.PRNGKey(0))
+        begun = np.asarray(state.env_state.info["episode_step"])
+        assert (len(set(begun.tolist())) > 1) == stagger and begun.max() < env.episode_length

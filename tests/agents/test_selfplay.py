@@ -198,3 +198,12 @@ def test_one_network_plays_both_sides_each_from_its_own_sides_view():
     qpos = np.asarray(match.pipeline_state.qpos)
     home, away = env.layout.agent_qpos
     np.testing.assert_allclose(qpos[home[:2]], -qpos[away[:2]], atol=1e-3)  # each where the other is, turned
+
+
+def test_matches_start_staggered_when_told():
+    env = match_env("soccer_1v1")
+    for stagger in (False, True):
+        sp = make_selfplay(SelfPlayConfig(total_steps=1600, num_envs=16, unroll_length=10, num_minibatches=4,
+                                          num_evals=2, hidden=(8,), eval_envs=8, stagger_starts=stagger), env)
+        begun = np.asarray(jax.jit(sp.init)(jax.random.PRNGKey(3)).env_state.info["episode_step"])
+        assert (len(set(begun.tolist())) > 1) == stagger and begun.max() < env.episode_length
