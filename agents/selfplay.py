@@ -11,6 +11,13 @@ self-play: weight (1 - w) ** `win_rate_power`, w the learner's score against tha
 wins 1 and draws 1/2, with one win and one loss assumed before any game), as `pool_sampling` says. An episode
 that ends draws its environment's next opponent and side; a new snapshot redraws them all.
 
+With `exploiter_share` above 0, that share of the episodes is played against an exploiter (a league's main
+exploiter): a second network of the same shape, with its own optimiser, that learns only from its own side of
+those matches, so that it seeks whatever the policy loses to, where a policy against itself gains on one side
+what it gives up on the other. Its observations are normalised with the policy's statistics; it is never a
+snapshot nor judged; the policy's score against it in training (wins 1, draws 1/2) is the metric
+`exploiter_score`, over the `exploiter_games` that ended in the chunk.
+
 The learner is PPO as agents/ppo/train.py trains it (the same clipped surrogate, GAE, squashed Gaussian,
 observation normaliser and settings under `ppo.`), each agent a stream of its own: its side's reward (the
 match's dense reward, zero-sum in its goal and ball-progress terms, or with `reward: sparse` its goals for
@@ -52,7 +59,8 @@ OpponentActions = Annotated[Literal[EVAL_ACTIONS], Unknown(
     "unknown ppo.opponent_actions '{}'; choose sampled (drawn from the snapshot's policy) or mean (its mean "
     "action, as the evaluations play it)")]
 RESULTS = ("win", "draw", "loss")
-ITSELF, RANDOM = -1, -2  # an environment's opponent that is no snapshot: the policy itself, a random policy
+# an environment's opponent that is no snapshot: the policy itself, a random policy, the exploiter
+ITSELF, RANDOM, EXPLOITER = -1, -2, -3
 
 
 class SelfPlayConfig(PPOConfig):
@@ -64,6 +72,7 @@ class SelfPlayConfig(PPOConfig):
     win_rate_power: Rate = 2.0  # pool_sampling win_rate: weight (1 - win rate) ** power
     self_play_share: Share = 0.5  # episodes the policy plays against itself rather than a snapshot
     random_share: Share = 0.0  # episodes it plays against a random policy (uniform actions)
+    exploiter_share: Share = 0.0  # episodes it plays against the exploiter, which learns only from those
     # how snapshots act in training matches: drawn from their policies, or their mean actions, as the evaluations
     # play them (the opponent the policy is judged against)
     opponent_actions: OpponentActions = "sampled"
@@ -75,9 +84,10 @@ class SelfPlayConfig(PPOConfig):
         if self.eval_envs % 2:
             raise ConfigError(f"ppo.eval_envs {self.eval_envs} is odd: a snapshot plays half its evaluation "
                               "episodes on each side; give an even number")
-        if self.self_play_share + self.random_share > 1:
-            raise ConfigError(f"ppo.self_play_share {self.self_play_share:g} and ppo.random_share "
-                              f"{self.random_share:g} add up to more than every episode; keep their sum at most 1")
+        if self.self_play_share + self.random_share + self.exploiter_share > 1:
+            raise ConfigError(f"ppo.self_play_share {self.self_play_share:g}, ppo.random_share "
+                              f"{self.random_share:g} and ppo.exploiter_share {self.exploiter_share:g} add up to "
+                              "more than every episode; keep their sum at most 1")
 
 
 @flax.struct.dataclass
@@ -93,8 +103,10 @@ class SelfPlayState:
     newest: jax.Array  # the newest snapshot's index (its evaluation's)
     wins: jax.Array  # [num_evals + 1]: the learner's score in training against each snapshot (win 1, draw 1/2)
     games: jax.Array  # [num_evals + 1]: training episodes the learner played against each snapshot
-    opponent: jax.Array  # [envs]: the snapshot each environment's episode plays, or ITSELF, or RANDOM
+    opponent: jax.Array  # [envs]: the snapshot each environment's episode plays, or ITSELF, RANDOM, EXPLOITER
     learner_side: jax.Array  # [envs]: the side the learner plays against a snapshot (0 home, 1 away)
+    exploiter: dict | None = None  # the exploiter's params (policy, value), None without one
+    exploiter_opt: optax.OptState | None = None
 
 
 def fixed_opponents(index: int, count: int) -> list[int]:
@@ -132,15 +144,17 @@ def pool_probabilities(config: SelfPlayConfig, newest, taken, wins, games) -> tu
 
 def draw_opponents(config: SelfPlayConfig, key, count: int, newest, taken, wins, games):
     """([count] opponents, [count] learner sides): each environment's next opponent, ITSELF with chance
-    self_play_share, RANDOM (a random policy) with chance random_share, else a snapshot drawn from the pool (the
-    policy itself while no snapshot exists)."""
+    self_play_share, RANDOM (a random policy) with chance random_share, EXPLOITER with chance exploiter_share,
+    else a snapshot drawn from the pool (the policy itself while no snapshot exists)."""
     k_pick, k_self, k_side = jax.random.split(key, 3)
     ids, probs = pool_probabilities(config, newest, taken, wins, games)
     picked = ids[jax.random.categorical(k_pick, jnp.log(jnp.maximum(probs, 1e-30)), shape=(count,))]
     u = jax.random.uniform(k_self, (count,))
-    itself = (u < config.self_play_share) | ((u >= config.self_play_share + config.random_share) & (probs.sum() <= 0))
-    random = ~itself & (u < config.self_play_share + config.random_share)
-    opponent = jnp.where(itself, ITSELF, jnp.where(random, RANDOM, picked))
+    others = config.self_play_share + config.random_share
+    itself = (u < config.self_play_share) | ((u >= others + config.exploiter_share) & (probs.sum() <= 0))
+    random = ~itself & (u < others)
+    exploiter = ~itself & ~random & (u < others + config.exploiter_share)
+    opponent = jnp.where(itself, ITSELF, jnp.where(random, RANDOM, jnp.where(exploiter, EXPLOITER, picked)))
     return opponent.astype(jnp.int32), jax.random.randint(k_side, (count,), 0, 2, jnp.int32)
 
 
@@ -178,6 +192,7 @@ def make_selfplay(config: SelfPlayConfig, env) -> SelfPlay:
     batch = c.num_envs * c.unroll_length * agents
     minibatch = batch // c.num_minibatches
     sampled_eval = c.eval_actions == "sampled"
+    exploits = c.exploiter_share > 0
 
     def distribution(params, obs):
         return gaussian(policy_net, c.spread, params, obs)
@@ -209,9 +224,14 @@ def make_selfplay(config: SelfPlayConfig, env) -> SelfPlay:
     def init(key) -> SelfPlayState:
         k_pi, k_v, k_env, key = jax.random.split(key, 4)
         obs = jnp.zeros((1, n_obs))
-        params = {"policy": policy_net.init(k_pi, obs), "value": value_net.init(k_v, obs)}
-        if c.spread == "global":
-            params["log_std"] = jnp.full(n_act, -0.5)
+
+        def fresh(k_pi, k_v):
+            params = {"policy": policy_net.init(k_pi, obs), "value": value_net.init(k_v, obs)}
+            if c.spread == "global":
+                params["log_std"] = jnp.full(n_act, -0.5)
+            return params
+
+        params = fresh(k_pi, k_v)
         normalizer = Normalizer(jnp.zeros(()), jnp.zeros(n_obs), jnp.zeros(n_obs))
         env_state = first_states(env, c, k_env)
         ts = SelfPlayState(params, tx.init(params), normalizer, env_state, key, jnp.zeros((), jnp.int32),
@@ -219,6 +239,9 @@ def make_selfplay(config: SelfPlayConfig, env) -> SelfPlay:
                            jnp.zeros(snapshots), jnp.full(c.num_envs, ITSELF, jnp.int32),
                            jnp.zeros(c.num_envs, jnp.int32))
         league = jax.tree.map(lambda x: jnp.zeros((snapshots,) + x.shape, x.dtype), current(ts))
+        if exploits:
+            exploiter = fresh(jax.random.fold_in(k_pi, 1), jax.random.fold_in(k_v, 1))
+            ts = ts.replace(exploiter=exploiter, exploiter_opt=tx.init(exploiter))
         return ts.replace(league=league)
 
     def rollout(ts: SelfPlayState):
@@ -243,6 +266,12 @@ def make_selfplay(config: SelfPlayConfig, env) -> SelfPlay:
                 theirs = jnp.where((opponent == RANDOM)[:, None, None], uniform, theirs)
             learns = controls(opponent, learner_side)
             actions = jnp.where(learns[..., None], jnp.tanh(raw), theirs)
+            if exploits:
+                x_mean, x_log_std = distribution(ts.exploiter, obs)
+                x_noise = jax.random.normal(jax.random.fold_in(k_act, 1), x_mean.shape)
+                x_raw = x_mean + jnp.exp(x_log_std) * x_noise
+                x_learns = (opponent == EXPLOITER)[:, None] & ~learns
+                actions = jnp.where(x_learns[..., None], jnp.tanh(x_raw), actions)
             nxt = jax.vmap(env.step)(env_state, actions)
             success = nxt.metrics["success"]  # [envs, 2]
             side_reward = nxt.reward if c.reward == "dense" else success - success[:, ::-1]
@@ -253,20 +282,30 @@ def make_selfplay(config: SelfPlayConfig, env) -> SelfPlay:
             at = jnp.maximum(opponent, 0)
             wins = wins.at[at].add(counted * (0.5 + 0.5 * (mine - other)))
             games = games.at[at].add(counted)
+            data = {"obs": env_state.obs, "raw": raw, "log_prob": log_prob(log_std, noise), "value": value,
+                    "reward": side_reward[:, sides], "done": nxt.done, "learns": learns.astype(jnp.float32),
+                    "goals": jnp.sum(success, -1)}
+            if exploits:  # the exploiter's own stream, and the policy's games against it
+                played = nxt.done * (opponent == EXPLOITER)
+                data["exploiter"] = {"raw": x_raw, "log_prob": log_prob(x_log_std, x_noise),
+                                     "value": value_net.apply(ts.exploiter["value"], obs)[..., 0],
+                                     "learns": x_learns.astype(jnp.float32)}
+                data["exploiter_games"] = jnp.sum(played)
+                data["exploiter_points"] = jnp.sum(played * (0.5 + 0.5 * (mine - other)))
             fresh_opponent, fresh_side = draw_opponents(c, k_draw, c.num_envs, ts.newest, ts.taken, wins, games)
             ended = nxt.done > 0
             opponent = jnp.where(ended, fresh_opponent, opponent)
             learner_side = jnp.where(ended, fresh_side, learner_side)
-            data = {"obs": env_state.obs, "raw": raw, "log_prob": log_prob(log_std, noise), "value": value,
-                    "reward": side_reward[:, sides], "done": nxt.done, "learns": learns.astype(jnp.float32),
-                    "goals": jnp.sum(success, -1)}
             return (nxt, opponent, learner_side, wins, games), data
 
         key, k = jax.random.split(ts.key)
         carry = (ts.env_state, ts.opponent, ts.learner_side, ts.wins, ts.games)
         (env_state, opponent, learner_side, wins, games), data = jax.lax.scan(
             step, carry, jax.random.split(k, c.unroll_length))
-        last = value_net.apply(ts.params["value"], ts.normalizer(env_state.obs, c.normalize_observations))[..., 0]
+        last_obs = ts.normalizer(env_state.obs, c.normalize_observations)
+        last = {"policy": value_net.apply(ts.params["value"], last_obs)[..., 0]}
+        if exploits:
+            last["exploiter"] = value_net.apply(ts.exploiter["value"], last_obs)[..., 0]
         ts = ts.replace(env_state=env_state, opponent=opponent, learner_side=learner_side, wins=wins, games=games,
                         key=key)
         return ts, data, last
@@ -291,16 +330,18 @@ def make_selfplay(config: SelfPlayConfig, env) -> SelfPlay:
         objective = surrogate + c.value_coef * value_loss - c.entropy_coef * entropy
         return objective, {"policy_loss": surrogate, "value_loss": value_loss, "entropy": entropy}
 
-    def iteration(ts: SelfPlayState):
-        ts, data, last = rollout(ts)
-        streams = {"reward": data["reward"], "value": data["value"],
+    def flattened(data, stream, last):
+        """One network's steps as PPO's batch: its own actions, log-probabilities, values and `learns` from
+        `stream`, the match's observations, rewards and ends from `data`, its advantages and value targets."""
+        streams = {"reward": data["reward"], "value": stream["value"],
                    "done": jnp.broadcast_to(data["done"][..., None], data["reward"].shape)}  # per agent
         adv, target = advantages(streams, last, c.discount, c.gae_lambda)
-        flat = jax.tree.map(lambda x: x.reshape((batch,) + x.shape[3:]),
-                            {"obs": data["obs"], "raw": data["raw"], "log_prob": data["log_prob"], "adv": adv,
-                             "target": target, "learns": data["learns"]})
-        normalizer = ts.normalizer.update(flat["obs"])
+        return jax.tree.map(lambda x: x.reshape((batch,) + x.shape[3:]),
+                            {"obs": data["obs"], "raw": stream["raw"], "log_prob": stream["log_prob"], "adv": adv,
+                             "target": target, "learns": stream["learns"]})
 
+    def update(params, opt, normalizer, flat, key):
+        """PPO's epochs of minibatch steps on one network: (params, opt), the loss terms of every step."""
         def epoch(carry, key):
             def sgd(carry, mb):
                 params, opt = carry
@@ -312,17 +353,34 @@ def make_selfplay(config: SelfPlayConfig, env) -> SelfPlay:
             mbs = jax.tree.map(lambda x: x[perm].reshape((c.num_minibatches, minibatch) + x.shape[1:]), flat)
             return jax.lax.scan(sgd, carry, mbs)
 
+        return jax.lax.scan(epoch, (params, opt), jax.random.split(key, c.update_epochs))
+
+    def iteration(ts: SelfPlayState):
+        ts, data, last = rollout(ts)
+        flat = flattened(data, data, last["policy"])
+        normalizer = ts.normalizer.update(flat["obs"])
         key, k = jax.random.split(ts.key)
-        (params, opt), metrics = jax.lax.scan(epoch, (ts.params, ts.opt), jax.random.split(k, c.update_epochs))
+        (params, opt), metrics = update(ts.params, ts.opt, normalizer, flat, k)
         learner = data["learns"]
         stats = {"train_reward": jnp.sum(learner * data["reward"]) / jnp.maximum(learner.sum(), 1.0),
                  "train_goals": jnp.mean(data["goals"]), "self_play_share": jnp.mean(ts.opponent == ITSELF)}
+        if exploits:
+            flat = flattened(data, data["exploiter"], last["exploiter"])
+            (exploiter, exploiter_opt), _ = update(ts.exploiter, ts.exploiter_opt, normalizer, flat,
+                                                   jax.random.fold_in(k, 1))
+            ts = ts.replace(exploiter=exploiter, exploiter_opt=exploiter_opt)
+            stats |= {"exploiter_games": jnp.sum(data["exploiter_games"]),
+                      "exploiter_points": jnp.sum(data["exploiter_points"])}
         ts = ts.replace(params=params, opt=opt, normalizer=normalizer, key=key,
                         env_steps=ts.env_steps + c.num_envs * c.unroll_length)
         return ts, {**jax.tree.map(jnp.mean, metrics), **stats}
 
     def chunk(ts: SelfPlayState):
         ts, metrics = jax.lax.scan(lambda t, _: iteration(t), ts, None, length=iters_per_eval)
+        if exploits:  # the policy's score over every game against the exploiter that ended in the chunk
+            games, points = jnp.sum(metrics.pop("exploiter_games")), jnp.sum(metrics.pop("exploiter_points"))
+            metrics["exploiter_score"] = points / jnp.maximum(games, 1.0)  # 0 where none ended
+            metrics["exploiter_games"] = games
         return ts, jax.tree.map(jnp.mean, metrics)
 
     def match(a, b, key):

@@ -126,6 +126,56 @@ def test_a_random_policy_is_drawn_as_often_as_configured_and_even_before_any_sna
             match_env("soccer_1v1"))
 
 
+def test_the_exploiter_is_drawn_as_often_as_configured_and_even_before_any_snapshot():
+    from fieldgen.agents.selfplay import EXPLOITER, ITSELF, RANDOM
+
+    taken = jnp.ones(8, bool)
+    shares = config(self_play_share=0.2, random_share=0.1, exploiter_share=0.3)
+    drawn = np.asarray(draw_opponents(shares, jax.random.PRNGKey(3), 6000, 5, taken, jnp.zeros(8), jnp.zeros(8))[0])
+    assert np.mean(drawn == ITSELF) == pytest.approx(0.2, abs=0.02)
+    assert np.mean(drawn == RANDOM) == pytest.approx(0.1, abs=0.02)
+    assert np.mean(drawn == EXPLOITER) == pytest.approx(0.3, abs=0.02)
+    none_yet = np.asarray(draw_opponents(shares, jax.random.PRNGKey(3), 6000, 5, jnp.zeros(8, bool), jnp.zeros(8),
+                                         jnp.zeros(8))[0])
+    assert np.array_equal(none_yet == EXPLOITER, drawn == EXPLOITER)  # no snapshot: the pool's share alone plays itself
+    assert set(none_yet.tolist()) == {ITSELF, RANDOM, EXPLOITER}
+    with pytest.raises(ConfigError, match="ppo.exploiter_share 0.3 add up to more than every episode"):
+        SelfPlayConfig.layered(sets=["ppo.self_play_share=0.8", "ppo.exploiter_share=0.3"]).validate_env(
+            match_env("soccer_1v1"))
+
+
+@pytest.mark.slow
+def test_the_exploiter_learns_from_its_own_matches_alone():
+    """An exploiter that plays no match stays as it began, and the policy trains exactly as with none; one that
+    plays every match learns, and the policy's games against it are scored."""
+    from fieldgen.agents.selfplay import EXPLOITER
+
+    env = match_env("soccer_1v1")
+    settings = dict(total_steps=1600, num_envs=8, unroll_length=10, num_minibatches=4, num_evals=2, hidden=(8,),
+                    eval_envs=8, update_epochs=2, stagger_starts=True)  # staggered: some matches end in a chunk
+
+    def chunk(share):
+        sp = make_selfplay(SelfPlayConfig(**settings, exploiter_share=share, self_play_share=min(0.5, 1 - share)),
+                           env)
+        state = jax.jit(sp.init)(jax.random.PRNGKey(3))
+        if share == 1.0:  # as the first evaluation's redraw leaves them (until then every match plays itself)
+            state = state.replace(opponent=jnp.full(8, EXPLOITER, jnp.int32))
+        return state, *jax.jit(sp.chunk)(state)
+
+    _, alone, _ = chunk(0.0)
+    assert alone.exploiter is None
+    before, idle, metrics = chunk(1e-9)
+    assert float(metrics["exploiter_games"]) == 0
+    jax.tree.map(np.testing.assert_array_equal, idle.exploiter, before.exploiter)
+    jax.tree.map(np.testing.assert_array_equal, idle.params, alone.params)
+    before, busy, metrics = chunk(1.0)
+    assert (np.asarray(busy.opponent) == EXPLOITER).all() and float(metrics["exploiter_games"]) > 0
+    assert 0.0 <= float(metrics["exploiter_score"]) <= 1.0
+    moved = jax.tree.map(lambda a, b: float(np.abs(np.asarray(a) - np.asarray(b)).max()), busy.exploiter,
+                         before.exploiter)
+    assert min(jax.tree.leaves(moved)) > 0
+
+
 def test_a_config_is_ppos_keys_with_self_plays_own():
     from fieldgen.agents.config import ConfigError
 
