@@ -280,6 +280,24 @@ def test_self_play_writes_ratings_resumes_exactly_and_is_judged(tmp_path, interr
 
 
 @pytest.mark.slow
+def test_a_run_with_an_exploiter_scores_its_games_and_resumes_exactly(tmp_path):
+    settings = [*TINY, "--set", "ppo.exploiter_share=0.5", "--set", "ppo.stagger_starts=true"]
+    whole, limited = tmp_path / "whole", tmp_path / "limited"
+    result = runner.invoke(app, ["train", "soccer_1v1", "--out", str(whole), *settings])
+    assert result.exit_code == 0, result.output
+    rows = record.read_metrics(whole / "soccer_1v1-ppo-0")
+    assert sum(r["exploiter_games"] for r in rows[1:]) > 0 and all(0 <= r["exploiter_score"] <= 1 for r in rows[1:])
+    # stopped after its first chunk, the exploiter's state in the checkpoint: the resume ends as the whole run
+    result = runner.invoke(app, ["train", "soccer_1v1", "--out", str(limited), "--time-limit", "1", *settings])
+    assert result.exit_code == TIME_LIMIT_STATUS, result.output
+    result = runner.invoke(app, ["train", "--resume", str(limited / "soccer_1v1-ppo-0")])
+    assert result.exit_code == 0, result.output
+    assert without_timings(record.read_metrics(limited / "soccer_1v1-ppo-0")) == without_timings(rows)
+    assert (limited / "soccer_1v1-ppo-0" / record.CHECKPOINT).read_bytes() == \
+        (whole / "soccer_1v1-ppo-0" / record.CHECKPOINT).read_bytes()
+
+
+@pytest.mark.slow
 def test_several_seeds_train_in_one_program_as_each_would_alone(tmp_path, interrupt_after_eval):
     """Seeds 0 and 1 in one run: seed 1 starts exactly as a run of seed 1 alone; its rows match that run's
     (the untrained evaluation to the bit, the first chunk's to float rounding: vmapped matrix products may add
