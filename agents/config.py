@@ -234,10 +234,20 @@ class RunConfig(BaseModel):
                 {key.value: node.value for key, node in pairs if isinstance(node, yaml.ScalarNode)})
 
     @classmethod
+    def read_elsewhere(cls, key: str) -> str | None:
+        """Which runs read `key`, where it is not this config's own but a config that extends it has it (then
+        the refusal says so rather than that the key is unknown); None otherwise."""
+        return None
+
+    @classmethod
     def _checked(cls, key: str, value, where: str, written: str | None = None):
         """`value` as the field `key` holds it; a ConfigError that says `where` it came from if it cannot be,
         quoting a number past a float's range as it was `written` (1e400), not as Python reads it (inf)."""
         fields = cls.model_fields
+        reader = cls.read_elsewhere(key)
+        if reader is not None:
+            raise ConfigError(f"{where}: {cls.algo}.{key} is a setting of {reader}; this run does not read it: "
+                              "leave it out")
         if key not in fields:
             raise ConfigError(f"{where}: unknown config key {shown_text(str(key), quoted=True)}"
                               f"{did_you_mean(key, fields) or '.'} "

@@ -56,6 +56,14 @@ class PPOConfig(RunConfig):
     reward: Reward = "dense"  # dense: the field's weighted terms; sparse: its success metric
     normalize_observations: StrictBool = True
 
+    @classmethod
+    def read_elsewhere(cls, key: str) -> str | None:
+        from ..selfplay import SelfPlayConfig
+
+        if cls is PPOConfig and key in SelfPlayConfig.model_fields and key not in cls.model_fields:
+            return "self-play, which trains team fields (soccer_1v1, soccer_2v2)"
+        return None
+
     @property
     def iterations_per_eval(self) -> int:
         """The whole iterations between two evaluations, which the trainer scans; a remainder is not run."""

@@ -185,6 +185,19 @@ def test_a_config_is_ppos_keys_with_self_plays_own():
         SelfPlayConfig.layered(sets=["ppo.pool_sampling=newest"])
 
 
+def test_a_self_play_key_given_to_a_single_agent_ppo_run_is_refused_as_self_plays():
+    from fieldgen.agents.ppo.config import PPOConfig
+
+    for key in ("exploiter_share=0.3", "self_play_share=0.2", "pool_size=4"):
+        with pytest.raises(ConfigError, match=rf"--set ppo.{key}: ppo.{key.split('=')[0]} is a setting of "
+                                              r"self-play, which trains team fields \(soccer_1v1, soccer_2v2\)"):
+            PPOConfig.layered(sets=[f"ppo.{key}"])
+    with pytest.raises(ConfigError, match="unknown config key 'exploitr_share'"):
+        PPOConfig.layered(sets=["ppo.exploitr_share=0.3"])
+    assert PPOConfig.layered(sets=["ppo.hidden=[8]"]).hidden == (8,)  # PPO's own keys, self-play's too, still read
+    assert SelfPlayConfig.layered(sets=["ppo.exploiter_share=0.3"]).exploiter_share == 0.3
+
+
 @functools.cache
 def match_env(name: str):
     import fieldgen
