@@ -235,8 +235,8 @@ class RunConfig(BaseModel):
 
     @classmethod
     def read_elsewhere(cls, key: str) -> str | None:
-        """Which runs read `key`, where it is not this config's own but a config that extends it has it (then
-        the refusal says so rather than that the key is unknown); None otherwise."""
+        """Which runs read `key`, a key this config does not have but one that extends it does (the refusal
+        then says so rather than that the key is unknown); None otherwise."""
         return None
 
     @classmethod
@@ -244,11 +244,11 @@ class RunConfig(BaseModel):
         """`value` as the field `key` holds it; a ConfigError that says `where` it came from if it cannot be,
         quoting a number past a float's range as it was `written` (1e400), not as Python reads it (inf)."""
         fields = cls.model_fields
-        reader = cls.read_elsewhere(key)
-        if reader is not None:
-            raise ConfigError(f"{where}: {cls.algo}.{key} is a setting of {reader}; this run does not read it: "
-                              "leave it out")
         if key not in fields:
+            reader = cls.read_elsewhere(key)
+            if reader is not None:
+                raise ConfigError(f"{where}: {cls.algo}.{key} is a setting of {reader}; this run does not read it: "
+                                  "leave it out")
             raise ConfigError(f"{where}: unknown config key {shown_text(str(key), quoted=True)}"
                               f"{did_you_mean(key, fields) or '.'} "
                               f"Keys: {', '.join(fields)}.")

@@ -60,7 +60,7 @@ class PPOConfig(RunConfig):
     def read_elsewhere(cls, key: str) -> str | None:
         from ..selfplay import SelfPlayConfig
 
-        if cls is PPOConfig and key in SelfPlayConfig.model_fields and key not in cls.model_fields:
+        if key in SelfPlayConfig.model_fields:
             return "self-play, which trains team fields (soccer_1v1, soccer_2v2)"
         return None
 
