@@ -244,6 +244,14 @@ def make_selfplay(config: SelfPlayConfig, env) -> SelfPlay:
             ts = ts.replace(exploiter=exploiter, exploiter_opt=tx.init(exploiter))
         return ts.replace(league=league)
 
+    def drawn(params, obs, key, learns):
+        """One network's step in every match: its actions drawn before tanh (`raw`), their log-probabilities, its
+        values, and the agents it drives (`learns`, the steps it learns from)."""
+        mean, log_std = distribution(params, obs)
+        noise = jax.random.normal(key, mean.shape)
+        return {"raw": mean + jnp.exp(log_std) * noise, "log_prob": log_prob(log_std, noise),
+                "value": value_net.apply(params["value"], obs)[..., 0], "learns": learns.astype(jnp.float32)}
+
     def rollout(ts: SelfPlayState):
         ids = jnp.maximum(ts.newest - jnp.arange(c.pool_size), 0)
         pool = jax.tree.map(lambda x: x[ids], ts.league)  # [pool_size, ...], newest first
@@ -254,44 +262,35 @@ def make_selfplay(config: SelfPlayConfig, env) -> SelfPlay:
             # random opponents' actions fold into k_opp, so runs without them draw as they did before
             k_act, k_opp, k_draw = jax.random.split(key, 3)
             obs = ts.normalizer(env_state.obs, c.normalize_observations)  # [envs, agents, n]
-            mean, log_std = distribution(ts.params, obs)
-            noise = jax.random.normal(k_act, mean.shape)
-            raw = mean + jnp.exp(log_std) * noise
+            learns = controls(opponent, learner_side)
+            mine = drawn(ts.params, obs, k_act, learns)
             theirs = pool_actions(act, pool, env_state.obs, k_opp, c.opponent_actions)
             slot = jnp.clip(ts.newest - opponent, 0, c.pool_size - 1)
             theirs = theirs[slot, envs]
             if c.random_share > 0:  # drawn only where a random policy can be an opponent
-                uniform = jax.random.uniform(jax.random.fold_in(k_opp, c.pool_size), mean.shape, minval=-1.0,
+                uniform = jax.random.uniform(jax.random.fold_in(k_opp, c.pool_size), mine["raw"].shape, minval=-1.0,
                                              maxval=1.0)
                 theirs = jnp.where((opponent == RANDOM)[:, None, None], uniform, theirs)
-            learns = controls(opponent, learner_side)
-            actions = jnp.where(learns[..., None], jnp.tanh(raw), theirs)
+            actions = jnp.where(learns[..., None], jnp.tanh(mine["raw"]), theirs)
             if exploits:
-                x_mean, x_log_std = distribution(ts.exploiter, obs)
-                x_noise = jax.random.normal(jax.random.fold_in(k_act, 1), x_mean.shape)
-                x_raw = x_mean + jnp.exp(x_log_std) * x_noise
-                x_learns = (opponent == EXPLOITER)[:, None] & ~learns
-                actions = jnp.where(x_learns[..., None], jnp.tanh(x_raw), actions)
+                exploiter = drawn(ts.exploiter, obs, jax.random.fold_in(k_act, 1),
+                                  (opponent == EXPLOITER)[:, None] & ~learns)
+                actions = jnp.where(exploiter["learns"][..., None] > 0, jnp.tanh(exploiter["raw"]), actions)
             nxt = jax.vmap(env.step)(env_state, actions)
             success = nxt.metrics["success"]  # [envs, 2]
             side_reward = nxt.reward if c.reward == "dense" else success - success[:, ::-1]
-            value = value_net.apply(ts.params["value"], obs)[..., 0]
             # the learner's training games against snapshots, each scored once, when it ends
-            mine, other = success[envs, learner_side], success[envs, 1 - learner_side]
+            score = 0.5 + 0.5 * (success[envs, learner_side] - success[envs, 1 - learner_side])
             counted = nxt.done * (opponent >= 0)
             at = jnp.maximum(opponent, 0)
-            wins = wins.at[at].add(counted * (0.5 + 0.5 * (mine - other)))
+            wins = wins.at[at].add(counted * score)
             games = games.at[at].add(counted)
-            data = {"obs": env_state.obs, "raw": raw, "log_prob": log_prob(log_std, noise), "value": value,
-                    "reward": side_reward[:, sides], "done": nxt.done, "learns": learns.astype(jnp.float32),
+            data = {"obs": env_state.obs, **mine, "reward": side_reward[:, sides], "done": nxt.done,
                     "goals": jnp.sum(success, -1)}
             if exploits:  # the exploiter's own stream, and the policy's games against it
                 played = nxt.done * (opponent == EXPLOITER)
-                data["exploiter"] = {"raw": x_raw, "log_prob": log_prob(x_log_std, x_noise),
-                                     "value": value_net.apply(ts.exploiter["value"], obs)[..., 0],
-                                     "learns": x_learns.astype(jnp.float32)}
-                data["exploiter_games"] = jnp.sum(played)
-                data["exploiter_points"] = jnp.sum(played * (0.5 + 0.5 * (mine - other)))
+                data |= {"exploiter": exploiter, "exploiter_games": jnp.sum(played),
+                         "exploiter_points": jnp.sum(played * score)}
             fresh_opponent, fresh_side = draw_opponents(c, k_draw, c.num_envs, ts.newest, ts.taken, wins, games)
             ended = nxt.done > 0
             opponent = jnp.where(ended, fresh_opponent, opponent)
