@@ -16,9 +16,10 @@ TINY_SELFPLAY = ["--steps", "2400", "--envs", "8", "--set", "ppo.unroll_length=1
 
 def as_if_learned(run):
     """A run folder set up with `fieldgen train --prepare` given a learner.msgpack of exactly the shapes its
-    trainer learns (zeros, from the trainer's traced shapes: no program compiled or run), so that it reads as a
-    run that has learned wherever only its record and the shapes of what it learned are read: the refusals of
-    --init-from, export and view. Training the tiny run instead costs most of a minute on two CPU cores."""
+    trainer learns (zeros, from the trainer's traced shapes: no program compiled or run) and an evaluation at 0
+    env steps a seed, so that it reads as a run that has learned wherever only its record and the shapes of what
+    it learned are read: the refusals of --init-from, export, view and eval, and what eval plays. Training the
+    tiny run instead costs most of a minute on two CPU cores."""
     import jax
     import numpy as np
 
@@ -26,6 +27,8 @@ def as_if_learned(run):
     from fieldgen.files import write_atomic
     from fieldgen.run import record, session
 
-    shapes = session.learner_template(session.open_run(run, load_state=False))
+    prepared = session.open_run(run, load_state=False)
+    shapes = session.learner_template(prepared)
     write_atomic(run / record.LEARNER, checkpoint.pieces(jax.tree.map(lambda s: np.zeros(s.shape, s.dtype), shapes)))
+    record.write_metrics(run, [{"eval": 0, "seed": seed, "env_steps": 0} for seed in prepared.seeds])
     return run

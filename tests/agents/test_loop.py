@@ -269,11 +269,11 @@ def test_the_evaluation_reports_the_share_of_steps_an_agent_with_a_torso_spent_t
 def test_staggered_starts_spread_the_first_episodes_ends_and_leave_the_later_ones_whole(env_cache):
     env = env_cache("point_nav", episode_length=12)
     key = jax.random.PRNGKey(5)
-    plain = loop.first_states(env, ppo.PPOConfig(num_envs=64), key)
-    same = jax.vmap(env.reset)(jax.random.split(key, 64))
+    plain = jax.jit(lambda k: loop.first_states(env, ppo.PPOConfig(num_envs=64), k))(key)
+    same = jax.jit(jax.vmap(env.reset))(jax.random.split(key, 64))
     for a, b in zip(jax.tree.leaves(plain), jax.tree.leaves(same)):  # off: the batch every run began with
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
-    staggered = loop.first_states(env, ppo.PPOConfig(num_envs=64, stagger_starts=True), key)
+    staggered = jax.jit(lambda k: loop.first_states(env, ppo.PPOConfig(num_envs=64, stagger_starts=True), k))(key)
     begun = np.asarray(staggered.info["episode_step"])
     assert begun.min() >= 0 and begun.max() < 12 and len(set(begun.tolist())) > 6
     np.testing.assert_array_equal(np.asarray(staggered.obs), np.asarray(plain.obs))  # the same first states

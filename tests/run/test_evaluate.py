@@ -384,12 +384,11 @@ def test_a_quick_evaluation_keeps_the_summary_of_more_episodes_and_writes_its_ow
     assert judging.kept_beside(team, 1024) == (team, None)
 
 
-def test_a_video_of_the_users_where_eval_films_says_how_to_go_on_without_it(trained, tmp_path):
+def test_a_video_of_the_users_where_eval_films_says_how_to_go_on_without_it(tmp_path):
     """Before: "move it aside or choose another --no-video", as if --no-video named a path."""
-    import shutil
+    from tiny_runs import as_if_learned
 
-    run = tmp_path / "run"
-    shutil.copytree(trained, run)
+    run = as_if_learned(prepared(tmp_path, "point_nav"))
     (run / "eval.gif").write_bytes(b"a video of mine")
     result = runner.invoke(app, ["eval", str(run), "--episodes", "2", "--video-format", "gif"])
     assert result.exit_code == 1 and "Traceback" not in result.output, result.output
