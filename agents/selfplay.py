@@ -16,7 +16,9 @@ exploiter): a second network of the same shape, with its own optimiser, that lea
 those matches, so that it seeks whatever the policy loses to, where a policy against itself gains on one side
 what it gives up on the other. Its observations are normalised with the policy's statistics; it is never a
 snapshot nor judged; the policy's score against it in training (wins 1, draws 1/2) is the metric
-`exploiter_score`, over the `exploiter_games` that ended in the chunk.
+`exploiter_score`, over the `exploiter_games` that ended in the chunk. With `exploiter_reset_every` N, at every
+Nth evaluation it becomes a copy of the policy with a fresh optimiser (a league's exploiter reset, forked from the
+policy rather than from nothing).
 
 The learner is PPO as agents/ppo/train.py trains it (the same clipped surrogate, GAE, squashed Gaussian,
 observation normaliser and settings under `ppo.`), each agent a stream of its own: its side's reward (the
@@ -46,7 +48,7 @@ from pydantic import Field
 from ..env.contract import OVERFLOW, merged_overflow
 from .actor import Policy
 from .choices import EVAL_ACTIONS
-from .config import ConfigError, Count, Float, Rate, Share, Unknown
+from .config import ConfigError, Count, Float, Int, Rate, Share, Unknown
 from .loop import batched_with, first_states
 from .ppo.config import PPOConfig
 from .ppo.train import Normalizer, advantages, exported_policy, gaussian, networks, optimizer, squashed_entropy
@@ -73,6 +75,9 @@ class SelfPlayConfig(PPOConfig):
     self_play_share: Share = 0.5  # episodes the policy plays against itself rather than a snapshot
     random_share: Share = 0.0  # episodes it plays against a random policy (uniform actions)
     exploiter_share: Share = 0.0  # episodes it plays against the exploiter, which learns only from those
+    # every this many evaluations the exploiter starts again from a copy of the policy (0: never), so that it
+    # seeks what the policy of now loses to rather than holding an old rival
+    exploiter_reset_every: Annotated[Int, Field(ge=0)] = 0
     # how snapshots act in training matches: drawn from their policies, or their mean actions, as the evaluations
     # play them (the opponent the policy is judged against)
     opponent_actions: OpponentActions = "sampled"
@@ -433,6 +438,12 @@ def make_selfplay(config: SelfPlayConfig, env) -> SelfPlay:
         _, filmed = jax.lax.scan(step, env_state, jax.random.split(k_play, env.episode_length))
         return filmed
 
+    def forked(ts: SelfPlayState, now) -> SelfPlayState:
+        """The state with its exploiter a copy of the policy and a fresh optimiser where `now`, else as it was."""
+        pick = lambda new, old: jax.tree.map(lambda a, b: jnp.where(now, a, b), new, old)  # noqa: E731
+        return ts.replace(exploiter=pick(ts.params, ts.exploiter),
+                          exploiter_opt=pick(tx.init(ts.params), ts.exploiter_opt))
+
     def judge(ts: SelfPlayState, index, opponents, key):
         """The state with snapshot `index` taken (the current policy; every environment's opponent drawn anew)
         and its results: {"random": [3], "earlier": [league_opponents, 3]} (rows of an opponent id below 0
@@ -444,6 +455,8 @@ def make_selfplay(config: SelfPlayConfig, env) -> SelfPlay:
         opponent, side = draw_opponents(c, key_draw, c.num_envs, index, taken, wins, games)
         ts = ts.replace(league=league, taken=taken, newest=jnp.asarray(index, jnp.int32), wins=wins, games=games,
                         opponent=opponent, learner_side=side, key=key_next)
+        if exploits and c.exploiter_reset_every:
+            ts = forked(ts, (index > 0) & (index % c.exploiter_reset_every == 0))
         me = current(ts)
         vs_random, flags = match(me, None, jax.random.fold_in(key, 0))
         nothing = jax.tree.map(lambda x: jnp.zeros(x.shape, x.dtype), (vs_random, flags))  # no match played

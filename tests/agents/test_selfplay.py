@@ -176,6 +176,29 @@ def test_the_exploiter_learns_from_its_own_matches_alone():
     assert min(jax.tree.leaves(moved)) > 0
 
 
+@pytest.mark.slow
+def test_the_exploiter_becomes_a_copy_of_the_policy_at_every_nth_evaluation():
+    """With exploiter_reset_every 2, the evaluation that takes snapshot 2 makes the exploiter the policy with a
+    fresh optimiser; snapshot 1's leaves it as it was."""
+    env = match_env("soccer_1v1")
+    sp = make_selfplay(SelfPlayConfig(total_steps=1600, num_envs=8, unroll_length=10, num_minibatches=4, num_evals=2,
+                                      hidden=(8,), eval_envs=2, league_opponents=1, exploiter_share=0.3,
+                                      exploiter_reset_every=2), env)
+    state = jax.jit(sp.init)(jax.random.PRNGKey(3))
+    fresh = state.exploiter_opt  # an optimiser as it starts (the exploiter's shapes are the policy's)
+    worn = jax.tree.map(lambda x: x + 1, fresh)  # one that has stepped
+    state = state.replace(exploiter_opt=worn)
+    judge = jax.jit(sp.judge)
+    kept, _ = judge(state, 1, jnp.zeros(1, jnp.int32), jax.random.PRNGKey(0))
+    jax.tree.map(np.testing.assert_array_equal, kept.exploiter, state.exploiter)
+    jax.tree.map(np.testing.assert_array_equal, kept.exploiter_opt, worn)
+    assert not all(np.array_equal(a, b) for a, b in zip(jax.tree.leaves(state.exploiter),
+                                                         jax.tree.leaves(state.params)))  # two networks till then
+    forked, _ = judge(state, 2, jnp.zeros(1, jnp.int32), jax.random.PRNGKey(0))
+    jax.tree.map(np.testing.assert_array_equal, forked.exploiter, state.params)
+    jax.tree.map(np.testing.assert_array_equal, forked.exploiter_opt, fresh)
+
+
 def test_a_config_is_ppos_keys_with_self_plays_own():
     from fieldgen.agents.config import ConfigError
 
