@@ -440,7 +440,9 @@ def make_selfplay(config: SelfPlayConfig, env) -> SelfPlay:
 
     def forked(ts: SelfPlayState, now) -> SelfPlayState:
         """The state with its exploiter a copy of the policy and a fresh optimiser where `now`, else as it was."""
-        pick = lambda new, old: jax.tree.map(lambda a, b: jnp.where(now, a, b), new, old)  # noqa: E731
+        def pick(new, old):
+            return jax.tree.map(lambda a, b: jnp.where(now, a, b), new, old)
+
         return ts.replace(exploiter=pick(ts.params, ts.exploiter),
                           exploiter_opt=pick(tx.init(ts.params), ts.exploiter_opt))
 
