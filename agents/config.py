@@ -79,6 +79,7 @@ def _count_text(value):
 # integer it would end in an OverflowError where it first sizes an array
 Int = Annotated[int, BeforeValidator(not_boolean), Field(ge=-COUNT_MAX, le=COUNT_MAX)]
 Count = Annotated[Int, Field(gt=0), BeforeValidator(_count_text)]  # how many of something: at least one
+Steps = Annotated[Int, Field(ge=0), BeforeValidator(_count_text)]  # env steps where something changes; 0: from the start
 Float = Annotated[float, BeforeValidator(not_boolean), Field(allow_inf_nan=False)]
 Rate = Annotated[Float, Field(gt=0)]  # a learning rate, a step size, a scale
 Share = Annotated[Float, Field(ge=0, le=1)]

@@ -7,7 +7,7 @@ from typing import Annotated, ClassVar, Literal
 from pydantic import Field
 
 from ...env.contract import Environment
-from ..config import ConfigError, Count, Float, Int, Rate, ReplayConfig, Share, Unknown
+from ..config import ConfigError, Count, Float, Int, Rate, ReplayConfig, Share, Steps, Unknown
 from ..contrastive import ENERGIES, LOSSES
 from ..networks import MATMULS, residual_blocks
 
@@ -33,6 +33,10 @@ class CRLConfig(ReplayConfig):
     # a minibatch's pairs drawn this many at a time from one episode's window (agents.buffer.minibatch_rows):
     # its negatives then include states of the same episode, told apart by what moved; 1: the reference
     pairs_per_window: Count = 1
+    # a share of each iteration's minibatch updates taken until the run's env steps reach early_until, all of
+    # them after: while nothing has been learned, the learner's steps cost the clock most and teach least
+    early_updates: Annotated[Float, Field(gt=0, le=1)] = 1.0
+    early_until: Steps = 0  # env steps (10M as --steps takes it); 0: every update from the start
 
     def validate_env(self, env: Environment, devices: int = 1, seeds: int = 1) -> None:
         super().validate_env(env, devices, seeds)

@@ -57,6 +57,8 @@ def make_train(config: CRLConfig, env, team: Team | None = None, shared: bool = 
     goal_indices = jnp.asarray(env.goal_indices)
     window = env.episode_length
     windows, updates = replay.gradient_steps(config, window)
+    scheduled = c.early_until > 0 and c.early_updates < 1
+    early_count = max(1, round(c.early_updates * updates))  # at least one: an epoch's losses are its last one's
     seen, own, goal_size = team.observed.shape[1], team.actions.shape[1], len(env.goal_indices)
     # one batched network call evaluates the actor and both encoders together
     nets = Stacked(c.hidden, (seen + goal_size, seen + own, goal_size), (2 * own, c.repr_dim, c.repr_dim),
@@ -164,6 +166,10 @@ def make_train(config: CRLConfig, env, team: Team | None = None, shared: bool = 
         return ts.replace(nets=params, log_temperature=log_temperature, log_alpha=log_alpha, opt=opt,
                           grad_steps=ts.grad_steps + 1)
 
+    def taken(batch: dict, i) -> dict:
+        """Minibatch i of an epoch's batch, i a number or a traced index."""
+        return jax.tree.map(lambda x: jax.lax.dynamic_index_in_dim(x, i, keepdims=False), batch)
+
     def update_epoch(ts: TrainState) -> tuple[TrainState, dict]:
         """Windows from the buffer, hindsight goals, then one pass of shuffled minibatch updates."""
         if commanded:
@@ -184,13 +190,35 @@ def make_train(config: CRLConfig, env, team: Team | None = None, shared: bool = 
             return update(ts, minibatch, k), None
 
         keys = jax.random.split(k_upd, updates)
-        # two updates per loop iteration: a GPU pays a loop-condition round trip per iteration
-        ts, _ = jax.lax.scan(body, ts.replace(key=key), (batch, keys), unroll=2)
+        if scheduled:
+            ts, last = scheduled_updates(ts.replace(key=key), batch, keys)
+        else:
+            # two updates per loop iteration: a GPU pays a loop-condition round trip per iteration
+            ts, _ = jax.lax.scan(body, ts.replace(key=key), (batch, keys), unroll=2)
+            last = updates - 1
         # the losses are logged once per epoch, on its last minibatch after the updates: computing them at
         # every step would cost a GPU more small kernels than the step's own matmuls
-        last = jax.tree.map(lambda x: x[-1], batch)
-        _, metrics = losses((ts.nets, ts.log_temperature, ts.log_alpha), last, keys[-1])
+        _, metrics = losses((ts.nets, ts.log_temperature, ts.log_alpha), taken(batch, last), keys[last])
         return ts, {**metrics, "alpha": jnp.mean(jnp.exp(ts.log_alpha))}
+
+    def scheduled_updates(ts: TrainState, batch: dict, keys: jax.Array) -> tuple[TrainState, jax.Array]:
+        """The epoch's first `early_updates` share of minibatch updates before `early_until` env steps, all of
+        them after; returns the state and the last minibatch's index. The count is a loop bound, not a mask:
+        under the seeds' vmap every seed holds the same env steps, so the loop stops for all at once and the
+        updates left out are never computed. The second update of each pair is a cond, which under vmap computes
+        it whatever the count says: an odd count costs one update it does not keep."""
+        active = jnp.where(ts.env_steps < min(c.early_until, jnp.iinfo(ts.env_steps.dtype).max), early_count, updates)
+
+        def pair(carry):
+            ts, i = carry
+            ts = update(ts, taken(batch, i), keys[i])
+            second = jnp.minimum(i + 1, updates - 1)  # two per loop iteration, as the scan's unroll
+            ts = jax.lax.cond(i + 1 < active, lambda t: update(t, taken(batch, second), keys[second]),
+                              lambda t: t, ts)
+            return ts, i + 2
+
+        ts, _ = jax.lax.while_loop(lambda carry: carry[1] < active, pair, (ts, jnp.zeros((), jnp.int32)))
+        return ts, active - 1
 
     def prefill(ts: TrainState) -> TrainState:
         return jax.lax.fori_loop(0, prefill_iters, lambda _, ts: collect(ts)[0], ts)

@@ -225,3 +225,44 @@ def test_pairs_per_window_must_divide_the_batch_and_fit_an_episode(env_cache, ti
         with pytest.raises(ConfigError, match=f"crl.pairs_per_window {bad} must divide batch_size .* at most an "
                                               f"episode's {longest} steps"):
             tiny_crl(pairs_per_window=bad, **changes).validate_env(env)
+
+
+@pytest.mark.slow
+def test_early_updates_take_a_share_of_the_updates_until_their_env_steps_and_each_as_the_full_epoch_does(
+        env_cache, tiny_crl):
+    """Before `early_until` env steps an iteration takes the first `early_updates` share of its minibatch updates,
+    every seed of the program alike, and all of them after; an early share that rounds to every update learns
+    what the epoch without a schedule learns, update for update."""
+    import jax
+
+    from fieldgen.agents.buffer import gradient_steps, iterations
+    from fieldgen.agents.crl import make_train
+    from fieldgen.agents.loop import run
+
+    env = env_cache("point_nav")
+    plain = tiny_crl()
+    _, per_eval = iterations(plain)
+    _, updates = gradient_steps(plain, env.episode_length)
+    early = round(0.5 * updates)
+    scheduled = tiny_crl(early_updates=0.5, early_until=plain.steps_at(1) + 1)  # the first chunk's iterations
+    state, _ = run(make_train(scheduled, env), [0, 1], scheduled.num_evals)
+    assert np.asarray(state.grad_steps).tolist() == [per_eval * (early + updates)] * 2
+    assert early < updates
+
+    every = tiny_crl(early_updates=1 - 0.4 / updates, early_until=10 ** 9)  # rounds to every update
+    alike, _ = run(make_train(every, env), [0], every.num_evals)
+    reference, _ = run(make_train(plain, env), [0], plain.num_evals)
+    assert int(alike.grad_steps[0]) == int(reference.grad_steps[0]) == 2 * per_eval * updates
+    for got, want in zip(jax.tree.leaves(alike.nets), jax.tree.leaves(reference.nets)):
+        np.testing.assert_allclose(np.asarray(got), np.asarray(want), rtol=1e-5, atol=1e-6)
+
+
+def test_an_early_share_of_updates_outside_zero_to_one_is_refused(tiny_crl):
+    from fieldgen.agents.config import ConfigError
+
+    for bad in (0, 1.5):
+        with pytest.raises((ConfigError, ValueError), match="early_updates"):
+            tiny_crl(early_updates=bad)
+    with pytest.raises((ConfigError, ValueError), match="early_until"):
+        tiny_crl(early_until=-1)
+    assert tiny_crl(early_until="10M").early_until == 10_000_000
