@@ -59,6 +59,7 @@ def make_train(config: CRLConfig, env, team: Team | None = None, shared: bool = 
     windows, updates = replay.gradient_steps(config, window)
     scheduled = c.early_until > 0 and c.early_updates < 1
     early_count = max(1, round(c.early_updates * updates))  # at least one: an epoch's losses are its last one's
+    early_until = min(c.early_until, jnp.iinfo(jnp.int32).max)  # compared with the state's int32 env steps
     seen, own, goal_size = team.observed.shape[1], team.actions.shape[1], len(env.goal_indices)
     # one batched network call evaluates the actor and both encoders together
     nets = Stacked(c.hidden, (seen + goal_size, seen + own, goal_size), (2 * own, c.repr_dim, c.repr_dim),
@@ -207,7 +208,7 @@ def make_train(config: CRLConfig, env, team: Team | None = None, shared: bool = 
         under the seeds' vmap every seed holds the same env steps, so the loop stops for all at once and the
         updates left out are never computed. The second update of each pair is a cond, which under vmap computes
         it whatever the count says: an odd count costs one update it does not keep."""
-        active = jnp.where(ts.env_steps < min(c.early_until, jnp.iinfo(ts.env_steps.dtype).max), early_count, updates)
+        active = jnp.where(ts.env_steps < early_until, early_count, updates)
 
         def pair(carry):
             ts, i = carry
