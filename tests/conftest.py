@@ -34,19 +34,26 @@ def pytest_configure(config):
     command it invokes or by a `fieldgen` process it starts is the same cache entry.
 
     The tests' programs run for seconds and compile for minutes: at LLVM's -O0 a tiny CRL run's programs
-    compile in half the time, and agree with -O2's to float32 rounding."""
+    compile in half the time, and agree with -O2's to float32 rounding.
+
+    The session's own cache keeps every program, not only those JAX deems slow to compile (a second by
+    default): the tests compile many small programs again and again, in other workers, in the commands they
+    start, and for fields built twice from the same spec."""
     xla_flags.apply()
     if "xla_backend_optimization_level" not in os.environ["XLA_FLAGS"]:
         os.environ["XLA_FLAGS"] += " --xla_backend_optimization_level=0"
     if "JAX_COMPILATION_CACHE_DIR" in os.environ:  # the user's own cache, or the controller's
         return
     os.environ["JAX_COMPILATION_CACHE_DIR"] = tempfile.mkdtemp(prefix="fieldgen-test-jax-cache-")
+    os.environ["JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS"] = "0"
     config.owns_jax_cache = True
     jax.config.update("jax_compilation_cache_dir", os.environ["JAX_COMPILATION_CACHE_DIR"])
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
 
 
 def pytest_unconfigure(config):
     if getattr(config, "owns_jax_cache", False):
+        os.environ.pop("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", None)
         shutil.rmtree(os.environ.pop("JAX_COMPILATION_CACHE_DIR"), ignore_errors=True)
 
 
