@@ -23,7 +23,13 @@ def run(*args, cwd: Path, env: dict | None = None) -> str:
 
 
 def test_a_built_wheel_installed_elsewhere_has_its_fields_and_trainers(tmp_path):
-    run(sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "-w", tmp_path / "dist", ROOT, cwd=tmp_path)
+    # setuptools builds inside the source folder unless told otherwise: its work folders go under tmp_path
+    settings = tmp_path / "setuptools.cfg"
+    settings.write_text(f"[build]\nbuild_base = {tmp_path / 'build'}\n[bdist_wheel]\nbdist_dir = {tmp_path / 'bdist'}\n")
+    checkout_had_build = (ROOT / "build").exists()
+    run(sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "-w", tmp_path / "dist", ROOT, cwd=tmp_path,
+        env={**os.environ, "DIST_EXTRA_CONFIG": str(settings)})
+    assert checkout_had_build or not (ROOT / "build").exists()
     wheel = next((tmp_path / "dist").glob("fieldgen-*.whl"))
     venv = tmp_path / "venv"
     run(sys.executable, "-m", "venv", "--without-pip", venv, cwd=tmp_path)
